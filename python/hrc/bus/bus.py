@@ -1,0 +1,280 @@
+"""Typed publish/subscribe over one Zenoh session.
+
+Every payload is a message of the wire contract (``hrc.wire.pb``). Every put carries the sender's
+service name as the Zenoh attachment, so a payload that fails to decode can still be attributed:
+it is counted per key, logged with key and sender, and never reaches service code.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import threading
+import time
+from collections import Counter
+from typing import Callable, Generic, Iterable, TypeVar
+
+import zenoh
+from google.protobuf.message import DecodeError, Message
+
+from hrc.bus.config import BusConfig
+from hrc.bus.keys import Keys, check_name
+from hrc.wire import pb
+
+log = logging.getLogger(__name__)
+
+M = TypeVar("M", bound=Message)
+R = TypeVar("R", bound=Message)
+
+
+class InputStats:
+    """Thread-safe counters of what a service received."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.decode_errors: Counter[str] = Counter()
+        self.subscribed: list[str] = []
+        self.ticks_seen = 0
+        self.last_tick = 0
+
+    def count_error(self, key: str) -> int:
+        with self._lock:
+            self.decode_errors[key] += 1
+            return self.decode_errors[key]
+
+    def tick(self, k: int) -> None:
+        with self._lock:
+            self.ticks_seen += 1
+            self.last_tick = k
+
+    def to_proto(self, service: str) -> pb.ServiceStats:
+        with self._lock:
+            msg = pb.ServiceStats(service=service, subscribed=list(self.subscribed),
+                                  ticks_seen=self.ticks_seen, last_tick=self.last_tick)
+            for k, v in self.decode_errors.items():
+                msg.decode_errors[k] = v
+        return msg
+
+
+def _finite(values: Iterable[float]) -> bool:
+    return all(math.isfinite(v) for v in values)
+
+
+def check_pose(pose: pb.Pose) -> str | None:
+    """NaN/inf poses are rejected at the door (SPEC §7)."""
+    p, q = pose.position, pose.orientation
+    if not _finite((p.x, p.y, p.z, q.x, q.y, q.z, q.w)):
+        return "pose has a NaN or infinite value"
+    return None
+
+
+class Publisher(Generic[M]):
+    """Publishes one message type on one key; fills the header (session, tick, time, sender, seq)."""
+
+    def __init__(self, bus: "Bus", key: str, *, express: bool, block: bool) -> None:
+        self.key = key
+        self._bus = bus
+        self.seq = 0
+        self._lock = threading.Lock()
+        self._pub = bus.session.declare_publisher(
+            key,
+            congestion_control=zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP,
+            express=express,
+        )
+
+    def put(self, msg: M, tick: int = 0, sim_time: float = 0.0) -> int:
+        with self._lock:
+            self.seq += 1
+            h = msg.header  # type: ignore[attr-defined]
+            h.session = self._bus.keys.session
+            h.tick = tick
+            h.sim_time = sim_time
+            h.sender = self._bus.sender
+            h.seq = self.seq
+            self._pub.put(msg.SerializeToString(), attachment=self._bus.sender_bytes)
+            return self.seq
+
+    def undeclare(self) -> None:
+        self._pub.undeclare()
+
+
+Validator = Callable[[Message], "str | None"]
+
+
+class Bus:
+    """One service's Zenoh session: typed publishers and subscribers, liveliness, queryables.
+
+    Use as a context manager; everything declared through it is undeclared on exit.
+    """
+
+    def __init__(self, config: BusConfig, sender: str) -> None:
+        self.config = config
+        self.keys = Keys(config.session)
+        self.sender = check_name("service name", sender)
+        self.sender_bytes = sender.encode()
+        self.stats = InputStats()
+        self._declared: list[object] = []
+        self._publishers: dict[str, Publisher] = {}
+        self.session = zenoh.open(config.to_zenoh())
+
+    # ------------------------------------------------------------------ lifecycle
+    def __enter__(self) -> "Bus":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        for d in reversed(self._declared):
+            try:
+                d.undeclare()  # type: ignore[attr-defined]
+            except Exception:  # already gone with the session; nothing to release
+                pass
+        self._declared.clear()
+        try:
+            self.session.close()
+        except Exception:
+            pass
+
+    # ------------------------------------------------------------------ publish
+    def publisher(self, key: str, *, express: bool = False, block: bool = True) -> Publisher:
+        """A publisher for ``key`` (one per key and service; asking twice returns the same one)."""
+        pub = self._publishers.get(key)
+        if pub is None:
+            pub = Publisher(self, key, express=express, block=block)
+            self._publishers[key] = pub
+            self._declared.append(pub)
+        return pub
+
+    def published_marks(self) -> list[pb.PublishedMark]:
+        """The last seq of every key this service has published on (for the tick protocol)."""
+        return [pb.PublishedMark(key=k, sender=self.sender, seq=p.seq)
+                for k, p in self._publishers.items() if p.seq > 0]
+
+    # ------------------------------------------------------------------ subscribe
+    def subscribe(self, key: str, msg_type: type[M], callback: Callable[[str, M], None],
+                  validate: Validator | None = None) -> None:
+        """Calls ``callback(key, msg)`` for each well-formed message on ``key``.
+
+        A payload is malformed when it does not decode as ``msg_type``, carries another session's
+        header, or fails ``validate``; it is counted, logged with key and sender, and dropped.
+        Exceptions raised by the callback are logged, never propagated into Zenoh.
+        """
+        self.stats.subscribed.append(key)
+        session = self.keys.session
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            k = str(sample.key_expr)
+            try:
+                msg = msg_type()
+                msg.ParseFromString(sample.payload.to_bytes())
+                problem = None
+                header = getattr(msg, "header", None)
+                if header is not None and header.session != session:
+                    problem = f"header session {header.session!r} is not {session!r}"
+                elif validate is not None:
+                    problem = validate(msg)
+            except (DecodeError, ValueError, RuntimeError) as exc:
+                problem = f"does not decode as {msg_type.DESCRIPTOR.name}: {exc}"
+            if problem is not None:
+                self._malformed(k, sample, problem)
+                return
+            try:
+                callback(k, msg)
+            except Exception:
+                log.exception("handler for %s failed", k)
+
+        self._declared.append(self.session.declare_subscriber(key, on_sample))
+
+    def _malformed(self, key: str, sample: zenoh.Sample, problem: str) -> None:
+        att = sample.attachment
+        sender = att.to_bytes().decode(errors="replace") if att is not None else "?"
+        n = self.stats.count_error(key)
+        log.warning("malformed message #%d on %s from sender %r: %s", n, key, sender, problem)
+
+    # ------------------------------------------------------------------ liveliness
+    def declare_token(self, service: str | None = None) -> None:
+        """Announce ``alive/<service>``; declare it after all subscriptions ("ready")."""
+        self._declared.append(self.session.liveliness().declare_token(
+            self.keys.alive(service or self.sender)))
+
+    def watch_liveliness(self, on_change: Callable[[str, bool], None]) -> None:
+        """``on_change(service, alive)`` for every service token of this session, past and future."""
+
+        def on_sample(sample: zenoh.Sample) -> None:
+            service = self.keys.last_segment(str(sample.key_expr))
+            on_change(service, sample.kind == zenoh.SampleKind.PUT)
+
+        self._declared.append(self.session.liveliness().declare_subscriber(
+            self.keys.alive_all(), on_sample, history=True))
+
+    def alive_services(self, timeout: float = 1.0) -> set[str]:
+        found: set[str] = set()
+        for reply in self.session.liveliness().get(self.keys.alive_all(), timeout=timeout):
+            if reply.ok is not None:
+                found.add(self.keys.last_segment(str(reply.ok.key_expr)))
+        return found
+
+    # ------------------------------------------------------------------ queries
+    def queryable(self, key: str, request_type: type[M] | None,
+                  handler: Callable[[M | None], Message]) -> None:
+        """Answers queries on ``key`` with ``handler(request)``; a malformed request gets an error."""
+
+        def on_query(query: zenoh.Query) -> None:
+            req = None
+            if request_type is not None:
+                req = request_type()
+                try:
+                    payload = query.payload
+                    req.ParseFromString(payload.to_bytes() if payload is not None else b"")
+                except DecodeError as exc:
+                    n = self.stats.count_error(key)
+                    log.warning("malformed query #%d on %s: %s", n, key, exc)
+                    query.reply_err(f"request does not decode as {request_type.DESCRIPTOR.name}")
+                    return
+            try:
+                reply = handler(req)
+            except Exception as exc:
+                log.exception("query handler for %s failed", key)
+                query.reply_err(f"{type(exc).__name__}: {exc}")
+                return
+            query.reply(key, reply.SerializeToString(), attachment=self.sender_bytes)
+
+        self._declared.append(self.session.declare_queryable(key, on_query))
+
+    def get(self, key: str, reply_type: type[R], request: Message | None = None,
+            timeout: float = 2.0) -> list[R]:
+        """Query ``key``; returns every decodable reply (errors are logged)."""
+        payload = request.SerializeToString() if request is not None else None
+        out: list[R] = []
+        for reply in self.session.get(key, payload=payload, timeout=timeout):
+            if reply.ok is None:
+                log.warning("query %s answered with an error: %s", key,
+                            reply.err.payload.to_bytes().decode(errors="replace"))
+                continue
+            msg = reply_type()
+            try:
+                msg.ParseFromString(reply.ok.payload.to_bytes())
+            except DecodeError:
+                log.warning("reply on %s does not decode as %s", key, reply_type.DESCRIPTOR.name)
+                continue
+            out.append(msg)
+        return out
+
+    def get_one(self, key: str, reply_type: type[R], request: Message | None = None,
+                timeout: float = 10.0, retry_every: float = 0.2) -> R:
+        """Query until one reply arrives (the server may still be starting) or ``timeout``."""
+        deadline = time.monotonic() + timeout
+        while True:
+            left = deadline - time.monotonic()
+            replies = self.get(key, reply_type, request, timeout=max(0.05, min(1.0, left)))
+            if replies:
+                return replies[0]
+            if time.monotonic() >= deadline:
+                raise TimeoutError(f"no reply on {key} within {timeout:g} s")
+            time.sleep(retry_every)
+
+    def serve_stats(self) -> None:
+        """``stats/<service>``: what this service subscribed to and how much garbage it saw."""
+        self.queryable(self.keys.stats(self.sender), None,
+                       lambda _req: self.stats.to_proto(self.sender))

@@ -1,0 +1,66 @@
+"""Zenoh session configuration shared by every Python service."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+from dataclasses import dataclass, field
+from typing import Literal
+
+import zenoh
+
+Mode = Literal["peer", "client", "router"]
+
+
+@dataclass
+class BusConfig:
+    """Where a service meets the others.
+
+    Defaults: peer mode on loopback, multicast scouting off (so nothing leaks onto the LAN and two
+    machines never join by accident), explicit endpoints, gossip on so peers that connected to the
+    same endpoint find each other.
+    """
+
+    session: str = "default"
+    mode: Mode = "peer"
+    connect: list[str] = field(default_factory=list)
+    listen: list[str] = field(default_factory=lambda: ["tcp/127.0.0.1:0"])
+    multicast_scouting: bool = False
+    config_file: str | None = None
+
+    def to_zenoh(self) -> zenoh.Config:
+        cfg = zenoh.Config.from_file(self.config_file) if self.config_file else zenoh.Config()
+        cfg.insert_json5("mode", json.dumps(self.mode))
+        cfg.insert_json5("scouting/multicast/enabled", json.dumps(self.multicast_scouting))
+        if self.connect:
+            cfg.insert_json5("connect/endpoints", json.dumps(self.connect))
+        if self.listen:
+            cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
+        return cfg
+
+
+def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options every service takes (environment variables give the defaults)."""
+    g = parser.add_argument_group("bus")
+    g.add_argument("--session", default=os.environ.get("HRC_SESSION", "default"),
+                   help="session id; every key is under hrc/<session>/ (env HRC_SESSION)")
+    g.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
+                   help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; "
+                        "env HRC_CONNECT, comma-separated)")
+    g.add_argument("--listen", action="append", default=None, metavar="ENDPOINT",
+                   help="Zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:0)")
+    g.add_argument("--zenoh-mode", choices=["peer", "client", "router"],
+                   default=os.environ.get("HRC_ZENOH_MODE", "peer"), help="Zenoh mode (default peer)")
+    g.add_argument("--zenoh-config", default=None, metavar="FILE",
+                   help="a Zenoh JSON5 config file applied before the options above")
+
+
+def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
+    connect = args.connect
+    if connect is None:
+        env = os.environ.get("HRC_CONNECT", "")
+        connect = [e for e in env.split(",") if e]
+    listen = args.listen if args.listen is not None else ["tcp/127.0.0.1:0"]
+    return BusConfig(session=args.session, mode=args.zenoh_mode, connect=connect, listen=listen,
+                     config_file=args.zenoh_config)

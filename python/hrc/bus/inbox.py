@@ -1,0 +1,111 @@
+"""Deterministic input delivery for the tick protocol.
+
+Messages from different Zenoh sessions arrive in no defined order relative to each other, and a
+peer may already publish its outputs for tick k while we are still computing k. So a service never
+handles a message when it arrives: the Inbox keeps it until the service asks for "everything up to
+tick k", then hands it over sorted by (subscription order, key, sender, seq) — the same order on
+any machine at any load.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import zenoh
+from google.protobuf.message import Message
+
+from hrc.bus.bus import Bus, Validator
+from hrc.wire import pb
+
+Handler = Callable[[str, Message], None]
+
+
+@dataclass(order=True)
+class _Pending:
+    index: int
+    key: str
+    sender: str
+    seq: int
+    tick: int = field(compare=False)
+    msg: Message = field(compare=False)
+
+
+class Inbox:
+    """Buffers typed inputs and releases them tick by tick."""
+
+    def __init__(self, bus: Bus) -> None:
+        self._bus = bus
+        self._cond = threading.Condition()
+        self._handlers: list[Handler] = []
+        self._exprs: list[zenoh.KeyExpr] = []
+        self._pending: list[_Pending] = []
+        self._received: dict[tuple[str, str], int] = {}
+        self._matches: dict[str, bool] = {}
+
+    def add(self, key: str, msg_type: type[Message], handler: Handler,
+            validate: Validator | None = None) -> None:
+        index = len(self._handlers)
+        self._handlers.append(handler)
+        self._exprs.append(zenoh.KeyExpr(key))
+
+        def on_msg(k: str, msg: Message) -> None:
+            h = msg.header  # type: ignore[attr-defined]
+            with self._cond:
+                self._pending.append(_Pending(index, k, h.sender, h.seq, h.tick, msg))
+                mark = (k, h.sender)
+                if h.seq > self._received.get(mark, 0):
+                    self._received[mark] = h.seq
+                self._cond.notify_all()
+
+        self._bus.subscribe(key, msg_type, on_msg, validate)
+
+    def _subscribed(self, key: str) -> bool:
+        hit = self._matches.get(key)
+        if hit is None:
+            ke = zenoh.KeyExpr(key)
+            hit = any(e.intersects(ke) for e in self._exprs)
+            self._matches[key] = hit
+        return hit
+
+    def missing(self, marks: list[pb.PublishedMark]) -> list[pb.PublishedMark]:
+        """The marks (on keys we subscribe to) whose messages have not all arrived yet."""
+        with self._cond:
+            return [m for m in marks if self._subscribed(m.key)
+                    and self._received.get((m.key, m.sender), 0) < m.seq]
+
+    def wait_for(self, marks: list[pb.PublishedMark], timeout: float) -> list[pb.PublishedMark]:
+        """Waits until every mark is satisfied; returns what is still missing at the timeout."""
+        wanted = [m for m in marks if self._subscribed(m.key)]
+        if not wanted:
+            return []
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                missing = [m for m in wanted if self._received.get((m.key, m.sender), 0) < m.seq]
+                left = deadline - time.monotonic()
+                if not missing or left <= 0:
+                    return missing
+                self._cond.wait(left)
+
+    def deliver(self, upto_tick: int, master: str | None = None) -> int:
+        """Hands every message of ticks < ``upto_tick`` to its handler (plus the clock master's of
+        tick ``upto_tick`` when ``master`` is given), in deterministic order. Returns the count."""
+        with self._cond:
+            ready = [p for p in self._pending
+                     if p.tick < upto_tick or (p.tick == upto_tick and p.sender == master)]
+            if not ready:
+                return 0
+            keep = [p for p in self._pending
+                    if not (p.tick < upto_tick or (p.tick == upto_tick and p.sender == master))]
+            self._pending = keep
+        ready.sort()
+        for p in ready:
+            self._handlers[p.index](p.key, p.msg)
+        return len(ready)
+
+    def deliver_through(self, tick: int) -> int:
+        """Hands over every message of ticks <= ``tick`` (the clock master after a barrier)."""
+        return self.deliver(tick + 1)

@@ -1,0 +1,161 @@
+"""The participant side of the tick protocol (docs/ARCHITECTURE.md).
+
+On clock tick k: wait until every message the clock says was published before k has arrived,
+hand those inputs to the service (Inbox), run the service's step for k, publish the ack.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass
+from typing import Callable
+
+from google.protobuf.message import Message
+
+from hrc.bus.bus import Bus, Validator
+from hrc.bus.inbox import Handler, Inbox
+from hrc.wire import pb
+
+log = logging.getLogger(__name__)
+
+CLOCK_MASTER = "physics"
+
+
+@dataclass
+class Outcome:
+    """How a participant's run ended."""
+
+    ok: bool
+    reason: str
+    run_end: pb.RunEnd | None = None
+
+    @property
+    def exit_code(self) -> int:
+        return 0 if self.ok else 1
+
+
+class LockstepParticipant:
+    """Takes part in the clock barrier (``ack=True``) or just follows it (observers).
+
+    Register inputs with :meth:`input` and the step with :meth:`on_tick` before :meth:`start`.
+    Inputs and steps run on the thread that calls :meth:`run`, never on Zenoh's threads.
+    """
+
+    def __init__(self, bus: Bus, *, ack: bool = True, input_timeout_s: float = 10.0) -> None:
+        self.bus = bus
+        self.name = bus.sender
+        self.ack = ack
+        self.input_timeout_s = input_timeout_s
+        self.inbox = Inbox(bus)
+        self._step: Callable[[pb.ClockTick], None] | None = None
+        self._cond = threading.Condition()
+        self._ticks: deque[pb.ClockTick] = deque()
+        self._busy = False  # a tick is being computed (one at a time, whichever thread)
+        self._running = False
+        self._end: Outcome | None = None
+        self._physics_seen = False
+        self.last_tick: pb.ClockTick | None = None
+        self._ack_pub = None
+
+    def input(self, key: str, msg_type: type[Message], handler: Handler,
+              validate: Validator | None = None) -> None:
+        self.inbox.add(key, msg_type, handler, validate)
+
+    def on_tick(self, step: Callable[[pb.ClockTick], None]) -> None:
+        self._step = step
+
+    def start(self) -> None:
+        """Subscribes to the clock and run end, serves stats, then announces readiness."""
+        keys = self.bus.keys
+        if self.ack:
+            self._ack_pub = self.bus.publisher(keys.clock_ack(self.name), express=True)
+        self.bus.subscribe(keys.clock(), pb.ClockTick, self._on_clock)
+        self.bus.subscribe(keys.run_end(), pb.RunEnd, self._on_run_end)
+        self.bus.watch_liveliness(self._on_liveliness)
+        self.bus.serve_stats()
+        self.bus.declare_token()
+
+    # ------------------------------------------------------------------ zenoh threads
+    def _on_clock(self, _key: str, tick: pb.ClockTick) -> None:
+        # Fast path: when nothing is queued and every input of the tick is here, compute it right
+        # on this thread (saves a thread hand-off per tick); otherwise the run() thread waits.
+        with self._cond:
+            inline = (not self._ticks and not self._busy and self._end is None
+                      and self._running and not self.inbox.missing(list(tick.published)))
+            if not inline:
+                self._ticks.append(tick)
+                self._cond.notify_all()
+                return
+            self._busy = True
+        try:
+            self._process(tick)
+        finally:
+            with self._cond:
+                self._busy = False
+                self._cond.notify_all()
+
+    def _on_run_end(self, _key: str, end: pb.RunEnd) -> None:
+        self._finish(Outcome(end.ok, end.reason, end))
+
+    def _on_liveliness(self, service: str, alive: bool) -> None:
+        if service != CLOCK_MASTER:
+            return
+        if alive:
+            self._physics_seen = True
+        elif self._physics_seen:
+            self._finish(Outcome(False, f"the clock master '{CLOCK_MASTER}' disappeared"))
+
+    def _finish(self, outcome: Outcome) -> None:
+        with self._cond:
+            if self._end is None:
+                self._end = outcome
+            self._cond.notify_all()
+
+    def stop(self, reason: str = "stopped") -> None:
+        self._finish(Outcome(False, reason))
+
+    # ------------------------------------------------------------------ main thread
+    def run(self, timeout: float | None = None) -> Outcome:
+        """Processes ticks until the run ends (or ``timeout`` seconds pass without one)."""
+        with self._cond:
+            self._running = True
+        while True:
+            with self._cond:
+                ok = self._cond.wait_for(
+                    lambda: (self._ticks and not self._busy) or self._end is not None, timeout)
+                if self._end is not None:
+                    return self._end
+                if not ok:
+                    return Outcome(False, f"no clock tick within {timeout:g} s")
+                tick = self._ticks.popleft()
+                self._busy = True
+            try:
+                self._process(tick)
+            finally:
+                with self._cond:
+                    self._busy = False
+
+    def _process(self, tick: pb.ClockTick) -> None:
+        t0 = time.perf_counter()
+        k = tick.header.tick
+        if tick.mode == pb.CLOCK_MODE_LOCKSTEP:
+            missing = self.inbox.wait_for(list(tick.published), self.input_timeout_s)
+            if missing:
+                names = ", ".join(f"{m.key}#{m.seq} from {m.sender}" for m in missing)
+                log.error("tick %d: inputs never arrived: %s", k, names)
+                self._finish(Outcome(False, f"tick {k}: inputs never arrived: {names}"))
+                return
+        self.inbox.deliver(k, master=CLOCK_MASTER)
+        self.last_tick = tick
+        self.bus.stats.tick(k)
+        if self._step is not None:
+            self._step(tick)
+        if self._ack_pub is not None:
+            ack = pb.TickAck(participant=self.name,
+                             compute_us=int((time.perf_counter() - t0) * 1e6))
+            ack_key = self._ack_pub.key
+            ack.published.extend(m for m in self.bus.published_marks() if m.key != ack_key)
+            self._ack_pub.put(ack, k, tick.header.sim_time)

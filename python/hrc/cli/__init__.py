@@ -1,0 +1,1 @@
+"""The ``hrc`` command-line interface."""

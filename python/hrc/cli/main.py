@@ -1,0 +1,158 @@
+"""The ``hrc`` command: run trials, validate scenarios, benchmarks and bus tools."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+from hrc.logsetup import setup_logging
+
+log = logging.getLogger("hrc")
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from hrc import scenario as sc
+
+    try:
+        s = sc.load(args.scenario, reach_checker=None if args.no_reach else sc.DEFAULT_REACH)
+    except sc.ScenarioError as exc:
+        print(str(exc), file=sys.stderr)
+        print(f"{len(exc.problems)} problem(s) found", file=sys.stderr)
+        return 1
+    n_parts = len(s.parts)
+    print(f"{args.scenario}: ok ({s.scenario.name}: {len(s.robots)} robots, {n_parts} parts)")
+    return 0
+
+
+def _cmd_run(args: argparse.Namespace) -> int:
+    from hrc import scenario as sc
+    from hrc.cli.runner import TrialOptions, default_trial_dir, run_trial
+    from hrc.cli.summary import print_summary
+
+    try:
+        s = sc.load(args.scenario)
+    except sc.ScenarioError as exc:
+        print(str(exc), file=sys.stderr)
+        print(f"scenario rejected: {len(exc.problems)} problem(s); nothing was started",
+              file=sys.stderr)
+        return 2
+    if args.ticks < 0:
+        print(f"--ticks must be >= 0, got {args.ticks}", file=sys.stderr)
+        return 2
+    anticipation = s.conditions.anticipation
+    trial_dir = (Path(args.out) if args.out else
+                 default_trial_dir(Path("runs"), s.participant.name, s.scenario.name, anticipation))
+    opts = TrialOptions(scenario=Path(args.scenario).resolve(), out=trial_dir, mode=args.mode,
+                        seed=args.seed, ticks=args.ticks, session=args.session,
+                        port=args.port, barrier_timeout_s=args.barrier_timeout,
+                        viewer=args.viewer, web=args.web,
+                        record=Path(args.record).resolve() if args.record else None,
+                        replay=Path(args.replay).resolve() if args.replay else None)
+    print(f"trial {s.scenario.name!r} ({args.mode}) -> {trial_dir}", flush=True)
+    result = run_trial(opts, trial_dir)
+    if not result.ok:
+        print(f"trial FAILED: {result.message}", file=sys.stderr)
+        return result.exit_code
+    print_summary(trial_dir, result)
+    return 0
+
+
+def _cmd_alive(args: argparse.Namespace) -> int:
+    from hrc.bus import Bus, bus_config_from_args
+
+    cfg = bus_config_from_args(args)
+    cfg.listen = []
+    with Bus(cfg, "probe") as bus:
+        deadline = time.monotonic() + args.wait
+        while True:
+            if args.service in bus.alive_services(timeout=0.5):
+                print(f"{args.service}: alive")
+                return 0
+            if time.monotonic() >= deadline:
+                print(f"{args.service}: not alive in session {cfg.session!r}", file=sys.stderr)
+                return 1
+            time.sleep(0.2)
+
+
+def _cmd_router(args: argparse.Namespace) -> int:
+    import zenoh
+
+    cfg = zenoh.Config.from_file(args.config) if args.config else zenoh.Config()
+    cfg.insert_json5("mode", '"router"')
+    if args.listen:
+        cfg.insert_json5("listen/endpoints", json.dumps(args.listen))
+    with zenoh.open(cfg) as session:
+        log.info("zenoh router %s up; Ctrl-C to stop", session.info.zid())
+        try:
+            while True:
+                time.sleep(3600)
+        except KeyboardInterrupt:
+            return 0
+
+
+def _cmd_bench(args: argparse.Namespace) -> int:
+    from hrc.cli import bench
+
+    return bench.main(args)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="hrc", description=__doc__)
+    p.add_argument("--log-level", default=None, help="DEBUG, INFO, WARNING (default) ...")
+    sub = p.add_subparsers(dest="command", required=True)
+
+    r = sub.add_parser("run", help="run one trial with all five services")
+    r.add_argument("scenario", help="scenario TOML file")
+    r.add_argument("--out", default=None,
+                   help="trial folder (default runs/<date>/<participant>/<scenario>_<condition>/)")
+    r.add_argument("--mode", choices=["lockstep", "realtime"], default="lockstep")
+    r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    r.add_argument("--ticks", type=int, default=0, help="stop after N ticks (0: when the task ends)")
+    r.add_argument("--viewer", action="store_true", help="spawn the rerun viewer live")
+    r.add_argument("--web", action="store_true", help="serve the rerun web viewer")
+    r.add_argument("--record", default=None, help="record the participant's input to FILE (JSONL)")
+    r.add_argument("--replay", default=None, help="replay a recording instead of the scenario's input")
+    r.add_argument("--session", default=None, help="session id (default: random)")
+    r.add_argument("--port", type=int, default=0, help="loopback port physics listens on (0: free)")
+    r.add_argument("--barrier-timeout", type=float, default=10.0,
+                   help="lockstep: seconds a participant may take for one tick")
+    r.set_defaults(func=_cmd_run)
+
+    v = sub.add_parser("validate", help="check a scenario file and report every problem")
+    v.add_argument("scenario")
+    v.add_argument("--no-reach", action="store_true", help="skip the robot reachability check")
+    v.set_defaults(func=_cmd_validate)
+
+    from hrc.bus import add_bus_arguments
+
+    a = sub.add_parser("alive", help="exit 0 if SERVICE's liveliness token is on the bus")
+    a.add_argument("service")
+    a.add_argument("--wait", type=float, default=0.0, help="keep trying for this many seconds")
+    add_bus_arguments(a)
+    a.set_defaults(func=_cmd_alive)
+
+    ro = sub.add_parser("router", help="run a Zenoh router (for several hosts)")
+    ro.add_argument("--config", default=None, help="Zenoh JSON5 config, e.g. deploy/zenoh-router.json5")
+    ro.add_argument("--listen", action="append", default=None, metavar="ENDPOINT")
+    ro.set_defaults(func=_cmd_router)
+
+    b = sub.add_parser("bench", help="benchmarks that print their figures")
+    b.add_argument("what", choices=["bus", "ik", "physics"])
+    b.add_argument("--json", action="store_true", help="print one JSON object")
+    b.add_argument("--n", type=int, default=0, help="samples / ticks (0: the benchmark's default)")
+    b.set_defaults(func=_cmd_bench)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    setup_logging("hrc", args.log_level or "WARNING")
+    return int(args.func(args))
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,259 @@
+"""``hrc run``: start the five services of one trial as separate processes and watch them.
+
+The trial ends when physics publishes ``run/end``. A service that dies before that ends the trial:
+the others are stopped, the dead one is named, and the exit status is non-zero. Every service's
+own log goes to ``<trial>/services/<name>.log``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import threading
+import time
+import uuid
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO
+
+from hrc.bus import Bus, BusConfig
+from hrc.paths import ik_binary, project_root
+from hrc.wire import pb
+
+log = logging.getLogger(__name__)
+
+SERVICES = ("orchestrator", "physics", "ik_cpp", "human_input", "logger")
+
+
+@dataclass
+class TrialOptions:
+    scenario: Path
+    out: Path | None = None
+    mode: str = "lockstep"
+    seed: int | None = None
+    ticks: int = 0
+    session: str | None = None
+    port: int = 0
+    barrier_timeout_s: float = 10.0
+    start_timeout_s: float = 60.0
+    viewer: bool = False
+    web: bool = False
+    record: Path | None = None
+    replay: Path | None = None
+    extra: dict[str, list[str]] = field(default_factory=dict)  # per-service extra arguments
+
+
+@dataclass
+class TrialResult:
+    ok: bool
+    exit_code: int
+    trial_dir: Path
+    message: str
+    failed_service: str = ""
+    run_end: pb.RunEnd | None = None
+    wall_s: float = 0.0
+
+
+def free_port() -> int:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_\-]+", "-", text).strip("-") or "x"
+
+
+def default_trial_dir(base: Path, participant: str, scenario: str, anticipation: bool) -> Path:
+    """``<base>/<date>/<participant>/<scenario>_<Anticipation|Normal>/``, never reused."""
+    cond = "Anticipation" if anticipation else "Normal"
+    d = base / dt.date.today().isoformat() / _slug(participant) / f"{_slug(scenario)}_{cond}"
+    n = 2
+    candidate = d
+    while candidate.exists():
+        candidate = d.with_name(f"{d.name}_{n}")
+        n += 1
+    return candidate
+
+
+def describe_exit(code: int) -> str:
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return f"exited with code {code}"
+
+
+class ServiceGroup:
+    """The child processes of one trial."""
+
+    def __init__(self, trial_dir: Path) -> None:
+        self.logs_dir = trial_dir / "services"
+        self.logs_dir.mkdir(parents=True, exist_ok=True)
+        self.procs: dict[str, subprocess.Popen[bytes]] = {}
+        self._files: list[IO[bytes]] = []
+
+    def start(self, name: str, argv: list[str]) -> None:
+        f = open(self.logs_dir / f"{name}.log", "wb")
+        self._files.append(f)
+        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        log.debug("starting %s: %s", name, " ".join(argv))
+        self.procs[name] = subprocess.Popen(argv, stdout=f, stderr=subprocess.STDOUT,
+                                            stdin=subprocess.DEVNULL, env=env)
+
+    def poll(self) -> dict[str, int | None]:
+        return {n: p.poll() for n, p in self.procs.items()}
+
+    def stop_all(self, grace_s: float = 2.0) -> None:
+        for p in self.procs.values():
+            if p.poll() is None:
+                p.send_signal(signal.SIGTERM)
+        deadline = time.monotonic() + grace_s
+        for p in self.procs.values():
+            left = deadline - time.monotonic()
+            try:
+                p.wait(timeout=max(0.0, left))
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+
+    def close(self) -> None:
+        for f in self._files:
+            f.close()
+
+    def tail(self, name: str, lines: int = 15) -> str:
+        path = self.logs_dir / f"{name}.log"
+        try:
+            text = path.read_text(errors="replace").splitlines()
+        except OSError:
+            return ""
+        return "\n".join(text[-lines:])
+
+
+def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_dir: Path) -> list[str]:
+    endpoint = f"tcp/127.0.0.1:{port}"
+    common = ["--session", session]
+    py = [sys.executable, "-m"]
+    extra = opts.extra.get(name, [])
+    if name == "physics":
+        argv = py + ["hrc_physics", *common, "--listen", endpoint, "--clock", opts.mode,
+                     "--ticks", str(opts.ticks), "--barrier-timeout", str(opts.barrier_timeout_s),
+                     "--start-timeout", str(opts.start_timeout_s)]
+        return argv + extra
+    connect = ["--connect", endpoint]
+    if name == "ik_cpp":
+        return [str(ik_binary()), *common, *connect] + extra
+    if name == "orchestrator":
+        argv = py + ["hrc_orchestrator", *common, *connect, "--scenario", str(opts.scenario),
+                     "--out", str(trial_dir)]
+        if opts.seed is not None:
+            argv += ["--seed", str(opts.seed)]
+        return argv + extra
+    if name == "human_input":
+        argv = py + ["hrc_human_input", *common, *connect]
+        if opts.record:
+            argv += ["--record", str(opts.record)]
+        if opts.replay:
+            argv += ["--replay", str(opts.replay)]
+        return argv + extra
+    if name == "logger":
+        argv = py + ["hrc_logger", *common, *connect, "--out", str(trial_dir)]
+        if opts.viewer:
+            argv.append("--viewer")
+        if opts.web:
+            argv.append("--web")
+        return argv + extra
+    raise ValueError(f"unknown service {name!r}")
+
+
+class _EndWatcher:
+    """Listens for ``run/end`` so the CLI can name the reason even if a service log is terse."""
+
+    def __init__(self, session: str, port: int) -> None:
+        self.end: pb.RunEnd | None = None
+        self._event = threading.Event()
+        cfg = BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])
+        self.bus = Bus(cfg, "cli")
+        self.bus.subscribe(self.bus.keys.run_end(), pb.RunEnd, self._on_end)
+
+    def _on_end(self, _key: str, end: pb.RunEnd) -> None:
+        self.end = end
+        self._event.set()
+
+    def close(self) -> None:
+        self.bus.close()
+
+
+def run_trial(opts: TrialOptions, trial_dir: Path, participant_name: str = "") -> TrialResult:
+    session = opts.session or f"t{uuid.uuid4().hex[:10]}"
+    port = opts.port or free_port()
+    ik = ik_binary()
+    if not ik.exists():
+        return TrialResult(False, 2, trial_dir,
+                           f"the IK service binary {ik} is missing: run scripts/setup.sh")
+    trial_dir.mkdir(parents=True, exist_ok=True)
+    group = ServiceGroup(trial_dir)
+    watcher: _EndWatcher | None = None
+    t0 = time.monotonic()
+    try:
+        # physics first: it listens on the port everybody else connects to.
+        for name in ("physics", "orchestrator", "ik_cpp", "human_input", "logger"):
+            group.start(name, service_argv(name, opts, session, port, trial_dir))
+        time.sleep(0.2)
+        try:
+            watcher = _EndWatcher(session, port)
+        except Exception as exc:  # the bus is optional for the CLI; process status still works
+            log.debug("no run/end watcher: %s", exc)
+        failed = ""
+        failure = ""
+        while True:
+            status = group.poll()
+            dead = [n for n, rc in status.items() if rc is not None and rc != 0]
+            if status["physics"] is not None:
+                break
+            early = [n for n, rc in status.items() if rc is not None and n != "physics"]
+            if dead or early:
+                name = (dead or early)[0]
+                failed = name
+                failure = f"service '{name}' {describe_exit(status[name] or 0)} during the run"
+                if status[name] == 0:
+                    failure = f"service '{name}' exited before the run ended"
+                break
+            time.sleep(0.05)
+        if failed:
+            group.stop_all()
+        else:
+            # physics is done; the others leave on run/end.
+            deadline = time.monotonic() + 15.0
+            while any(rc is None for rc in group.poll().values()) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            group.stop_all()
+        status = group.poll()
+        end = watcher.end if watcher else None
+        wall = time.monotonic() - t0
+        if not failed:
+            bad = [n for n in SERVICES if status.get(n) not in (0, None)]
+            if end is not None and not end.ok:
+                failed = end.failed_participant or (bad[0] if bad else "physics")
+                failure = f"run failed: {end.reason}"
+            elif bad:
+                failed = bad[0]
+                failure = f"service '{failed}' {describe_exit(status[failed] or 0)}"
+        if failed:
+            detail = group.tail(failed)
+            msg = failure + (f"\n--- last lines of {group.logs_dir / (failed + '.log')}:\n{detail}"
+                             if detail else "")
+            return TrialResult(False, 3, trial_dir, msg, failed, end, wall)
+        return TrialResult(True, 0, trial_dir, "trial completed", "", end, wall)
+    finally:
+        if watcher is not None:
+            watcher.close()
+        group.stop_all(grace_s=1.0)
+        group.close()

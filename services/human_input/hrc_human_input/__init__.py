@@ -1,0 +1,1 @@
+"""hrc-cosim human input: scripted participant, replay, live VR bridge, recording."""

@@ -1,0 +1,3 @@
+from hrc_human_input.main import main
+
+raise SystemExit(main())

@@ -1,0 +1,3 @@
+from hrc_logger.main import main
+
+raise SystemExit(main())

@@ -1,0 +1,1 @@
+"""hrc-cosim orchestrator: scenario, task logic, safety policies, cues, metrics."""

@@ -1,0 +1,3 @@
+from hrc_orchestrator.main import main
+
+raise SystemExit(main())

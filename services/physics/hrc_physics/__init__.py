@@ -1,0 +1,1 @@
+"""hrc-cosim physics service: the pybullet world and the simulation clock."""

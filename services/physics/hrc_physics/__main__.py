@@ -1,0 +1,3 @@
+from hrc_physics.main import main
+
+raise SystemExit(main())
