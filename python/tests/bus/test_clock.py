@@ -1,0 +1,128 @@
+"""The tick protocol with a real clock master and real participants (threads, real Zenoh)."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings, LockstepParticipant
+from hrc.wire import pb
+
+from .conftest import free_port
+
+
+class Session:
+    def __init__(self, session: str, settings: ClockSettings, names: list[str]) -> None:
+        self.ep = f"tcp/127.0.0.1:{free_port()}"
+        self.master_bus = Bus(BusConfig(session=session, listen=[self.ep]), "physics")
+        self.clock = ClockMaster(self.master_bus, settings)
+        self.buses = {n: Bus(BusConfig(session=session, connect=[self.ep]), n) for n in names}
+
+    def close(self) -> None:
+        for b in self.buses.values():
+            b.close()
+        self.master_bus.close()
+
+
+def _run_participants(s: Session, steps: dict[str, list[int]],
+                      only: list[str] | None = None) -> dict[str, object]:
+    outcomes: dict[str, object] = {}
+    threads = []
+    for name, bus in s.buses.items():
+        if only is not None and name not in only:
+            continue
+        p = LockstepParticipant(bus, ack=(name != "logger"))
+        seen = steps.setdefault(name, [])
+        p.on_tick(lambda t, seen=seen: seen.append(t.header.tick))
+        p.start()
+        th = threading.Thread(target=lambda p=p, name=name: outcomes.__setitem__(name, p.run(30)))
+        th.start()
+        threads.append(th)
+    s._threads = threads  # type: ignore[attr-defined]
+    return outcomes
+
+
+def test_lockstep_runs_every_tick_through_every_participant(session_id: str) -> None:
+    names = ["ik_cpp", "orchestrator", "human_input", "logger"]
+    s = Session(session_id, ClockSettings(ticks=300), names)
+    try:
+        steps: dict[str, list[int]] = {}
+        outcomes = _run_participants(s, steps)
+        world: list[int] = []
+        s.clock.start()
+        end = s.clock.run(lambda k, t: world.append(k), lambda k, t: None)
+        for th in s._threads:  # type: ignore[attr-defined]
+            th.join(10)
+        assert end.ok and end.ticks == 300 and end.reason == "ticks"
+        for n in names:
+            assert steps[n] == list(range(300)), n
+            assert outcomes[n].ok  # type: ignore[attr-defined]
+        assert world == list(range(300))
+    finally:
+        s.close()
+
+
+def test_realtime_never_runs_ahead_of_the_wall_clock(session_id: str) -> None:
+    s = Session(session_id, ClockSettings(mode="realtime", tick_hz=200, ticks=60,
+                                          observers=[]), ["ik_cpp", "orchestrator", "human_input"])
+    try:
+        _run_participants(s, {})
+        s.clock.start()
+        t0 = time.monotonic()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)
+        assert end.ok and end.ticks == 60
+        assert time.monotonic() - t0 >= 59 / 200
+        assert end.realtime_factor <= 1.05
+    finally:
+        s.close()
+
+
+def test_a_silent_participant_is_named_when_the_barrier_times_out(session_id: str) -> None:
+    s = Session(session_id, ClockSettings(ticks=100, barrier_timeout_s=0.5, observers=[]),
+                ["ik_cpp", "orchestrator", "human_input"])
+    try:
+        _run_participants(s, {}, only=["ik_cpp", "orchestrator"])
+        # human_input announces itself but never acks
+        s.buses["human_input"].declare_token()
+        s.clock.start()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)
+        assert not end.ok
+        assert end.failed_participant == "human_input"
+        assert "human_input" in end.reason and "barrier" in end.reason
+    finally:
+        s.close()
+
+
+def test_a_vanished_participant_ends_the_run_naming_it(session_id: str) -> None:
+    s = Session(session_id, ClockSettings(ticks=0, observers=["logger"]),
+                ["ik_cpp", "orchestrator", "human_input", "logger"])
+    try:
+        steps: dict[str, list[int]] = {}
+        _run_participants(s, steps)
+        s.clock.start()
+        threading.Timer(0.5, s.buses["logger"].close).start()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)
+        assert not end.ok and end.failed_participant == "logger"
+        assert "lost liveliness" in end.reason
+    finally:
+        s.close()
+
+
+def test_a_stop_request_ends_the_run_cleanly(session_id: str) -> None:
+    s = Session(session_id, ClockSettings(ticks=0, observers=[]),
+                ["ik_cpp", "orchestrator", "human_input"])
+    try:
+        steps: dict[str, list[int]] = {}
+        _run_participants(s, steps)
+        stop = s.buses["orchestrator"].publisher(s.buses["orchestrator"].keys.run_control())
+        s.clock.start()
+
+        def world(k: int, t: float) -> None:
+            if k == 50:
+                stop.put(pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="done"), k, t)
+
+        end = s.clock.run(world, lambda k, t: None)
+        assert end.ok and "stopped by orchestrator: done" in end.reason
+        assert 50 <= end.ticks <= 60
+    finally:
+        s.close()
