@@ -49,6 +49,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     opts = TrialOptions(scenario=Path(args.scenario).resolve(), out=trial_dir, mode=args.mode,
                         seed=args.seed, ticks=args.ticks, session=args.session,
                         port=args.port, barrier_timeout_s=args.barrier_timeout,
+                        connect=args.connect or [],
                         viewer=args.viewer, web=args.web,
                         record=Path(args.record).resolve() if args.record else None,
                         replay=Path(args.replay).resolve() if args.replay else None)
@@ -118,6 +119,8 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--replay", default=None, help="replay a recording instead of the scenario's input")
     r.add_argument("--session", default=None, help="session id (default: random)")
     r.add_argument("--port", type=int, default=0, help="loopback port physics listens on (0: free)")
+    r.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
+                   help="also connect every service to this Zenoh endpoint (router, shared bus)")
     r.add_argument("--barrier-timeout", type=float, default=10.0,
                    help="lockstep: seconds a participant may take for one tick")
     r.set_defaults(func=_cmd_run)

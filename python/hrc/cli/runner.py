@@ -46,6 +46,7 @@ class TrialOptions:
     web: bool = False
     record: Path | None = None
     replay: Path | None = None
+    connect: list[str] = field(default_factory=list)  # extra endpoints for every service (router)
     extra: dict[str, list[str]] = field(default_factory=dict)  # per-service extra arguments
 
 
@@ -140,6 +141,8 @@ class ServiceGroup:
 def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_dir: Path) -> list[str]:
     endpoint = f"tcp/127.0.0.1:{port}"
     common = ["--session", session]
+    for ep in opts.connect:
+        common += ["--connect", ep]
     py = [sys.executable, "-m"]
     extra = opts.extra.get(name, [])
     if name == "physics":
@@ -215,29 +218,36 @@ def run_trial(opts: TrialOptions, trial_dir: Path, participant_name: str = "") -
         failure = ""
         while True:
             status = group.poll()
-            dead = [n for n, rc in status.items() if rc is not None and rc != 0]
+            dead = [n for n, rc in status.items() if rc is not None and rc != 0 and n != "physics"]
             if status["physics"] is not None:
                 break
-            early = [n for n, rc in status.items() if rc is not None and n != "physics"]
-            if dead or early:
-                name = (dead or early)[0]
-                failed = name
-                failure = f"service '{name}' {describe_exit(status[name] or 0)} during the run"
-                if status[name] == 0:
-                    failure = f"service '{name}' exited before the run ended"
+            if dead:
+                # A clean exit (0) is not a failure by itself: physics notices the lost
+                # liveliness and ends the run naming the service, if the run was still going.
+                failed = dead[0]
+                failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
                 break
             time.sleep(0.05)
-        if failed:
-            group.stop_all()
-        else:
+        if not failed:
             # physics is done; the others leave on run/end.
             deadline = time.monotonic() + 15.0
             while any(rc is None for rc in group.poll().values()) and time.monotonic() < deadline:
                 time.sleep(0.05)
-            group.stop_all()
+        # judge by how each ended on its own, before we stop the stragglers
         status = group.poll()
+        group.stop_all(grace_s=0.5 if failed else 2.0)
         end = watcher.end if watcher else None
         wall = time.monotonic() - t0
+        killed = [n for n in SERVICES if (status.get(n) or 0) < 0]
+        if killed and (not failed or (status.get(failed) or 0) >= 0):
+            # a service killed by a signal is the root cause; the others' errors follow from it
+            failed = killed[0]
+            failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
+        phys = status.get("physics")
+        if not failed and phys is not None and (phys < 0 or (end is None and phys != 0)):
+            # physics itself died: the others' errors ("clock master disappeared") follow from it
+            failed = "physics"
+            failure = f"service 'physics' {describe_exit(phys)} during the run"
         if not failed:
             bad = [n for n in SERVICES if status.get(n) not in (0, None)]
             if end is not None and not end.ok:

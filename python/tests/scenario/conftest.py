@@ -15,7 +15,6 @@ from hrc.scenario import Problem, ScenarioError, load
 
 REPO = Path(__file__).resolve().parents[3]
 SCENARIOS = REPO / "scenarios"
-DATA = Path(__file__).resolve().parent / "data"
 
 # ---------------------------------------------------------------- a 5-joint arm like robots/arm5.urdf
 

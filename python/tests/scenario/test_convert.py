@@ -9,12 +9,12 @@ import pytest
 from hrc.scenario import ScenarioError, from_proto, load, to_proto
 from hrc.wire import pb
 
-from_file = Path(__file__).resolve().parents[3] / "scenarios"
+SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
 
 
 @pytest.fixture
 def thesis(arm_root: Path):
-    return load(from_file / "thesis.toml", project_root=arm_root, reach_checker=None)
+    return load(SCENARIOS / "thesis.toml", project_root=arm_root, reach_checker=None)
 
 
 def test_every_field_is_filled(thesis, arm_root: Path) -> None:
@@ -41,8 +41,8 @@ def test_every_field_is_filled(thesis, arm_root: Path) -> None:
     assert len(msg.workspace.envelope) == 2 and msg.workspace.HasField("continue_button")
     assert msg.place_tolerance_m == pytest.approx(0.02)
     assert msg.place_tolerance_deg == pytest.approx(20)
-    assert msg.source_path == str((from_file / "thesis.toml").resolve())
-    assert msg.source_toml == (from_file / "thesis.toml").read_text(encoding="utf-8")
+    assert msg.source_path == str((SCENARIOS / "thesis.toml").resolve())
+    assert msg.source_toml == (SCENARIOS / "thesis.toml").read_text(encoding="utf-8")
 
 
 def test_defaults_reach_the_wire(minimal_raw, write_scenario, arm_root) -> None:

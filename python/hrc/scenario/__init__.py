@@ -1,0 +1,42 @@
+"""The scenario file (SPEC §2): typed models, full validation, conversion to the wire.
+
+    from hrc.scenario import load, to_proto
+    scenario = load("scenarios/thesis.toml")      # raises ScenarioError listing every problem
+    msg = to_proto(scenario)                       # pb.Scenario, served on hrc/<s>/scenario
+
+The format is documented in docs/scenario.md.
+"""
+
+from hrc.scenario.convert import from_proto, to_proto
+from hrc.scenario.errors import Problem, ScenarioError
+from hrc.scenario.loader import DEFAULT_REACH, load, loads, validate
+from hrc.scenario.models import (
+    HUMAN,
+    Box,
+    Conditions,
+    Part,
+    Participant,
+    Placement,
+    PoseYaw,
+    Robot,
+    Scenario,
+    ScenarioInfo,
+    Workspace,
+)
+from hrc.scenario.paths import find_project_root, resolve_path
+from hrc.scenario.reach import (
+    APPROACH_HEIGHT,
+    PybulletReachChecker,
+    ReachChecker,
+    ReachItem,
+    ReachResult,
+    reach_items,
+)
+
+__all__ = [
+    "APPROACH_HEIGHT", "DEFAULT_REACH", "HUMAN", "Box", "Conditions", "Part", "Participant",
+    "Placement", "PoseYaw", "Problem", "PybulletReachChecker", "ReachChecker", "ReachItem",
+    "ReachResult", "Robot", "Scenario", "ScenarioError", "ScenarioInfo", "Workspace",
+    "find_project_root", "from_proto", "load", "loads", "reach_items", "resolve_path",
+    "to_proto", "validate",
+]

@@ -1,0 +1,243 @@
+"""Checks that relate the tables of a scenario to each other.
+
+`check_references` works on the raw TOML data and reads it defensively, so it still runs (and
+reports) when some tables have schema errors; values of the wrong type are skipped here because
+the schema check already reported them. So is every other check here: one broken table never hides
+the problems of the others.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+from hrc.scenario.errors import Problem
+from hrc.scenario.graph import Edge, find_cycles
+from hrc.scenario.models import HUMAN, ROLES
+from hrc.scenario.paths import resolve_path
+
+
+def part_key(index: int, raw_part: Any) -> str:
+    """Parts are named by id in problem keys; by position only when the id is unusable."""
+    if isinstance(raw_part, dict) and isinstance(raw_part.get("id"), str) and raw_part["id"]:
+        return f"parts.{raw_part['id']}"
+    return f"parts[{index}]"
+
+
+def _names(items: Iterable[str]) -> str:
+    return ", ".join(items) if items else "(none)"
+
+
+# ---------------------------------------------------------------- ids, owners, sequences, graph
+
+
+def check_references(raw: dict[str, Any]) -> list[Problem]:
+    problems: list[Problem] = []
+    raw_robots = raw.get("robots") if isinstance(raw.get("robots"), dict) else {}
+    roles: dict[str, str | None] = {}
+    for rid, rrobot in raw_robots.items():
+        role = rrobot.get("role") if isinstance(rrobot, dict) else None
+        roles[rid] = role if role in ROLES else None
+        if rid == HUMAN:
+            problems.append(Problem("robots.human", "'human' is reserved for the participant; "
+                                    "give the robot another id"))
+    agents = [HUMAN, *[r for r in raw_robots if r != HUMAN]]
+
+    raw_parts = raw.get("parts") if isinstance(raw.get("parts"), list) else []
+    # id -> (key, owner or None, after list); the first part with an id wins for references
+    parts: dict[str, tuple[str, str | None, list[str]]] = {}
+    seen_at: dict[str, int] = {}
+    for i, rpart in enumerate(raw_parts):
+        if not isinstance(rpart, dict):
+            continue
+        key = part_key(i, rpart)
+        pid = rpart.get("id") if isinstance(rpart.get("id"), str) else None
+        owner = rpart.get("owner") if isinstance(rpart.get("owner"), str) else None
+        after_raw = rpart.get("after", [])
+        after = [a for a in after_raw if isinstance(a, str)] if isinstance(after_raw, list) else []
+        if pid is not None:
+            if pid in seen_at:
+                problems.append(Problem(key, f"duplicate part id {pid!r}: parts #{seen_at[pid] + 1} "
+                                        f"and #{i + 1} both use it"))
+                continue
+            seen_at[pid] = i
+            parts[pid] = (key, owner, after)
+        # owner
+        if owner is not None and owner != HUMAN and owner not in roles:
+            problems.append(Problem(f"{key}.owner", f"unknown owner {owner!r}: use 'human' or a "
+                                    f"robot id ({_names(list(roles))})"))
+        # start: required for human and transport parts, none for screws (they come from the feeder)
+        owner_role = roles.get(owner) if owner is not None else None
+        has_start = "start" in rpart
+        if owner == HUMAN or owner_role == "transport":
+            if not has_start:
+                problems.append(Problem(f"{key}.start", f"missing required key: a part owned by "
+                                        f"{owner} needs a start pose"))
+        elif owner_role == "screwing" and has_start:
+            problems.append(Problem(f"{key}.start", f"a part of screwing robot {owner} has no "
+                                    "start pose (it comes from the robot's feeder); remove it"))
+
+    # after: known ids, not itself, no repeats
+    for pid, (key, _owner, after) in parts.items():
+        seen: set[str] = set()
+        for dep in after:
+            if dep == pid:
+                problems.append(Problem(f"{key}.after", f"{pid} waits for itself (dependency "
+                                        "cycle of one part)"))
+            elif dep not in parts:
+                problems.append(Problem(f"{key}.after", f"unknown part {dep!r}"))
+            elif dep in seen:
+                problems.append(Problem(f"{key}.after", f"{dep} is listed twice"))
+            seen.add(dep)
+
+    # sequences: known agents, known parts, each part once, in its owner's sequence
+    raw_seq = raw.get("sequence") if isinstance(raw.get("sequence"), dict) else {}
+    listed_by: dict[str, list[str]] = {}
+    clean_seq: dict[str, list[str]] = {}
+    for agent, entries in raw_seq.items():
+        skey = f"sequence.{agent}"
+        if agent not in agents:
+            problems.append(Problem(skey, f"unknown agent {agent!r}: use 'human' or a robot id "
+                                    f"({_names(list(roles))})"))
+            continue
+        if not isinstance(entries, list):
+            continue
+        order: list[str] = []
+        for entry in entries:
+            if not isinstance(entry, str):
+                continue
+            if entry not in parts:
+                problems.append(Problem(skey, f"unknown part {entry!r}"))
+                continue
+            if entry in order:
+                problems.append(Problem(skey, f"{entry} is listed twice"))
+                continue
+            order.append(entry)
+            listed_by.setdefault(entry, []).append(agent)
+        clean_seq[agent] = order
+
+    for pid, (key, owner, _after) in parts.items():
+        if owner is None or (owner != HUMAN and owner not in roles):
+            continue  # owner problem already reported
+        listers = listed_by.get(pid, [])
+        for agent in listers:
+            if agent == owner:
+                continue
+            if len(listers) > 1:
+                msg = (f"{pid} is in two sequences ({_names(listers)}); it belongs to {owner}, "
+                       f"so only sequence.{owner} may list it")
+            else:
+                msg = f"{pid} belongs to {owner}; only sequence.{owner} may list it"
+            problems.append(Problem(f"sequence.{agent}", msg))
+        if owner not in listers:
+            problems.append(Problem(key, f"{pid} is owned by {owner} but not in sequence.{owner}: "
+                                    "it would never be done (add it there or remove the part)"))
+
+    problems.extend(_deadlocks(list(parts), parts, clean_seq))
+    return problems
+
+
+def _deadlocks(
+    order: list[str],
+    parts: dict[str, tuple[str, str | None, list[str]]],
+    sequences: dict[str, list[str]],
+) -> list[Problem]:
+    edges: list[Edge] = []
+    for pid, (_key, _owner, after) in parts.items():
+        for dep in dict.fromkeys(after):
+            if dep in parts and dep != pid:
+                edges.append(Edge(dep, pid, "after"))
+    for agent, seq in sequences.items():
+        for a, b in zip(seq, seq[1:]):
+            edges.append(Edge(a, b, agent))
+    problems: list[Problem] = []
+    for cycle in find_cycles(order, edges):
+        steps = []
+        for e in cycle:
+            why = f"{e.dst}.after" if e.via == "after" else f"sequence.{e.via}"
+            steps.append(f"{e.src} before {e.dst} ({why})")
+        names = _names([e.src for e in cycle])
+        only_after = all(e.via == "after" for e in cycle)
+        what = "dependency cycle" if only_after else "deadlock through sequence order and after"
+        first_after = next(e for e in cycle if e.via == "after")
+        key = parts[first_after.dst][0] + ".after"
+        problems.append(Problem(key, f"{what}: {'; '.join(steps)}; so none of {names} can "
+                                "ever be done"))
+    return problems
+
+
+# ---------------------------------------------------------------- per-table rules (raw, defensive)
+
+
+def _table(value: Any) -> dict[str, Any]:
+    return value if isinstance(value, dict) else {}
+
+
+def _vec3(value: Any) -> list[float] | None:
+    if (isinstance(value, list) and len(value) == 3
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
+        return [float(v) for v in value]
+    return None
+
+
+def check_robots(raw: dict[str, Any]) -> list[Problem]:
+    """Keys that depend on a robot's role."""
+    problems: list[Problem] = []
+    for rid, robot in _table(raw.get("robots")).items():
+        robot = _table(robot)
+        role = robot.get("role")
+        key = f"robots.{rid}"
+        if role == "screwing" and "feeder" not in robot:
+            problems.append(Problem(f"{key}.feeder", "missing required key: a screwing robot "
+                                    "takes its screws from a feeder position"))
+        if role == "transport":
+            for name in ("feeder", "screw_time_s"):
+                if name in robot:
+                    problems.append(Problem(f"{key}.{name}", f"only screwing robots have {name}; "
+                                            f"{rid} is a transport robot"))
+    return problems
+
+
+def check_workspace(raw: dict[str, Any]) -> list[Problem]:
+    problems: list[Problem] = []
+    workspace = _table(raw.get("workspace"))
+    envelope = workspace.get("envelope")
+    for i, box in enumerate(envelope if isinstance(envelope, list) else []):
+        lo, hi = _vec3(_table(box).get("min")), _vec3(_table(box).get("max"))
+        if lo is None or hi is None:
+            continue  # the schema check reports it
+        bad = [f"{axis}: {a:g} >= {b:g}" for axis, a, b in zip("xyz", lo, hi) if a >= b]
+        if bad:
+            problems.append(Problem(f"workspace.envelope[{i}]", "min must be below max on every "
+                                    f"axis ({', '.join(bad)})"))
+    policy = _table(raw.get("conditions")).get("safety_policy")
+    if policy == "retreat_button" and "workspace" in raw and "continue_button" not in workspace:
+        problems.append(Problem("workspace.continue_button", "missing required key: "
+                                "safety_policy = 'retreat_button' needs a continue button"))
+    return problems
+
+
+def check_files(raw: dict[str, Any], folder: Path | None, root: Path | None) -> list[Problem]:
+    """URDFs and the replay file must exist (file's folder first, then the project root)."""
+
+    def missing(written: str) -> str:
+        bases = [str(b) for b in (folder, root) if b is not None]
+        if Path(written).is_absolute() or not bases:
+            return f"file not found: {written}"
+        return f"file not found: {written} (looked in {' and '.join(dict.fromkeys(bases))})"
+
+    problems: list[Problem] = []
+    for rid, robot in _table(raw.get("robots")).items():
+        urdf = _table(robot).get("urdf")
+        if isinstance(urdf, str) and urdf and resolve_path(urdf, folder, root) is None:
+            problems.append(Problem(f"robots.{rid}.urdf", missing(urdf)))
+    participant = _table(raw.get("participant"))
+    if participant.get("input") == "replay":
+        replay = participant.get("replay_file")
+        if replay is None:
+            problems.append(Problem("participant.replay_file", "missing required key: "
+                                    "input = 'replay' needs a replay_file"))
+        elif isinstance(replay, str) and resolve_path(replay, folder, root) is None:
+            problems.append(Problem("participant.replay_file", missing(replay)))
+    return problems

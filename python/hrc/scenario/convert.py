@@ -1,0 +1,173 @@
+"""Scenario <-> wire `pb.Scenario` (served by the orchestrator on `hrc/<s>/scenario`)."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from hrc.scenario.errors import Problem, ScenarioError
+from hrc.scenario.models import (
+    SCRIPTED_PARAMS,
+    Box,
+    Conditions,
+    Part,
+    Participant,
+    Placement,
+    PoseYaw,
+    Robot,
+    Scenario,
+    ScenarioInfo,
+    Workspace,
+)
+from hrc.wire import pb
+
+
+def to_proto(scenario: Scenario) -> pb.Scenario:
+    """Every field filled: defaults applied, URDF and replay paths absolute where the file exists
+    (as written otherwise), `source_toml` = the file's text. The header is left to the sender."""
+    msg = pb.Scenario()
+    info = scenario.scenario
+    msg.info.CopyFrom(pb.ScenarioInfo(name=info.name, tick_hz=info.tick_hz, seed=info.seed))
+
+    part = scenario.participant
+    pc = msg.participant
+    pc.name = part.name
+    pc.input = part.input
+    if part.replay_file is not None:
+        resolved = scenario.resolve(part.replay_file)
+        pc.replay_file = str(resolved) if resolved else part.replay_file
+    for name, value in part.scripted_params().items():
+        pc.params[name] = value
+    pc.provoke_times_s.extend(part.provoke_times_s)
+    pc.provoke_probability = part.provoke_probability
+
+    msg.conditions.CopyFrom(pb.Conditions(anticipation=scenario.conditions.anticipation,
+                                          safety_policy=scenario.conditions.safety_policy))
+
+    for rid, robot in scenario.robots.items():
+        rc = msg.robots.add()
+        rc.id = rid
+        rc.role = robot.role
+        urdf = scenario.resolve(robot.urdf)
+        rc.urdf_path = str(urdf) if urdf else robot.urdf
+        rc.base.CopyFrom(_pose(robot.base))
+        rc.max_tcp_speed = robot.max_tcp_speed
+        rc.home.CopyFrom(_vec(robot.home))
+        rc.intermediate.CopyFrom(_vec(robot.intermediate))
+        rc.retreat.CopyFrom(_vec(robot.retreat))
+        rc.color = robot.color_or_default
+        if robot.feeder is not None:  # presence tells from_proto the feeder exists
+            rc.feeder.CopyFrom(_vec(robot.feeder))
+        rc.screw_time_s = robot.screw_time_or_default
+        rc.near_margin = robot.near_margin
+
+    for p in scenario.parts:
+        pcfg = msg.parts.add()
+        pcfg.id = p.id
+        pcfg.owner = p.owner
+        pcfg.kind = p.kind
+        pcfg.size.CopyFrom(_vec(p.size))
+        pcfg.has_start = p.start is not None
+        if p.start is not None:
+            pcfg.start.CopyFrom(_pose(p.start))
+        pcfg.target.CopyFrom(_pose(p.target))
+        pcfg.after.extend(p.after)
+
+    # One sequence per agent, empty ones included, so services see every agent.
+    for agent in scenario.agents:
+        msg.sequences.add(agent=agent, parts=scenario.sequence_of(agent))
+
+    for box in scenario.workspace.envelope:
+        msg.workspace.envelope.add(min=_vec(box.min), max=_vec(box.max))
+    if scenario.workspace.continue_button is not None:
+        msg.workspace.continue_button.CopyFrom(_vec(scenario.workspace.continue_button))
+    msg.workspace.SetInParent()
+
+    msg.place_tolerance_m = scenario.placement.tolerance_m
+    msg.place_tolerance_deg = scenario.placement.tolerance_deg
+    msg.source_path = str(scenario.source_path) if scenario.source_path else ""
+    msg.source_toml = scenario.source_text
+    return msg
+
+
+def from_proto(msg: pb.Scenario) -> Scenario:
+    """The typed scenario back from the wire (paths are the absolute ones the sender resolved).
+    Raises ScenarioError when a field is out of range (e.g. a message from a broken sender)."""
+    try:
+        return _from_proto(msg)
+    except ValidationError as exc:
+        problems = [Problem(".".join(str(x) for x in err["loc"]) or "scenario",
+                            err["msg"].removeprefix("Value error, "))
+                    for err in exc.errors(include_url=False)]
+        raise ScenarioError(problems, msg.source_path or "<wire scenario>") from exc
+
+
+def _from_proto(msg: pb.Scenario) -> Scenario:
+    pc = msg.participant
+    params = {k: v for k, v in pc.params.items() if k in SCRIPTED_PARAMS}
+    provoke: float | list[float] = (list(pc.provoke_times_s) if pc.provoke_times_s
+                                    else pc.provoke_probability)
+    participant = Participant(
+        name=pc.name, input=pc.input, replay_file=pc.replay_file or None,
+        provoke_collisions=provoke, **params,
+    )
+
+    robots: dict[str, Robot] = {}
+    for rc in msg.robots:
+        robots[rc.id] = Robot(
+            role=rc.role, urdf=rc.urdf_path, base=_pose_back(rc.base),
+            max_tcp_speed=rc.max_tcp_speed, home=_vec_back(rc.home),
+            intermediate=_vec_back(rc.intermediate), retreat=_vec_back(rc.retreat),
+            color=rc.color or None,
+            feeder=_vec_back(rc.feeder) if rc.HasField("feeder") else None,
+            screw_time_s=rc.screw_time_s if rc.role == "screwing" else None,
+            near_margin=rc.near_margin,
+        )
+
+    parts = [
+        Part(id=p.id, owner=p.owner, kind=p.kind, size=_vec_back(p.size),
+             start=_pose_back(p.start) if p.has_start else None,
+             target=_pose_back(p.target), after=list(p.after))
+        for p in msg.parts
+    ]
+    sequence = {s.agent: list(s.parts) for s in msg.sequences}
+
+    ws = msg.workspace
+    workspace = Workspace(
+        envelope=[Box(min=_vec_back(b.min), max=_vec_back(b.max)) for b in ws.envelope],
+        continue_button=_vec_back(ws.continue_button) if ws.HasField("continue_button") else None,
+    )
+    scenario = Scenario(
+        scenario=ScenarioInfo(name=msg.info.name, tick_hz=msg.info.tick_hz, seed=msg.info.seed),
+        participant=participant,
+        conditions=Conditions(anticipation=msg.conditions.anticipation,
+                              safety_policy=msg.conditions.safety_policy or "retreat"),
+        robots=robots,
+        parts=parts,
+        sequence=sequence,
+        workspace=workspace,
+        placement=Placement(tolerance_m=msg.place_tolerance_m,
+                            tolerance_deg=msg.place_tolerance_deg),
+    )
+    scenario._source_path = Path(msg.source_path) if msg.source_path else None
+    scenario._source_text = msg.source_toml
+    return scenario
+
+
+def _vec(v: Sequence[float]) -> pb.Vec3:
+    return pb.Vec3(x=v[0], y=v[1], z=v[2])
+
+
+def _vec_back(v: pb.Vec3) -> list[float]:
+    return [v.x, v.y, v.z]
+
+
+def _pose(p: PoseYaw) -> pb.PoseYaw:
+    return pb.PoseYaw(xyz=_vec(p.xyz), yaw_deg=p.yaw)
+
+
+def _pose_back(p: pb.PoseYaw) -> PoseYaw:
+    return PoseYaw(xyz=_vec_back(p.xyz), yaw=p.yaw_deg)
+

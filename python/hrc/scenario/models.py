@@ -1,0 +1,303 @@
+"""Typed models of the scenario file (SPEC §2; every key is documented in docs/scenario.md).
+
+The models check what a single table can check on its own: key names (extra keys are errors),
+types (strict: no silent string-to-number coercion), ranges and finiteness. Everything that
+relates tables to each other (ids, owners, sequences, dependencies, files, reachability) is
+checked in `hrc.scenario.checks`, so one run reports every problem of a file.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
+
+from hrc.scenario.paths import resolve_path
+
+# ---------------------------------------------------------------- constants and conventions
+
+HUMAN = "human"
+ROLES = ("transport", "screwing")
+INPUTS = ("scripted", "replay", "vr")
+SAFETY_POLICIES = ("retreat", "retreat_button", "stop_colliding")
+
+DEFAULT_TICK_HZ = 240.0
+MAX_TICK_HZ = 2000.0
+MAX_TCP_SPEED = 1.5  # m/s, upper bound allowed for any robot
+DEFAULT_NEAR_MARGIN = 0.05  # m, inflated-volume margin for robot-robot near collisions
+DEFAULT_SCREW_TIME_S = 1.0
+DEFAULT_TOLERANCE_M = 0.02
+DEFAULT_TOLERANCE_DEG = 20.0
+DEFAULT_ROLE_COLORS = {"transport": "yellow", "screwing": "green"}
+
+# Names the view and the VR clients know; anything else must be written as #rrggbb.
+COLOR_NAMES = frozenset(
+    {
+        "red", "green", "blue", "yellow", "orange", "purple", "cyan", "magenta", "white",
+        "black", "grey", "gray", "pink", "brown",
+    }
+)
+_HEX_COLOR = re.compile(r"^#[0-9a-fA-F]{6}$")
+# Ids end up in bus keys (robot/<id>/command), cue ids ("target:RA1") and folder names.
+ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_-]*$"
+NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.-]*$"
+
+
+class _Strict(BaseModel):
+    """Base of every table: unknown keys are errors, no type coercion, no NaN/inf."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False, frozen=False)
+
+
+Num = Annotated[float, Field(allow_inf_nan=False)]
+Vec3 = Annotated[list[Num], Field(min_length=3, max_length=3)]
+Id = Annotated[str, Field(pattern=ID_PATTERN)]
+Name = Annotated[str, Field(pattern=NAME_PATTERN)]
+
+
+def check_color(value: str) -> str:
+    if value.lower() in COLOR_NAMES or _HEX_COLOR.match(value):
+        return value
+    raise ValueError(
+        f"unknown color {value!r}: use #rrggbb or one of {', '.join(sorted(COLOR_NAMES))}"
+    )
+
+
+# ---------------------------------------------------------------- tables
+
+
+class PoseYaw(_Strict):
+    """A position (metres, world frame) and a yaw about world z (degrees)."""
+
+    xyz: Vec3
+    yaw: Annotated[float, Field(ge=-360.0, le=360.0, allow_inf_nan=False)] = 0.0
+
+
+class ScenarioInfo(_Strict):
+    name: Name
+    tick_hz: Annotated[float, Field(gt=0.0, le=MAX_TICK_HZ, allow_inf_nan=False)] = DEFAULT_TICK_HZ
+    seed: Annotated[int, Field(ge=0, lt=2**64)] = 1
+
+
+class Participant(_Strict):
+    """Who drives the human side, and the scripted participant's parameters (SPEC §5)."""
+
+    name: Name
+    input: Literal["scripted", "replay", "vr"] = "scripted"
+    replay_file: str | None = None
+    # Scripted-participant parameters; ignored by the replay and vr sources.
+    reaction_time_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.4
+    peak_hand_speed: Annotated[float, Field(gt=0.0, le=5.0, allow_inf_nan=False)] = 1.0
+    caution: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.5
+    fitts_a_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.1
+    fitts_b_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.15
+    pick_dwell_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.3
+    place_dwell_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.3
+    place_error_m: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.005
+    # false | true | probability in [0, 1] | list of task times in seconds; normalised to a
+    # probability (float) or a non-empty list of times (see docs/scenario.md).
+    provoke_collisions: float | list[float] = 0.0
+
+    @field_validator("provoke_collisions", mode="before")
+    @classmethod
+    def _provoke_shape(cls, value: Any) -> float | list[float]:
+        if isinstance(value, bool):
+            return 1.0 if value else 0.0
+        if isinstance(value, (int, float)):
+            if not math.isfinite(value) or not 0.0 <= value <= 1.0:
+                raise ValueError(f"a probability must be in [0, 1], got {value}")
+            return float(value)
+        if isinstance(value, list):
+            times: list[float] = []
+            for item in value:
+                if isinstance(item, bool) or not isinstance(item, (int, float)):
+                    raise ValueError(f"times must be numbers of seconds, got {item!r}")
+                if not math.isfinite(item) or item < 0.0:
+                    raise ValueError(f"times must be finite and >= 0 s, got {item}")
+                times.append(float(item))
+            return sorted(times) if times else 0.0
+        raise ValueError(
+            "expected true/false, a probability in [0, 1] or a list of task times in seconds, "
+            f"got {type(value).__name__}"
+        )
+
+    @property
+    def provoke_times_s(self) -> list[float]:
+        return list(self.provoke_collisions) if isinstance(self.provoke_collisions, list) else []
+
+    @property
+    def provoke_probability(self) -> float:
+        return 0.0 if isinstance(self.provoke_collisions, list) else float(self.provoke_collisions)
+
+    def scripted_params(self) -> dict[str, float]:
+        """The numeric scripted-participant parameters, as `ParticipantConfig.params` carries them."""
+        return {name: float(getattr(self, name)) for name in SCRIPTED_PARAMS}
+
+
+SCRIPTED_PARAMS = (
+    "reaction_time_s", "peak_hand_speed", "caution", "fitts_a_s", "fitts_b_s", "pick_dwell_s",
+    "place_dwell_s", "place_error_m",
+)
+
+
+class Conditions(_Strict):
+    anticipation: bool = True
+    safety_policy: Literal["retreat", "retreat_button", "stop_colliding"] = "retreat"
+
+
+class Robot(_Strict):
+    """One arm. Its id is the key under [robots] (available as `.id` once loaded)."""
+
+    role: Literal["transport", "screwing"]
+    urdf: Annotated[str, Field(min_length=1)]
+    base: PoseYaw
+    max_tcp_speed: Annotated[float, Field(gt=0.0, le=MAX_TCP_SPEED, allow_inf_nan=False)]
+    home: Vec3
+    intermediate: Vec3
+    retreat: Vec3
+    color: str | None = None  # default by role: transport yellow, screwing green
+    feeder: Vec3 | None = None  # screwing robots only (required there)
+    screw_time_s: Annotated[float, Field(ge=0.0, le=60.0, allow_inf_nan=False)] | None = None
+    near_margin: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = DEFAULT_NEAR_MARGIN
+
+    _id: str = PrivateAttr(default="")
+
+    @field_validator("color")
+    @classmethod
+    def _color(cls, value: str | None) -> str | None:
+        return None if value is None else check_color(value)
+
+    @property
+    def id(self) -> str:
+        return self._id
+
+    @property
+    def color_or_default(self) -> str:
+        return self.color if self.color is not None else DEFAULT_ROLE_COLORS[self.role]
+
+    @property
+    def screw_time_or_default(self) -> float:
+        if self.screw_time_s is not None:
+            return self.screw_time_s
+        return DEFAULT_SCREW_TIME_S if self.role == "screwing" else 0.0
+
+
+class Part(_Strict):
+    id: Id
+    owner: Annotated[str, Field(min_length=1)]  # "human" or a robot id
+    kind: str = "part"  # free text, shown in the view
+    size: Annotated[list[Annotated[float, Field(gt=0.0, le=2.0, allow_inf_nan=False)]],
+                    Field(min_length=3, max_length=3)]
+    start: PoseYaw | None = None  # required unless the owner is a screwing robot
+    target: PoseYaw
+    after: list[str] = Field(default_factory=list)
+
+
+class Box(_Strict):
+    min: Vec3
+    max: Vec3
+
+
+class Workspace(_Strict):
+    envelope: Annotated[list[Box], Field(min_length=1)]
+    continue_button: Vec3 | None = None  # required for safety_policy = "retreat_button"
+
+
+class Placement(_Strict):
+    tolerance_m: Annotated[float, Field(gt=0.0, le=0.5, allow_inf_nan=False)] = DEFAULT_TOLERANCE_M
+    tolerance_deg: Annotated[float, Field(gt=0.0, le=180.0, allow_inf_nan=False)] = (
+        DEFAULT_TOLERANCE_DEG
+    )
+
+
+class Scenario(_Strict):
+    """A whole scenario file. Build it with `hrc.scenario.load` (which also checks it)."""
+
+    scenario: ScenarioInfo
+    participant: Participant
+    conditions: Conditions = Field(default_factory=Conditions)
+    robots: dict[Id, Robot]
+    parts: list[Part] = Field(default_factory=list)
+    # agent ("human" or a robot id) -> part ids in the order that agent handles them
+    sequence: dict[str, list[str]] = Field(default_factory=dict)
+    workspace: Workspace
+    placement: Placement = Field(default_factory=Placement)
+
+    _source_path: Path | None = PrivateAttr(default=None)
+    _source_text: str = PrivateAttr(default="")
+    _project_root: Path | None = PrivateAttr(default=None)
+
+    def model_post_init(self, _context: Any) -> None:
+        for robot_id, robot in self.robots.items():
+            robot._id = robot_id
+
+    # -------------------------------------------------- where it came from
+
+    @property
+    def source_path(self) -> Path | None:
+        return self._source_path
+
+    @property
+    def source_text(self) -> str:
+        return self._source_text
+
+    @property
+    def project_root(self) -> Path | None:
+        return self._project_root
+
+    def resolve(self, relative: str) -> Path | None:
+        """A path written in the file, resolved like SPEC §2 says; None if it exists nowhere."""
+        folder = self._source_path.parent if self._source_path else None
+        return resolve_path(relative, folder, self._project_root)
+
+    def urdf_path(self, robot_id: str) -> Path | None:
+        return self.resolve(self.robots[robot_id].urdf)
+
+    # -------------------------------------------------- accessors the task logic uses
+
+    @property
+    def agents(self) -> list[str]:
+        """"human" then the robot ids, in file order."""
+        return [HUMAN, *self.robots]
+
+    def part(self, part_id: str) -> Part:
+        for part in self.parts:
+            if part.id == part_id:
+                return part
+        raise KeyError(f"no part {part_id!r} in scenario {self.scenario.name!r}")
+
+    @property
+    def parts_by_id(self) -> dict[str, Part]:
+        return {part.id: part for part in self.parts}
+
+    def robot(self, robot_id: str) -> Robot:
+        try:
+            return self.robots[robot_id]
+        except KeyError:
+            raise KeyError(f"no robot {robot_id!r} in scenario {self.scenario.name!r}") from None
+
+    def sequence_of(self, agent: str) -> list[str]:
+        """Part ids the agent handles, in order (empty if it has none)."""
+        if agent != HUMAN and agent not in self.robots:
+            raise KeyError(f"no agent {agent!r} in scenario {self.scenario.name!r}")
+        return list(self.sequence.get(agent, []))
+
+    def parts_in_sequence(self, agent: str) -> list[Part]:
+        by_id = self.parts_by_id
+        return [by_id[pid] for pid in self.sequence_of(agent)]
+
+    def parts_of(self, owner: str) -> list[Part]:
+        """Parts owned by an agent, in file order."""
+        return [part for part in self.parts if part.owner == owner]
+
+    def robots_by_role(self, role: str) -> dict[str, Robot]:
+        if role not in ROLES:
+            raise ValueError(f"unknown role {role!r}; roles are {', '.join(ROLES)}")
+        return {rid: robot for rid, robot in self.robots.items() if robot.role == role}
+
+    def dependents(self, part_id: str) -> list[str]:
+        """Ids of the parts whose `after` names part_id."""
+        return [part.id for part in self.parts if part_id in part.after]

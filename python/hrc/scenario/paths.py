@@ -1,0 +1,38 @@
+"""Where relative paths in a scenario file point (SPEC §2)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+ROOT_ENV = "HRC_ROOT"
+ROOT_MARKER = "scenarios"
+
+
+def find_project_root(start: Path) -> Path | None:
+    """The project root for a scenario file: $HRC_ROOT if set, else the nearest folder at or above
+    `start` that holds a `scenarios/` folder, else the root of the installed project (so a
+    scenario kept elsewhere can still name robots/arm5.urdf), else None."""
+    env = os.environ.get(ROOT_ENV)
+    if env:
+        return Path(env).expanduser().resolve()
+    here = start.resolve()
+    for folder in (here, *here.parents):
+        if (folder / ROOT_MARKER).is_dir():
+            return folder
+    from hrc.paths import project_root
+
+    installed = project_root()
+    return installed if (installed / ROOT_MARKER).is_dir() else None
+
+
+def resolve_path(written: str, folder: Path | None, root: Path | None) -> Path | None:
+    """An existing file for `written`: absolute as is, else relative to the scenario's folder
+    first, then the project root. None when it exists nowhere."""
+    path = Path(written).expanduser()
+    if path.is_absolute():
+        return path if path.is_file() else None
+    for base in (folder, root):
+        if base is not None and (base / path).is_file():
+            return (base / path).resolve()
+    return None

@@ -1,0 +1,166 @@
+"""Fixtures for cross-service tests: real processes, real Zenoh sessions on loopback."""
+
+from __future__ import annotations
+
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+import uuid
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from hrc.bus import Bus, BusConfig
+from hrc.paths import ik_binary, project_root
+from hrc.wire import pb
+
+ROOT = project_root()
+HRC = str(Path(sys.executable).with_name("hrc"))
+SERVICE_MARKERS = {
+    "physics": "hrc_physics",
+    "orchestrator": "hrc_orchestrator",
+    "human_input": "hrc_human_input",
+    "logger": "hrc_logger",
+    "ik_cpp": "hrc-ik",
+}
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+def wait_until(pred, timeout: float = 10.0, step: float = 0.02) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        if pred():
+            return True
+        time.sleep(step)
+    return bool(pred())
+
+
+@pytest.fixture(scope="session")
+def ik_bin() -> Path:
+    path = ik_binary()
+    if not path.exists():
+        pytest.fail(f"{path} is missing: build it with scripts/setup.sh (the tests need the real "
+                    "C++ service)")
+    return path
+
+
+def _children(pid: int) -> list[int]:
+    out: list[int] = []
+    try:
+        with open(f"/proc/{pid}/task/{pid}/children") as f:
+            kids = [int(x) for x in f.read().split()]
+    except OSError:
+        return out
+    for k in kids:
+        out.append(k)
+        out.extend(_children(k))
+    return out
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        with open(f"/proc/{pid}/cmdline", "rb") as f:
+            return f.read().replace(b"\0", b" ").decode(errors="replace")
+    except OSError:
+        return ""
+
+
+class Trial:
+    """``hrc run`` in the background, with a test-side Zenoh session into its bus."""
+
+    def __init__(self, scenario: str | Path, out: Path, ticks: int = 0, extra: list[str] = ()) -> None:
+        self.session = f"it{uuid.uuid4().hex[:8]}"
+        self.port = free_port()
+        self.out = out
+        argv = [HRC, "run", str(scenario), "--out", str(out), "--ticks", str(ticks),
+                "--session", self.session, "--port", str(self.port), *extra]
+        self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                                     stdin=subprocess.DEVNULL, text=True)
+        self._bus: Bus | None = None
+        self.stdout = ""
+        self.stderr = ""
+
+    def bus(self, name: str = "tester") -> Bus:
+        if self._bus is None:
+            cfg = BusConfig(session=self.session, connect=[f"tcp/127.0.0.1:{self.port}"], listen=[])
+            self._bus = Bus(cfg, name)
+        return self._bus
+
+    def service_pids(self) -> dict[str, int]:
+        pids: dict[str, int] = {}
+        for pid in _children(self.proc.pid):
+            cmd = _cmdline(pid)
+            for name, marker in SERVICE_MARKERS.items():
+                if marker in cmd and name not in pids:
+                    pids[name] = pid
+        return pids
+
+    def stats(self, service: str, timeout: float = 5.0) -> pb.ServiceStats:
+        bus = self.bus()
+        return bus.get_one(bus.keys.stats(service), pb.ServiceStats, timeout=timeout)
+
+    def wait_ticking(self, min_tick: int = 20, timeout: float = 60.0) -> None:
+        def ticking() -> bool:
+            if self.proc.poll() is not None:
+                raise AssertionError(f"hrc run ended early: {self.communicate()}")
+            try:
+                return self.stats("orchestrator", timeout=1.0).last_tick >= min_tick
+            except TimeoutError:
+                return False
+        assert wait_until(ticking, timeout, 0.1), "the trial never started ticking"
+
+    def stop(self, reason: str = "test done") -> None:
+        bus = self.bus()
+        bus.publisher(bus.keys.run_control()).put(
+            pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason))
+
+    def communicate(self, timeout: float = 60.0) -> tuple[int, str, str]:
+        try:
+            out, err = self.proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            out, err = self.proc.communicate()
+        self.stdout += out or ""
+        self.stderr += err or ""
+        return self.proc.returncode, self.stdout, self.stderr
+
+    def close(self) -> None:
+        if self._bus is not None:
+            self._bus.close()
+            self._bus = None
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        for pid in _children(self.proc.pid):
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+
+
+@pytest.fixture
+def trial_factory(tmp_path: Path, ik_bin: Path) -> Iterator:
+    trials: list[Trial] = []
+
+    def make(scenario: str | Path = ROOT / "scenarios" / "empty.toml", ticks: int = 0,
+             extra: list[str] = (), name: str = "trial") -> Trial:
+        t = Trial(scenario, tmp_path / name, ticks, list(extra))
+        trials.append(t)
+        return t
+
+    yield make
+    for t in trials:
+        t.close()
