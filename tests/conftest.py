@@ -164,3 +164,8 @@ def trial_factory(tmp_path: Path, ik_bin: Path) -> Iterator:
     yield make
     for t in trials:
         t.close()
+
+
+@pytest.fixture
+def session_id() -> str:
+    return f"s{uuid.uuid4().hex[:8]}"

@@ -69,7 +69,7 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
         pcfg.owner = p.owner
         pcfg.kind = p.kind
         pcfg.size.CopyFrom(_vec(p.size))
-        pcfg.has_start = p.start is not None
+        pcfg.start_given = p.start is not None
         if p.start is not None:
             pcfg.start.CopyFrom(_pose(p.start))
         pcfg.target.CopyFrom(_pose(p.target))
@@ -128,7 +128,7 @@ def _from_proto(msg: pb.Scenario) -> Scenario:
 
     parts = [
         Part(id=p.id, owner=p.owner, kind=p.kind, size=_vec_back(p.size),
-             start=_pose_back(p.start) if p.has_start else None,
+             start=_pose_back(p.start) if p.start_given else None,
              target=_pose_back(p.target), after=list(p.after))
         for p in msg.parts
     ]

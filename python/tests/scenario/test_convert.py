@@ -34,9 +34,9 @@ def test_every_field_is_filled(thesis, arm_root: Path) -> None:
     assert r1.base.yaw_deg == 180 and r1.base.xyz.x == pytest.approx(0.45)
     assert len(msg.parts) == 18
     s1 = next(p for p in msg.parts if p.id == "S1")
-    assert not s1.has_start and list(s1.after) == ["H1"]
+    assert not s1.start_given and list(s1.after) == ["H1"]
     h1 = next(p for p in msg.parts if p.id == "H1")
-    assert h1.has_start and h1.size.x == pytest.approx(0.10)
+    assert h1.start_given and h1.size.x == pytest.approx(0.10)
     assert {s.agent: list(s.parts) for s in msg.sequences}["r2"][0] == "S1"
     assert len(msg.workspace.envelope) == 2 and msg.workspace.HasField("continue_button")
     assert msg.place_tolerance_m == pytest.approx(0.02)

@@ -1,0 +1,23 @@
+// Minimal stderr logging shared by the hrc C++ processes: one line per call, thread-safe,
+// "LEVEL [name] message" (the process name is set once by main()).
+#pragma once
+
+#include <string_view>
+
+namespace hrc::log {
+
+enum class Level { debug = 0, info = 1, warning = 2, error = 3 };
+
+/// Name shown in every line (default "hrc").
+void set_name(std::string_view name);
+/// Lines below `level` are dropped (default info; env HRC_LOG_LEVEL=debug|info|warning|error).
+void set_level(Level level);
+bool enabled(Level level);
+void write(Level level, std::string_view message);
+
+inline void debug(std::string_view m) { write(Level::debug, m); }
+inline void info(std::string_view m) { write(Level::info, m); }
+inline void warning(std::string_view m) { write(Level::warning, m); }
+inline void error(std::string_view m) { write(Level::error, m); }
+
+}  // namespace hrc::log

@@ -1,0 +1,192 @@
+#include "hrc/lockstep.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cstdint>
+#include <exception>
+#include <vector>
+
+namespace hrc {
+namespace {
+
+std::vector<v1::PublishedMark> marks_of(const v1::ClockTick& tick) {
+  return {tick.published().begin(), tick.published().end()};
+}
+
+std::string describe(const std::vector<v1::PublishedMark>& marks) {
+  std::string out;
+  for (const auto& m : marks) {
+    if (!out.empty()) out += ", ";
+    out += m.key() + "#" + std::to_string(m.seq()) + " from " + m.sender();
+  }
+  return out;
+}
+
+}  // namespace
+
+LockstepParticipant::LockstepParticipant(Bus& bus, LockstepOptions options)
+    : bus_(bus), options_(std::move(options)), inbox_(bus) {}
+
+void LockstepParticipant::start() {
+  const Keys& keys = bus_.keys();
+  if (options_.ack) {
+    // Acks close the barrier: no batching delay, never dropped.
+    ack_pub_ = &bus_.publisher(keys.clock_ack(name()), PublisherOptions{true, true});
+  }
+  bus_.subscribe<v1::ClockTick>(keys.clock(), [this](const std::string&, const v1::ClockTick& t) { on_clock(t); });
+  bus_.subscribe<v1::RunEnd>(keys.run_end(), [this](const std::string&, const v1::RunEnd& e) { on_run_end(e); });
+  bus_.watch_liveliness([this](const std::string& service, bool alive) { on_liveliness(service, alive); });
+  bus_.serve_stats();
+  // Last: the token means "ready, nothing will be missed".
+  bus_.declare_token();
+}
+
+void LockstepParticipant::on_clock(const v1::ClockTick& tick) {
+  {
+    std::unique_lock<std::mutex> lock(mutex_);
+    // Fast path: nothing queued or in progress and every input of the tick is here, so compute
+    // right on this zenoh thread (saves a thread hand-off per tick). Otherwise run() takes it.
+    const bool inline_ok = running_ && !busy_ && ticks_.empty() && !end_.has_value() &&
+                           inbox_.missing(marks_of(tick)).empty();
+    if (!inline_ok) {
+      ticks_.push_back(tick);
+      lock.unlock();
+      cond_.notify_all();
+      return;
+    }
+    busy_ = true;
+  }
+  process(tick);
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    busy_ = false;
+  }
+  cond_.notify_all();
+}
+
+void LockstepParticipant::on_run_end(const v1::RunEnd& end) {
+  Outcome o;
+  o.ok = end.ok();
+  o.reason = end.reason();
+  if (!end.ok() && !end.failed_participant().empty()) {
+    o.reason += " (failed participant: " + end.failed_participant() + ")";
+  }
+  o.run_end = end;
+  finish(std::move(o));
+}
+
+void LockstepParticipant::on_liveliness(const std::string& service, bool alive) {
+  if (service != options_.clock_master) return;
+  bool lost = false;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (alive) {
+      physics_seen_ = true;
+    } else if (physics_seen_) {
+      lost = true;
+    }
+  }
+  if (lost) {
+    Outcome o;
+    o.ok = false;
+    o.reason = "the clock master '" + options_.clock_master + "' disappeared";
+    finish(std::move(o));
+  }
+}
+
+void LockstepParticipant::finish(Outcome outcome) {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    if (!end_.has_value()) end_ = std::move(outcome);
+  }
+  cond_.notify_all();
+}
+
+void LockstepParticipant::stop(const std::string& reason) {
+  Outcome o;
+  o.ok = false;
+  o.reason = reason;
+  o.stopped = true;
+  finish(std::move(o));
+}
+
+std::optional<v1::ClockTick> LockstepParticipant::last_tick() const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return last_tick_;
+}
+
+Outcome LockstepParticipant::run(double timeout_s) {
+  std::unique_lock<std::mutex> lock(mutex_);
+  running_ = true;
+  const auto wait_span = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+      std::chrono::duration<double>(timeout_s > 0 ? timeout_s : 0.0));
+  while (true) {
+    // Ticks queued before an end are still computed only while the run goes on: the end wins.
+    const auto ready = [this] { return end_.has_value() || (!ticks_.empty() && !busy_); };
+    if (timeout_s > 0) {
+      if (!cond_.wait_for(lock, wait_span, ready)) {
+        Outcome o;
+        o.ok = false;
+        o.reason = "no clock tick within " + std::to_string(timeout_s) + " s";
+        end_ = o;
+      }
+    } else {
+      cond_.wait(lock, ready);
+    }
+    if (end_.has_value()) {
+      running_ = false;
+      // Wait for an inline tick to finish before the caller tears the bus down.
+      cond_.wait(lock, [this] { return !busy_; });
+      return *end_;
+    }
+    v1::ClockTick tick = std::move(ticks_.front());
+    ticks_.pop_front();
+    busy_ = true;
+    lock.unlock();
+    process(tick);
+    lock.lock();
+    busy_ = false;
+  }
+}
+
+void LockstepParticipant::process(const v1::ClockTick& tick) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const uint64_t k = tick.header().tick();
+  try {
+    if (tick.mode() == v1::CLOCK_MODE_LOCKSTEP) {
+      const auto missing = inbox_.wait_for(marks_of(tick), options_.input_timeout_s);
+      if (!missing.empty()) {
+        const std::string what = describe(missing);
+        log::error("tick " + std::to_string(k) + ": inputs never arrived: " + what);
+        Outcome o;
+        o.reason = "tick " + std::to_string(k) + ": inputs never arrived: " + what;
+        finish(std::move(o));
+        return;
+      }
+    }
+    inbox_.deliver(k, options_.clock_master);
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      last_tick_ = tick;
+    }
+    bus_.stats().tick(k);
+    if (step_) step_(tick);
+    if (ack_pub_ != nullptr) {
+      v1::TickAck ack;
+      ack.set_participant(name());
+      const auto us = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0);
+      ack.set_compute_us(static_cast<uint32_t>(std::min<int64_t>(us.count(), UINT32_MAX)));
+      for (auto& m : bus_.published_marks()) {
+        if (m.key() != ack_pub_->key()) *ack.add_published() = std::move(m);
+      }
+      ack_pub_->put(ack, k, tick.header().sim_time());
+    }
+  } catch (const std::exception& e) {
+    log::error("tick " + std::to_string(k) + " failed: " + e.what());
+    Outcome o;
+    o.reason = "tick " + std::to_string(k) + " failed: " + e.what();
+    finish(std::move(o));
+  }
+}
+
+}  // namespace hrc

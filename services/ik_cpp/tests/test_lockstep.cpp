@@ -1,0 +1,200 @@
+// LockstepParticipant against an in-process fake clock master ("physics") over loopback.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <future>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "hrc/lockstep.hpp"
+#include "test_util.hpp"
+
+namespace {
+
+using hrc::test::wait_until;
+
+/// Minimal clock master: token alive/physics, collects acks, publishes ticks and run/end.
+class FakePhysics {
+ public:
+  explicit FakePhysics(const hrc::BusConfig& cfg, const std::string& session) : bus(cfg, session, "physics") {
+    bus.subscribe<hrc::v1::TickAck>(bus.keys().clock_acks(), [this](const std::string&, const hrc::v1::TickAck& a) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      acks.push_back(a);
+    });
+    bus.watch_liveliness([this](const std::string& s, bool alive) {
+      const std::lock_guard<std::mutex> lock(mutex);
+      alive_services[s] = alive;
+    });
+    bus.declare_token();
+  }
+  bool sees_alive(const std::string& s) {
+    const std::lock_guard<std::mutex> lock(mutex);
+    const auto it = alive_services.find(s);
+    return it != alive_services.end() && it->second;
+  }
+  std::size_t ack_count() {
+    const std::lock_guard<std::mutex> lock(mutex);
+    return acks.size();
+  }
+  void tick(uint64_t k, std::vector<hrc::v1::PublishedMark> marks = {}) {
+    hrc::v1::ClockTick t;
+    t.set_mode(hrc::v1::CLOCK_MODE_LOCKSTEP);
+    t.set_dt(0.01);
+    t.add_participants("ik_cpp");
+    for (auto& m : marks) *t.add_published() = m;
+    bus.publisher(bus.keys().clock(), hrc::PublisherOptions{true, true}).put(t, k, 0.01 * static_cast<double>(k));
+  }
+  void end(bool ok, const std::string& reason) {
+    hrc::v1::RunEnd e;
+    e.set_ok(ok);
+    e.set_reason(reason);
+    bus.publisher(bus.keys().run_end()).put(e, 0, 0.0);
+  }
+
+  hrc::Bus bus;
+  std::mutex mutex;
+  std::vector<hrc::v1::TickAck> acks;
+  std::map<std::string, bool> alive_services;
+};
+
+class Lockstep : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto cfg = hrc::test::peer_pair();
+    physics = std::make_unique<FakePhysics>(cfg.a, "ls");
+    bus = std::make_unique<hrc::Bus>(cfg.b, "ls", "ik_cpp");
+  }
+  void TearDown() override {
+    bus.reset();
+    physics.reset();
+  }
+  std::unique_ptr<FakePhysics> physics;
+  std::unique_ptr<hrc::Bus> bus;
+};
+
+TEST_F(Lockstep, TicksAreSteppedAndAckedThenRunEndOkReturnsZero) {
+  hrc::LockstepParticipant p(*bus);
+  std::vector<uint64_t> stepped;
+  p.on_tick([&](const hrc::v1::ClockTick& t) {
+    stepped.push_back(t.header().tick());
+    hrc::v1::RobotState s;
+    s.set_robot("r1");
+    bus->publisher(bus->keys().robot_state("r1")).put(s, t.header().tick(), t.header().sim_time());
+  });
+  p.start();
+  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  auto result = std::async(std::launch::async, [&] { return p.run(); });
+  constexpr uint64_t kTicks = 50;
+  for (uint64_t k = 1; k <= kTicks; ++k) {
+    physics->tick(k);
+    ASSERT_TRUE(wait_until([&] { return physics->ack_count() == k; })) << "no ack for tick " << k;
+  }
+  physics->end(true, "ticks");
+  const hrc::Outcome o = result.get();
+  EXPECT_TRUE(o.ok);
+  EXPECT_EQ(o.exit_code(), 0);
+  EXPECT_EQ(o.reason, "ticks");
+  ASSERT_TRUE(o.run_end.has_value());
+  ASSERT_EQ(stepped.size(), kTicks);
+  for (uint64_t k = 1; k <= kTicks; ++k) EXPECT_EQ(stepped[k - 1], k);
+  const std::lock_guard<std::mutex> lock(physics->mutex);
+  for (uint64_t k = 1; k <= kTicks; ++k) {
+    const auto& a = physics->acks[k - 1];
+    EXPECT_EQ(a.header().tick(), k);
+    EXPECT_EQ(a.header().sender(), "ik_cpp");
+    EXPECT_EQ(a.header().seq(), k);
+    EXPECT_EQ(a.participant(), "ik_cpp");
+    // The ack tells physics how many states it must have seen (the ack key itself is left out).
+    ASSERT_EQ(a.published_size(), 1);
+    EXPECT_EQ(a.published(0).key(), "hrc/ls/robot/r1/state");
+    EXPECT_EQ(a.published(0).seq(), k);
+  }
+  EXPECT_EQ(bus->stats().ticks_seen(), kTicks);
+  EXPECT_EQ(bus->stats().last_tick(), kTicks);
+}
+
+TEST_F(Lockstep, RunEndNotOkReturnsOne) {
+  hrc::LockstepParticipant p(*bus);
+  p.start();
+  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  auto result = std::async(std::launch::async, [&] { return p.run(); });
+  physics->end(false, "participant orchestrator missed the barrier");
+  const hrc::Outcome o = result.get();
+  EXPECT_FALSE(o.ok);
+  EXPECT_EQ(o.exit_code(), 1);
+}
+
+TEST_F(Lockstep, LosingTheClockMasterEndsTheRunWithAnError) {
+  hrc::LockstepParticipant p(*bus);
+  p.start();
+  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  auto result = std::async(std::launch::async, [&] { return p.run(); });
+  physics.reset();  // its session closes, its token disappears
+  ASSERT_EQ(result.wait_for(std::chrono::seconds(10)), std::future_status::ready);
+  const hrc::Outcome o = result.get();
+  EXPECT_FALSE(o.ok);
+  EXPECT_NE(o.reason.find("physics"), std::string::npos) << o.reason;
+}
+
+TEST_F(Lockstep, StepWaitsForInputsTheClockSaysWerePublished) {
+  hrc::LockstepParticipant p(*bus);
+  std::vector<std::string> log;
+  std::mutex m;
+  p.input<hrc::v1::RobotCommand>(bus->keys().robot_commands(), [&](const std::string&, const hrc::v1::RobotCommand& c) {
+    const std::lock_guard<std::mutex> lock(m);
+    log.push_back("command " + std::to_string(c.command_id()));
+  });
+  p.on_tick([&](const hrc::v1::ClockTick& t) {
+    const std::lock_guard<std::mutex> lock(m);
+    log.push_back("step " + std::to_string(t.header().tick()));
+  });
+  p.start();
+  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  auto result = std::async(std::launch::async, [&] { return p.run(); });
+  // The clock says the orchestrator published command #1, but it is slower than the clock.
+  const std::string key = bus->keys().robot_command("r1");
+  hrc::v1::PublishedMark mk;
+  mk.set_key(key);
+  mk.set_sender("orchestrator");
+  mk.set_seq(1);
+  physics->tick(1, {mk});
+  std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  {
+    const std::lock_guard<std::mutex> lock(m);
+    EXPECT_TRUE(log.empty()) << "stepped before its input arrived";
+  }
+  hrc::v1::RobotCommand c;
+  c.set_command_id(77);
+  c.mutable_header()->set_session("ls");
+  c.mutable_header()->set_sender("orchestrator");
+  c.mutable_header()->set_seq(1);
+  c.mutable_header()->set_tick(0);
+  physics->bus.publisher(key).put_raw(c.SerializeAsString());
+  ASSERT_TRUE(wait_until([&] { return physics->ack_count() == 1; }));
+  physics->end(true, "ticks");
+  EXPECT_TRUE(result.get().ok);
+  const std::lock_guard<std::mutex> lock(m);
+  EXPECT_EQ(log, (std::vector<std::string>{"command 77", "step 1"}));
+}
+
+TEST_F(Lockstep, NoTickWithinTheTimeoutIsAnError) {
+  hrc::LockstepParticipant p(*bus);
+  p.start();
+  const hrc::Outcome o = p.run(0.1);
+  EXPECT_FALSE(o.ok);
+  EXPECT_NE(o.reason.find("no clock tick"), std::string::npos) << o.reason;
+}
+
+TEST_F(Lockstep, StopEndsTheRun) {
+  hrc::LockstepParticipant p(*bus);
+  p.start();
+  auto result = std::async(std::launch::async, [&] { return p.run(); });
+  p.stop("stopped by signal SIGTERM");
+  const hrc::Outcome o = result.get();
+  EXPECT_TRUE(o.stopped);
+  EXPECT_EQ(o.reason, "stopped by signal SIGTERM");
+}
+
+}  // namespace
