@@ -49,5 +49,11 @@ def print_summary(trial_dir: Path, result: Any) -> None:
     except (OSError, json.JSONDecodeError) as exc:
         print(f"trial finished but {path} is unreadable: {exc}")
         return
+    stats = trial_dir / "logger_stats.json"  # written by the logger, which measures its own lag
+    if stats.exists() and "logger" not in m:
+        try:
+            m["logger"] = json.loads(stats.read_text())
+        except (OSError, json.JSONDecodeError):
+            pass
     print("\n".join(format_summary(m)))
     print(f"files: {trial_dir}")

@@ -1,0 +1,109 @@
+"""The trial's files: log.txt, events.jsonl, and the rerun view, fed one message at a time.
+
+Bus-free, so tests can drive it directly; the service's observer calls the handlers in the
+deterministic tick order of the bus inbox.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections import Counter
+from pathlib import Path
+
+from hrc.wire import pb
+
+from hrc_logger.files import JsonlFile, LineFile
+from hrc_logger.records import cue_records, event_record, metrics_record, run_end_record
+from hrc_logger.textlog import ThesisLog, kind_name, run_end_line
+from hrc_logger.view import View
+
+log = logging.getLogger(__name__)
+
+EVENTS_FILE = "events.jsonl"
+TEXT_LOG_FILE = "log.txt"
+
+
+class TrialRecorder:
+    """Writes every task event, cue and final metrics; forwards world state to the view."""
+
+    def __init__(self, out: Path, view: View | None = None) -> None:
+        self.out = out
+        out.mkdir(parents=True, exist_ok=True)
+        self.events = JsonlFile(out / EVENTS_FILE)
+        self.text = LineFile(out / TEXT_LOG_FILE)
+        self.thesis = ThesisLog()
+        self.view = view
+        self.kinds: Counter[str] = Counter()
+        self.cue_changes = 0
+        self.last_metrics: pb.Metrics | None = None
+        self.final_metrics_written = False
+        self.task_finished = False
+        self.last_task_time = 0.0
+        self.closed = False
+
+    # ------------------------------------------------------------------ task
+    def on_event(self, _key: str, ev: pb.TaskEvent) -> None:
+        self.events.write(event_record(ev))
+        self.kinds[kind_name(ev.kind)] += 1
+        self.last_task_time = max(self.last_task_time, ev.task_time)
+        line = self.thesis.line_for(ev)
+        if line is not None:
+            self.text.write_line(line)
+        if ev.kind == pb.TASK_EVENT_KIND_TASK_FINISHED:
+            self.task_finished = True
+        if self.view is not None:
+            self.view.event(ev, line)
+
+    def on_indicators(self, _key: str, ind: pb.Indicators) -> None:
+        for r in cue_records(ind):
+            self.events.write(r)
+            self.cue_changes += 1
+        if self.view is not None:
+            self.view.indicators(ind)
+
+    def on_metrics(self, _key: str, m: pb.Metrics) -> None:
+        self.last_metrics = m
+        if m.final:
+            self.events.write(metrics_record(m))
+            self.final_metrics_written = True
+
+    # ------------------------------------------------------------------ world (view only)
+    def on_robot_state(self, _key: str, st: pb.RobotState) -> None:
+        if self.view is not None:
+            self.view.robot_state(st)
+
+    def on_human_state(self, _key: str, hs: pb.HumanState) -> None:
+        if self.view is not None:
+            self.view.human_state(hs)
+
+    def on_world_objects(self, _key: str, wo: pb.WorldObjects) -> None:
+        if self.view is not None:
+            self.view.world_objects(wo)
+
+    def on_world_contacts(self, _key: str, wc: pb.WorldContacts) -> None:
+        if self.view is not None:
+            self.view.world_contacts(wc)
+
+    def on_tick(self, tick: pb.ClockTick) -> None:
+        if self.view is not None:
+            self.view.tick(tick.header.tick, tick.header.sim_time)
+
+    # ------------------------------------------------------------------ end
+    def finish(self, run_end: pb.RunEnd | None, reason: str = "") -> None:
+        """Closing lines (metrics if no final ones came, run end, why the log stops), then close."""
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            if not self.final_metrics_written and self.last_metrics is not None:
+                self.events.write(metrics_record(self.last_metrics))  # final = false: say so
+            if run_end is not None:
+                self.events.write(run_end_record(run_end))
+            line = run_end_line(run_end, reason, self.task_finished, self.last_task_time)
+            if line is not None:
+                self.text.write_line(line)
+        finally:
+            self.events.close()
+            self.text.close()
+            if self.view is not None:
+                self.view.close()

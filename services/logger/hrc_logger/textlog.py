@@ -1,0 +1,172 @@
+"""``log.txt``: the thesis-style human-readable log (SPEC §4, thesis §6.3).
+
+One line per event, task time in seconds, in the words of the thesis's Unity log, e.g.
+
+    2024-05-02 14:03:11 - TASK STARTED.
+    12.35 sec : Near-collision 1 between the robots.
+    20.10 sec : Collision 1 occurred between r1 and left hand.
+    23.42 sec : Continuing after robot-hand collision 1. Delayed 3.32 sec.
+    61.00 sec : r1 - task FINISHED. Max speed reached : 0.500 m/s, average speed : 0.231 m/s. Waited human for 4.20 sec.
+    70.25 sec : Human - task FINISHED. Idle (hands outside the workspace) for 2.10 sec.
+    75.40 sec : TASK FINISHED. 1 total collisions.
+
+The orchestrator writes the line into ``TaskEvent.text``; when present it is used as is (line
+breaks folded into spaces, so each event stays one line), except the start line, always built
+from ``wall_time`` when that is set (the thesis dates each trial). Otherwise the formatter of the kind below
+writes it, so log.txt never lacks a line. Only the kinds in ``LOG_KINDS`` go to log.txt (the
+thesis's log); every event goes to events.jsonl.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+from hrc.wire import pb
+
+K = pb.TaskEventKind
+
+
+def kind_name(kind: int) -> str:
+    """``TASK_EVENT_KIND_COLLISION`` -> ``COLLISION`` (unknown numbers stay readable)."""
+    try:
+        return K.Name(kind).removeprefix("TASK_EVENT_KIND_")
+    except ValueError:
+        return f"KIND_{kind}"
+
+
+def secs(t: float) -> str:
+    return f"{t:.2f}" if math.isfinite(t) else "?"
+
+
+def wall_clock(iso: str) -> str:
+    """ISO 8601 (TASK_STARTED.wall_time) -> ``YYYY-MM-DD HH:MM:SS`` in the time zone it carries."""
+    if not iso:
+        return "(no wall time)"
+    try:
+        return dt.datetime.fromisoformat(iso.replace("Z", "+00:00")).strftime("%Y-%m-%d %H:%M:%S")
+    except ValueError:
+        return iso
+
+
+def _mps(v: float | None) -> str:
+    return f"{v:.3f}" if v is not None and math.isfinite(v) else "?"
+
+
+def _number(ev: pb.TaskEvent, *names: str) -> float | None:
+    for n in names:
+        if n in ev.numbers:
+            return float(ev.numbers[n])
+    return None
+
+
+@dataclass
+class LogCounters:
+    """What the text log counts itself (used when an event does not carry the number)."""
+
+    collisions: int = 0
+    near_collisions: int = 0
+
+
+def _task_started(ev: pb.TaskEvent, c: LogCounters) -> str:
+    return f"{wall_clock(ev.wall_time)} - TASK STARTED."
+
+
+def _near(ev: pb.TaskEvent, c: LogCounters) -> str:
+    n = _number(ev, "n", "number", "count")
+    return f"{secs(ev.task_time)} sec : Near-collision {int(n) if n is not None else c.near_collisions} between the robots."
+
+
+def _collision(ev: pb.TaskEvent, c: LogCounters) -> str:
+    n = _number(ev, "n", "number", "count")
+    hand = f"{ev.hand} hand" if ev.hand else "hand"
+    return (f"{secs(ev.task_time)} sec : Collision {int(n) if n is not None else c.collisions} "
+            f"occurred between {ev.robot or '?'} and {hand}.")
+
+
+def _continued(ev: pb.TaskEvent, c: LogCounters) -> str:
+    n = _number(ev, "n", "number", "collision")
+    delay = _number(ev, "delay_s")
+    delay = ev.value if delay is None else delay
+    return (f"{secs(ev.task_time)} sec : Continuing after robot-hand collision "
+            f"{int(n) if n is not None else c.collisions}. Delayed {secs(delay)} sec.")
+
+
+def _robot_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
+    robot = ev.robot or ev.agent or "robot"
+    line = f"{secs(ev.task_time)} sec : {robot} - task FINISHED."
+    vmax = _number(ev, "max_tcp_speed_mps", "max_speed_mps", "max_speed")
+    vavg = _number(ev, "avg_tcp_speed_mps", "avg_speed_mps", "avg_speed")
+    idle = _number(ev, "idle_s", "waited_s")
+    if vmax is not None or vavg is not None:
+        line += f" Max speed reached : {_mps(vmax)} m/s, average speed : {_mps(vavg)} m/s."
+    if idle is not None:
+        line += f" Waited human for {secs(idle)} sec."
+    return line
+
+
+def _human_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
+    line = f"{secs(ev.task_time)} sec : Human - task FINISHED."
+    idle = _number(ev, "idle_s")
+    if idle is not None:
+        line += f" Idle (hands outside the workspace) for {secs(idle)} sec."
+    return line
+
+
+def _task_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
+    n = _number(ev, "collisions", "human_robot_count", "total_collisions")
+    return f"{secs(ev.task_time)} sec : TASK FINISHED. {int(n) if n is not None else c.collisions} total collisions."
+
+
+def _unreachable(ev: pb.TaskEvent, c: LogCounters) -> str:
+    what = f" ({ev.part})" if ev.part else ""
+    return f"{secs(ev.task_time)} sec : {ev.robot or ev.agent or 'robot'} - target unreachable{what}."
+
+
+FORMATTERS: dict[int, Callable[[pb.TaskEvent, LogCounters], str]] = {
+    K.TASK_EVENT_KIND_TASK_STARTED: _task_started,
+    K.TASK_EVENT_KIND_NEAR_COLLISION: _near,
+    K.TASK_EVENT_KIND_COLLISION: _collision,
+    K.TASK_EVENT_KIND_CONTINUED: _continued,
+    K.TASK_EVENT_KIND_ROBOT_FINISHED: _robot_finished,
+    K.TASK_EVENT_KIND_HUMAN_FINISHED: _human_finished,
+    K.TASK_EVENT_KIND_TASK_FINISHED: _task_finished,
+    K.TASK_EVENT_KIND_ROBOT_UNREACHABLE: _unreachable,
+}
+LOG_KINDS = frozenset(FORMATTERS)
+
+
+class ThesisLog:
+    """Turns task events into log.txt lines (pure; the writer is separate)."""
+
+    def __init__(self) -> None:
+        self.counters = LogCounters()
+
+    def line_for(self, ev: pb.TaskEvent) -> str | None:
+        """The log.txt line of ``ev``, or None if its kind is not in the thesis log."""
+        if ev.kind == K.TASK_EVENT_KIND_COLLISION:
+            self.counters.collisions += 1
+        elif ev.kind == K.TASK_EVENT_KIND_NEAR_COLLISION:
+            self.counters.near_collisions += 1
+        fmt = FORMATTERS.get(ev.kind)
+        if fmt is None:
+            return None
+        if ev.kind == K.TASK_EVENT_KIND_TASK_STARTED and ev.wall_time:
+            return fmt(ev, self.counters)  # the thesis's start line: always the date and time
+        text = " ".join(ev.text.split()) if ev.text.strip() else ""
+        return text or fmt(ev, self.counters)
+
+
+def run_end_line(end: pb.RunEnd | None, reason: str, task_finished: bool, last_task_time: float) -> str | None:
+    """A closing line when the run did not end with TASK FINISHED (so the log says why)."""
+    if end is not None and end.ok and task_finished:
+        return None
+    if end is None or not end.ok:
+        why = (end.reason if end is not None else reason) or "unknown"
+        who = f" (service '{end.failed_participant}')" if end is not None and end.failed_participant else ""
+        return f"{secs(last_task_time)} sec : RUN ENDED WITH AN ERROR{who}: {why}"
+    if not task_finished:
+        return f"{secs(last_task_time)} sec : RUN ENDED before the task finished ({end.reason or 'stopped'})."
+    return None

@@ -1,0 +1,222 @@
+"""A small URDF forward-kinematics model (numpy) for the view.
+
+The view animates each robot by logging one transform per joint (parent link frame -> child link
+frame) and measures hand-robot distances against the arm's link chain; both need the joint
+transforms of the URDF at the joint positions reported on ``robot/<id>/state``.
+Only what the view needs: joint origins (xyz, rpy), axes, revolute/continuous/prismatic/fixed.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Mapping, Sequence
+
+import numpy as np
+
+MOVABLE = ("revolute", "continuous", "prismatic")
+KNOWN_TYPES = (*MOVABLE, "fixed")
+
+
+class UrdfError(ValueError):
+    """The URDF cannot be used for the view (names the file and what is wrong)."""
+
+
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+    """URDF fixed-axis roll-pitch-yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    cr, sr = math.cos(roll), math.sin(roll)
+    cp, sp = math.cos(pitch), math.sin(pitch)
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return np.array([
+        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+        [-sp, cp * sr, cp * cr],
+    ])
+
+
+def axis_angle_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
+    """Rodrigues' rotation about a unit axis."""
+    x, y, z = axis
+    c, s = math.cos(angle), math.sin(angle)
+    t = 1.0 - c
+    return np.array([
+        [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+        [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+        [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+    ])
+
+
+def matrix_to_quat_xyzw(r: np.ndarray) -> tuple[float, float, float, float]:
+    """Rotation matrix -> unit quaternion (x, y, z, w) with w >= 0 (Shepperd's method)."""
+    m = r
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    if tr > 0:
+        s = math.sqrt(tr + 1.0) * 2
+        w, x = 0.25 * s, (m[2, 1] - m[1, 2]) / s
+        y, z = (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2]) * 2
+        w, x = (m[2, 1] - m[1, 2]) / s, 0.25 * s
+        y, z = (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s
+    elif m[1, 1] > m[2, 2]:
+        s = math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2]) * 2
+        w, x = (m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s
+        y, z = 0.25 * s, (m[1, 2] + m[2, 1]) / s
+    else:
+        s = math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1]) * 2
+        w, x = (m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s
+        y, z = (m[1, 2] + m[2, 1]) / s, 0.25 * s
+    q = np.array([x, y, z, w])
+    q /= np.linalg.norm(q)
+    if q[3] < 0:
+        q = -q
+    return float(q[0]), float(q[1]), float(q[2]), float(q[3])
+
+
+def transform(rot: np.ndarray, xyz: Sequence[float]) -> np.ndarray:
+    t = np.eye(4)
+    t[:3, :3] = rot
+    t[:3, 3] = xyz
+    return t
+
+
+def yaw_transform(xyz: Sequence[float], yaw_deg: float) -> np.ndarray:
+    """A base pose as the scenario writes it: position plus yaw about world z."""
+    return transform(rpy_matrix(0.0, 0.0, math.radians(yaw_deg)), xyz)
+
+
+@dataclass(frozen=True)
+class Joint:
+    name: str
+    kind: str
+    parent: str
+    child: str
+    origin: np.ndarray  # 4x4, parent link frame -> joint frame at q = 0
+    axis: tuple[float, float, float]
+
+    def local(self, q: float) -> np.ndarray:
+        """Parent link frame -> child link frame at joint position ``q``."""
+        if self.kind in ("revolute", "continuous"):
+            return self.origin @ transform(axis_angle_matrix(self.axis, q), (0.0, 0.0, 0.0))
+        if self.kind == "prismatic":
+            return self.origin @ transform(np.eye(3), np.asarray(self.axis) * q)
+        return self.origin
+
+
+def _floats(text: str | None, n: int, default: float, what: str) -> tuple[float, ...]:
+    if text is None:
+        return (default,) * n
+    parts = text.split()
+    if len(parts) != n:
+        raise UrdfError(f"{what}: expected {n} numbers, got {text!r}")
+    try:
+        values = tuple(float(p) for p in parts)
+    except ValueError:
+        raise UrdfError(f"{what}: not numbers: {text!r}") from None
+    if not all(math.isfinite(v) for v in values):
+        raise UrdfError(f"{what}: NaN or infinite value in {text!r}")
+    return values
+
+
+class UrdfModel:
+    """The kinematic tree of one URDF: joints in parent-before-child order."""
+
+    def __init__(self, name: str, root: str, joints: list[Joint]) -> None:
+        self.name = name
+        self.root = root
+        self.joints = joints
+        self.by_name = {j.name: j for j in joints}
+        self.movable = [j.name for j in joints if j.kind in MOVABLE]
+
+    @classmethod
+    def from_file(cls, path: str | Path) -> "UrdfModel":
+        p = Path(path)
+        try:
+            text = p.read_text(encoding="utf-8")
+        except OSError as exc:
+            raise UrdfError(f"URDF {p}: cannot read: {exc}") from None
+        return cls.from_string(text, str(p))
+
+    @classmethod
+    def from_string(cls, text: str, source: str = "<string>") -> "UrdfModel":
+        try:
+            robot = ET.fromstring(text)
+        except ET.ParseError as exc:
+            raise UrdfError(f"URDF {source}: not XML: {exc}") from None
+        if robot.tag != "robot":
+            raise UrdfError(f"URDF {source}: root element is <{robot.tag}>, not <robot>")
+        links = [l.get("name", "") for l in robot.findall("link")]
+        joints: list[Joint] = []
+        for j in robot.findall("joint"):
+            name = j.get("name") or ""
+            kind = j.get("type") or ""
+            where = f"URDF {source}: joint {name!r}"
+            if kind not in KNOWN_TYPES:
+                raise UrdfError(f"{where}: type {kind!r} is not one of {', '.join(KNOWN_TYPES)}")
+            parent, child = j.find("parent"), j.find("child")
+            if parent is None or child is None:
+                raise UrdfError(f"{where}: needs <parent> and <child>")
+            origin = j.find("origin")
+            xyz = _floats(origin.get("xyz") if origin is not None else None, 3, 0.0, f"{where} origin xyz")
+            rpy = _floats(origin.get("rpy") if origin is not None else None, 3, 0.0, f"{where} origin rpy")
+            axis_el = j.find("axis")
+            axis = _floats(axis_el.get("xyz") if axis_el is not None else None, 3, 0.0, f"{where} axis")
+            if axis_el is None:
+                axis = (1.0, 0.0, 0.0)  # the URDF default
+            norm = math.sqrt(sum(a * a for a in axis))
+            if kind in MOVABLE and norm < 1e-12:
+                raise UrdfError(f"{where}: axis is zero")
+            if norm > 0:
+                axis = tuple(a / norm for a in axis)
+            joints.append(Joint(name, kind, parent.get("link", ""), child.get("link", ""),
+                                transform(rpy_matrix(*rpy), xyz), axis))  # type: ignore[arg-type]
+        children = {j.child for j in joints}
+        roots = [l for l in links if l not in children]
+        if len(roots) != 1:
+            raise UrdfError(f"URDF {source}: expected one root link, found {roots or 'none'}")
+        # Parent-before-child order, so a single pass computes every link's pose.
+        ordered: list[Joint] = []
+        known = {roots[0]}
+        pending = list(joints)
+        while pending:
+            ready = [j for j in pending if j.parent in known]
+            if not ready:
+                raise UrdfError(f"URDF {source}: joints not connected to the root: "
+                                f"{', '.join(j.name for j in pending)}")
+            for j in ready:
+                ordered.append(j)
+                known.add(j.child)
+                pending.remove(j)
+        return cls(robot.get("name", ""), roots[0], ordered)
+
+    def joint_transforms(self, q: Mapping[str, float]) -> dict[str, np.ndarray]:
+        """Every joint's local transform (parent link -> child link); missing joints at 0."""
+        return {j.name: j.local(float(q.get(j.name, 0.0))) for j in self.joints}
+
+    def link_poses(self, q: Mapping[str, float], base: np.ndarray | None = None) -> dict[str, np.ndarray]:
+        """Every link's pose in the world (``base`` places the root link; identity if None)."""
+        poses = {self.root: np.eye(4) if base is None else base}
+        for j in self.joints:
+            poses[j.child] = poses[j.parent] @ j.local(float(q.get(j.name, 0.0)))
+        return poses
+
+    def chain_points(self, q: Mapping[str, float], base: np.ndarray | None = None) -> np.ndarray:
+        """Origins of the links in tree order (root first): the arm's skeleton, N x 3."""
+        poses = self.link_poses(q, base)
+        order = [self.root] + [j.child for j in self.joints]
+        return np.array([poses[l][:3, 3] for l in order])
+
+
+def point_polyline_distance(p: np.ndarray, pts: np.ndarray) -> float:
+    """Shortest distance from point ``p`` to the polyline through ``pts`` (N x 3, N >= 1)."""
+    if len(pts) == 1:
+        return float(np.linalg.norm(p - pts[0]))
+    a, b = pts[:-1], pts[1:]
+    ab = b - a
+    denom = np.einsum("ij,ij->i", ab, ab)
+    t = np.where(denom > 0, np.einsum("ij,ij->i", p - a, ab) / np.where(denom > 0, denom, 1.0), 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    closest = a + ab * t[:, None]
+    return float(np.min(np.linalg.norm(closest - p, axis=1)))

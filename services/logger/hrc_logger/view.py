@@ -1,0 +1,483 @@
+"""The rerun view of a trial: recording.rrd always, plus a live native or web viewer on request.
+
+Timelines: ``tick`` (sequence) and ``sim_time`` (duration, seconds); every message is logged at
+its own header's tick and sim time. Wall-clock timelines are off, so the same trial gives the
+same recording content.
+
+Entities:
+- ``robot_<id>/...``: the robot from its URDF (rerun's URDF loader, ``rerun.urdf.UrdfTree``, with
+  frame prefix ``<id>/``); ``robot_<id>/base`` places its root link in the world (static);
+  ``robot_<id>/joints/<joint>`` holds each joint's transform (parent link -> child link, from our
+  own FK, ``urdf_fk``), logged at most ``view_hz`` times per simulated second plus the last state.
+- ``world/tcp/<id>``: the TCP point; ``plots/tcp_speed/<id>``: its speed (m/s).
+- ``world/parts/<id>``: each part as a box coloured by owner; its transform is logged only when it
+  moved (at most ``view_hz``/s, immediately on grab/release/snap/spawn).
+- ``world/targets/<id>``: each part's target (static wireframe, owner colour).
+- ``world/human/{head,left_hand,right_hand}``: the participant (hands darken with the grip).
+- ``plots/hand_distance/<hand>/<robot>``: distance from each hand to each robot's link chain (m).
+- ``world/cues/<kind>/<name>`` (cue id ``target:RA1`` -> ``world/cues/target/RA1``): target
+  highlights, object outlines, "Waiting.." labels, the continue button; flashing cues blink at
+  ``flash_hz`` on the sim timeline as they do for the participant; ``status/cues`` lists the
+  active cues.
+- ``world/contacts/<kind>/<a>_<b>``: contact markers while a contact lasts.
+- ``world/workspace/...``: envelope boxes, continue button, feeders (static).
+- ``events``: a text log of every task event (the log.txt line where there is one).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import re
+import shutil
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import rerun as rr
+from rerun.urdf import UrdfTree
+
+from hrc.wire import pb
+
+from hrc_logger.textlog import kind_name
+from hrc_logger.urdf_fk import (UrdfError, UrdfModel, matrix_to_quat_xyzw, point_polyline_distance,
+                                yaw_transform)
+
+log = logging.getLogger(__name__)
+
+ROOT_FRAME = "tf#/"  # rerun's implicit frame of the root entity: the world
+COLORS: dict[str, tuple[int, int, int]] = {
+    "red": (220, 45, 45), "green": (45, 170, 70), "blue": (50, 100, 225), "yellow": (235, 200, 35),
+    "orange": (240, 140, 35), "purple": (140, 65, 190), "cyan": (40, 200, 210),
+    "magenta": (210, 55, 190), "white": (240, 240, 240), "black": (25, 25, 25),
+    "grey": (128, 128, 128), "gray": (128, 128, 128), "pink": (240, 150, 185),
+    "brown": (135, 85, 45),
+}
+HUMAN_COLOR = (90, 150, 235)
+UNKNOWN_COLOR = (170, 170, 170)
+_ENTITY_SAFE = re.compile(r"[^A-Za-z0-9_\-]")
+
+
+def rgb(name: str, default: tuple[int, int, int] = UNKNOWN_COLOR) -> tuple[int, int, int]:
+    """A scenario colour (name or #rrggbb) as RGB; anything else gives ``default``."""
+    n = (name or "").strip().lower()
+    if n in COLORS:
+        return COLORS[n]
+    if re.fullmatch(r"#[0-9a-f]{6}", n):
+        return int(n[1:3], 16), int(n[3:5], 16), int(n[5:7], 16)
+    return default
+
+
+def rgba(c: tuple[int, int, int], a: int) -> tuple[int, int, int, int]:
+    return c[0], c[1], c[2], a
+
+
+def part(name: str) -> str:
+    """One entity-path segment (ids are already [A-Za-z0-9_-], but cue ids carry ':')."""
+    return _ENTITY_SAFE.sub("_", name) or "_"
+
+
+def cue_entity(cue_id: str) -> str:
+    return "world/cues/" + "/".join(part(p) for p in cue_id.split(":"))
+
+
+def yaw_quat(yaw_deg: float) -> tuple[float, float, float, float]:
+    h = math.radians(yaw_deg) / 2
+    return 0.0, 0.0, math.sin(h), math.cos(h)
+
+
+def vec(v: pb.Vec3) -> list[float]:
+    return [v.x, v.y, v.z]
+
+
+def finite(values: Any) -> bool:
+    return all(math.isfinite(x) for x in values)
+
+
+@dataclass
+class ViewSettings:
+    view_hz: float = 30.0    # robot/hand/object updates per simulated second (logging cost)
+    flash_hz: float = 2.0    # cue blinking: on for half of each 1/flash_hz period
+    tick_hz: float = 240.0   # replaced by the scenario's / clock's rate when known
+
+
+@dataclass
+class RobotView:
+    rid: str
+    color: tuple[int, int, int]
+    base: np.ndarray
+    model: UrdfModel | None = None
+    q: dict[str, float] = field(default_factory=dict)
+    tcp: np.ndarray | None = None
+    next_due: int = 0
+    pending: pb.RobotState | None = None  # last state not yet logged (logged at close)
+    unknown_joints_warned: bool = False
+    chain: np.ndarray | None = None
+
+
+@dataclass
+class ObjectView:
+    oid: str
+    size: tuple[float, float, float]
+    color: tuple[int, int, int]
+    shown: bool = False
+    pos: np.ndarray | None = None
+    quat: np.ndarray | None = None
+    next_due: int = 0
+    held_by: str = ""
+    placed: bool = False
+
+
+@dataclass
+class CueView:
+    cue: pb.Cue
+    visible: bool = False
+
+
+def open_recording(path: Path, recording_id: str, *, viewer: bool = False, web: bool = False,
+                   viewer_port: int = 9876, web_port: int = 9090, grpc_port: int = 9877) -> rr.RecordingStream:
+    """A recording that always writes ``path``; ``viewer`` also streams to a spawned native viewer,
+    ``web`` also hosts a gRPC server plus the web viewer (http://127.0.0.1:<web_port>)."""
+    rec = rr.RecordingStream("hrc-cosim", recording_id=recording_id)
+    rec.set_log_time_enabled(False)  # no wall-clock timeline: same trial, same content
+    rec.set_log_tick_enabled(False)
+    sinks: list[Any] = [rr.FileSink(str(path))]
+    if viewer:
+        exe = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+        rr.spawn(port=viewer_port, connect=False, executable_path=exe)
+        sinks.append(rr.GrpcSink(f"rerun+http://127.0.0.1:{viewer_port}/proxy"))
+        log.info("native viewer spawned on port %d", viewer_port)
+    server = None
+    if web:
+        server = rr.GrpcServerSink(bind_ip="127.0.0.1", port=grpc_port)
+        sinks.append(server)
+    rec.set_sinks(*sinks)
+    if server is not None:
+        rr.serve_web_viewer(web_port=web_port, open_browser=False, connect_to=server.uri)
+        log.info("web viewer: http://127.0.0.1:%d (data from %s)", web_port, server.uri)
+    return rec
+
+
+class View:
+    """Turns the session's messages into rerun entities (see the module docstring)."""
+
+    def __init__(self, rec: rr.RecordingStream, settings: ViewSettings | None = None) -> None:
+        self.rec = rec
+        self.s = settings or ViewSettings()
+        self.every = max(1, round(self.s.tick_hz / self.s.view_hz))
+        self.robots: dict[str, RobotView] = {}
+        self.objects: dict[str, ObjectView] = {}
+        self.parts: dict[str, pb.PartConfig] = {}
+        self.owner_color: dict[str, tuple[int, int, int]] = {"human": HUMAN_COLOR}
+        self.cues: dict[str, CueView] = {}
+        self.hands: dict[str, np.ndarray] = {}
+        self.human_next_due = 0
+        self.human_pending: pb.HumanState | None = None
+        self.button = np.zeros(3)
+        self._flash_phase: int | None = None
+        self.logged = 0  # rerun log calls, for the service's summary
+
+    # ------------------------------------------------------------------ helpers
+    def _log(self, entity: str, *archetypes: Any, static: bool = False) -> None:
+        self.rec.log(entity, *archetypes, static=static)
+        self.logged += 1
+
+    def _time(self, tick: int, sim_time: float) -> None:
+        self.rec.set_time("tick", sequence=int(tick))
+        self.rec.set_time("sim_time", duration=float(sim_time))
+
+    def set_tick_hz(self, hz: float) -> None:
+        if hz > 0 and math.isfinite(hz):
+            self.s.tick_hz = hz
+            self.every = max(1, round(hz / self.s.view_hz))
+
+    # ------------------------------------------------------------------ static scene
+    def setup(self, scenario: pb.Scenario | None) -> None:
+        """Static content from the scenario; robots from their URDFs."""
+        self._log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)  # z up for the whole scene
+        if scenario is None:
+            return
+        if scenario.info.tick_hz > 0:
+            self.set_tick_hz(scenario.info.tick_hz)
+        for r in scenario.robots:
+            self.owner_color[r.id] = rgb(r.color)
+        for r in scenario.robots:
+            self._setup_robot(r)
+        for p in scenario.parts:
+            self.parts[p.id] = p
+            color = self.owner_color.get(p.owner, UNKNOWN_COLOR)
+            size = (p.size.x, p.size.y, p.size.z)
+            self.objects[p.id] = ObjectView(p.id, size, color)
+            self._log(f"world/targets/{part(p.id)}", rr.Boxes3D(
+                half_sizes=[[s / 2 for s in size]], centers=[vec(p.target.xyz)],
+                quaternions=[yaw_quat(p.target.yaw_deg)], colors=[rgba(color, 110)],
+                fill_mode="majorwireframe", labels=[f"{p.id} target"], show_labels=False),
+                static=True)
+        for i, b in enumerate(scenario.workspace.envelope):
+            lo, hi = np.array(vec(b.min)), np.array(vec(b.max))
+            self._log(f"world/workspace/envelope_{i}", rr.Boxes3D(
+                half_sizes=[(hi - lo) / 2], centers=[(hi + lo) / 2], colors=[(150, 150, 150, 60)],
+                fill_mode="majorwireframe"), static=True)
+        self.button = np.array(vec(scenario.workspace.continue_button))
+        self._log("world/workspace/continue_button", rr.Points3D(
+            [self.button], radii=[0.015], colors=[(120, 120, 120)], labels=["continue button"]),
+            static=True)
+        for r in scenario.robots:
+            if r.role == "screwing":
+                self._log(f"world/workspace/feeder_{part(r.id)}", rr.Points3D(
+                    [vec(r.feeder)], radii=[0.02], colors=[rgb(r.color)], labels=[f"{r.id} feeder"]),
+                    static=True)
+        for rid, rv in self.robots.items():
+            self._log(f"plots/tcp_speed/{part(rid)}", rr.SeriesLines(colors=[rv.color], names=[f"{rid} TCP speed"]),
+                      static=True)
+
+    def _setup_robot(self, r: pb.RobotConfig) -> None:
+        base = yaw_transform(vec(r.base.xyz), r.base.yaw_deg)
+        rv = RobotView(r.id, rgb(r.color), base)
+        self.robots[r.id] = rv
+        ent = f"robot_{part(r.id)}"
+        try:
+            rv.model = UrdfModel.from_file(r.urdf_path)
+            tree = UrdfTree.from_file_path(r.urdf_path, ent, frame_prefix=f"{r.id}/",
+                                           static_transform_entity_path=f"{ent}/tf_static")
+            # Geometry only: every joint transform comes from us (fixed ones static, the others
+            # per state), so no child frame has two sources.
+            rr.send_chunks(tree.stream(include_joint_transforms=False), recording=self.rec)
+        except (UrdfError, OSError, ValueError, RuntimeError) as exc:
+            log.warning("robot %s: no URDF view (%s); showing its TCP only", r.id, exc)
+            rv.model = None
+            return
+        q = rv.base[:3, :3]
+        self._log(f"{ent}/base", rr.Transform3D(
+            translation=rv.base[:3, 3], quaternion=matrix_to_quat_xyzw(q),
+            parent_frame=ROOT_FRAME, child_frame=f"{r.id}/{rv.model.root}"), static=True)
+        for j in rv.model.joints:
+            if j.kind == "fixed":
+                self._log_joint(rv, j.name, j.local(0.0), static=True)
+        rv.chain = rv.model.chain_points({}, rv.base)
+
+    def _log_joint(self, rv: RobotView, name: str, t: np.ndarray, static: bool = False) -> None:
+        assert rv.model is not None
+        j = rv.model.by_name[name]
+        self._log(f"robot_{part(rv.rid)}/joints/{part(name)}", rr.Transform3D(
+            translation=t[:3, 3], quaternion=matrix_to_quat_xyzw(t[:3, :3]),
+            parent_frame=f"{rv.rid}/{j.parent}", child_frame=f"{rv.rid}/{j.child}"), static=static)
+
+    # ------------------------------------------------------------------ robots
+    def robot_state(self, st: pb.RobotState) -> None:
+        rv = self.robots.get(st.robot)
+        if rv is None:  # a robot the scenario did not announce: TCP only
+            rv = self.robots[st.robot] = RobotView(st.robot, UNKNOWN_COLOR, np.eye(4))
+        if st.joint_names and len(st.joint_names) == len(st.joint_positions):
+            q = dict(zip(st.joint_names, st.joint_positions))
+        elif rv.model is not None and len(st.joint_positions) == len(rv.model.movable):
+            q = dict(zip(rv.model.movable, st.joint_positions))
+        else:
+            q = {}
+        if finite(q.values()):
+            rv.q.update(q)
+        p = st.tcp.position
+        if finite((p.x, p.y, p.z)):
+            rv.tcp = np.array([p.x, p.y, p.z])
+        tick = st.header.tick
+        if tick < rv.next_due:
+            rv.pending = st
+            return
+        rv.next_due = tick + self.every
+        rv.pending = None
+        self._log_robot(rv, st)
+
+    def _log_robot(self, rv: RobotView, st: pb.RobotState) -> None:
+        self._time(st.header.tick, st.header.sim_time)
+        if rv.model is not None:
+            unknown = [n for n in rv.q if n not in rv.model.by_name]
+            if unknown and not rv.unknown_joints_warned:
+                rv.unknown_joints_warned = True
+                log.warning("robot %s: joints not in its URDF ignored: %s", rv.rid, ", ".join(unknown))
+            for name, t in rv.model.joint_transforms(rv.q).items():
+                if rv.model.by_name[name].kind != "fixed":
+                    self._log_joint(rv, name, t)
+            rv.chain = rv.model.chain_points(rv.q, rv.base)
+        if rv.tcp is not None:
+            self._log(f"world/tcp/{part(rv.rid)}", rr.Points3D([rv.tcp], radii=[0.01], colors=[rv.color]))
+        if math.isfinite(st.tcp_speed):
+            self._log(f"plots/tcp_speed/{part(rv.rid)}", rr.Scalars(st.tcp_speed))
+
+    # ------------------------------------------------------------------ human
+    def human_state(self, hs: pb.HumanState) -> None:
+        for hand, pose in (("left", hs.left_hand), ("right", hs.right_hand)):
+            p = pose.position
+            if finite((p.x, p.y, p.z)):
+                self.hands[hand] = np.array([p.x, p.y, p.z])
+        tick = hs.header.tick
+        if tick < self.human_next_due:
+            self.human_pending = hs
+            return
+        self.human_next_due = tick + self.every
+        self.human_pending = None
+        self._log_human(hs)
+
+    def _log_human(self, hs: pb.HumanState) -> None:
+        self._time(hs.header.tick, hs.header.sim_time)
+        h = hs.head.position
+        if finite((h.x, h.y, h.z)):
+            self._log("world/human/head", rr.Points3D([[h.x, h.y, h.z]], radii=[0.09], colors=[(230, 190, 160)]))
+        for hand, grip in (("left", hs.left_grip), ("right", hs.right_grip)):
+            pos = self.hands.get(hand)
+            if pos is None:
+                continue
+            g = min(1.0, max(0.0, grip if math.isfinite(grip) else 0.0))
+            color = (int(240 - 90 * g), int(200 - 110 * g), int(170 - 110 * g))
+            self._log(f"world/human/{hand}_hand", rr.Points3D([pos], radii=[0.035], colors=[color],
+                                                              labels=[f"{hand} {g:.1f}"]))
+            for rid, rv in self.robots.items():
+                pts = rv.chain if rv.chain is not None else (rv.tcp[None, :] if rv.tcp is not None else None)
+                if pts is not None:
+                    self._log(f"plots/hand_distance/{hand}/{part(rid)}",
+                              rr.Scalars(point_polyline_distance(pos, pts)))
+
+    # ------------------------------------------------------------------ objects
+    def world_objects(self, wo: pb.WorldObjects) -> None:
+        tick = wo.header.tick
+        forced = {e.object for e in wo.events}
+        timed = False
+        for o in wo.objects:
+            ov = self.objects.get(o.id)
+            if ov is None:
+                ov = self.objects[o.id] = ObjectView(o.id, (0.03, 0.03, 0.03), UNKNOWN_COLOR)
+            p, q = o.pose.position, o.pose.orientation
+            if not finite((p.x, p.y, p.z, q.x, q.y, q.z, q.w)):
+                continue
+            pos, quat = np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])
+            changed_state = o.held_by != ov.held_by or o.placed != ov.placed
+            moved = (ov.pos is None or float(np.linalg.norm(pos - ov.pos)) > 5e-4
+                     or abs(float(np.dot(quat, ov.quat))) < 0.99999)  # type: ignore[arg-type]
+            if not (moved or changed_state or not ov.shown):
+                continue
+            if ov.shown and not (o.id in forced or changed_state) and tick < ov.next_due:
+                continue  # a moving object: at most view_hz updates per simulated second
+            if not timed:
+                self._time(tick, wo.header.sim_time)
+                timed = True
+            ent = f"world/parts/{part(o.id)}"
+            if not ov.shown or changed_state:
+                label = o.id + (f" ({o.held_by})" if o.held_by else "") + (" placed" if o.placed else "")
+                self._log(ent, rr.Boxes3D(half_sizes=[[s / 2 for s in ov.size]],
+                                          colors=[rgba(ov.color, 255 if o.placed else 200)],
+                                          fill_mode="solid", labels=[label]))
+                ov.shown = True
+            self._log(ent, rr.Transform3D(translation=pos, quaternion=quat))
+            ov.pos, ov.quat, ov.held_by, ov.placed = pos, quat, o.held_by, o.placed
+            ov.next_due = tick + self.every
+
+    # ------------------------------------------------------------------ contacts
+    def world_contacts(self, wc: pb.WorldContacts) -> None:
+        self._time(wc.header.tick, wc.header.sim_time)
+        for c in wc.contacts:
+            if c.kind == pb.CONTACT_KIND_HAND_ENVELOPE:
+                continue  # not a place in space; human idle shows in the events
+            kind = pb.ContactKind.Name(c.kind).removeprefix("CONTACT_KIND_").lower()
+            name = "_".join(part(x) for x in (c.a, c.b, c.link) if x)
+            ent = f"world/contacts/{kind}/{name}"
+            if c.begin and finite(vec(c.point)):
+                color = (255, 40, 40) if c.kind == pb.CONTACT_KIND_HAND_ROBOT else (255, 150, 0)
+                self._log(ent, rr.Points3D([vec(c.point)], radii=[0.025], colors=[color],
+                                           labels=[f"{c.a}-{c.b}"]))
+            elif not c.begin:
+                self._log(ent, rr.Clear(recursive=False))
+
+    # ------------------------------------------------------------------ cues
+    def indicators(self, ind: pb.Indicators) -> None:
+        self._time(ind.header.tick, ind.header.sim_time)
+        for c in ind.cues:
+            ent = cue_entity(c.id)
+            if c.on:
+                cv = self.cues[c.id] = CueView(pb.Cue())
+                cv.cue.CopyFrom(c)
+                self._show_cue(ent, c)
+                cv.visible = True
+            else:
+                self.cues.pop(c.id, None)
+                self._log(ent, rr.Clear(recursive=False))
+        self._log("status/cues", rr.TextDocument(
+            "\n".join(f"- {cid}" for cid in sorted(self.cues)) or "(no cue active)"))
+
+    def _show_cue(self, ent: str, c: pb.Cue) -> None:
+        color = rgb(c.color, self.owner_color.get(c.robot, (255, 255, 255)))
+        pos = vec(c.position)
+        given = any(abs(v) > 1e-12 for v in pos) and finite(pos)
+        p = self.parts.get(c.part)
+        if c.kind == pb.CUE_KIND_TARGET and p is not None:
+            size = np.array([p.size.x, p.size.y, p.size.z]) * 1.15
+            self._log(ent, rr.Boxes3D(half_sizes=[size / 2], centers=[vec(p.target.xyz)],
+                                      quaternions=[yaw_quat(p.target.yaw_deg)], colors=[rgba(color, 170)],
+                                      fill_mode="solid", labels=[c.text or f"{c.part}"]))
+        elif c.kind == pb.CUE_KIND_OUTLINE and (
+                (c.part in self.objects and self.objects[c.part].pos is not None)
+                or (p is not None and p.start_given)):
+            ov = self.objects.get(c.part)
+            if ov is not None and ov.pos is not None:
+                size, center, quat = np.array(ov.size), ov.pos, ov.quat
+            else:  # not seen on world/objects yet: where the scenario puts it
+                assert p is not None
+                size = np.array([p.size.x, p.size.y, p.size.z])
+                center, quat = np.array(vec(p.start.xyz)), np.array(yaw_quat(p.start.yaw_deg))
+            self._log(ent, rr.Boxes3D(half_sizes=[size * 1.3 / 2], centers=[center], quaternions=[quat],
+                                      colors=[rgba(color, 255)], fill_mode="majorwireframe"))
+        elif c.kind == pb.CUE_KIND_WAITING:
+            rv = self.robots.get(c.robot)
+            if not given and rv is not None:
+                pos = list(rv.base[:3, 3] + np.array([0.0, 0.0, 0.6]))
+            self._log(ent, rr.Points3D([pos], radii=[0.02], colors=[color],
+                                       labels=[c.text or "Waiting.."], show_labels=True))
+        elif c.kind == pb.CUE_KIND_CONTINUE_BUTTON:
+            where = pos if given else list(self.button)
+            self._log(ent, rr.Points3D([where], radii=[0.03], colors=[rgb(c.color, (255, 60, 60))],
+                                       labels=[c.text or "Continue"], show_labels=True))
+        else:
+            self._log(ent, rr.Points3D([pos], radii=[0.02], colors=[color], labels=[c.text or c.id]))
+
+    def tick(self, k: int, sim_time: float) -> None:
+        """Blinks the flashing cues on the sim timeline (on for the first half of each period)."""
+        phase = int(math.floor(sim_time * self.s.flash_hz * 2.0))
+        if phase == self._flash_phase:
+            return
+        self._flash_phase = phase
+        on = phase % 2 == 0
+        timed = False
+        for cid, cv in self.cues.items():
+            if not cv.cue.flashing or cv.visible == on:
+                continue
+            if not timed:
+                self._time(k, sim_time)
+                timed = True
+            ent = cue_entity(cid)
+            if on:
+                self._show_cue(ent, cv.cue)
+            else:
+                self._log(ent, rr.Clear(recursive=False))
+            cv.visible = on
+
+    # ------------------------------------------------------------------ events
+    def event(self, ev: pb.TaskEvent, line: str | None) -> None:
+        self._time(ev.header.tick, ev.header.sim_time)
+        name = kind_name(ev.kind)
+        text = line or " ".join(x for x in (name, ev.agent, ev.robot, ev.part, ev.hand, ev.text) if x)
+        level = "WARN" if ev.kind in (pb.TASK_EVENT_KIND_COLLISION, pb.TASK_EVENT_KIND_NEAR_COLLISION,
+                                      pb.TASK_EVENT_KIND_ROBOT_UNREACHABLE) else "INFO"
+        self._log("events", rr.TextLog(text, level=level))
+
+    # ------------------------------------------------------------------ end
+    def close(self) -> None:
+        """Logs the last states that the rate limit held back (so the timeline reaches the end)."""
+        for rv in self.robots.values():
+            if rv.pending is not None:
+                self._log_robot(rv, rv.pending)
+                rv.pending = None
+        if self.human_pending is not None:
+            self._log_human(self.human_pending)
+            self.human_pending = None
+        self.rec.flush()
+        self.rec.disconnect()  # closes the file sink (writes the rrd footer)

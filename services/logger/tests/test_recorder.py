@@ -1,0 +1,109 @@
+"""A synthetic trial fed straight into the recorder: log.txt, events.jsonl and recording.rrd."""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from hrc import scenario as sc
+from hrc.paths import project_root
+from hrc.wire import pb
+from hrc_logger.offline import run_offline
+from hrc_logger.records import event_record, metrics_body
+from hrc_logger.rrd import summarize
+from hrc_logger.synthetic import SyntheticTrial
+
+
+@pytest.fixture(scope="module")
+def trial_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SyntheticTrial]:
+    scenario = sc.to_proto(sc.load(project_root() / "scenarios" / "thesis.toml", reach_checker=None))
+    trial = SyntheticTrial(scenario, n_ticks=600)
+    out = tmp_path_factory.mktemp("trial")
+    run_offline(trial, out)
+    return out, trial
+
+
+def test_log_txt_in_thesis_order(trial_dir: tuple[Path, SyntheticTrial]) -> None:
+    out, trial = trial_dir
+    lines = (out / "log.txt").read_text().splitlines()
+    assert lines[0] == "2024-05-02 14:03:11 - TASK STARTED."
+    assert lines[-1].endswith("TASK FINISHED. 2 total collisions.")
+    assert sum(" : Collision " in l for l in lines) == trial.expected.collisions == 2
+    assert sum(" : Near-collision " in l for l in lines) == trial.expected.near == 1
+    assert sum("Continuing after robot-hand collision" in l for l in lines) == 2
+    order = [l.split(" sec : ")[1].split(" ")[0] for l in lines[1:]]
+    assert order == ["Collision", "Continuing", "Near-collision", "Collision", "Continuing",
+                     "r1", "r2", "Human", "TASK"]
+    times = [float(l.split(" sec : ")[0]) for l in lines[1:]]
+    assert times == sorted(times)
+
+
+def test_events_jsonl_counts(trial_dir: tuple[Path, SyntheticTrial]) -> None:
+    out, trial = trial_dir
+    records = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()]
+    kinds = Counter(r["kind"] for r in records if r["type"] == "event")
+    assert kinds == trial.expected.event_kinds
+    assert sum(r["type"] == "cue" for r in records) == trial.expected.cue_changes
+    metrics = [r for r in records if r["type"] == "metrics"]
+    assert len(metrics) == 1 and metrics[0]["final"] is True
+    assert metrics[0]["collisions"]["human_robot_count"] == kinds["COLLISION"]
+    assert metrics[0]["collisions"]["near_count"] == kinds["NEAR_COLLISION"]
+    assert records[-1]["type"] == "run_end" and records[-1]["ok"] is True
+    for r in records:
+        assert {"type", "tick", "sim_time"} <= set(r)
+
+
+def test_recording_holds_robots_parts_cues_over_the_trial(trial_dir: tuple[Path, SyntheticTrial]) -> None:
+    out, trial = trial_dir
+    s = summarize(out / "recording.rrd")
+    last = trial.n - 1
+    for rid in ("r1", "r2"):
+        assert any(e.startswith(f"/robot_{rid}/") and "visual_geometries" in e for e in s), rid
+        assert "Transform3D:child_frame" in s[f"/robot_{rid}/base"].components
+        for j in ("j1_base_yaw", "j2_shoulder", "j3_elbow", "j4_wrist_pitch", "j5_wrist_roll"):
+            joint = s[f"/robot_{rid}/joints/{j}"]
+            assert "Transform3D:quaternion" in joint.components
+            assert (joint.first_tick, joint.last_tick) == (0, last), (rid, j)
+        assert (s[f"/plots/tcp_speed/{rid}"].first_tick, s[f"/plots/tcp_speed/{rid}"].last_tick) == (0, last)
+        for hand in ("left", "right"):
+            assert s[f"/plots/hand_distance/{hand}/{rid}"].last_tick == last
+    for p in trial.sc.parts:
+        assert f"/world/targets/{p.id}" in s
+        if p.start_given or p.id in trial.expected.parts_moved:
+            assert "Transform3D:translation" in s[f"/world/parts/{p.id}"].components, p.id
+    for pid in trial.expected.parts_moved:
+        assert len(s[f"/world/parts/{pid}"].ticks) > 5, pid  # animated, not just placed
+    for cid in trial.expected.cue_ids:
+        ent = "/world/cues/" + cid.replace(":", "/")
+        assert "Clear:is_recursive" in s[ent].components, cid  # turned off again (or blinking)
+    # flashing: the H1 target cue is on for ticks 50..200 (0.6 s at 2 Hz blink) -> shown, hidden, shown...
+    assert len(s["/world/cues/target/H1"].ticks) >= 4
+    assert sorted(s["/world/contacts/hand_robot/left_r1_link3_forearm"].ticks) == [250, 262]
+    assert "/world/contacts/hand_envelope" not in " ".join(s)
+
+
+def test_rate_limit_keeps_the_view_cheap(trial_dir: tuple[Path, SyntheticTrial]) -> None:
+    out, trial = trial_dir
+    s = summarize(out / "recording.rrd")
+    rows = len(s["/robot_r1/joints/j1_base_yaw"].ticks)
+    expected = trial.n / (240 / 30)
+    assert expected <= rows <= expected + 2  # 30 Hz of sim time plus the final state
+
+
+def test_record_mapping_is_flat_and_json_safe() -> None:
+    ev = pb.TaskEvent(kind=pb.TASK_EVENT_KIND_CONTINUED, task_time=float("nan"), value=1.5)
+    ev.header.tick, ev.header.sim_time, ev.header.seq = 7, 7 / 240, 3
+    r = event_record(ev)
+    assert r["kind"] == "CONTINUED" and r["task_time"] is None and r["value"] == 1.5
+    assert (r["tick"], r["seq"], r["type"]) == (7, 3, "event")
+    json.dumps(r, allow_nan=False)
+    m = pb.Metrics(final=True)
+    m.human_robot.add(t_s=1.0, robot="r1", hand="left", delay_s=2.0)
+    m.near.add(t_s=3.0)
+    body = metrics_body(m)
+    assert body["collisions"]["human_robot_count"] == 1 and body["collisions"]["near_count"] == 1
+    assert math.isclose(body["collisions"]["human_robot"][0]["delay_s"], 2.0)

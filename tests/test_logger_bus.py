@@ -1,0 +1,244 @@
+"""The real logger process fed a synthetic session over real Zenoh (issue 7).
+
+This test plays physics (clock ticks, world, run/end), ik_cpp (robot states with joint positions
+for r1 and r2), human_input and the orchestrator (scenario queryable, task events with
+collisions and near collisions, cues, finishes, TASK FINISHED and the final metrics), each as its
+own Zenoh session, and checks the logger's files.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import time
+import uuid
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from hrc import scenario as sc
+from hrc.bus import Bus, BusConfig, Publisher
+from hrc.wire import pb
+from hrc_logger.rrd import summarize
+from hrc_logger.synthetic import ROLES, Outgoing, SyntheticTrial
+
+from .conftest import HRC, ROOT, free_port, wait_until
+
+pytestmark = pytest.mark.slow
+
+THESIS = ROOT / "scenarios" / "thesis.toml"
+
+
+class FakeSession:
+    """Four Zenoh sessions playing physics, ik_cpp, human_input and the orchestrator."""
+
+    def __init__(self, session: str, port: int, scenario: pb.Scenario) -> None:
+        endpoint = f"tcp/127.0.0.1:{port}"
+        self.buses: dict[str, Bus] = {}
+        for role, name in ROLES.items():
+            cfg = (BusConfig(session=session, listen=[endpoint]) if role == "physics"
+                   else BusConfig(session=session, connect=[endpoint]))
+            self.buses[role] = Bus(cfg, name)
+        phys = self.buses["physics"]
+        self.keys = phys.keys
+        self.scenario = scenario
+        self.scenario.header.session = session
+        self.buses["orch"].queryable(self.keys.scenario(), None, lambda _req: self.scenario)
+        phys.declare_token()  # the clock master is alive (the logger watches it)
+        self.clock = phys.publisher(self.keys.clock(), express=True)
+        self.run_end = phys.publisher(self.keys.run_end())
+
+    def publisher(self, o: Outgoing) -> Publisher:
+        k = self.keys
+        if o.key.startswith("robot_state:"):
+            key = k.robot_state(o.key.split(":", 1)[1])
+        else:
+            key = getattr(k, o.key)()
+        return self.buses[o.role].publisher(key)
+
+    def marks(self) -> list[pb.PublishedMark]:
+        return [m for b in self.buses.values() for m in b.published_marks() if not m.key.endswith("/clock")]
+
+    def close(self) -> None:
+        for b in self.buses.values():
+            b.close()
+
+
+def run_synthetic(tmp_path: Path, gap_tick: int | None = None, term_tick: int | None = None) -> tuple[Path, SyntheticTrial, subprocess.CompletedProcess]:
+    session = f"lg{uuid.uuid4().hex[:8]}"
+    port = free_port()
+    scenario = sc.to_proto(sc.load(THESIS, reach_checker=None))
+    trial = SyntheticTrial(scenario, n_ticks=600)
+    out = tmp_path / "trial"
+    fake = FakeSession(session, port, scenario)
+    log_path = tmp_path / "logger.log"
+    with open(log_path, "w") as log_file:
+        proc = subprocess.Popen([sys.executable, "-m", "hrc_logger", "--session", session,
+                                 "--connect", f"tcp/127.0.0.1:{port}", "--out", str(out),
+                                 "--scenario-timeout", "30"], stdout=log_file, stderr=subprocess.STDOUT)
+        try:
+            phys = fake.buses["physics"]
+            assert wait_until(lambda: "logger" in phys.alive_services(timeout=0.3), timeout=60), \
+                log_path.read_text()
+            stats = phys.get(fake.keys.stats("logger"), pb.ServiceStats, timeout=5)
+            assert stats and stats[0].service == "logger"
+            assert fake.keys.task_events() in stats[0].subscribed
+            dt = trial.dt
+            for k, world, outputs in trial.ticks():
+                if k == term_tick:
+                    proc.terminate()  # what `hrc run` does to the services when a trial fails
+                    break
+                for o in world:
+                    fake.publisher(o).put(o.msg, k, k * dt)
+                tick = pb.ClockTick(mode=pb.CLOCK_MODE_LOCKSTEP, dt=dt,
+                                    participants=["ik_cpp", "orchestrator", "human_input"])
+                tick.published.extend(fake.marks())
+                fake.clock.put(tick, k, k * dt)
+                for o in outputs:
+                    pub = fake.publisher(o)
+                    if gap_tick == k and o.key == "task_events":
+                        pub.seq += 1  # a lost message: this seq number never goes out
+                    pub.put(o.msg, k, k * dt)
+            if term_tick is None:
+                fake.run_end.put(pb.RunEnd(ok=True, reason="stopped by orchestrator: task finished",
+                                           ticks=trial.n, sim_time=trial.n * dt,
+                                           mode=pb.CLOCK_MODE_LOCKSTEP), trial.n, trial.n * dt)
+            rc = proc.wait(timeout=120)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+            fake.close()
+    done = subprocess.CompletedProcess(proc.args, rc, log_path.read_text(), "")
+    return out, trial, done
+
+
+@pytest.fixture(scope="module")
+def synthetic_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SyntheticTrial, subprocess.CompletedProcess]:
+    return run_synthetic(tmp_path_factory.mktemp("logger_bus"))
+
+
+def test_logger_exits_cleanly_and_reports_its_lag(synthetic_run) -> None:
+    out, trial, done = synthetic_run
+    assert done.returncode == 0, done.stdout
+    stats = json.loads((out / "logger_stats.json").read_text())
+    assert stats["seq_gaps"] == 0 and stats["lost_messages"] == 0, done.stdout
+    assert stats["ticks"] == trial.n
+    assert stats["lag_max_ticks"] >= 0 and stats["lag_mean_ticks"] >= 0
+    assert stats["messages"] >= trial.n * 4  # clock, world, 2 robot states, human state per tick
+    assert "logger summary" in done.stdout
+
+
+def test_log_txt_order_and_counts_match_the_metrics(synthetic_run) -> None:
+    out, trial, _ = synthetic_run
+    lines = (out / "log.txt").read_text().splitlines()
+    metrics = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()
+               if json.loads(l)["type"] == "metrics"]
+    assert len(metrics) == 1 and metrics[0]["final"], "the final metrics (last tick) were drained"
+    m = metrics[0]
+    assert lines[0].endswith(" - TASK STARTED.")
+    assert sum(" : Collision " in l for l in lines) == m["collisions"]["human_robot_count"] == 2
+    assert sum(" : Near-collision " in l for l in lines) == m["collisions"]["near_count"] == 1
+    finishes = [i for i, l in enumerate(lines) if "task FINISHED" in l]
+    robot_finishes = [i for i in finishes if " : r1 " in lines[i] or " : r2 " in lines[i]]
+    human = [i for i in finishes if " : Human " in lines[i]]
+    collisions = [i for i, l in enumerate(lines) if " : Collision " in l or " : Near-collision " in l]
+    assert len(robot_finishes) == 2 and len(human) == 1
+    assert max(collisions) < min(robot_finishes) < max(robot_finishes) < human[0] < len(lines) - 1
+    assert lines[-1].endswith(f"TASK FINISHED. {m['collisions']['human_robot_count']} total collisions.")
+
+
+def test_events_jsonl_parses_line_by_line_with_the_same_counts(synthetic_run) -> None:
+    out, trial, _ = synthetic_run
+    records = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()]
+    kinds = Counter(r["kind"] for r in records if r["type"] == "event")
+    assert kinds == trial.expected.event_kinds
+    m = next(r for r in records if r["type"] == "metrics")
+    assert kinds["COLLISION"] == m["collisions"]["human_robot_count"]
+    assert kinds["NEAR_COLLISION"] == m["collisions"]["near_count"]
+    assert sum(r["type"] == "cue" for r in records) == trial.expected.cue_changes
+    ticks = [r["tick"] for r in records if r["type"] in ("event", "cue")]
+    assert ticks == sorted(ticks)
+
+
+def test_recording_opens_with_reruns_reader_and_covers_the_trial(synthetic_run) -> None:
+    out, trial, _ = synthetic_run
+    s = summarize(out / "recording.rrd")
+    last = trial.n - 1
+    for rid in ("r1", "r2"):
+        for j in ("j1_base_yaw", "j2_shoulder", "j3_elbow", "j4_wrist_pitch", "j5_wrist_roll"):
+            e = s[f"/robot_{rid}/joints/{j}"]
+            assert {"Transform3D:translation", "Transform3D:quaternion", "Transform3D:parent_frame"} <= e.components
+            assert (e.first_tick, e.last_tick) == (0, last), (rid, j)
+    for p in trial.sc.parts:
+        assert f"/world/targets/{p.id}" in s, p.id
+        if p.start_given or p.id in trial.expected.parts_moved:
+            assert "Transform3D:translation" in s[f"/world/parts/{p.id}"].components, p.id
+    for cid in trial.expected.cue_ids:
+        assert "/world/cues/" + cid.replace(":", "/") in s, cid
+    assert s["/plots/tcp_speed/r1"].last_tick == last
+    assert s["/plots/hand_distance/left/r2"].last_tick == last
+    assert s["/events"].last_tick == last  # TASK FINISHED came on the last tick
+
+
+def test_a_sequence_gap_is_reported_and_counted(tmp_path: Path) -> None:
+    out, trial, done = run_synthetic(tmp_path, gap_tick=300)
+    assert done.returncode == 0, done.stdout
+    stats = json.loads((out / "logger_stats.json").read_text())
+    assert stats["seq_gaps"] == 1 and stats["lost_messages"] == 1
+    assert "sequence gap on hrc/" in done.stdout and "/task/events from 'orchestrator'" in done.stdout
+    assert "ERROR" in done.stdout
+
+
+def test_sigterm_mid_trial_closes_every_file_readable(tmp_path: Path) -> None:
+    out, trial, done = run_synthetic(tmp_path, term_tick=320)
+    assert done.returncode == 1, done.stdout  # the run did not end normally
+    lines = (out / "log.txt").read_text().splitlines()
+    assert lines[0].endswith(" - TASK STARTED.")
+    assert sum(" : Collision " in l for l in lines) == 1  # the one at tick 250
+    assert "RUN ENDED WITH AN ERROR: terminated by SIGTERM" in lines[-1]
+    records = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()]
+    assert Counter(r["kind"] for r in records if r["type"] == "event")["COLLISION"] == 1
+    s = summarize(out / "recording.rrd")
+    assert 200 <= s["/robot_r1/joints/j1_base_yaw"].last_tick < 320
+    assert json.loads((out / "logger_stats.json").read_text())["seq_gaps"] == 0
+
+
+@pytest.mark.e2e
+def test_full_thesis_trial_logger_outputs(tmp_path: Path) -> None:
+    from hrc.paths import ik_binary
+    if not ik_binary().exists():
+        pytest.skip(f"{ik_binary()} is missing (build the C++ IK service)")
+    out = tmp_path / "trial"
+    t0 = time.monotonic()
+    proc = subprocess.run([HRC, "run", str(THESIS), "--out", str(out)], capture_output=True, text=True,
+                          timeout=1800)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    metrics = json.loads((out / "metrics.json").read_text())
+    lines = (out / "log.txt").read_text().splitlines()
+    assert lines[0].endswith(" - TASK STARTED.")
+    assert lines[-1].startswith(f"{metrics['task']['completion_s']:.2f} sec : TASK FINISHED") or \
+        lines[-1].endswith("total collisions."), lines[-1]
+    col = metrics["collisions"]
+    assert sum(" : Collision " in l for l in lines) == col["human_robot_count"]
+    assert sum(" : Near-collision " in l for l in lines) == col["near_count"]
+    assert sum("task FINISHED" in l and " : Human " not in l for l in lines) == len(metrics["robots"])
+    assert sum(" : Human - task FINISHED" in l for l in lines) == 1
+    records = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()]
+    kinds = Counter(r["kind"] for r in records if r["type"] == "event")
+    assert kinds["COLLISION"] == col["human_robot_count"]
+    assert kinds["NEAR_COLLISION"] == col["near_count"]
+    s = summarize(out / "recording.rrd")
+    ticks = metrics["run"]["ticks"]
+    for rid in metrics["robots"]:
+        e = s[f"/robot_{rid}/joints/j1_base_yaw"]
+        assert e.first_tick is not None and e.first_tick <= 1 and e.last_tick >= ticks - 2, (rid, e.first_tick, e.last_tick)
+    for pid in metrics["parts"]:
+        assert f"/world/parts/{pid}" in s, pid
+    assert any(e.startswith("/world/cues/") for e in s)
+    stats = json.loads((out / "logger_stats.json").read_text())
+    assert stats["seq_gaps"] == 0
+    print(f"e2e thesis trial: {ticks} ticks in {time.monotonic() - t0:.1f} s; logger lag mean "
+          f"{stats['lag_mean_ticks']} max {stats['lag_max_ticks']} ticks")
