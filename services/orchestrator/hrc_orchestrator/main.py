@@ -1,16 +1,25 @@
-"""Entry point of the orchestrator service (``hrc-orchestrator``)."""
+"""Entry point of the orchestrator service (``hrc-orchestrator``).
+
+Loads and serves the scenario, takes part in the clock, feeds each tick's inputs to the task
+logic (`hrc_orchestrator.task.Task`) and publishes what it decides; writes metrics.json at the end.
+"""
 
 from __future__ import annotations
 
 import argparse
 import logging
+import math
 from pathlib import Path
 
+from google.protobuf.message import Message
+
 from hrc import scenario as scenario_mod
-from hrc.bus import Bus, LockstepParticipant, add_bus_arguments, bus_config_from_args
+from hrc.bus import Bus, LockstepParticipant, add_bus_arguments, bus_config_from_args, check_pose
 from hrc.logsetup import setup_logging
 from hrc.wire import pb
-from hrc_orchestrator.metrics_file import run_section, write_json
+from hrc_orchestrator import metrics
+from hrc_orchestrator.metrics_file import write_json
+from hrc_orchestrator.task import Inputs, Outputs, Task
 
 log = logging.getLogger("hrc_orchestrator")
 
@@ -23,15 +32,141 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--scenario", required=True, help="scenario TOML file")
     p.add_argument("--out", default=None, help="trial folder for metrics.json (default: none)")
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    p.add_argument("--metrics-every", type=float, default=1.0, metavar="S",
+                   help="publish interim metrics every S seconds of task time (0: only final)")
+    p.add_argument("--no-reach-check", action="store_true",
+                   help="skip the reach check when loading the scenario")
     p.add_argument("--log-level", default=None)
     return p.parse_args(argv)
+
+
+# ---------------------------------------------------------------- input validation (SPEC §7)
+def make_validators(robot_ids: list[str]) -> dict[str, object]:
+    def robot_state(msg: Message) -> str | None:
+        assert isinstance(msg, pb.RobotState)
+        if msg.robot not in robot_ids:
+            return f"unknown robot {msg.robot!r}"
+        if not math.isfinite(msg.tcp_speed):
+            return "tcp_speed is NaN or infinite"
+        return check_pose(msg.tcp)
+
+    def world_objects(msg: Message) -> str | None:
+        assert isinstance(msg, pb.WorldObjects)
+        for obj in msg.objects:
+            if (problem := check_pose(obj.pose)) is not None:
+                return f"object {obj.id!r}: {problem}"
+        for e in msg.events:
+            if (problem := check_pose(e.pose)) is not None:
+                return f"event on {e.object!r}: {problem}"
+        return None
+
+    def human_state(msg: Message) -> str | None:
+        assert isinstance(msg, pb.HumanState)
+        for name in ("head", "left_hand", "right_hand"):
+            if (problem := check_pose(getattr(msg, name))) is not None:
+                return f"{name}: {problem}"
+        return None
+
+    return {"robot_state": robot_state, "world_objects": world_objects, "human_state": human_state}
+
+
+class Service:
+    """Wires a Task to the bus: inputs per tick in, outputs out, metrics at the end."""
+
+    def __init__(self, bus: Bus, scenario: scenario_mod.Scenario, spb: pb.Scenario,
+                 metrics_every_s: float) -> None:
+        self.bus = bus
+        self.spb = spb
+        self.seed = int(spb.info.seed)
+        self.task = Task(scenario)
+        self.metrics_every_s = metrics_every_s
+        self._next_metrics = metrics_every_s
+        self._pending = Inputs()
+        self._stop_sent = False
+        self._final_sent = False
+        keys = bus.keys
+        self.part = LockstepParticipant(bus)
+        v = make_validators(list(scenario.robots))
+        self.part.input(keys.robot_states(), pb.RobotState, self._on_state, v["robot_state"])
+        self.part.input(keys.world_objects(), pb.WorldObjects, self._on_objects,
+                        v["world_objects"])
+        self.part.input(keys.world_contacts(), pb.WorldContacts, self._on_contacts)
+        self.part.input(keys.human_state(), pb.HumanState, self._on_human, v["human_state"])
+        self.cmd_pubs = {rid: bus.publisher(keys.robot_command(rid)) for rid in scenario.robots}
+        self.world_pub = bus.publisher(keys.world_commands())
+        self.events_pub = bus.publisher(keys.task_events())
+        self.cues_pub = bus.publisher(keys.task_indicators())
+        self.metrics_pub = bus.publisher(keys.task_metrics())
+        self.control_pub = bus.publisher(keys.run_control())
+        self.part.on_tick(self._step)
+
+    # ------------------------------------------------------------------ inputs (run() thread)
+    def _on_state(self, _key: str, msg: Message) -> None:
+        self._pending.robot_states.append(msg)  # type: ignore[arg-type]
+
+    def _on_objects(self, _key: str, msg: Message) -> None:
+        self._pending.objects.append(msg)  # type: ignore[arg-type]
+
+    def _on_contacts(self, _key: str, msg: Message) -> None:
+        self._pending.contacts.append(msg)  # type: ignore[arg-type]
+
+    def _on_human(self, _key: str, msg: Message) -> None:
+        self._pending.human = msg  # type: ignore[assignment]
+
+    # ------------------------------------------------------------------ one tick
+    def _step(self, tick: pb.ClockTick) -> None:
+        k, t = tick.header.tick, tick.header.sim_time
+        inputs, self._pending = self._pending, Inputs()
+        out = self.task.step(k, t, inputs)
+        self._publish(out, k, t)
+
+    def _publish(self, out: Outputs, k: int, t: float) -> None:
+        for cmd in out.robot_commands:
+            log.info("command %s #%d %s (%.4f, %.4f, %.4f)", cmd.robot, cmd.command_id,
+                     pb.RobotCommand.Kind.Name(cmd.kind).removeprefix("KIND_"), cmd.target.x,
+                     cmd.target.y, cmd.target.z)
+            self.cmd_pubs[cmd.robot].put(cmd, k, t)
+        if out.world_commands:
+            self.world_pub.put(pb.WorldCommands(commands=out.world_commands), k, t)
+        for event in out.events:
+            # One parseable line per event (tests and people read the service log too).
+            log.info("event %s | %s", pb.TaskEventKind.Name(event.kind).removeprefix(
+                "TASK_EVENT_KIND_"), event.text)
+            self.events_pub.put(event, k, t)
+        if out.cues:
+            self.cues_pub.put(pb.Indicators(cues=out.cues), k, t)
+        if self.task.running and self.metrics_every_s > 0 and self.task.now() >= self._next_metrics:
+            self._next_metrics += self.metrics_every_s
+            self.metrics_pub.put(metrics.to_proto(metrics.build(self.task, self.seed), False), k, t)
+        if out.stop and not self._stop_sent:
+            self._stop_sent = True
+            self.metrics_pub.put(metrics.to_proto(metrics.build(self.task, self.seed), True), k, t)
+            self.control_pub.put(pb.RunControl(command=pb.RunControl.COMMAND_STOP,
+                                               reason=out.stop), k, t)
+
+    # ------------------------------------------------------------------ the end
+    def finish(self, run_end: pb.RunEnd | None, out_dir: Path | None, reason: str = "") -> None:
+        data = metrics.build(self.task, self.seed, run_end)
+        if run_end is None:  # the run broke off without run/end: say so, keep the task numbers
+            data["run"] = {"mode": "unknown", "ticks": self.task.tick, "wall_s": None,
+                           "realtime_factor": None, "ok": False, "end_reason": reason}
+        if run_end is not None:
+            try:  # best effort: the run is over, observers may already be leaving
+                self.metrics_pub.put(metrics.to_proto(data, True), run_end.ticks,
+                                     run_end.sim_time)
+            except Exception as exc:  # noqa: BLE001 - never lose metrics.json over this
+                log.warning("could not publish the final metrics: %s", exc)
+        if out_dir is not None:
+            write_json(out_dir / "metrics.json", data)
+            log.info("wrote %s", out_dir / "metrics.json")
 
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     setup_logging(NAME, args.log_level)
     try:
-        scenario = scenario_mod.load(args.scenario)
+        scenario = scenario_mod.load(args.scenario, reach_checker=None if args.no_reach_check
+                                     else scenario_mod.DEFAULT_REACH)
     except scenario_mod.ScenarioError as exc:
         log.error("scenario rejected:\n%s", exc)
         return 2
@@ -40,25 +175,21 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     spb = scenario_mod.to_proto(scenario)
     if args.seed is not None:
+        if args.seed < 0:
+            log.error("--seed must be >= 0, got %d", args.seed)
+            return 2
         spb.info.seed = args.seed
+        scenario.scenario.seed = args.seed
     with Bus(bus_config_from_args(args), NAME) as bus:
         spb.header.session = bus.keys.session
         spb.header.sender = NAME
         bus.queryable(bus.keys.scenario(), None, lambda _req: spb)
-        participant = LockstepParticipant(bus)
-        participant.start()
-        log.info("serving scenario %r (seed %d)", spb.info.name, spb.info.seed)
-        outcome = participant.run()
-        if args.out and outcome.run_end is not None:
-            metrics = {
-                "scenario": spb.info.name,
-                "participant": spb.participant.name,
-                "conditions": {"anticipation": spb.conditions.anticipation,
-                               "safety_policy": spb.conditions.safety_policy},
-                "seed": int(spb.info.seed),
-                "run": run_section(outcome.run_end),
-            }
-            write_json(Path(args.out) / "metrics.json", metrics)
+        service = Service(bus, scenario, spb, args.metrics_every)
+        service.part.start()
+        log.info("serving scenario %r (seed %d, policy %s, anticipation %s)", spb.info.name,
+                 spb.info.seed, spb.conditions.safety_policy, spb.conditions.anticipation)
+        outcome = service.part.run()
+        service.finish(outcome.run_end, Path(args.out) if args.out else None, outcome.reason)
         if not outcome.ok:
             log.error("run ended with an error: %s", outcome.reason)
         return outcome.exit_code

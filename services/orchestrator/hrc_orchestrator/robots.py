@@ -1,0 +1,268 @@
+"""Phase machines of the transport robot (r1) and the screwing robot (r2), SPEC §3.
+
+Per part, transport:  to_pick -> (Attach) to_intermediate -> [waiting] -> to_place -> (Release)
+                      returning -> next part ...; no parts left: to_home -> finished.
+Per screw, screwing:  to_feeder -> (Spawn, Attach) to_intermediate -> [waiting] -> to_place ->
+                      (Release) screwing (dwell >= screw_time_s) -> returning -> next ...
+
+A phase advances only when the robot reports REACHED for the very command that phase sent
+(RobotState.command_id), and only while no safety rule overrides the robot. The one exception is
+the dependency wait: it ends as soon as the `after` parts are done, even during a collision (the
+robot then heads for the place once it is released).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+from hrc import scenario as sc
+from hrc.wire import pb
+from hrc_orchestrator import events as ev
+from hrc_orchestrator.board import Board
+from hrc_orchestrator.geom import Vec, add, from_pb, pose, to_pb, vec
+from hrc_orchestrator.idle import IntervalClock
+
+APPROACH_HEIGHT = 0.05  # m: picks and places approach and leave vertically (ARCHITECTURE.md)
+DWELL_EPS = 1e-9  # tick times are sums of floats; a dwell of exactly screw_time_s must count
+
+
+class Phase(str, enum.Enum):
+    NOT_STARTED = "not_started"
+    TO_PICK = "to_pick"
+    TO_FEEDER = "to_feeder"
+    TO_INTERMEDIATE = "to_intermediate"
+    WAITING = "waiting"
+    TO_PLACE = "to_place"
+    SCREWING = "screwing"
+    RETURNING = "returning"
+    TO_HOME = "to_home"
+    FINISHED = "finished"
+
+
+@dataclass(frozen=True)
+class Motion:
+    """A robot command without its id; equal motions are not sent twice."""
+
+    kind: int  # pb.RobotCommand.KIND_MOVE | KIND_HOLD
+    target: Vec = (0.0, 0.0, 0.0)
+    yaw_deg: float = 0.0
+    approach: float = 0.0
+    depart: float = 0.0
+
+    @staticmethod
+    def move(target: Vec, yaw_deg: float, approach: float = 0.0, depart: float = 0.0) -> "Motion":
+        return Motion(pb.RobotCommand.KIND_MOVE, target, yaw_deg, approach, depart)
+
+    @property
+    def is_move(self) -> bool:
+        return self.kind == pb.RobotCommand.KIND_MOVE
+
+    def to_proto(self, robot: str, command_id: int) -> pb.RobotCommand:
+        return pb.RobotCommand(robot=robot, command_id=command_id, kind=self.kind,
+                               target=to_pb(self.target), yaw_deg=self.yaw_deg,
+                               approach_height=self.approach, depart_height=self.depart)
+
+
+HOLD = Motion(pb.RobotCommand.KIND_HOLD)
+
+
+def grasp_point(centre: Vec, size: list[float]) -> Vec:
+    """The TCP for a part whose box centre is `centre`: the centre of its top face."""
+    return add(centre, (0.0, 0.0, size[2] / 2.0))
+
+
+class RobotAgent:
+    """One arm: its phase machine, the command it was sent, its speed and idle figures."""
+
+    def __init__(self, robot: sc.Robot, sequence: list[str], board: Board) -> None:
+        self.cfg = robot
+        self.id = robot.id
+        self.screwing = robot.role == "screwing"
+        self.sequence = list(sequence)
+        self.board = board
+        self.index = 0
+        self.phase = Phase.NOT_STARTED
+        self.goal: Motion | None = None  # what the phase wants the arm to do
+        self.carrying: str = ""  # part held from grab to placement
+        self.dwell_since: float | None = None
+        self.completion_s: float | None = None
+        self.idle = IntervalClock()
+        # command bookkeeping
+        self.sent: Motion | None = None
+        self.sent_id = 0
+        self.state: pb.RobotState | None = None
+        self._unreachable_reported = 0
+        # TCP speed statistics (while the task runs and the robot is not finished)
+        self.speed_n = 0
+        self.speed_sum = 0.0
+        self.speed_max = 0.0
+
+    # ------------------------------------------------------------------ observations
+    @property
+    def part(self) -> str:
+        return self.sequence[self.index] if self.index < len(self.sequence) else ""
+
+    @property
+    def finished(self) -> bool:
+        return self.phase == Phase.FINISHED
+
+    @property
+    def tcp(self) -> Vec | None:
+        return from_pb(self.state.tcp.position) if self.state is not None else None
+
+    def observe(self, state: pb.RobotState, sample_speed: bool) -> None:
+        self.state = state
+        if sample_speed and not self.finished:
+            self.speed_n += 1
+            self.speed_sum += state.tcp_speed
+            self.speed_max = max(self.speed_max, state.tcp_speed)
+
+    @property
+    def avg_speed(self) -> float:
+        return self.speed_sum / self.speed_n if self.speed_n else 0.0
+
+    def reached(self, motion: Motion | None) -> bool:
+        """The arm reports REACHED for the command that sent exactly `motion`."""
+        return (motion is not None and self.sent == motion and self.state is not None
+                and self.state.command_id == self.sent_id
+                and self.state.status == pb.MOTION_STATUS_REACHED)
+
+    def record_sent(self, motion: Motion) -> int:
+        self.sent = motion
+        self.sent_id += 1
+        return self.sent_id
+
+    # ------------------------------------------------------------------ targets
+    def _intermediate(self, yaw: float, depart: bool) -> Motion:
+        return Motion.move(vec(self.cfg.intermediate), yaw, 0.0, APPROACH_HEIGHT if depart else 0.0)
+
+    def _pick(self, part_id: str) -> Motion:
+        part = self.board.parts[part_id]
+        if self.screwing:
+            feeder = vec(self.cfg.feeder or (0.0, 0.0, 0.0))
+            return Motion.move(grasp_point(feeder, part.size), 0.0, APPROACH_HEIGHT)
+        assert part.start is not None  # checked by the scenario loader
+        return Motion.move(grasp_point(vec(part.start.xyz), part.size), part.start.yaw,
+                           APPROACH_HEIGHT)
+
+    def _place(self, part_id: str) -> Motion:
+        part = self.board.parts[part_id]
+        return Motion.move(grasp_point(vec(part.target.xyz), part.size), part.target.yaw,
+                           APPROACH_HEIGHT)
+
+    def current_target(self) -> Vec | None:
+        return self.goal.target if self.goal is not None and self.goal.is_move else None
+
+    # ------------------------------------------------------------------ phase machine
+    def _enter(self, phase: Phase, t: float, goal: Motion | None) -> None:
+        self.phase = phase
+        self.goal = goal
+        if phase not in (Phase.WAITING, Phase.FINISHED):
+            label = "" if phase == Phase.TO_HOME else (self.carrying or self.part)
+            self.board.emit(ev.robot_phase(t, self.id, phase.value, label))
+
+    def _next_part(self, t: float) -> None:
+        if self.index < len(self.sequence):
+            self._enter(Phase.TO_FEEDER if self.screwing else Phase.TO_PICK, t,
+                        self._pick(self.part))
+        else:
+            self._enter(Phase.TO_HOME, t, Motion.move(vec(self.cfg.home), 0.0))
+
+    def start(self, t: float) -> None:
+        if self.phase == Phase.NOT_STARTED:
+            self._next_part(t)
+
+    def advance(self, t: float, active: bool) -> None:
+        """One tick of the phase machine; `active` is False while a safety rule overrides it."""
+        if self.phase in (Phase.NOT_STARTED, Phase.FINISHED):
+            return
+        if self.phase == Phase.WAITING:
+            if not self.board.missing_deps(self.carrying):
+                waited = self.idle.end(t) or 0.0
+                self.board.emit(ev.robot_wait_over(t, self.id, self.carrying, waited))
+                self._enter(Phase.TO_PLACE, t, self._place(self.carrying))
+            return
+        if not active:
+            self.dwell_since = None  # an interrupted dwell starts again once back at the hole
+            return
+        self._check_unreachable(t)
+        if not self.reached(self.goal):
+            return
+        if self.phase == Phase.SCREWING:
+            if self.dwell_since is None:
+                self.dwell_since = t
+            if t - self.dwell_since >= self.cfg.screw_time_or_default - DWELL_EPS:
+                self.dwell_since = None
+                self._enter(Phase.RETURNING, t, self._returning())
+            return
+        handler = {
+            Phase.TO_PICK: self._grab,
+            Phase.TO_FEEDER: self._grab,
+            Phase.TO_INTERMEDIATE: self._at_intermediate,
+            Phase.TO_PLACE: self._release,
+            Phase.RETURNING: self._back_at_intermediate,
+            Phase.TO_HOME: self._home,
+        }[self.phase]
+        handler(t)
+
+    def _returning(self) -> Motion:
+        yaw = self.goal.yaw_deg if self.goal is not None else 0.0
+        return self._intermediate(yaw, depart=True)
+
+    def _grab(self, t: float) -> None:
+        part_id = self.part
+        part = self.board.parts[part_id]
+        if self.screwing:
+            feeder = vec(self.cfg.feeder or (0.0, 0.0, 0.0))
+            self.board.command(pb.WorldCommand(spawn=pb.Spawn(
+                object=part_id, pose=pose(feeder, 0.0), size=to_pb(vec(part.size)),
+                kind=part.kind, owner=self.id)))
+        self.board.command(pb.WorldCommand(attach=pb.Attach(object=part_id, holder=self.id)))
+        self.carrying = part_id
+        self.board.mark_grabbed(part_id, t)
+        self.board.emit(ev.part_grabbed(t, self.id, part_id))
+        self._enter(Phase.TO_INTERMEDIATE, t, self._intermediate(part.target.yaw, depart=True))
+
+    def _at_intermediate(self, t: float) -> None:
+        missing = self.board.missing_deps(self.carrying)
+        if missing:
+            self.phase = Phase.WAITING  # the goal stays: hold at the intermediate pose
+            self.idle.begin(t)
+            self.board.emit(ev.robot_waiting(t, self.id, self.carrying, missing))
+        else:
+            self._enter(Phase.TO_PLACE, t, self._place(self.carrying))
+
+    def _release(self, t: float) -> None:
+        part_id = self.carrying
+        part = self.board.parts[part_id]
+        self.board.command(pb.WorldCommand(release=pb.Release(
+            object=part_id, snap=True, pose=pose(vec(part.target.xyz), part.target.yaw))))
+        self.board.mark_placed(part_id, t)
+        self.board.emit(ev.part_placed(t, self.id, part_id))
+        self.carrying = ""
+        if self.screwing:
+            # The dwell counts from now: the goal is unchanged, the arm stays at the hole.
+            self.dwell_since = t
+            self.phase = Phase.SCREWING
+            self.board.emit(ev.robot_phase(t, self.id, Phase.SCREWING.value, part_id))
+        else:
+            self._enter(Phase.RETURNING, t, self._returning())
+
+    def _back_at_intermediate(self, t: float) -> None:
+        self.index += 1
+        self._next_part(t)
+
+    def _home(self, t: float) -> None:
+        self.phase = Phase.FINISHED
+        self.completion_s = t
+        self.idle.end(t)
+        self.board.emit(ev.robot_finished(t, self.id, self.speed_max, self.avg_speed,
+                                          self.idle.total))
+
+    def _check_unreachable(self, t: float) -> None:
+        st = self.state
+        if (st is not None and st.status == pb.MOTION_STATUS_UNREACHABLE
+                and st.command_id == self.sent_id and self._unreachable_reported != self.sent_id):
+            self._unreachable_reported = self.sent_id
+            self.board.emit(ev.robot_unreachable(t, self.id, st.detail))

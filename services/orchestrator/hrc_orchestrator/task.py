@@ -1,0 +1,236 @@
+"""The task logic of SPEC §3 as a pure state machine: no bus, no I/O, no wall clock (except the
+one start date string, injectable).
+
+    task = Task(scenario)                       # hrc.scenario.Scenario
+    out = task.step(tick, sim_time, inputs)     # per co-simulation tick, inputs of that tick
+    out.robot_commands, out.world_commands, out.events, out.cues, out.stop
+
+Same scenario and same inputs give the same outputs: everything is iterated in scenario order or
+sorted, never in hash order.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+from hrc import scenario as sc
+from hrc.wire import pb
+from hrc_orchestrator import events as ev
+from hrc_orchestrator.board import Board
+from hrc_orchestrator.cues import (
+    CONTINUE_BUTTON,
+    HUMAN_COLOR,
+    CueBoard,
+    outline_id,
+    target_id,
+    waiting_id,
+)
+from hrc_orchestrator.geom import Vec, add, from_pb, to_pb, vec
+from hrc_orchestrator.human import HANDS, HumanAgent
+from hrc_orchestrator.robots import Phase, RobotAgent
+from hrc_orchestrator.safety import Safety
+
+WAITING_TEXT = "Waiting.."
+WAITING_HEIGHT = 0.6  # m above a robot's base, where its "Waiting.." cue floats
+
+
+def wall_clock_now() -> str:
+    """The one wall-clock read of the task: the start date, logged, never computed with."""
+    return dt.datetime.now().astimezone().isoformat(timespec="seconds")
+
+
+@dataclass
+class Inputs:
+    """The messages received for one tick, in delivery order."""
+
+    robot_states: list[pb.RobotState] = field(default_factory=list)
+    objects: list[pb.WorldObjects] = field(default_factory=list)
+    contacts: list[pb.WorldContacts] = field(default_factory=list)
+    human: pb.HumanState | None = None
+
+
+@dataclass
+class Outputs:
+    robot_commands: list[pb.RobotCommand] = field(default_factory=list)  # only new ones
+    world_commands: list[pb.WorldCommand] = field(default_factory=list)
+    events: list[pb.TaskEvent] = field(default_factory=list)
+    cues: list[pb.Cue] = field(default_factory=list)  # on/off changes
+    stop: str = ""  # non-empty once: the task finished, end the run
+
+
+class Task:
+    def __init__(self, scenario: sc.Scenario, *,
+                 wall_clock: Callable[[], str] = wall_clock_now) -> None:
+        self.scenario = scenario
+        self.board = Board(scenario)
+        self.human = HumanAgent(scenario, self.board)
+        self.agents: dict[str, RobotAgent] = {
+            rid: RobotAgent(robot, scenario.sequence_of(rid), self.board)
+            for rid, robot in scenario.robots.items()
+        }
+        self.safety = Safety(scenario.conditions.safety_policy, self.agents, self.board)
+        self.anticipation = scenario.conditions.anticipation
+        self.cue_board = CueBoard()
+        self._wall_clock = wall_clock
+        self.wall_start = ""
+        self.started = False
+        self.finished = False
+        self.start_sim_time = 0.0
+        self.completion_s: float | None = None
+        self.tick = 0
+        self.sim_time = 0.0
+        self.human_state: pb.HumanState | None = None
+        self._grabbable: dict[str, bool] = {}
+        self._positions: dict[str, Vec] = {
+            p.id: vec(p.start.xyz) for p in scenario.parts if p.start is not None
+        }
+
+    # ------------------------------------------------------------------ time
+    @property
+    def running(self) -> bool:
+        return self.started and not self.finished
+
+    def now(self) -> float:
+        """Task time: seconds since the first grab (0 before)."""
+        return self.sim_time - self.start_sim_time if self.started else 0.0
+
+    # ------------------------------------------------------------------ the tick
+    def step(self, tick: int, sim_time: float, inputs: Inputs) -> Outputs:
+        self.tick, self.sim_time = tick, sim_time
+        out = Outputs()
+        if self.finished:
+            return out
+        sampling = self.running
+        for state in inputs.robot_states:
+            agent = self.agents.get(state.robot)
+            if agent is not None:
+                agent.observe(state, sampling)
+        if inputs.human is not None:
+            self.human_state = inputs.human
+        if not self.started and not self.human.sequence:
+            self._start("")  # nothing to grab: the task starts at once
+        for msg in inputs.objects:
+            for obj in msg.objects:
+                self._positions[obj.id] = from_pb(obj.pose.position)
+            for e in msg.events:
+                self._object_event(e)
+        for msg in inputs.contacts:
+            for c in msg.contacts:
+                self._contact(c)
+        t = self.now()
+        self.human.update_idle(t, self.running)
+        if self.running:
+            self.safety.update(t)
+            for rid, agent in self.agents.items():
+                agent.advance(t, active=self.safety.override(rid) is None)
+            if self.human.done and all(a.finished for a in self.agents.values()):
+                self._finish(t)
+                out.stop = "task finished"
+        if not self.finished:
+            out.robot_commands = self._commands()
+        events, world = self.board.drain()
+        out.events = events
+        out.world_commands = world + self._grabbable_changes()
+        out.cues = self.cue_board.update(self._desired_cues())
+        return out
+
+    # ------------------------------------------------------------------ inputs
+    def _object_event(self, e: pb.ObjectEvent) -> None:
+        if e.kind == pb.ObjectEvent.KIND_GRABBED:
+            if (not self.started and e.object == self.human.first_part and e.holder in HANDS):
+                self._start(e.object)
+            if self.running:
+                self.human.grabbed(e, self.now())
+        elif e.kind == pb.ObjectEvent.KIND_RELEASED:
+            if self.running:
+                self.human.released(e, self.now())
+        # SPAWNED / SNAPPED / RESTED and robot grabs confirm what this task commanded.
+
+    def _contact(self, c: pb.Contact) -> None:
+        t = self.now()
+        if c.kind == pb.CONTACT_KIND_HAND_ENVELOPE:
+            self.human.envelope(c)
+        elif c.kind == pb.CONTACT_KIND_HAND_ROBOT:
+            self.safety.hand_robot(c, t, self.running)
+        elif c.kind == pb.CONTACT_KIND_HAND_BUTTON:
+            if self.running:
+                self.safety.button(c, t)
+        elif c.kind == pb.CONTACT_KIND_ROBOT_ROBOT:
+            self.safety.robot_robot(c, t, self.running)
+
+    # ------------------------------------------------------------------ start and end
+    def _start(self, first_part: str) -> None:
+        self.started = True
+        self.start_sim_time = self.sim_time
+        self.wall_start = self._wall_clock()
+        self.board.emit(ev.task_started(self.wall_start, first_part))
+        if not self.human.sequence:
+            self.human.finish(0.0)
+        for agent in self.agents.values():
+            agent.start(0.0)
+
+    def _finish(self, t: float) -> None:
+        self.finished = True
+        self.completion_s = t
+        self.safety.finalize(t)
+        self.board.emit(ev.task_finished(t, len(self.safety.records), len(self.safety.near_times)))
+
+    # ------------------------------------------------------------------ outputs
+    def _commands(self) -> list[pb.RobotCommand]:
+        cmds: list[pb.RobotCommand] = []
+        for rid, agent in self.agents.items():
+            motion = (self.safety.override(rid) if self.running else None) or agent.goal
+            if motion is None or motion == agent.sent:
+                continue
+            cmds.append(motion.to_proto(rid, agent.record_sent(motion)))
+        return cmds
+
+    def _grabbable_changes(self) -> list[pb.WorldCommand]:
+        if self.finished:
+            return []
+        blocked = self.safety.blocks_grab
+        cmds: list[pb.WorldCommand] = []
+        for part in self.scenario.parts:
+            if part.start is None:  # screws come from the feeder, never grabbable by hand
+                continue
+            want = part.owner == sc.HUMAN and self.human.grabbable(part.id, blocked)
+            if self._grabbable.get(part.id) != want:
+                self._grabbable[part.id] = want
+                cmds.append(pb.WorldCommand(set_grabbable=pb.SetGrabbable(object=part.id,
+                                                                         grabbable=want)))
+        return cmds
+
+    def _desired_cues(self) -> list[pb.Cue]:
+        if self.finished:
+            return []
+        cues: list[pb.Cue] = []
+        nxt = self.human.next_part
+        if nxt and not self.human.held_part and self.human.grabbable(nxt, self.safety.blocks_grab):
+            cues.append(pb.Cue(id=outline_id(nxt), kind=pb.CUE_KIND_OUTLINE, part=nxt,
+                               color=HUMAN_COLOR, position=to_pb(self._positions[nxt]),
+                               flashing=True))
+        if self.human.target_cue_wanted():
+            part = self.board.parts[self.human.held_part]
+            cues.append(pb.Cue(id=target_id(part.id), kind=pb.CUE_KIND_TARGET, part=part.id,
+                               color=HUMAN_COLOR, position=to_pb(vec(part.target.xyz)),
+                               flashing=True))
+        button = self.scenario.workspace.continue_button
+        if self.safety.button_wanted and button is not None:
+            cues.append(pb.Cue(id=CONTINUE_BUTTON, kind=pb.CUE_KIND_CONTINUE_BUTTON,
+                               position=to_pb(vec(button)), flashing=True))
+        if self.anticipation and self.running:
+            for rid, agent in self.agents.items():
+                color = agent.cfg.color_or_default
+                if agent.carrying:
+                    part = self.board.parts[agent.carrying]
+                    cues.append(pb.Cue(id=target_id(part.id), kind=pb.CUE_KIND_TARGET,
+                                       part=part.id, robot=rid, color=color,
+                                       position=to_pb(vec(part.target.xyz)), flashing=True))
+                if agent.phase == Phase.WAITING:
+                    base = vec(agent.cfg.base.xyz)
+                    cues.append(pb.Cue(id=waiting_id(rid), kind=pb.CUE_KIND_WAITING, robot=rid,
+                                       color=color, text=WAITING_TEXT, flashing=True,
+                                       position=to_pb(add(base, (0.0, 0.0, WAITING_HEIGHT)))))
+        return cues
