@@ -1,14 +1,18 @@
-"""Entry point of the physics service (``hrc-physics``)."""
+"""Entry point of the physics service (``hrc-physics``): the pybullet world and the clock."""
 
 from __future__ import annotations
 
 import argparse
 import logging
 
-from hrc.bus import Bus, ClockMaster, ClockSettings, RunFailed, add_bus_arguments, bus_config_from_args
+from hrc.bus import Bus, ClockSettings, RunFailed, add_bus_arguments, bus_config_from_args
 from hrc.logsetup import setup_logging
+from hrc.scenario import ScenarioError
 from hrc.wire import pb
+from hrc_physics.clock import PhysicsClock
+from hrc_physics.robots import RobotModelError
 from hrc_physics.service import PhysicsService
+from hrc_physics.world import WorldSettings
 
 log = logging.getLogger("hrc_physics")
 
@@ -35,6 +39,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                    help="lockstep: seconds a participant may take for one tick (default 10)")
     p.add_argument("--start-timeout", type=float, default=60.0,
                    help="seconds to wait for the scenario and every service (default 60)")
+    p.add_argument("--solver-iterations", type=int, default=WorldSettings.solver_iterations,
+                   help="pybullet solver iterations per step (default %(default)s)")
     p.add_argument("--log-level", default=None)
     return p.parse_args(argv)
 
@@ -44,6 +50,9 @@ def main(argv: list[str] | None = None) -> int:
     setup_logging(NAME, args.log_level)
     if args.ticks < 0:
         log.error("--ticks must be >= 0, got %d", args.ticks)
+        return 2
+    if args.solver_iterations < 1:
+        log.error("--solver-iterations must be >= 1, got %d", args.solver_iterations)
         return 2
     with Bus(bus_config_from_args(args), NAME) as bus:
         try:
@@ -62,17 +71,23 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError as exc:
             log.error("%s", exc)
             return 2
-        service = PhysicsService(bus, scenario)
-        clock = ClockMaster(bus, settings)
-        service.register_inputs(clock)
-        clock.start()
-        log.info("scenario %r, %s at %g Hz, waiting for %s", scenario.info.name, args.clock,
-                 tick_hz, ", ".join(settings.participants + settings.observers))
         try:
-            end = clock.run(service.publish_world, service.step)
-        except RunFailed as exc:  # pragma: no cover - run() reports failures in RunEnd
-            log.error("%s", exc)
+            service = PhysicsService(bus, scenario, tick_hz, args.solver_iterations)
+        except (ScenarioError, RobotModelError) as exc:
+            log.error("cannot build the world: %s", exc)
             return 1
+        with service:
+            clock = PhysicsClock(bus, settings)
+            service.register_inputs(clock)
+            clock.start()
+            log.info("scenario %r, %s at %g Hz, %d objects, waiting for %s", scenario.info.name,
+                     args.clock, tick_hz, len(service.world.objects),
+                     ", ".join(settings.participants + settings.observers))
+            try:
+                end = clock.run(service.publish_world, service.step)
+            except RunFailed as exc:  # pragma: no cover - run() reports failures in RunEnd
+                log.error("%s", exc)
+                return 1
         log.info("run ended after %d ticks (%.2f s wall, %.1fx realtime): %s", end.ticks,
                  end.wall_s, end.realtime_factor, end.reason)
         return 0 if end.ok else 1

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import logging
+import math
 
+from hrc import scenario as sc
 from hrc.bus import Bus, ClockMaster, check_pose
 from hrc.wire import pb
+from hrc_physics.world import CommandRejected, World, WorldSettings
 
 log = logging.getLogger(__name__)
 
@@ -22,39 +25,98 @@ def _human_ok(msg: pb.HumanState) -> str | None:
     return None
 
 
-class PhysicsService:
-    """Holds the latest inputs of each participant and the world they act on."""
+def _robot_ok(msg: pb.RobotState) -> str | None:
+    if not all(math.isfinite(v) for v in msg.joint_positions):
+        return f"robot {msg.robot!r}: joint positions contain NaN or infinity"
+    return None
 
-    def __init__(self, bus: Bus, scenario: pb.Scenario) -> None:
+
+class PhysicsService:
+    """Holds the world and feeds it the latest inputs of each participant.
+
+    Use as a context manager (the world owns a pybullet client)."""
+
+    def __init__(self, bus: Bus, scenario: pb.Scenario, tick_hz: float,
+                 solver_iterations: int = WorldSettings.solver_iterations) -> None:
         self.bus = bus
         self.scenario = scenario
-        self.robot_states: dict[str, pb.RobotState] = {}
-        self.human: pb.HumanState | None = None
+        typed = sc.from_proto(scenario)  # raises ScenarioError naming the bad field
+        self.world = World(typed, WorldSettings(dt=1.0 / tick_hz,
+                                                solver_iterations=solver_iterations))
         self.pending_commands: list[pb.WorldCommand] = []
         keys = bus.keys
+        self._commands_key = keys.world_commands()
         self._objects_pub = bus.publisher(keys.world_objects())
         self._contacts_pub = bus.publisher(keys.world_contacts())
 
+    def __enter__(self) -> "PhysicsService":
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
+        if self.world.rejected:
+            log.info("world commands rejected, by object: %s",
+                     ", ".join(f"{k}: {v}" for k, v in sorted(self.world.rejected.items())))
+        self.world.close()
+
     def register_inputs(self, clock: ClockMaster) -> None:
+        # Validation happens in the handlers, not in the bus: a message the bus drops never
+        # reaches the inbox, so the clock would wait forever for the seq its sender's ack lists.
         keys = self.bus.keys
         clock.input(keys.robot_states(), pb.RobotState, self._on_robot_state)
-        clock.input(keys.human_state(), pb.HumanState, self._on_human, validate=_human_ok)
+        clock.input(keys.human_state(), pb.HumanState, self._on_human)
         clock.input(keys.world_commands(), pb.WorldCommands, self._on_world_commands)
 
-    def _on_robot_state(self, _key: str, msg: pb.RobotState) -> None:
-        self.robot_states[msg.robot] = msg
+    def _malformed(self, key: str, msg, problem: str) -> None:
+        n = self.bus.stats.count_error(key)
+        log.warning("malformed message #%d on %s from sender %r: %s", n, key, msg.header.sender,
+                    problem)
 
-    def _on_human(self, _key: str, msg: pb.HumanState) -> None:
-        self.human = msg
+    def _on_robot_state(self, key: str, msg: pb.RobotState) -> None:
+        problem = _robot_ok(msg)
+        if problem:
+            self._malformed(key, msg, problem)
+            return
+        robot = msg.robot or self.bus.keys.robot_of(key)
+        try:
+            self.world.set_robot_state(robot, list(msg.joint_names), list(msg.joint_positions))
+        except CommandRejected as exc:
+            n = self.bus.stats.count_error(key)
+            log.warning("robot state #%d on %s from %r rejected: %s", n, key, msg.header.sender,
+                        exc)
+
+    def _on_human(self, key: str, msg: pb.HumanState) -> None:
+        problem = _human_ok(msg)
+        if problem:
+            self._malformed(key, msg, problem)
+            return
+        self.world.set_human(msg)
 
     def _on_world_commands(self, _key: str, msg: pb.WorldCommands) -> None:
         self.pending_commands.extend(msg.commands)
 
     def publish_world(self, tick: int, sim_time: float) -> None:
-        """World state of ``tick``: every object at tick 0, then the moving ones."""
-        if tick == 0:
-            self._objects_pub.put(pb.WorldObjects(full=True), tick, sim_time)
+        """World state of ``tick``: every object at tick 0, then the moving and changed ones,
+        with the object events of the tick; the contacts that began or ended, if any."""
+        full = tick == 0
+        states = self.world.object_states(full=full)
+        events = self.world.take_events()
+        if full or states or events:
+            self._objects_pub.put(pb.WorldObjects(objects=states, full=full, events=events),
+                                  tick, sim_time)
+        contacts = self.world.contact_events()
+        if contacts:
+            self._contacts_pub.put(pb.WorldContacts(contacts=contacts), tick, sim_time)
+            for c in contacts:
+                log.debug("tick %d: contact %s %s %s-%s %s", tick, pb.ContactKind.Name(c.kind),
+                          "begins" if c.begin else "ends", c.a, c.b, c.link)
 
     def step(self, tick: int, sim_time: float) -> None:
         """Applies the outputs of ``tick`` and advances the world to ``tick + 1``."""
+        problems = self.world.step(self.pending_commands)
         self.pending_commands.clear()
+        for problem in problems:
+            n = self.bus.stats.count_error(self._commands_key)
+            log.warning("tick %d: world command #%d rejected: %s", tick, n, problem)

@@ -1,0 +1,371 @@
+// hrc-ik-bench: IK solver benchmark (issue 3) and the 2-arm 1 kHz motion tick benchmark.
+//
+// For arm5 (position + tool axis), UR5 and Panda (full pose): N random reachable targets made by
+// FK of uniform random joint vectors within the limits (fixed seed); every solver starts from the
+// middle of the joint ranges. Success: position <= 0.1 mm, orientation <= 0.1 deg (arm5: tool-axis
+// angle), joints within limits -- checked here with KDL's FK, independent of what a solver claims.
+
+#include "hrc/kin/baselines.hpp"
+#include "hrc/kin/ik.hpp"
+#include "hrc/kin/kinematics.hpp"
+#include "hrc/kin/motion.hpp"
+#include "hrc/kin/robot_model.hpp"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <iostream>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace fs = std::filesystem;
+using hrc::kin::IkTarget;
+using hrc::kin::RobotModel;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr double kPosTol = 1e-4;                  // 0.1 mm
+constexpr double kAngTol = 0.1 * M_PI / 180.0;    // 0.1 deg
+
+struct Options {
+  int n = 10000;
+  int gd_n = 1000;
+  std::uint64_t seed = 1;
+  std::string robots_dir;
+  bool json = false;
+  int tick_seconds = 30;
+};
+
+struct Stats {
+  double success = 0, mean_us = 0, p99_us = 0;
+  double median_pos_mm = 0, median_ang_deg = 0;  // residuals, to show how far failures are
+  int n = 0;
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+  return v[v.size() / 2];
+}
+
+[[noreturn]] void usage(const std::string& err) {
+  if (!err.empty()) std::cerr << "hrc-ik-bench: " << err << "\n";
+  std::cerr << "usage: hrc-ik-bench [--n N] [--gd-n M] [--seed S] [--robots-dir DIR] "
+               "[--tick-seconds T] [--json]\n"
+               "  --n N            targets per chain (default 10000)\n"
+               "  --gd-n M         targets for the (slow) gradient descent baseline, <= N "
+               "(default 1000)\n"
+               "  --seed S         random seed (default 1)\n"
+               "  --robots-dir DIR folder with arm5.urdf, ur5.urdf, panda.urdf (default: robots/ "
+               "found from the cwd or the executable upwards)\n"
+               "  --tick-seconds T simulated seconds of the 2-arm 1 kHz tick benchmark (default 30)\n"
+               "  --json           print one JSON object instead of a table\n";
+  std::exit(err.empty() ? 0 : 2);
+}
+
+long parseInt(const std::string& flag, const char* v, long lo) {
+  char* end = nullptr;
+  const long x = std::strtol(v, &end, 10);
+  if (!end || *end || x < lo) usage(flag + " expects an integer >= " + std::to_string(lo) + ", got '" + v + "'");
+  return x;
+}
+
+Options parse(int argc, char** argv) {
+  Options o;
+  bool gd_given = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    const auto value = [&]() -> const char* {
+      if (i + 1 >= argc) usage(a + " needs a value");
+      return argv[++i];
+    };
+    if (a == "--n") o.n = static_cast<int>(parseInt(a, value(), 1));
+    else if (a == "--gd-n") { o.gd_n = static_cast<int>(parseInt(a, value(), 0)); gd_given = true; }
+    else if (a == "--seed") o.seed = static_cast<std::uint64_t>(parseInt(a, value(), 0));
+    else if (a == "--robots-dir") o.robots_dir = value();
+    else if (a == "--tick-seconds") o.tick_seconds = static_cast<int>(parseInt(a, value(), 1));
+    else if (a == "--json") o.json = true;
+    else if (a == "-h" || a == "--help") usage("");
+    else usage("unknown option '" + a + "'");
+  }
+  if (gd_given && o.gd_n > o.n) usage("--gd-n must be <= --n");
+  o.gd_n = std::min(o.gd_n, o.n);
+  return o;
+}
+
+std::string findRobotsDir(const std::string& given) {
+  const auto ok = [](const fs::path& d) { return fs::exists(d / "arm5.urdf"); };
+  if (!given.empty()) {
+    if (!ok(given)) usage("--robots-dir '" + given + "' has no arm5.urdf");
+    return given;
+  }
+  std::vector<fs::path> starts{fs::current_path()};
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) starts.push_back(exe.parent_path());
+  for (fs::path p : starts) {
+    for (int up = 0; up < 8 && !p.empty(); ++up, p = p.parent_path()) {
+      if (ok(p / "robots")) return (p / "robots").string();
+      if (p == p.parent_path()) break;
+    }
+  }
+  const fs::path fallback = fs::path(HRC_KIN_PROJECT_ROOT) / "robots";
+  if (ok(fallback)) return fallback.string();
+  usage("cannot find robots/arm5.urdf; pass --robots-dir");
+}
+
+Stats summarise(std::vector<double>& us, int successes) {
+  Stats s;
+  s.n = static_cast<int>(us.size());
+  if (us.empty()) return s;
+  double sum = 0;
+  for (double v : us) sum += v;
+  s.mean_us = sum / us.size();
+  std::sort(us.begin(), us.end());
+  const std::size_t idx = std::min(us.size() - 1, static_cast<std::size_t>(std::ceil(0.99 * us.size())) - 1);
+  s.p99_us = us[idx];
+  s.success = static_cast<double>(successes) / us.size();
+  return s;
+}
+
+double micros(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::micro>(b - a).count();
+}
+
+struct Chain {
+  std::string name;
+  bool axis_only;  // arm5: position + tool axis
+};
+
+std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only, const Options& o) {
+  const int dof = model.dof();
+  hrc::kin::KdlKinematics kin(model);
+  std::mt19937_64 rng(o.seed);
+  std::vector<Eigen::Isometry3d> targets;
+  targets.reserve(o.n);
+  Eigen::VectorXd q(dof);
+  for (int k = 0; k < o.n; ++k) {
+    for (int i = 0; i < dof; ++i)
+      q[i] = std::uniform_real_distribution<double>(model.sampleLower(i), model.sampleUpper(i))(rng);
+    targets.push_back(kin.fk(q));
+  }
+  const Eigen::VectorXd seed = model.midRange();
+  std::vector<double> pos_res, ang_res;
+  const auto success = [&](const Eigen::VectorXd& sol, const Eigen::Isometry3d& T) {
+    if (!sol.allFinite()) {
+      pos_res.push_back(1e9);
+      ang_res.push_back(180);
+      return false;
+    }
+    const Eigen::Isometry3d F = kin.fk(sol);
+    const double pos = (F.translation() - T.translation()).norm();
+    const double ang = axis_only ? hrc::kin::axisAngle(F.linear().col(2), T.linear().col(2))
+                                 : hrc::kin::rotationAngle(F.linear(), T.linear());
+    pos_res.push_back(pos * 1e3);
+    ang_res.push_back(ang * 180.0 / M_PI);
+    return model.withinLimits(sol, 1e-9) && pos <= kPosTol && ang <= kAngTol;
+  };
+  const auto finish = [&](const char* name, std::vector<double>& times, int good) {
+    Stats st = summarise(times, good);
+    st.median_pos_mm = median(pos_res);
+    st.median_ang_deg = median(ang_res);
+    pos_res.clear();
+    ang_res.clear();
+    return std::make_pair(std::string(name), st);
+  };
+  const auto toTarget = [&](const Eigen::Isometry3d& T) {
+    return axis_only ? IkTarget::positionAxis(T.translation(), T.linear().col(2)) : IkTarget::pose(T);
+  };
+
+  std::map<std::string, Stats> out;
+  std::vector<double> us;
+  us.reserve(o.n);
+  Eigen::VectorXd sol(dof);
+
+  {  // service
+    hrc::kin::IkSolver ik(model);
+    hrc::kin::IkResult res;
+    res.q.resize(dof);
+    int good = 0;
+    us.clear();
+    for (const auto& T : targets) {
+      const IkTarget t = toTarget(T);
+      const auto a = Clock::now();
+      ik.solve(t, seed, res);
+      const auto b = Clock::now();
+      us.push_back(micros(a, b));
+      good += success(res.q, T);
+    }
+    out.insert(finish("service", us, good));
+  }
+  {  // KDL NR_JL
+    hrc::kin::KdlNrJlSolver ik(model);
+    int good = 0;
+    us.clear();
+    for (const auto& T : targets) {
+      const auto a = Clock::now();
+      ik.solve(T, seed, sol);
+      const auto b = Clock::now();
+      us.push_back(micros(a, b));
+      good += success(sol, T);
+    }
+    out.insert(finish("kdl_nr_jl", us, good));
+  }
+  {  // KDL LMA
+    hrc::kin::KdlLmaSolver ik(model);
+    int good = 0;
+    us.clear();
+    for (const auto& T : targets) {
+      const auto a = Clock::now();
+      ik.solve(T, seed, sol);
+      const auto b = Clock::now();
+      us.push_back(micros(a, b));
+      good += success(sol, T);
+    }
+    out.insert(finish("kdl_lma", us, good));
+  }
+  {  // thesis gradient descent, on the first gd_n targets
+    hrc::kin::GradientDescentSolver ik(model);
+    int good = 0;
+    us.clear();
+    for (int k = 0; k < o.gd_n; ++k) {
+      const auto& T = targets[static_cast<std::size_t>(k)];
+      const IkTarget t = toTarget(T);
+      const auto a = Clock::now();
+      ik.solve(t, seed, sol);
+      const auto b = Clock::now();
+      us.push_back(micros(a, b));
+      good += success(sol, T);
+    }
+    out.insert(finish("gradient_descent", us, good));
+  }
+  return out;
+}
+
+// Two arm5 robots placed as in the default scenario, stepping at 1 kHz through pick/place-like
+// moves (vertical approach/depart, yaw changes, a retarget mid-move every few moves).
+double tickBench(const RobotModel& arm5, const Options& o) {
+  struct Arm {
+    std::unique_ptr<hrc::kin::MotionGenerator> gen;
+    std::vector<hrc::kin::MoveCommand> moves;
+    std::size_t next = 0;
+    int moves_done = 0;
+  };
+  const double dt = 1e-3;
+  const auto base = [](double x, double y, double yaw_deg) {
+    Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+    T.translation() = Eigen::Vector3d(x, y, 0.0);
+    T.linear() = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    return T;
+  };
+  const auto mv = [](double x, double y, double z, double yaw_deg, double app, double dep) {
+    hrc::kin::MoveCommand c;
+    c.target = Eigen::Vector3d(x, y, z);
+    c.yaw = yaw_deg * M_PI / 180.0;
+    c.approach_height = app;
+    c.depart_height = dep;
+    return c;
+  };
+  hrc::kin::MotionLimits lim;
+  lim.max_tcp_speed = 0.5;
+  Arm arms[2];
+  arms[0].gen = std::make_unique<hrc::kin::MotionGenerator>(arm5, base(0.45, 0.55, 180), dt, lim);
+  arms[1].gen = std::make_unique<hrc::kin::MotionGenerator>(arm5, base(-0.45, 0.55, 180), dt, lim);
+  arms[0].moves = {mv(0.55, 0.30, 0.05, 0, 0.05, 0.05), mv(0.20, 0.25, 0.25, 0, 0, 0.05),
+                   mv(-0.10, 0.05, 0.03, 90, 0.05, 0), mv(0.20, 0.25, 0.25, 45, 0, 0.05),
+                   mv(0.35, 0.30, 0.35, 0, 0, 0)};
+  arms[1].moves = {mv(-0.60, 0.35, 0.05, 0, 0.05, 0.05), mv(-0.20, 0.25, 0.25, 30, 0, 0.05),
+                   mv(0.05, 0.00, 0.06, -60, 0.05, 0), mv(-0.20, 0.25, 0.25, 0, 0, 0.05),
+                   mv(-0.35, 0.30, 0.35, 0, 0, 0)};
+  for (auto& a : arms) {
+    const auto& home = a.moves.back();
+    if (!a.gen->resetToPose(home.target, home.yaw)) {
+      std::cerr << "hrc-ik-bench: tick benchmark home pose unreachable\n";
+      std::exit(1);
+    }
+  }
+  const int ticks = o.tick_seconds * 1000;
+  std::vector<double> us;
+  us.reserve(ticks);
+  for (int k = 0; k < ticks; ++k) {
+    const auto t0 = Clock::now();
+    for (auto& a : arms) {
+      const auto st = a.gen->state().status;
+      const bool retarget = a.gen->state().status == hrc::kin::MotionStatus::Moving &&
+                            a.moves_done % 4 == 3 && (k % 500) == 250;
+      if (st != hrc::kin::MotionStatus::Moving || retarget) {
+        a.gen->move(a.moves[a.next]);
+        a.next = (a.next + 1) % a.moves.size();
+        ++a.moves_done;
+      }
+      a.gen->step();
+    }
+    us.push_back(micros(t0, Clock::now()));
+  }
+  for (auto& a : arms)
+    if (a.moves_done < 5) std::cerr << "hrc-ik-bench: warning: an arm completed few moves\n";
+  return summarise(us, 0).p99_us;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const Options o = parse(argc, argv);
+  const std::string dir = findRobotsDir(o.robots_dir);
+  const std::vector<Chain> chains{{"arm5", true}, {"ur5", false}, {"panda", false}};
+  std::map<std::string, std::map<std::string, Stats>> results;
+  std::unique_ptr<RobotModel> arm5;
+  try {
+    for (const auto& c : chains) {
+      const RobotModel model = RobotModel::fromUrdfFile(dir + "/" + c.name + ".urdf");
+      if (!o.json) std::cerr << "benchmarking " << c.name << " (" << model.dof() << " DOF)...\n";
+      results[c.name] = benchChain(model, c.axis_only, o);
+      if (c.name == "arm5") arm5 = std::make_unique<RobotModel>(model);
+    }
+  } catch (const std::exception& e) {
+    std::cerr << "hrc-ik-bench: " << e.what() << "\n";
+    return 1;
+  }
+  const double tick_p99 = tickBench(*arm5, o);
+  const char* solvers[] = {"service", "kdl_nr_jl", "kdl_lma", "gradient_descent"};
+  if (o.json) {
+    std::printf("{\"chains\": {");
+    bool first_chain = true;
+    for (const auto& c : chains) {
+      std::printf("%s\"%s\": {", first_chain ? "" : ", ", c.name.c_str());
+      first_chain = false;
+      bool first = true;
+      for (const char* s : solvers) {
+        const Stats& st = results[c.name][s];
+        std::printf("%s\"%s\": {\"success\": %.6f, \"mean_us\": %.3f, \"p99_us\": %.3f, \"n\": %d, "
+                    "\"median_pos_mm\": %.6g, \"median_ang_deg\": %.6g}",
+                    first ? "" : ", ", s, st.success, st.mean_us, st.p99_us, st.n, st.median_pos_mm,
+                    st.median_ang_deg);
+        first = false;
+      }
+      std::printf("}");
+    }
+    std::printf("}, \"tick_p99_us\": %.3f, \"seed\": %llu}\n", tick_p99,
+                static_cast<unsigned long long>(o.seed));
+  } else {
+    std::printf("%-6s %-17s %9s %10s %10s %7s %12s %12s\n", "chain", "solver", "success", "mean_us",
+                "p99_us", "n", "med_pos_mm", "med_ang_deg");
+    for (const auto& c : chains)
+      for (const char* s : solvers) {
+        const Stats& st = results[c.name][s];
+        std::printf("%-6s %-17s %8.2f%% %10.1f %10.1f %7d %12.2e %12.2e\n", c.name.c_str(), s,
+                    100.0 * st.success, st.mean_us, st.p99_us, st.n, st.median_pos_mm, st.median_ang_deg);
+      }
+    std::printf("tick_p99_us (2 x arm5 motion generators at 1 kHz): %.1f\n", tick_p99);
+  }
+  return 0;
+}

@@ -1,0 +1,115 @@
+#pragma once
+// Cartesian motion generator for one arm, one step per fixed tick dt:
+// straight-line TCP moves with a smooth speed profile (SpeedProfile) capped at the TCP speed limit
+// and slowed when a joint would exceed its velocity limit; tool pointing down with a yaw;
+// optional vertical depart/approach segments; a new command mid-move starts from the current
+// position and velocity (continuing if aligned, otherwise braking along the current direction
+// first), so there is no velocity jump beyond the acceleration limit. Each tick: next waypoint ->
+// IK seeded with the current joints -> joints.
+
+#include "hrc/kin/ik.hpp"
+#include "hrc/kin/robot_model.hpp"
+#include "hrc/kin/speed_profile.hpp"
+
+#include <Eigen/Geometry>
+
+#include <deque>
+#include <string>
+#include <vector>
+
+namespace hrc::kin {
+
+enum class MotionStatus { Idle, Moving, Reached, Holding, Unreachable };
+const char* toString(MotionStatus s);
+
+struct MotionLimits {
+  double max_tcp_speed = 0.5;     // m/s, default for commands with max_speed = 0
+  double max_tcp_accel = 2.0;     // m/s^2
+  double max_tcp_jerk = 20.0;     // m/s^3
+  double reach_tolerance = 0.005; // m: "reached" radius
+  double rotation_length = 0.1;   // m per rad: how much path a pure reorientation counts for
+  double check_step = 0.01;       // m: spacing of the reachability check along a new path
+};
+
+struct MoveCommand {
+  Eigen::Vector3d target = Eigen::Vector3d::Zero();  // TCP position, world frame
+  double yaw = 0.0;              // rad, tool x axis about world z (tool pointing down)
+  double approach_height = 0.0;  // > 0: arrive vertically from target + h z
+  double depart_height = 0.0;    // > 0: first rise vertically by h
+  double max_speed = 0.0;        // m/s; 0 = MotionLimits::max_tcp_speed
+};
+
+struct MotionState {
+  Eigen::VectorXd q;                 // joint positions
+  Eigen::Isometry3d tcp = Eigen::Isometry3d::Identity();  // world frame
+  double tcp_speed = 0.0;            // m/s, from consecutive TCP positions
+  MotionStatus status = MotionStatus::Idle;
+  std::string detail;                // why a target is unreachable, etc.
+};
+
+class MotionGenerator {
+ public:
+  // world_T_base: pose of the robot base in the world. dt: tick period (s), > 0.
+  MotionGenerator(const RobotModel& model, const Eigen::Isometry3d& world_T_base, double dt,
+                  MotionLimits limits = {}, IkOptions ik_options = {});
+
+  // Set the joints (clamped into the limits), stop, status Idle.
+  void reset(const Eigen::VectorXd& q);
+  // Put the arm at a tool-down pose (world) with no motion; false (unchanged) if unreachable.
+  bool resetToPose(const Eigen::Vector3d& position, double yaw);
+
+  // Start a move. Returns the new status: Moving, Reached (already there) or Unreachable
+  // (target or path not reachable, or invalid command; detail says why; the arm stops smoothly).
+  MotionStatus move(const MoveCommand& cmd);
+  // Stop smoothly where it is and hold.
+  void hold();
+  // Advance one tick.
+  const MotionState& step();
+
+  const MotionState& state() const { return state_; }
+  double dt() const { return dt_; }
+  const Eigen::Vector3d& commandedVelocity() const { return v_cmd_; }
+  const RobotModel& model() const { return model_; }
+  // Can the arm reach `position` (world) tool-down with `yaw`? Fills the position error.
+  bool reachable(const Eigen::Vector3d& position, double yaw, double* position_error = nullptr);
+
+ private:
+  struct Segment {
+    Eigen::Vector3d p0, u;          // start, unit direction
+    double lin_length = 0.0;        // m
+    double prof_length = 0.0;       // profile units (>= lin_length when rotation dominates)
+    Eigen::Quaterniond r0, r1;      // orientation at start / end (world)
+    SpeedProfile profile;
+    ProfileLimits limits;
+  };
+
+  void planTo(const std::vector<Eigen::Vector3d>& points, int rotate_segment,
+              const Eigen::Matrix3d& goal_R, const ProfileLimits& lim);
+  void brakeSegment(const ProfileLimits& lim);
+  bool solvePose(const Eigen::Vector3d& p_world, const Eigen::Matrix3d& R_world,
+                 const Eigen::VectorXd& seed, IkResult& res);
+  // IK along the planned segments every check_step: false (and why) if the arm cannot follow.
+  bool checkPath(std::string& why);
+  void updateTcp(double dt_for_speed);
+  void stopWith(MotionStatus status, const std::string& detail);
+
+  const RobotModel& model_;
+  Eigen::Isometry3d world_T_base_, base_T_world_;
+  double dt_;
+  MotionLimits limits_;
+  IkSolver ik_;
+  KdlKinematics kdl_;
+
+  MotionState state_;
+  std::deque<Segment> segments_;
+  double seg_t_ = 0.0;        // time into the current segment's profile
+  double time_scale_ = 1.0;   // < 1 while a joint velocity limit binds
+  Eigen::Vector3d v_cmd_ = Eigen::Vector3d::Zero();  // commanded TCP velocity (world)
+  Eigen::Vector3d target_ = Eigen::Vector3d::Zero();
+  MotionStatus final_status_ = MotionStatus::Reached;
+  IkResult ik_res_;
+  Eigen::VectorXd q_prev_;
+  Eigen::Vector3d p_prev_;
+};
+
+}  // namespace hrc::kin

@@ -1,0 +1,360 @@
+#include "hrc/kin/motion.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <stdexcept>
+
+namespace hrc::kin {
+namespace {
+
+std::string fmtPoint(const Eigen::Vector3d& p) {
+  char buf[96];
+  std::snprintf(buf, sizeof buf, "(%.3f, %.3f, %.3f)", p.x(), p.y(), p.z());
+  return buf;
+}
+
+bool finite(double v) { return std::isfinite(v); }
+
+}  // namespace
+
+const char* toString(MotionStatus s) {
+  switch (s) {
+    case MotionStatus::Idle: return "idle";
+    case MotionStatus::Moving: return "moving";
+    case MotionStatus::Reached: return "reached";
+    case MotionStatus::Holding: return "holding";
+    case MotionStatus::Unreachable: return "unreachable";
+  }
+  return "?";
+}
+
+MotionGenerator::MotionGenerator(const RobotModel& model, const Eigen::Isometry3d& world_T_base,
+                                 double dt, MotionLimits limits, IkOptions ik_options)
+    : model_(model),
+      world_T_base_(world_T_base),
+      base_T_world_(world_T_base.inverse()),
+      dt_(dt),
+      limits_(limits),
+      ik_(model, ik_options),
+      kdl_(model) {
+  if (!(dt > 0) || !finite(dt)) throw std::invalid_argument("MotionGenerator: dt must be > 0");
+  if (!(limits.max_tcp_speed > 0) || !(limits.max_tcp_accel > 0) || !(limits.max_tcp_jerk > 0) ||
+      !(limits.reach_tolerance > 0) || !(limits.rotation_length > 0) || !(limits.check_step > 0))
+    throw std::invalid_argument(
+        "MotionGenerator: max_tcp_speed, max_tcp_accel, max_tcp_jerk, reach_tolerance, "
+        "rotation_length and check_step must be > 0");
+  if (!world_T_base.matrix().allFinite())
+    throw std::invalid_argument("MotionGenerator: base pose is not finite");
+  reset(model.midRange());
+}
+
+void MotionGenerator::reset(const Eigen::VectorXd& q) {
+  if (q.size() != model_.dof() || !q.allFinite())
+    throw std::invalid_argument("MotionGenerator::reset: expected " + std::to_string(model_.dof()) +
+                                " finite joint values");
+  state_.q = model_.clamp(q);
+  segments_.clear();
+  seg_t_ = 0.0;
+  time_scale_ = 1.0;
+  v_cmd_.setZero();
+  state_.status = MotionStatus::Idle;
+  state_.detail.clear();
+  updateTcp(0.0);
+  target_ = state_.tcp.translation();
+}
+
+bool MotionGenerator::solvePose(const Eigen::Vector3d& p_world, const Eigen::Matrix3d& R_world,
+                                const Eigen::VectorXd& seed, IkResult& res) {
+  IkTarget t;
+  t.mode = TaskMode::Pose;
+  t.position = base_T_world_ * p_world;
+  t.rotation = base_T_world_.linear() * R_world;
+  t.axis = t.rotation.col(2);
+  if (ik_.solve(t, seed, res)) return true;
+  if (model_.dof() < 6) {
+    // A 5-DOF chain may not reach every yaw: the yaw is a wish, the tool axis is not.
+    t.mode = TaskMode::PositionAxis;
+    return ik_.solve(t, seed, res);
+  }
+  return false;
+}
+
+bool MotionGenerator::resetToPose(const Eigen::Vector3d& position, double yaw) {
+  if (!position.allFinite() || !finite(yaw)) return false;
+  IkResult res;
+  if (!solvePose(position, toolDownRotation(yaw), model_.midRange(), res)) return false;
+  reset(res.q);
+  return true;
+}
+
+bool MotionGenerator::reachable(const Eigen::Vector3d& position, double yaw, double* position_error) {
+  if (!position.allFinite() || !finite(yaw)) {
+    if (position_error) *position_error = std::numeric_limits<double>::infinity();
+    return false;
+  }
+  IkResult res;
+  bool ok = solvePose(position, toolDownRotation(yaw), state_.q, res);
+  if (!ok) ok = solvePose(position, toolDownRotation(yaw), model_.midRange(), res);
+  if (position_error) *position_error = res.position_error;
+  return ok;
+}
+
+void MotionGenerator::updateTcp(double dt_for_speed) {
+  Eigen::Matrix3d R;
+  Eigen::Vector3d p;
+  ik_.eval().fk(state_.q.data(), R, p);
+  Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
+  T.linear() = R;
+  T.translation() = p;
+  const Eigen::Vector3d prev = state_.tcp.translation();
+  state_.tcp = world_T_base_ * T;
+  state_.tcp_speed = dt_for_speed > 0 ? (state_.tcp.translation() - prev).norm() / dt_for_speed : 0.0;
+}
+
+void MotionGenerator::brakeSegment(const ProfileLimits& lim) {
+  const double speed = v_cmd_.norm();
+  segments_.clear();
+  seg_t_ = 0.0;
+  time_scale_ = 1.0;
+  if (speed < 1e-9) {
+    v_cmd_.setZero();
+    return;
+  }
+  Segment s;
+  s.p0 = state_.tcp.translation();
+  s.u = v_cmd_ / speed;
+  s.limits = lim;
+  s.profile.planBrake(speed, lim);
+  s.lin_length = s.prof_length = s.profile.length();
+  s.r0 = s.r1 = Eigen::Quaterniond(state_.tcp.linear());
+  segments_.push_back(s);
+}
+
+void MotionGenerator::stopWith(MotionStatus status, const std::string& detail) {
+  ProfileLimits lim{limits_.max_tcp_speed, limits_.max_tcp_accel, limits_.max_tcp_jerk};
+  brakeSegment(lim);
+  final_status_ = status;
+  state_.status = status;
+  state_.detail = detail;
+}
+
+void MotionGenerator::hold() { stopWith(MotionStatus::Holding, ""); }
+
+void MotionGenerator::planTo(const std::vector<Eigen::Vector3d>& points, int rotate_segment,
+                             const Eigen::Matrix3d& goal_R, const ProfileLimits& lim) {
+  Eigen::Vector3d p = state_.tcp.translation();
+  Eigen::Quaterniond R(state_.tcp.linear());
+  const Eigen::Quaterniond G(goal_R);
+  const double speed = v_cmd_.norm();
+  segments_.clear();
+  seg_t_ = 0.0;
+  time_scale_ = 1.0;
+  bool first = true;
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    const Eigen::Quaterniond r1 = static_cast<int>(k) == rotate_segment ? G : R;
+    Eigen::Vector3d d = points[k] - p;
+    double L = d.norm();
+    double ang = R.angularDistance(r1);
+    double prof = std::max(L, limits_.rotation_length * ang);
+    double v0 = 0.0;
+    if (first && speed > 1e-9) {
+      // Blend: keep going if the current velocity already points along the new line (within one
+      // tick of acceleration), otherwise brake along the current direction first.
+      bool brake = true;
+      if (L > 1e-9) {
+        const Eigen::Vector3d u = d / L;
+        const double v_par = v_cmd_.dot(u);
+        const double v_perp = (v_cmd_ - v_par * u).norm();
+        if (v_par > 0 && v_perp <= limits_.max_tcp_accel * dt_) {
+          Segment s;
+          s.limits = lim;
+          v0 = v_par * prof / L;
+          if (s.profile.plan(prof, v0, lim)) brake = false;
+        }
+      }
+      if (brake) {
+        Segment b;
+        b.p0 = p;
+        b.u = v_cmd_ / speed;
+        b.limits = lim;
+        b.profile.planBrake(speed, lim);
+        b.lin_length = b.prof_length = b.profile.length();
+        b.r0 = b.r1 = R;
+        segments_.push_back(b);
+        p = p + b.u * b.lin_length;
+        d = points[k] - p;
+        L = d.norm();
+        prof = std::max(L, limits_.rotation_length * ang);
+        v0 = 0.0;
+      }
+    }
+    first = false;
+    if (prof < 1e-9) continue;
+    Segment s;
+    s.p0 = p;
+    s.u = L > 1e-12 ? Eigen::Vector3d(d / L) : Eigen::Vector3d::UnitZ();
+    s.lin_length = L;
+    s.prof_length = prof;
+    s.r0 = R;
+    s.r1 = r1;
+    s.limits = lim;
+    if (!s.profile.plan(prof, v0, lim)) s.profile.plan(prof, 0.0, lim);  // v0 = 0 always plans
+    segments_.push_back(s);
+    p = points[k];
+    R = r1;
+  }
+}
+
+bool MotionGenerator::checkPath(std::string& why) {
+  Eigen::VectorXd seed = state_.q;
+  IkResult res;
+  for (const Segment& s : segments_) {
+    const int n = std::max(1, static_cast<int>(std::ceil(s.prof_length / limits_.check_step)));
+    for (int k = 1; k <= n; ++k) {
+      const double f = static_cast<double>(k) / n;
+      const Eigen::Vector3d p = s.p0 + s.u * (f * s.lin_length);
+      const Eigen::Matrix3d R = s.r0.slerp(f, s.r1).toRotationMatrix();
+      if (!solvePose(p, R, seed, res)) {
+        why = "path leaves the workspace near " + fmtPoint(p) + " (position error " +
+              std::to_string(res.position_error) + " m)";
+        return false;
+      }
+      // A jump between neighbouring samples means the solution switches branch (a joint limit
+      // or singularity in the way): the arm could not follow the straight line.
+      const double jump = (res.q - seed).cwiseAbs().maxCoeff();
+      if (jump > 0.35) {
+        why = "path needs a joint reconfiguration near " + fmtPoint(p);
+        return false;
+      }
+      seed = res.q;
+    }
+  }
+  return true;
+}
+
+MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
+  if (!cmd.target.allFinite() || !finite(cmd.yaw) || !finite(cmd.approach_height) ||
+      !finite(cmd.depart_height) || !finite(cmd.max_speed) || cmd.approach_height < 0 ||
+      cmd.depart_height < 0 || cmd.max_speed < 0) {
+    stopWith(MotionStatus::Unreachable,
+             "invalid command: target/yaw must be finite, heights and max_speed >= 0");
+    return state_.status;
+  }
+  const double vmax = cmd.max_speed > 0 ? std::min(cmd.max_speed, limits_.max_tcp_speed)
+                                        : limits_.max_tcp_speed;
+  const ProfileLimits lim{vmax, limits_.max_tcp_accel, limits_.max_tcp_jerk};
+  const Eigen::Matrix3d goal_R = toolDownRotation(cmd.yaw);
+  const auto yawDeg = [&] { return std::to_string(cmd.yaw * 180.0 / M_PI); };
+
+  IkResult res;
+  if (!solvePose(cmd.target, goal_R, state_.q, res) &&
+      !solvePose(cmd.target, goal_R, model_.midRange(), res)) {
+    stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() +
+                                            " deg unreachable (position error " +
+                                            std::to_string(res.position_error) + " m)");
+    return state_.status;
+  }
+
+  std::vector<Eigen::Vector3d> points;
+  if (cmd.depart_height > 0)
+    points.push_back(state_.tcp.translation() + Eigen::Vector3d(0, 0, cmd.depart_height));
+  if (cmd.approach_height > 0) points.push_back(cmd.target + Eigen::Vector3d(0, 0, cmd.approach_height));
+  points.push_back(cmd.target);
+  const int rotate = static_cast<int>(points.size()) - (cmd.approach_height > 0 ? 2 : 1);
+
+  // Plan into the live queue, but keep the old one to restore if the path is refused.
+  std::deque<Segment> old = segments_;
+  const double old_t = seg_t_, old_scale = time_scale_;
+  planTo(points, rotate, goal_R, lim);
+  std::string why;
+  if (!checkPath(why)) {
+    segments_ = std::move(old);
+    seg_t_ = old_t;
+    time_scale_ = old_scale;
+    stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + ": " + why);
+    return state_.status;
+  }
+  target_ = cmd.target;
+  final_status_ = MotionStatus::Reached;
+  state_.detail.clear();
+  if (segments_.empty()) {
+    state_.status = MotionStatus::Reached;
+    v_cmd_.setZero();
+  } else {
+    state_.status = MotionStatus::Moving;
+  }
+  return state_.status;
+}
+
+const MotionState& MotionGenerator::step() {
+  if (segments_.empty()) {
+    v_cmd_.setZero();
+    updateTcp(dt_);
+    return state_;
+  }
+  Segment& seg = segments_.front();
+  const Eigen::VectorXd& vlim = model_.maxVelocity();
+  // Recover from a joint-limit slow-down no faster than the TCP acceleration limit allows.
+  double sigma = std::min(1.0, time_scale_ + seg.limits.max_accel * dt_ /
+                                                 std::max(seg.limits.max_speed, 1e-3));
+  double t_new = seg_t_, s = 0, vs = 0;
+  bool clipped = false;
+  constexpr int kTries = 5;
+  for (int attempt = 0; attempt < kTries; ++attempt) {
+    t_new = seg_t_ + sigma * dt_;
+    seg.profile.eval(t_new, s, vs);
+    const double f = seg.prof_length > 0 ? s / seg.prof_length : 1.0;
+    const Eigen::Vector3d p = seg.p0 + seg.u * (f * seg.lin_length);
+    const Eigen::Matrix3d R = seg.r0.slerp(f, seg.r1).toRotationMatrix();
+    if (!solvePose(p, R, state_.q, ik_res_)) {
+      v_cmd_.setZero();
+      segments_.clear();
+      state_.status = MotionStatus::Unreachable;
+      state_.detail = "waypoint " + fmtPoint(p) + " unreachable during the move; holding";
+      updateTcp(dt_);
+      return state_;
+    }
+    double ratio = 0.0;
+    for (int i = 0; i < model_.dof(); ++i)
+      ratio = std::max(ratio, std::abs(ik_res_.q[i] - state_.q[i]) / (vlim[i] * dt_));
+    if (ratio <= 1.0) break;
+    if (attempt == kTries - 1) {
+      // The solution moved discontinuously: approach it at the joint velocity limits and do not
+      // advance along the path this tick.
+      for (int i = 0; i < model_.dof(); ++i) {
+        const double lim = vlim[i] * dt_;
+        ik_res_.q[i] = state_.q[i] + std::clamp(ik_res_.q[i] - state_.q[i], -lim, lim);
+      }
+      t_new = seg_t_;
+      clipped = true;
+      break;
+    }
+    sigma /= ratio * 1.02;
+  }
+  state_.q = ik_res_.q;
+  time_scale_ = sigma;
+  seg_t_ = t_new;
+  const double lin_speed = seg.prof_length > 0 ? vs * seg.lin_length / seg.prof_length : 0.0;
+  v_cmd_ = clipped ? Eigen::Vector3d::Zero() : Eigen::Vector3d(seg.u * (lin_speed * sigma));
+  if (seg_t_ >= seg.profile.duration()) {
+    segments_.pop_front();
+    seg_t_ = 0.0;
+    if (segments_.empty()) {
+      v_cmd_.setZero();
+      state_.status = final_status_;
+    }
+  }
+  updateTcp(dt_);
+  if (segments_.empty() && final_status_ == MotionStatus::Reached) {
+    const double err = (state_.tcp.translation() - target_).norm();
+    if (err > limits_.reach_tolerance) {
+      state_.status = MotionStatus::Unreachable;
+      state_.detail = "ended " + std::to_string(err) + " m from the target";
+    }
+  }
+  return state_;
+}
+
+}  // namespace hrc::kin

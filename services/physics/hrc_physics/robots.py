@@ -1,0 +1,124 @@
+"""Kinematic robots: URDF bodies whose joints are set from `RobotState`, never driven by motors."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Sequence
+
+import pybullet as p
+
+from hrc_physics.geometry import Quat, Vec, yaw_quat
+
+TOOL_LINK = "tool"
+BASE = -1  # pybullet's link index of a body's base
+
+
+class RobotModelError(Exception):
+    """The URDF cannot serve (not loadable, no tool link)."""
+
+
+class KinematicRobot:
+    """One arm at its base pose. It takes no part in the dynamics (collision mask 0): its links
+    are posed each tick and only the contact queries look at their collision shapes."""
+
+    def __init__(self, client: int, robot_id: str, urdf: Path, base_xyz: Sequence[float],
+                 base_yaw_deg: float, near_margin: float, tool_link: str = TOOL_LINK) -> None:
+        self.id = robot_id
+        self.near_margin = near_margin
+        self._c = client
+        try:
+            self.body = p.loadURDF(str(urdf), basePosition=list(base_xyz),
+                                   baseOrientation=yaw_quat(base_yaw_deg), useFixedBase=True,
+                                   physicsClientId=client)
+        except p.error as exc:
+            raise RobotModelError(f"robot {robot_id}: pybullet cannot load {urdf}: {exc}") from exc
+        base_name = p.getBodyInfo(self.body, physicsClientId=client)[0].decode()
+        self.link_names: dict[int, str] = {BASE: base_name}
+        self.joint_index: dict[str, int] = {}
+        self.movable: list[int] = []
+        self.tool = BASE
+        for j in range(p.getNumJoints(self.body, physicsClientId=client)):
+            info = p.getJointInfo(self.body, j, physicsClientId=client)
+            name, link = info[1].decode(), info[12].decode()
+            self.link_names[j] = link
+            if link == tool_link:
+                self.tool = j
+            if info[2] != p.JOINT_FIXED:
+                self.joint_index[name] = j
+                self.movable.append(j)
+        if self.tool == BASE:
+            raise RobotModelError(f"robot {robot_id}: {urdf} has no link named {tool_link!r}")
+        for link in self.link_names:
+            p.setCollisionFilterGroupMask(self.body, link, 0, 0, physicsClientId=client)
+        # Asleep for good: the solver never integrates the arm (no sagging between our resets,
+        # no cost); resetting its joints still moves its colliders for the contact queries.
+        p.changeDynamics(self.body, BASE, activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING,
+                         physicsClientId=client)
+        p.changeDynamics(self.body, BASE, activationState=p.ACTIVATION_STATE_SLEEP,
+                         physicsClientId=client)
+        # Links with collision shapes (the tool frame has none).
+        self._links = [link for link in self.link_names
+                       if p.getCollisionShapeData(self.body, link, physicsClientId=client)]
+        self.joint_names = [n for n, _ in sorted(self.joint_index.items(), key=lambda kv: kv[1])]
+        self.positions: list[float] = [0.0] * len(self.movable)
+        self._applied: list[float] | None = None
+        self._order_cache: dict[tuple[str, ...], list[int] | str] = {}
+
+    def _indices(self, names: Sequence[str]) -> list[int] | str:
+        key = tuple(names)
+        hit = self._order_cache.get(key)
+        if hit is None:
+            unknown = [n for n in names if n not in self.joint_index]
+            if unknown:
+                hit = f"robot {self.id} has no joint named {', '.join(unknown)}"
+            else:
+                order = [self.movable.index(self.joint_index[n]) for n in names]
+                hit = order
+            self._order_cache[key] = hit
+        return hit
+
+    def set_state(self, names: Sequence[str], positions: Sequence[float]) -> str | None:
+        """Records joint positions (by name; no names: in URDF order). Returns a problem or None."""
+        if not all(math.isfinite(v) for v in positions):
+            return f"robot {self.id}: joint positions contain NaN or infinity"
+        if names:
+            if len(names) != len(positions):
+                return (f"robot {self.id}: {len(names)} joint names but "
+                        f"{len(positions)} positions")
+            order = self._indices(names)
+            if isinstance(order, str):
+                return order
+            new = list(self.positions)
+            for i, v in zip(order, positions):
+                new[i] = float(v)
+        else:
+            if len(positions) != len(self.movable):
+                return (f"robot {self.id}: {len(positions)} joint positions for "
+                        f"{len(self.movable)} joints")
+            new = [float(v) for v in positions]
+        self.positions = new
+        return None
+
+    def apply(self) -> None:
+        """Puts the links where the recorded joint positions say (zero velocities)."""
+        if self.positions == self._applied:
+            return  # the arm stands still: nothing to move
+        p.resetJointStatesMultiDof(self.body, self.movable, [[v] for v in self.positions],
+                                   physicsClientId=self._c)
+        self._applied = list(self.positions)
+
+    def aabb(self) -> tuple[Vec, Vec]:
+        """World AABB of all link colliders (cheap prefilter for the distance queries)."""
+        boxes = [p.getAABB(self.body, link, physicsClientId=self._c) for link in self._links]
+        lo = tuple(map(min, zip(*(b[0] for b in boxes))))
+        hi = tuple(map(max, zip(*(b[1] for b in boxes))))
+        return lo, hi  # type: ignore[return-value]
+
+    def tool_pose(self) -> tuple[Vec, Quat]:
+        s = p.getLinkState(self.body, self.tool, computeForwardKinematics=True,
+                           physicsClientId=self._c)
+        return tuple(s[4]), tuple(s[5])  # type: ignore[return-value]
+
+    def link_name(self, index: int) -> str:
+        return self.link_names.get(index, str(index))
