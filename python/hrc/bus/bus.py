@@ -189,6 +189,10 @@ class Bus:
     def _malformed(self, key: str, sample: zenoh.Sample, problem: str) -> None:
         att = sample.attachment
         sender = att.to_bytes().decode(errors="replace") if att is not None else "?"
+        self.reject(key, sender, problem)
+
+    def reject(self, key: str, sender: str, problem: str) -> None:
+        """Counts and logs a malformed message (also for checks done after decoding)."""
         n = self.stats.count_error(key)
         log.warning("malformed message #%d on %s from sender %r: %s", n, key, sender, problem)
 

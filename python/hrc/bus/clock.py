@@ -140,7 +140,24 @@ class ClockMaster:
                 self._cond.wait(min(left, 0.5))
 
     def _barrier(self, k: int, deadline: float | None) -> None:
-        """Returns once all participants acked k; raises RunFailed on loss or lockstep timeout."""
+        """All participants acked k and their outputs of k are here; RunFailed on loss/timeout."""
+        self._await_acks(k, deadline)
+        # Acks are express (unbatched) and may overtake the outputs they vouch for; each ack
+        # lists what its sender published, so wait for those messages too.
+        with self._cond:
+            marks = [pb.PublishedMark(key=key, sender=sender, seq=seq)
+                     for (key, sender), seq in self._marks.items()]
+        if deadline is None:
+            missing = self.inbox.wait_for(marks, self.settings.barrier_timeout_s)
+            if missing:
+                m = missing[0]
+                raise RunFailed(f"tick {k}: {m.key} #{m.seq} from '{m.sender}' was acknowledged "
+                                f"but never arrived within {self.settings.barrier_timeout_s:g} s",
+                                m.sender)
+        else:  # realtime: whatever is late is applied with the next tick
+            self.inbox.wait_for(marks, max(0.0, deadline - time.monotonic()))
+
+    def _await_acks(self, k: int, deadline: float | None) -> None:
         parts = self.settings.participants
         timeout_at = time.monotonic() + self.settings.barrier_timeout_s
         with self._cond:

@@ -53,14 +53,20 @@ class Inbox:
 
         def on_msg(k: str, msg: Message) -> None:
             h = msg.header  # type: ignore[attr-defined]
+            # A message that fails validation still counts as received: its sender published
+            # it (and says so in its marks), so nobody may wait for it forever.
+            problem = validate(msg) if validate is not None else None
             with self._cond:
-                self._pending.append(_Pending(index, k, h.sender, h.seq, h.tick, msg))
+                if problem is None:
+                    self._pending.append(_Pending(index, k, h.sender, h.seq, h.tick, msg))
                 mark = (k, h.sender)
                 if h.seq > self._received.get(mark, 0):
                     self._received[mark] = h.seq
                 self._cond.notify_all()
+            if problem is not None:
+                self._bus.reject(k, h.sender, problem)
 
-        self._bus.subscribe(key, msg_type, on_msg, validate)
+        self._bus.subscribe(key, msg_type, on_msg)
 
     def _subscribed(self, key: str) -> bool:
         hit = self._matches.get(key)

@@ -64,3 +64,27 @@ def test_missing_marks_are_reported_after_the_timeout(session_id: str) -> None:
         other = pb.PublishedMark(key=me.keys.task_events(), sender="orchestrator", seq=9)
         assert inbox.wait_for([mark, other], timeout=0.2) == [mark]  # other key: not subscribed
         assert wait_until(lambda: True)
+
+
+def test_a_rejected_message_still_satisfies_its_mark(session_id: str) -> None:
+    """Its sender published it; waiting for it must not hang the tick (it is dropped, counted)."""
+    import math
+
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    with Bus(BusConfig(session=session_id, listen=[ep]), "svc") as me, \
+            Bus(BusConfig(session=session_id, connect=[ep]), "human_input") as human:
+        inbox = Inbox(me)
+        got: list[pb.HumanState] = []
+        key = me.keys.human_state()
+        inbox.add(key, pb.HumanState, lambda _k, m: got.append(m),
+                  validate=lambda m: "NaN" if math.isnan(m.left_grip) else None)
+        pub = human.publisher(key)
+        import time
+        time.sleep(0.3)
+        pub.put(pb.HumanState(left_grip=math.nan), 0)
+        pub.put(pb.HumanState(left_grip=0.5), 0)
+        mark = pb.PublishedMark(key=key, sender="human_input", seq=pub.seq)
+        assert inbox.wait_for([mark], timeout=5) == []
+        inbox.deliver(1)
+        assert [m.left_grip for m in got] == [0.5]
+        assert me.stats.decode_errors[key] == 1

@@ -5,11 +5,10 @@ from __future__ import annotations
 import argparse
 import logging
 
-from hrc.bus import Bus, ClockSettings, RunFailed, add_bus_arguments, bus_config_from_args
+from hrc.bus import Bus, ClockMaster, ClockSettings, RunFailed, add_bus_arguments, bus_config_from_args
 from hrc.logsetup import setup_logging
 from hrc.scenario import ScenarioError
 from hrc.wire import pb
-from hrc_physics.clock import PhysicsClock
 from hrc_physics.robots import RobotModelError
 from hrc_physics.service import PhysicsService
 from hrc_physics.world import WorldSettings
@@ -77,7 +76,7 @@ def main(argv: list[str] | None = None) -> int:
             log.error("cannot build the world: %s", exc)
             return 1
         with service:
-            clock = PhysicsClock(bus, settings)
+            clock = ClockMaster(bus, settings)
             service.register_inputs(clock)
             clock.start()
             log.info("scenario %r, %s at %g Hz, %d objects, waiting for %s", scenario.info.name,
