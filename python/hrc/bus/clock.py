@@ -70,6 +70,8 @@ class ClockMaster:
         self._stop: tuple[bool, str] | None = None
         self.misses: Counter[str] = Counter()
         self.compute_us: dict[str, int] = {}
+        self._compute_total: Counter[str] = Counter()
+        self._own_s: Counter[str] = Counter()  # physics's own time per phase of the tick
         self._clock_pub = bus.publisher(bus.keys.clock(), express=True)
         self._end_pub = bus.publisher(bus.keys.run_end())
 
@@ -95,6 +97,7 @@ class ClockMaster:
             if ack.header.tick > self._acked[name]:
                 self._acked[name] = ack.header.tick
                 self.compute_us[name] = ack.compute_us
+                self._compute_total[name] += ack.compute_us
             for m in ack.published:
                 mk = (m.key, m.sender)
                 if m.seq > self._marks.get(mk, 0):
@@ -196,6 +199,7 @@ class ClockMaster:
             t0 = time.monotonic()
             while True:
                 sim = k * self.dt
+                ta = time.perf_counter()
                 publish_world(k, sim)
                 tick = pb.ClockTick(mode=mode, dt=self.dt, participants=s.participants)
                 with self._cond:
@@ -205,9 +209,15 @@ class ClockMaster:
                 tick.published.extend(pb.PublishedMark(key=key, sender=snd, seq=seq)
                                       for (key, snd), seq in marks.items())
                 self._clock_pub.put(tick, k, sim)
+                tb = time.perf_counter()
                 self._barrier(k, t0 + (k + 1) * self.dt if realtime else None)
+                tc = time.perf_counter()
                 self.inbox.deliver_through(k)
                 step(k, sim)
+                td = time.perf_counter()
+                self._own_s["publish"] += tb - ta
+                self._own_s["barrier"] += tc - tb
+                self._own_s["step"] += td - tc
                 k += 1
                 with self._cond:
                     stop = self._stop
@@ -230,6 +240,10 @@ class ClockMaster:
                         realtime_factor=(k * self.dt / wall) if wall > 0 else 0.0)
         for p, n in self.misses.items():
             end.deadline_misses[p] = n
+        if k:
+            parts = ", ".join(f"{p} {self._compute_total[p] / k:.0f}" for p in s.participants)
+            own = ", ".join(f"{name} {v / k * 1e6:.0f}" for name, v in self._own_s.items())
+            log.info("mean us per tick: participants' compute %s; physics %s", parts, own)
         self._end_pub.put(end, k, k * self.dt)
         self._linger()
         return end

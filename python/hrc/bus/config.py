@@ -12,6 +12,9 @@ import zenoh
 
 Mode = Literal["peer", "client", "router"]
 
+CONNECT_TIMEOUT_MS = 60000
+CONNECT_RETRY = "{ period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2 }"
+
 
 @dataclass
 class BusConfig:
@@ -35,6 +38,9 @@ class BusConfig:
         cfg.insert_json5("scouting/multicast/enabled", json.dumps(self.multicast_scouting))
         if self.connect:
             cfg.insert_json5("connect/endpoints", json.dumps(self.connect))
+            # Keep trying while the other end starts (a client otherwise fails at once).
+            cfg.insert_json5("connect/timeout_ms", str(CONNECT_TIMEOUT_MS))
+            cfg.insert_json5("connect/retry", CONNECT_RETRY)
         if self.listen:
             cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
         return cfg
@@ -61,6 +67,9 @@ def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
     if connect is None:
         env = os.environ.get("HRC_CONNECT", "")
         connect = [e for e in env.split(",") if e]
-    listen = args.listen if args.listen is not None else ["tcp/127.0.0.1:0"]
+    if args.listen is not None:
+        listen = args.listen
+    else:  # a client only connects; peers and routers accept links on a free loopback port
+        listen = [] if args.zenoh_mode == "client" else ["tcp/127.0.0.1:0"]
     return BusConfig(session=args.session, mode=args.zenoh_mode, connect=connect, listen=listen,
                      config_file=args.zenoh_config)

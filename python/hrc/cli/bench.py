@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import importlib
+
+_MODULES = {"bus": "hrc.cli.bench_bus", "physics": "hrc.cli.bench_physics", "ik": "hrc.cli.bench_ik"}
 
 
 def main(args: argparse.Namespace) -> int:
-    if args.what == "bus":
-        from hrc.cli.bench_bus import run as run_bus
-
-        return run_bus(args)
-    raise SystemExit(f"hrc bench {args.what}: not available yet")
+    module = importlib.import_module(_MODULES[args.what])
+    return int(module.run(args))

@@ -146,11 +146,15 @@ def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_d
     py = [sys.executable, "-m"]
     extra = opts.extra.get(name, [])
     if name == "physics":
-        argv = py + ["hrc_physics", *common, "--listen", endpoint, "--clock", opts.mode,
+        # Star topology: physics's session is a router and every other service a client of it,
+        # so a route between any two services exists as soon as both have announced themselves
+        # (peer-to-peer links would form later, by gossip, and could miss the first messages).
+        argv = py + ["hrc_physics", *common, "--zenoh-mode", "router", "--listen", endpoint,
+                     "--clock", opts.mode,
                      "--ticks", str(opts.ticks), "--barrier-timeout", str(opts.barrier_timeout_s),
                      "--start-timeout", str(opts.start_timeout_s)]
         return argv + extra
-    connect = ["--connect", endpoint]
+    connect = ["--connect", endpoint, "--zenoh-mode", "client"]
     if name == "ik_cpp":
         return [str(ik_binary()), *common, *connect] + extra
     if name == "orchestrator":

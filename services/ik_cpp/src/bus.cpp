@@ -106,7 +106,13 @@ std::vector<std::pair<std::string, std::string>> BusConfig::insertions() const {
   out.emplace_back("mode", json_quote(mode));
   out.emplace_back("scouting/multicast/enabled", multicast_scouting ? "true" : "false");
   out.emplace_back("scouting/gossip/enabled", "true");
-  if (!connect.empty()) out.emplace_back("connect/endpoints", json_list(connect));
+  if (!connect.empty()) {
+    out.emplace_back("connect/endpoints", json_list(connect));
+    // Keep trying while the other end starts (a client otherwise fails at once).
+    out.emplace_back("connect/timeout_ms", "60000");
+    out.emplace_back("connect/retry",
+                     "{ period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2 }");
+  }
   if (!listen.empty()) out.emplace_back("listen/endpoints", json_list(listen));
   return out;
 }
@@ -116,7 +122,11 @@ std::string BusConfig::to_json5() const {
   out += "  scouting: { multicast: { enabled: ";
   out += multicast_scouting ? "true" : "false";
   out += " }, gossip: { enabled: true } },\n";
-  if (!connect.empty()) out += "  connect: { endpoints: " + json_list(connect) + " },\n";
+  if (!connect.empty()) {
+    out += "  connect: { endpoints: " + json_list(connect) +
+           ", timeout_ms: 60000, retry: { period_init_ms: 100, period_max_ms: 1000, "
+           "period_increase_factor: 2 } },\n";
+  }
   if (!listen.empty()) out += "  listen: { endpoints: " + json_list(listen) + " },\n";
   out += "}\n";
   return out;

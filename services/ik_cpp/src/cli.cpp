@@ -130,7 +130,11 @@ BusArgs bus_args(const Args& args) {
       start = comma + 1;
     }
   }
-  if (args.has("--listen")) out.config.listen = args.all("--listen");
+  if (args.has("--listen")) {
+    out.config.listen = args.all("--listen");
+  } else if (out.config.mode == "client") {
+    out.config.listen.clear();  // a client only connects
+  }
   out.config.config_file = args.get_or("--zenoh-config", "");
   try {
     out.config.validate();

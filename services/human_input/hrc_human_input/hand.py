@@ -1,0 +1,142 @@
+"""One simulated hand: a queue of motor steps (minimum-jerk moves, dwells, grip changes) played on
+simulation time. Steps chain at their exact end times, not at tick boundaries, so a sequence of
+moves does not depend on the tick rate."""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from hrc_human_input.geometry import Vec, dist, wrap_angle
+from hrc_human_input.motor import MotorParams, Segment, movement_time
+
+
+@dataclass(frozen=True)
+class Move:
+    goal: Vec
+    yaw: float | None = None   # radians; None keeps the current yaw
+    width: float = 0.06        # Fitts target width (m): the accuracy the move needs
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Dwell:
+    seconds: float
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class Grip:
+    value: float
+    label: str = ""
+
+
+Step = Move | Dwell | Grip
+
+
+class Hand:
+    def __init__(self, name: str, pos: Vec, yaw: float, motor: MotorParams,
+                 rng: np.random.Generator) -> None:
+        self.name = name
+        self.pos = pos
+        self.yaw = yaw
+        self.grip = 0.0
+        self.motor = motor
+        self.rng = rng
+        self.plan: deque[Step] = deque()
+        self.segment: Segment | None = None
+        self.segments: list[Segment] = []  # every reach made (for analysis and tests)
+        self._dwell_until: float | None = None
+        self._grip_target: float | None = None
+        self._cursor: float | None = None  # when the current step started / the last one ended
+        self._t_last: float | None = None
+
+    # ------------------------------------------------------------------ commands
+    def do(self, *steps: Step) -> None:
+        self.plan.extend(steps)
+
+    def cancel(self) -> None:
+        """Stops where it is now (the grip keeps its value)."""
+        self.plan.clear()
+        self.segment = None
+        self._dwell_until = None
+        self._grip_target = None
+
+    @property
+    def busy(self) -> bool:
+        return bool(self.plan) or self.segment is not None or self._dwell_until is not None \
+            or self._grip_target is not None
+
+    def pending_grip_change(self) -> bool:
+        return self._grip_target is not None or any(isinstance(s, Grip) for s in self.plan)
+
+    def goal(self) -> Vec:
+        """Where the hand is heading (its current move's end), or where it is."""
+        if self.segment is not None:
+            return self.segment.p1
+        for s in self.plan:
+            if isinstance(s, Move):
+                return s.goal
+        return self.pos
+
+    # ------------------------------------------------------------------ time
+    def advance(self, t: float) -> None:
+        if self._t_last is None:
+            self._t_last = t
+        dt = max(0.0, t - self._t_last)
+        self._t_last = t
+        if self._cursor is None:
+            self._cursor = t
+        # A grip ramp runs alongside (the fingers close while the hand is still).
+        if self._grip_target is not None:
+            rate = 1.0 / (self.motor.grip_close_s if self._grip_target > self.grip
+                          else self.motor.grip_open_s)
+            step = rate * dt
+            if abs(self._grip_target - self.grip) <= step:
+                self.grip = self._grip_target
+            else:
+                self.grip += step if self._grip_target > self.grip else -step
+        for _ in range(64):  # a few zero-length steps may complete in one tick
+            if self.segment is not None:
+                if self.segment.done(t):
+                    self.pos, self.yaw = self.segment.p1, self.segment.yaw1
+                    self._cursor = self.segment.t_end
+                    self.segment = None
+                    continue
+                self.pos, self.yaw = self.segment.position(t), self.segment.yaw(t)
+                return
+            if self._dwell_until is not None:
+                if t >= self._dwell_until:
+                    self._cursor = self._dwell_until
+                    self._dwell_until = None
+                    continue
+                return
+            if self._grip_target is not None:
+                if self.grip == self._grip_target:
+                    self._grip_target = None
+                    self._cursor = t
+                    continue
+                return
+            if not self.plan:
+                self._cursor = t
+                return
+            self._start(self.plan.popleft(), max(self._cursor, t - 1.0))
+
+    def _start(self, step: Step, t0: float) -> None:
+        if isinstance(step, Move):
+            yaw1 = self.yaw if step.yaw is None else self.yaw + wrap_angle(step.yaw - self.yaw)
+            d = dist(self.pos, step.goal)
+            if d < 1e-6 and abs(yaw1 - self.yaw) < 1e-6:
+                return
+            mt = movement_time(d, step.width, self.motor, self.rng)
+            if d < 1e-6:  # a pure turn of the wrist
+                mt = max(mt, 0.2)
+            self.segment = Segment(t0, mt, self.pos, step.goal, self.yaw, yaw1)
+            self.segments.append(self.segment)
+        elif isinstance(step, Dwell):
+            if step.seconds > 0:
+                self._dwell_until = t0 + step.seconds
+        else:
+            self._grip_target = min(1.0, max(0.0, step.value))

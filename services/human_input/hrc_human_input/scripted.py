@@ -1,0 +1,560 @@
+"""The scripted participant: performs the human sequence from what it perceives on the bus.
+
+Per part: wait for it to become grabbable (outline cue / SetGrabbable) -> reaction time -> reach
+above it and down (minimum-jerk, Fitts time) -> close the grip -> dwell -> lift -> wait while the
+part's `after` parts are not placed -> reaction time -> carry it above its target, turning it to
+the target yaw -> lower -> dwell, open the grip -> placed? withdraw : grab it again.
+
+Around that:
+- a human-robot collision (COLLISION event, or a hand-robot contact) makes it pull the hand back
+  after a reflex delay and wait until the robots continue (CONTINUED; COLLISION_END for
+  `stop_colliding`); a held part may still be placed meanwhile; under `retreat_button` the free
+  hand presses the continue button.
+- `caution` in [0, 1] makes it hold back before a reach while a robot is heading into the region
+  it wants to reach: radius 0.08 + 0.17 * caution m around the goal; with anticipation it knows
+  where robots are heading from their lit target cues (and that a robot showing "Waiting.." is not
+  coming); without, it only sees where the TCPs are and extrapolates their motion over
+  0.5 + caution s. It never holds back longer than `max_hold_back_s` at a time.
+- `provoke_collisions`: at the given task times, or with the given probability on the first reach
+  for each part, it reaches into the nearest robot's tool instead (until physics reports contact).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from enum import Enum
+
+import numpy as np
+
+from hrc.wire import pb
+
+from hrc_human_input.facts import PartFacts, ScenarioFacts
+from hrc_human_input.geometry import Vec, add, dist, look_quat, rot_z, slerp, yaw_quat
+from hrc_human_input.hand import Dwell, Grip, Hand, Move
+from hrc_human_input.motor import MotorParams, reaction_time
+from hrc_human_input.sample import Pose, Sample
+from hrc_human_input.task_view import TaskView
+
+log = logging.getLogger(__name__)
+
+HANDS = ("left", "right")
+HEAD_POS: Vec = (0.0, -0.70, 0.60)           # standing at -y, eyes 0.6 m above the board
+REST: dict[str, Vec] = {"left": (-0.22, -0.56, 0.10), "right": (0.22, -0.56, 0.10)}
+GRASP_HEIGHT_MAX = 0.02      # hand this far above a part's centre at most (top face if lower)
+APPROACH_CLEARANCE = 0.08    # approach and leave a part vertically from this far above
+CARRY_CLEARANCE = 0.10       # carry a held part this far above the higher of start and goal
+RELEASE_CLEARANCE = 0.003    # let go this far above the resting height
+PICK_WIDTH = 0.06            # Fitts width: a grasp succeeds within 3 cm
+GROSS_WIDTH = 0.10           # Fitts width of lifts, withdrawals and pull-backs
+PULLBACK = (0.0, -0.20, 0.08)
+HAND_Y_MIN = -0.60
+GRASP_TIMEOUT_S = 0.6        # grip closed, still not held: try again
+RELEASE_RETRY_S = 1.5        # released, not placed: grab it again after this long at most
+RELEASE_MIN_S = 0.3          # ... and not before this
+COLLISION_FALLBACK_S = 30.0  # no CONTINUED ever: carry on anyway
+PROVOKE_GIVE_UP_S = 4.0
+BUTTON_REPEAT_S = 3.0
+HEAD_TIME_CONSTANT_S = 0.15
+
+
+class Phase(str, Enum):
+    IDLE = "idle"                  # waiting for something to grab
+    REACT = "react"                # reaction time (and caution) before a reach
+    REACH = "reach"                # reaching and gripping
+    HOLD = "hold"                  # holding: decide to carry (reaction time, caution)
+    WAIT_DEPS = "wait_deps"        # holding, lifted, while the part's `after` parts are missing
+    CARRY = "carry"                # carrying, lowering and releasing
+    RELEASE_CHECK = "release_check"
+    WITHDRAW = "withdraw"
+    PULLBACK = "pullback"          # collision: pulling the hand back
+    COLLISION_WAIT = "collision_wait"
+    PROVOKE = "provoke"            # reaching into a robot on purpose
+    DONE = "done"
+
+
+class ScriptedParticipant:
+    def __init__(self, facts: ScenarioFacts, seed: int | None = None) -> None:
+        self.facts = facts
+        p = facts.params
+        self.motor = MotorParams(reaction_time_s=p["reaction_time_s"],
+                                 peak_hand_speed=p["peak_hand_speed"], fitts_a_s=p["fitts_a_s"],
+                                 fitts_b_s=p["fitts_b_s"], grip_close_s=p["grip_close_s"],
+                                 grip_open_s=p["grip_open_s"])
+        self.caution = p["caution"]
+        self.pick_dwell = p["pick_dwell_s"]
+        self.place_dwell = p["place_dwell_s"]
+        self.place_error = p["place_error_m"]
+        self.max_hold = p["max_hold_back_s"]
+        self.active = "left" if p["left_handed"] >= 0.5 else "right"
+        self.free = "right" if self.active == "left" else "left"
+        # Independent streams, so e.g. provoking collisions does not change reaction times.
+        ss = np.random.SeedSequence([facts.seed if seed is None else seed, 0x485549])
+        s_rt, s_mt_l, s_mt_r, s_place, s_provoke = ss.spawn(5)
+        self.rng_rt = np.random.default_rng(s_rt)
+        self.rng_place = np.random.default_rng(s_place)
+        self.rng_provoke = np.random.default_rng(s_provoke)
+        self.hands = {
+            "left": Hand("left", REST["left"], 0.0, self.motor, np.random.default_rng(s_mt_l)),
+            "right": Hand("right", REST["right"], 0.0, self.motor, np.random.default_rng(s_mt_r)),
+        }
+        self.head_q = look_quat(HEAD_POS, (0.0, 0.0, 0.0))
+        self._head_t: float | None = None
+        self.phase = Phase.IDLE
+        self.phase_since = 0.0
+        self.part: str | None = None          # the part being handled
+        self.go_t: float | None = None        # when the pending action starts
+        self.hold_since: float | None = None  # holding back (caution) since
+        self.hold_expired = False
+        self.hold_backs: list[tuple[float, str]] = []  # (time, robot) whenever caution held back
+        self.grasp: tuple[Vec, float, float] | None = None  # (hand - object, hand yaw, object yaw)
+        self.in_collision = False
+        self.collision_since = 0.0
+        self.collision_confirmed = False      # the orchestrator announced it (COLLISION event)
+        self.last_press: float | None = None
+        self.provoke_times = list(facts.provoke_times_s)
+        self.provoked_parts: set[str] = set()
+        self.provoke_robot: str | None = None
+        self.released_at: float | None = None
+        self.rested = False
+        self.idle_since = 0.0
+        self.t = 0.0
+        self.log: list[tuple[float, str]] = []  # (time, what) decisions, for tests and debugging
+
+    # ------------------------------------------------------------------ helpers
+    @property
+    def hand(self) -> Hand:
+        return self.hands[self.active]
+
+    def _set(self, phase: Phase, t: float, why: str = "") -> None:
+        if phase != self.phase:
+            self.log.append((t, f"{self.phase.value} -> {phase.value}" + (f": {why}" if why else "")))
+            log.debug("t=%.3f %s -> %s %s", t, self.phase.value, phase.value, why)
+        self.phase = phase
+        self.phase_since = t
+
+    def _rt(self, factor: float = 1.0) -> float:
+        return reaction_time(self.motor, self.rng_rt, factor)
+
+    def next_part(self, view: TaskView) -> str | None:
+        for pid in self.facts.human_sequence:
+            if not view.is_placed(pid):
+                return pid
+        return None
+
+    def _part(self, pid: str) -> PartFacts:
+        return self.facts.parts[pid]
+
+    def _object_pos(self, view: TaskView, pid: str) -> Vec:
+        o = view.objects.get(pid)
+        if o is not None:
+            return o.position
+        part = self._part(pid)
+        return part.start if part.start is not None else part.target
+
+    def grasp_point(self, view: TaskView, pid: str) -> Vec:
+        size = self._part(pid).size
+        return add(self._object_pos(view, pid), (0.0, 0.0, min(size[2] / 2.0, GRASP_HEIGHT_MAX)))
+
+    def deps_done(self, view: TaskView, pid: str) -> bool:
+        return all(view.is_placed(a) for a in self._part(pid).after)
+
+    def release_point(self, pid: str) -> tuple[Vec, float]:
+        """Where the hand lets go (and its yaw) so that the held part lands on its target."""
+        part = self._part(pid)
+        assert self.grasp is not None
+        offset, hand_yaw0, obj_yaw0 = self.grasp
+        delta = math.remainder(math.radians(part.target_yaw_deg) - obj_yaw0, 2.0 * math.pi)
+        err = self.rng_place.normal(0.0, self.place_error, size=2) if self.place_error > 0 \
+            else np.zeros(2)
+        hand = add(part.target, rot_z(offset, delta))
+        return ((hand[0] + float(err[0]), hand[1] + float(err[1]), hand[2] + RELEASE_CLEARANCE),
+                hand_yaw0 + delta)
+
+    # ------------------------------------------------------------------ caution
+    def caution_radius(self) -> float:
+        return 0.08 + 0.17 * self.caution
+
+    def danger(self, view: TaskView, goal: Vec) -> str | None:
+        """The robot heading into the region around ``goal``, as this participant can tell."""
+        if self.caution <= 0.0:
+            return None
+        radius = self.caution_radius()
+        horizon = 0.5 + self.caution
+        for rid in sorted(view.robots):
+            robot = view.robots[rid]
+            if dist(robot.tcp, goal) < radius:
+                return rid
+            v = robot.velocity
+            speed = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
+            if speed > 0.02:
+                # closest approach of the straight-line extrapolation within the horizon
+                rel = (goal[0] - robot.tcp[0], goal[1] - robot.tcp[1], goal[2] - robot.tcp[2])
+                s = (rel[0] * v[0] + rel[1] * v[1] + rel[2] * v[2]) / (speed * speed)
+                s = min(horizon, max(0.0, s))
+                p = add(robot.tcp, (v[0] * s, v[1] * s, v[2] * s))
+                if dist(p, goal) < radius:
+                    return rid
+        if self.facts.anticipation:
+            for rid in sorted(self.facts.robots):
+                if view.robot_waiting(rid):
+                    continue
+                if any(dist(p, goal) < radius for p in view.robot_heading_points(rid)):
+                    return rid
+        return None
+
+    def _held_back(self, t: float, view: TaskView, goal: Vec) -> bool:
+        """True while caution holds this action back (and arranges the reaction afterwards)."""
+        if self.hold_expired:  # waited long enough for this action: go anyway
+            return False
+        robot = self.danger(view, goal)
+        if robot is not None:
+            if self.hold_since is None:
+                self.hold_since = t
+                self.hold_backs.append((t, robot))
+                self.log.append((t, f"holding back for {robot}"))
+            if t - self.hold_since < self.max_hold:
+                self.go_t = None
+                return True
+            self.hold_expired = True
+            self.log.append((t, f"held back {self.max_hold:g} s: going anyway"))
+        if self.hold_since is not None:
+            self.hold_since = None
+            self.go_t = t + self._rt()  # react to the region clearing
+            return True
+        return False
+
+    def _action_started(self) -> None:
+        self.hold_since = None
+        self.hold_expired = False
+
+    # ------------------------------------------------------------------ the tick
+    def step(self, t: float, view: TaskView) -> Sample:
+        self.t = t
+        self._perceive(t, view)
+        self._provoke_check(t, view)
+        self._decide(t, view)
+        for hand in self.hands.values():
+            hand.advance(t)
+        self._look(t)
+        left, right = self.hands["left"], self.hands["right"]
+        return Sample(t, Pose(HEAD_POS, self.head_q),
+                      Pose(left.pos, yaw_quat(left.yaw)), Pose(right.pos, yaw_quat(right.yaw)),
+                      left.grip, right.grip)
+
+    def _perceive(self, t: float, view: TaskView) -> None:
+        object_events, task_events = view.drain()
+        for e in object_events:
+            if e.object == self.part and e.kind == pb.ObjectEvent.KIND_RESTED:
+                self.rested = True
+        collision_begins = False
+        for e in task_events:
+            if e.kind == pb.TASK_EVENT_KIND_COLLISION:
+                self.collision_confirmed = True
+                collision_begins = True
+            elif e.kind == pb.TASK_EVENT_KIND_CONTINUED:
+                self._collision_over(t, "robots continue")
+            elif (e.kind == pb.TASK_EVENT_KIND_COLLISION_END
+                  and self.facts.safety_policy == "stop_colliding"):
+                self._collision_over(t, "collision ended")
+        if view.hand_robot_contacts:  # felt before the orchestrator announces it
+            collision_begins = True
+        if collision_begins and not self.in_collision:
+            self._collision_begins(t, view)
+        if self.in_collision:
+            waited = t - self.collision_since
+            if (not self.collision_confirmed and not view.hand_robot_contacts and waited > 1.0) \
+                    or waited > COLLISION_FALLBACK_S:
+                self._collision_over(t, "no collision announced" if not self.collision_confirmed
+                                     else "gave up waiting")
+
+    def _collision_begins(self, t: float, view: TaskView) -> None:
+        self.in_collision = True
+        self.collision_since = t
+        self.provoke_robot = None
+        holding = self.part is not None and view.held_by(self.part) == self.active
+        hand = self.hand
+        hand.cancel()
+        if not holding:
+            hand.do(Grip(0.0))
+        back = (hand.pos[0], max(HAND_Y_MIN, hand.pos[1] + PULLBACK[1]), hand.pos[2] + PULLBACK[2])
+        hand.do(Dwell(self._rt(0.5), "reflex"), Move(back, None, GROSS_WIDTH, "pull back"))
+        self._set(Phase.PULLBACK, t, "collision")
+
+    def _collision_over(self, t: float, why: str) -> None:
+        if self.in_collision:
+            self.log.append((t, f"collision over: {why}"))
+        self.in_collision = False
+        self.collision_confirmed = False
+        self.last_press = None
+
+    def _provoke_check(self, t: float, view: TaskView) -> None:
+        if not self.provoke_times or self.in_collision:
+            return
+        tt = view.task_time(t)
+        if tt is None or tt < self.provoke_times[0]:
+            return
+        interruptible = self.phase in (Phase.IDLE, Phase.REACT, Phase.WAIT_DEPS, Phase.HOLD,
+                                       Phase.DONE, Phase.WITHDRAW)
+        if self.phase in (Phase.REACH, Phase.CARRY):
+            interruptible = self.hand.segment is not None and self.hand.pending_grip_change()
+        if interruptible and self._start_provoke(t, view, "at task time %.2f s" % tt):
+            self.provoke_times.pop(0)
+
+    def _start_provoke(self, t: float, view: TaskView, why: str) -> bool:
+        hand = self.hand
+        if not view.robots:
+            return False
+        rid = min(sorted(view.robots), key=lambda r: dist(view.robots[r].tcp, hand.pos))
+        hand.cancel()
+        if not (self.part is not None and view.held_by(self.part) == self.active):
+            hand.do(Grip(0.0))
+        hand.do(Move(self._provoke_goal(view, rid), None, 0.05, "provoke"))
+        self.provoke_robot = rid
+        self._set(Phase.PROVOKE, t, f"reaching into {rid} {why}")
+        return True
+
+    @staticmethod
+    def _provoke_goal(view: TaskView, rid: str) -> Vec:
+        # just above the tool tip: inside the tool/wrist links' colliders
+        return add(view.robots[rid].tcp, (0.0, 0.0, 0.02))
+
+    # ------------------------------------------------------------------ decisions
+    def _decide(self, t: float, view: TaskView) -> None:
+        hand = self.hand
+        ph = self.phase
+        if ph == Phase.PULLBACK:
+            if not hand.busy:
+                if self.part is not None and view.held_by(self.part) == self.active:
+                    self.go_t = t + self._rt()
+                    self._set(Phase.HOLD, t, "still holding the part")
+                else:
+                    self._set(Phase.COLLISION_WAIT, t)
+            return
+        if ph == Phase.COLLISION_WAIT:
+            if not self.in_collision:
+                self._set(Phase.IDLE, t, "collision over")
+                self.go_t = None
+                return
+            self._maybe_press_button(t, view)
+            return
+        if ph == Phase.PROVOKE:
+            self._provoke_step(t, view)
+            return
+        if ph in (Phase.IDLE, Phase.DONE):
+            self._idle(t, view)
+        elif ph == Phase.REACT:
+            self._react(t, view)
+        elif ph == Phase.REACH:
+            self._reach(t, view)
+        elif ph == Phase.HOLD:
+            self._hold(t, view)
+        elif ph == Phase.WAIT_DEPS:
+            if self.part is None or view.held_by(self.part) != self.active:
+                self._set(Phase.IDLE, t, "part lost")
+            elif self.deps_done(view, self.part):
+                self.go_t = t + self._rt()
+                self._set(Phase.HOLD, t, "dependencies placed")
+        elif ph == Phase.CARRY:
+            if not hand.busy:
+                self.released_at = t
+                self.rested = False
+                self._set(Phase.RELEASE_CHECK, t)
+            elif (self.part is not None and view.held_by(self.part) != self.active
+                  and hand.pending_grip_change() and hand.segment is not None):
+                hand.cancel()
+                self._set(Phase.IDLE, t, "part dropped while carrying")
+        elif ph == Phase.RELEASE_CHECK:
+            self._release_check(t, view)
+        elif ph == Phase.WITHDRAW:
+            if not hand.busy:
+                self._set(Phase.IDLE, t)
+
+    def _idle(self, t: float, view: TaskView) -> None:
+        hand = self.hand
+        pid = self.next_part(view)
+        if pid is None:
+            if self.phase != Phase.DONE:
+                hand.cancel()
+                hand.do(Grip(0.0), Move(REST[self.active], 0.0, GROSS_WIDTH, "rest"))
+                self._set(Phase.DONE, t, "all parts placed")
+            return
+        if self.phase == Phase.DONE:  # a part came undone? start again
+            self._set(Phase.IDLE, t)
+        self.part = pid
+        if view.held_by(pid) == self.active:
+            self._grasped(t, view)
+            return
+        if view.is_grabbable(pid) and not self.in_collision:
+            self.go_t = t + self._rt()
+            self._set(Phase.REACT, t, f"{pid} is grabbable")
+            return
+        if not hand.busy and dist(hand.pos, REST[self.active]) > 0.01:
+            if t - self.phase_since > 1.0:  # nothing to do for a while: hands down
+                hand.do(Move(REST[self.active], 0.0, GROSS_WIDTH, "rest"))
+
+    def _react(self, t: float, view: TaskView) -> None:
+        pid = self.part
+        if pid is None or self.in_collision or not view.is_grabbable(pid):
+            self._set(Phase.IDLE, t, "nothing to grab")
+            return
+        goal = self.grasp_point(view, pid)
+        above = add(goal, (0.0, 0.0, APPROACH_CLEARANCE))
+        if self._held_back(t, view, above):
+            return
+        if self.go_t is None or t < self.go_t:
+            return
+        if (pid not in self.provoked_parts and self.facts.provoke_probability > 0.0):
+            self.provoked_parts.add(pid)
+            if self.rng_provoke.random() < self.facts.provoke_probability:
+                if self._start_provoke(t, view, f"before reaching for {pid}"):
+                    return
+        hand = self.hand
+        hand.cancel()
+        obj_yaw = view.objects[pid].yaw if pid in view.objects else math.radians(
+            self._part(pid).start_yaw_deg)
+        hand.do(Grip(0.0), Move(above, obj_yaw, PICK_WIDTH, "reach"),
+                Move(goal, obj_yaw, PICK_WIDTH, "descend"), Grip(1.0, "grip"),
+                Dwell(max(0.0, self.pick_dwell - self.motor.grip_close_s), "pick dwell"))
+        self._action_started()
+        self._set(Phase.REACH, t, f"reaching for {pid}")
+
+    def _reach(self, t: float, view: TaskView) -> None:
+        pid = self.part
+        assert pid is not None
+        hand = self.hand
+        if view.held_by(pid) == self.active and not hand.pending_grip_change() \
+                and hand.segment is None and not hand.plan:
+            self._grasped(t, view)
+            return
+        if hand.busy:
+            # the part moved (e.g. still rolling after a missed release): aim again
+            if hand.pending_grip_change() and any(isinstance(s, Grip) and s.value > 0.5
+                                                  for s in hand.plan):
+                if dist(self.grasp_point(view, pid), self._planned_grasp(hand)) > 0.02:
+                    self.go_t = t
+                    self._set(Phase.REACT, t, f"{pid} moved")
+            return
+        if view.held_by(pid) == self.active:
+            self._grasped(t, view)
+        elif self._grasp_waited(t) > GRASP_TIMEOUT_S:
+            hand.do(Grip(0.0))
+            self._set(Phase.IDLE, t, f"{pid} not held after gripping")
+
+    def _grasp_waited(self, t: float) -> float:
+        segs = self.hand.segments
+        end = segs[-1].t_end if segs else self.phase_since
+        return t - end
+
+    @staticmethod
+    def _planned_grasp(hand: Hand) -> Vec:
+        moves = [s for s in hand.plan if isinstance(s, Move)]
+        if moves:
+            return moves[-1].goal
+        return hand.goal()
+
+    def _grasped(self, t: float, view: TaskView) -> None:
+        pid = self.part
+        assert pid is not None
+        hand = self.hand
+        obj = view.objects[pid]
+        self.grasp = ((hand.pos[0] - obj.position[0], hand.pos[1] - obj.position[1],
+                       hand.pos[2] - obj.position[2]), hand.yaw, obj.yaw)
+        self.go_t = t  # a continuous action: no new reaction time
+        self._set(Phase.HOLD, t, f"holding {pid}")
+
+    def _hold(self, t: float, view: TaskView) -> None:
+        pid = self.part
+        hand = self.hand
+        if pid is None or view.held_by(pid) != self.active:
+            self._set(Phase.IDLE, t, "part lost")
+            return
+        if hand.busy:
+            return
+        if self.grasp is None:
+            self._grasped(t, view)
+        release, yaw = self.release_point(pid)
+        part = self._part(pid)
+        carry_z = max(hand.pos[2], release[2] + CARRY_CLEARANCE)
+        if not self.deps_done(view, pid):
+            if carry_z - hand.pos[2] > 0.01:
+                hand.do(Move((hand.pos[0], hand.pos[1], carry_z), None, GROSS_WIDTH,
+                             "lift and wait"))
+            self._set(Phase.WAIT_DEPS, t, f"{pid} waits for {', '.join(part.after)}")
+            return
+        hover = (release[0], release[1], carry_z)
+        if self._held_back(t, view, hover):
+            return
+        if self.go_t is None or t < self.go_t:
+            return
+        steps: list = []
+        if carry_z - hand.pos[2] > 0.01:
+            steps.append(Move((hand.pos[0], hand.pos[1], carry_z), None, GROSS_WIDTH, "lift"))
+        steps += [Move(hover, yaw, PICK_WIDTH, "carry"),
+                  Move(release, yaw, 2.0 * self.facts.place_tolerance_m, "lower"),
+                  Dwell(self.place_dwell / 2.0, "place dwell"), Grip(0.0, "release"),
+                  Dwell(self.place_dwell / 2.0, "after release")]
+        hand.do(*steps)
+        self._action_started()
+        self._set(Phase.CARRY, t, f"carrying {pid}")
+
+    def _release_check(self, t: float, view: TaskView) -> None:
+        pid = self.part
+        assert pid is not None and self.released_at is not None
+        hand = self.hand
+        if view.is_placed(pid):
+            hand.do(Move(add(hand.pos, (0.0, 0.0, APPROACH_CLEARANCE)), None, GROSS_WIDTH,
+                         "withdraw"))
+            self.grasp = None
+            self._set(Phase.WITHDRAW, t, f"{pid} placed")
+            return
+        waited = t - self.released_at
+        if view.held_by(pid) == self.active and waited > RELEASE_MIN_S:
+            self._grasped(t, view)  # never let go (grip ignored?): try placing again
+            return
+        if waited > RELEASE_MIN_S and (self.rested or waited > RELEASE_RETRY_S):
+            self.grasp = None
+            self._set(Phase.IDLE, t, f"{pid} missed its target: grab it again")
+
+    def _maybe_press_button(self, t: float, view: TaskView) -> None:
+        button = self.facts.continue_button
+        if button is None or self.facts.safety_policy != "retreat_button":
+            return
+        if not view.cue_on("continue_button") and t - self.collision_since < 2.0:
+            return
+        if self.last_press is not None and t - self.last_press < BUTTON_REPEAT_S:
+            return
+        free = self.hands[self.free]
+        if free.busy:
+            return
+        self.last_press = t
+        free.do(Dwell(self._rt()), Move(add(button, (0.0, 0.0, 0.01)), 0.0, 0.03, "button"),
+                Dwell(0.3, "press"), Move(REST[self.free], 0.0, GROSS_WIDTH, "rest"))
+        self.log.append((t, "pressing the continue button"))
+
+    def _provoke_step(self, t: float, view: TaskView) -> None:
+        hand = self.hand
+        rid = self.provoke_robot
+        if rid is None or rid not in view.robots or t - self.phase_since > PROVOKE_GIVE_UP_S:
+            hand.cancel()
+            self._set(Phase.IDLE, t, "gave up provoking")
+            return
+        if not hand.busy:  # arrived but no contact yet: follow the tool
+            goal = self._provoke_goal(view, rid)
+            hand.do(Move(goal, None, 0.02, "provoke"))
+
+    # ------------------------------------------------------------------ head
+    def _look(self, t: float) -> None:
+        goal = self.hand.goal() if self.hand.busy else self.hand.pos
+        target_q = look_quat(HEAD_POS, goal)
+        dt = max(0.0, t - (self._head_t if self._head_t is not None else t))
+        self._head_t = t
+        u = 1.0 - math.exp(-dt / HEAD_TIME_CONSTANT_S) if dt > 0 else 0.0
+        self.head_q = slerp(self.head_q, target_q, u) if u > 0 else self.head_q
+
+    # ------------------------------------------------------------------ analysis
+    def reaches(self) -> list:
+        """Every minimum-jerk segment either hand made."""
+        return sorted(self.hands["left"].segments + self.hands["right"].segments,
+                      key=lambda s: s.t0)
+

@@ -1,0 +1,165 @@
+"""The task state as the scripted participant perceives it, built from bus messages.
+
+Handlers are called at the tick boundary in the bus's deterministic order; the participant reads
+the view in its step. Nothing here decides anything.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from hrc.wire import pb
+
+from hrc_human_input.facts import ScenarioFacts
+from hrc_human_input.geometry import Vec, yaw_of
+
+HUMAN = "human"
+
+
+@dataclass
+class ObjectView:
+    id: str
+    position: Vec
+    yaw: float  # radians
+    held_by: str = ""
+    grabbable: bool = False
+    placed: bool = False
+
+
+@dataclass
+class RobotView:
+    id: str
+    tcp: Vec
+    speed: float = 0.0
+    velocity: Vec = (0.0, 0.0, 0.0)
+    status: int = 0
+    t: float = 0.0
+
+
+@dataclass
+class ObjectEventView:
+    t: float
+    kind: int
+    object: str
+    holder: str
+
+
+@dataclass
+class TaskEventView:
+    t: float
+    kind: int
+    part: str = ""
+    robot: str = ""
+    hand: str = ""
+
+
+@dataclass
+class TaskView:
+    facts: ScenarioFacts
+    objects: dict[str, ObjectView] = field(default_factory=dict)
+    robots: dict[str, RobotView] = field(default_factory=dict)
+    cues: dict[str, pb.Cue] = field(default_factory=dict)
+    placed_events: set[str] = field(default_factory=set)
+    task_start: float | None = None          # sim time of TASK_STARTED
+    hand_robot_contacts: set[tuple[str, str]] = field(default_factory=set)
+    # Events since the participant last looked (it drains them every step).
+    object_events: list[ObjectEventView] = field(default_factory=list)
+    task_events: list[TaskEventView] = field(default_factory=list)
+    robot_waiting_events: set[str] = field(default_factory=set)
+
+    # ------------------------------------------------------------------ bus handlers
+    def on_objects(self, msg: pb.WorldObjects) -> None:
+        t = msg.header.sim_time
+        for o in msg.objects:
+            p, q = o.pose.position, o.pose.orientation
+            quat = (q.x, q.y, q.z, q.w) if (q.x, q.y, q.z, q.w) != (0, 0, 0, 0) else (0, 0, 0, 1)
+            self.objects[o.id] = ObjectView(o.id, (p.x, p.y, p.z), yaw_of(quat), o.held_by,
+                                            o.grabbable, o.placed)
+        for e in msg.events:
+            self.object_events.append(ObjectEventView(t, e.kind, e.object, e.holder))
+
+    def on_robot_state(self, msg: pb.RobotState) -> None:
+        t = msg.header.sim_time
+        p = msg.tcp.position
+        tcp = (p.x, p.y, p.z)
+        prev = self.robots.get(msg.robot)
+        velocity: Vec = (0.0, 0.0, 0.0)
+        if prev is not None and t > prev.t:
+            dt = t - prev.t
+            velocity = ((tcp[0] - prev.tcp[0]) / dt, (tcp[1] - prev.tcp[1]) / dt,
+                        (tcp[2] - prev.tcp[2]) / dt)
+        self.robots[msg.robot] = RobotView(msg.robot, tcp, msg.tcp_speed, velocity, msg.status, t)
+
+    def on_indicators(self, msg: pb.Indicators) -> None:
+        for cue in msg.cues:
+            self.cues[cue.id] = cue
+
+    def on_task_event(self, msg: pb.TaskEvent) -> None:
+        t = msg.header.sim_time
+        if msg.kind == pb.TASK_EVENT_KIND_TASK_STARTED and self.task_start is None:
+            self.task_start = t - msg.task_time
+        elif msg.kind == pb.TASK_EVENT_KIND_PART_PLACED and msg.part:
+            self.placed_events.add(msg.part)
+        elif msg.kind == pb.TASK_EVENT_KIND_ROBOT_WAITING:
+            self.robot_waiting_events.add(msg.robot or msg.agent)
+        elif msg.kind == pb.TASK_EVENT_KIND_ROBOT_WAIT_OVER:
+            self.robot_waiting_events.discard(msg.robot or msg.agent)
+        self.task_events.append(TaskEventView(t, msg.kind, msg.part, msg.robot or msg.agent,
+                                              msg.hand))
+
+    def on_contacts(self, msg: pb.WorldContacts) -> None:
+        for c in msg.contacts:
+            if c.kind != pb.CONTACT_KIND_HAND_ROBOT:
+                continue
+            if c.begin:
+                self.hand_robot_contacts.add((c.a, c.b))
+            else:
+                self.hand_robot_contacts.discard((c.a, c.b))
+
+    # ------------------------------------------------------------------ questions
+    def drain(self) -> tuple[list[ObjectEventView], list[TaskEventView]]:
+        o, e = self.object_events, self.task_events
+        self.object_events, self.task_events = [], []
+        return o, e
+
+    def cue_on(self, cue_id: str) -> bool:
+        cue = self.cues.get(cue_id)
+        return cue is not None and cue.on
+
+    def is_placed(self, part: str) -> bool:
+        o = self.objects.get(part)
+        return part in self.placed_events or (o is not None and o.placed)
+
+    def is_grabbable(self, part: str) -> bool:
+        o = self.objects.get(part)
+        return (o is not None and o.grabbable) or self.cue_on(f"outline:{part}")
+
+    def held_by(self, part: str) -> str:
+        o = self.objects.get(part)
+        return o.held_by if o is not None else ""
+
+    def task_time(self, t: float) -> float | None:
+        return None if self.task_start is None else t - self.task_start
+
+    def robot_waiting(self, robot: str) -> bool:
+        """Only visible to a participant through the "Waiting.." cue (anticipation on)."""
+        return self.cue_on(f"waiting:{robot}")
+
+    def robot_heading_points(self, robot: str) -> list[Vec]:
+        """Where the anticipation cues say this robot is heading (lit `target:<part>` cues)."""
+        points: list[Vec] = []
+        for cue_id, cue in sorted(self.cues.items()):
+            if not cue.on or not cue_id.startswith("target:"):
+                continue
+            part = cue.part or cue_id.split(":", 1)[1]
+            owner = cue.robot
+            facts = self.facts.parts.get(part)
+            if not owner and facts is not None:
+                owner = facts.owner
+            if owner != robot:
+                continue
+            if cue.HasField("position"):
+                points.append((cue.position.x, cue.position.y, cue.position.z))
+            elif facts is not None:
+                points.append(facts.target)
+        return points
