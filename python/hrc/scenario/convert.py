@@ -106,7 +106,9 @@ def from_proto(msg: pb.Scenario) -> Scenario:
 
 def _from_proto(msg: pb.Scenario) -> Scenario:
     pc = msg.participant
-    params = {k: v for k, v in pc.params.items() if k in SCRIPTED_PARAMS}
+    params: dict[str, float | bool] = {k: v for k, v in pc.params.items() if k in SCRIPTED_PARAMS}
+    if "left_handed" in params:  # the wire carries numbers only
+        params["left_handed"] = bool(params["left_handed"])
     provoke: float | list[float] = (list(pc.provoke_times_s) if pc.provoke_times_s
                                     else pc.provoke_probability)
     participant = Participant(

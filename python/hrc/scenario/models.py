@@ -97,6 +97,10 @@ class Participant(_Strict):
     pick_dwell_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.3
     place_dwell_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.3
     place_error_m: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.005
+    grip_close_s: Annotated[float, Field(ge=0.01, le=2.0, allow_inf_nan=False)] = 0.15
+    grip_open_s: Annotated[float, Field(ge=0.01, le=2.0, allow_inf_nan=False)] = 0.10
+    max_hold_back_s: Annotated[float, Field(ge=0.0, le=600.0, allow_inf_nan=False)] = 10.0
+    left_handed: bool = False
     # false | true | probability in [0, 1] | list of task times in seconds; normalised to a
     # probability (float) or a non-empty list of times (see docs/scenario.md).
     provoke_collisions: float | list[float] = 0.0
@@ -139,7 +143,8 @@ class Participant(_Strict):
 
 SCRIPTED_PARAMS = (
     "reaction_time_s", "peak_hand_speed", "caution", "fitts_a_s", "fitts_b_s", "pick_dwell_s",
-    "place_dwell_s", "place_error_m",
+    "place_dwell_s", "place_error_m", "grip_close_s", "grip_open_s", "max_hold_back_s",
+    "left_handed",
 )
 
 
