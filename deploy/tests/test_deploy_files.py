@@ -133,26 +133,26 @@ def test_process_compose_starts_five_services_with_session_settings(tmp_path: Pa
     assert code == 0
     argv = {p.name.removeprefix("argv-"): p.read_text().split() for p in out.glob("argv-*")}
     bus = "tcp/127.0.0.1:7999"
-    assert argv["hrc-physics"] == ["hrc-physics", "--session", "s7", "--listen", bus,
-                                   "--clock", "lockstep", "--ticks", "123"]
-    assert argv["hrc-orchestrator"] == ["hrc-orchestrator", "--session", "s7", "--connect", bus,
+    client = ["--zenoh-mode", "client", "--connect", bus]  # star: physics routes for all
+    assert argv["hrc-physics"] == ["hrc-physics", "--session", "s7", "--zenoh-mode", "router",
+                                   "--listen", bus, "--clock", "lockstep", "--ticks", "123"]
+    assert argv["hrc-orchestrator"] == ["hrc-orchestrator", "--session", "s7", *client,
                                         "--scenario", "scenarios/x.toml", "--out", "runs/x"]
-    assert argv["hrc-ik"] == ["hrc-ik", "--session", "s7", "--connect", bus]
-    assert argv["hrc-human-input"] == ["hrc-human-input", "--session", "s7", "--connect", bus]
-    assert argv["hrc-logger"] == ["hrc-logger", "--session", "s7", "--connect", bus,
-                                  "--out", "runs/x"]
+    assert argv["hrc-ik"] == ["hrc-ik", "--session", "s7", *client]
+    assert argv["hrc-human-input"] == ["hrc-human-input", "--session", "s7", *client]
+    assert argv["hrc-logger"] == ["hrc-logger", "--session", "s7", *client, "--out", "runs/x"]
     probes = (out / "probes").read_text().splitlines()
     probed = {line.split()[1] for line in probes}
     assert probed == set(SERVICES)
-    assert all(f"--session s7 --connect {bus}" in line for line in probes)
+    assert all(f"--session s7 --zenoh-mode client --connect {bus}" in line for line in probes)
 
 
 def test_process_compose_defaults(tmp_path: Path) -> None:
     code, out = _run_pc(tmp_path, FAKE_SLEEP="0")
     assert code == 0
     physics = (out / "argv-hrc-physics").read_text().split()
-    assert physics == ["hrc-physics", "--session", "pc", "--listen", "tcp/127.0.0.1:7460",
-                       "--clock", "lockstep", "--ticks", "0"]
+    assert physics == ["hrc-physics", "--session", "pc", "--zenoh-mode", "router", "--listen",
+                       "tcp/127.0.0.1:7460", "--clock", "lockstep", "--ticks", "0"]
     orch = (out / "argv-hrc-orchestrator").read_text().split()
     assert orch[-4:] == ["--scenario", "scenarios/thesis.toml", "--out", "runs/pc"]
 

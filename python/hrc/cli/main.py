@@ -134,7 +134,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     a = sub.add_parser("alive", help="exit 0 if SERVICE's liveliness token is on the bus")
     a.add_argument("service")
-    a.add_argument("--wait", type=float, default=0.0, help="keep trying for this many seconds")
+    a.add_argument("--wait", type=float, default=5.0,
+                   help="keep trying for this many seconds (default 5: a fresh session needs a "
+                        "moment to learn the tokens)")
     add_bus_arguments(a)
     a.set_defaults(func=_cmd_alive)
 
