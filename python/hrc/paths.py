@@ -30,5 +30,6 @@ def bus_probe_binary() -> Path:
 
 
 def ik_bench_binary() -> Path:
+    """The IK solver benchmark (``HRC_IK_BENCH_BIN`` overrides); built next to ``hrc-ik``."""
     env = os.environ.get("HRC_IK_BENCH_BIN")
-    return Path(env) if env else build_dir() / "ik_cpp" / "kin" / "hrc-ik-bench"
+    return Path(env) if env else build_dir() / "ik_cpp" / "hrc-ik-bench"

@@ -1,14 +1,280 @@
 #include "hrc/ik_service.hpp"
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <cstdio>
+#include <limits>
+#include <set>
+#include <stdexcept>
+#include <thread>
+#include <utility>
 
 namespace hrc {
+namespace {
 
-IkService::IkService(Bus& bus, LockstepParticipant& participant) : bus_(bus) {
+constexpr double kDegToRad = M_PI / 180.0;
+
+std::string fmt(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.4g", v);
+  return buf;
+}
+
+std::string fmt_point(const Eigen::Vector3d& p) {
+  return "(" + fmt(p.x()) + ", " + fmt(p.y()) + ", " + fmt(p.z()) + ")";
+}
+
+Eigen::Vector3d vec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+v1::MotionStatus to_wire(kin::MotionStatus s) {
+  switch (s) {
+    case kin::MotionStatus::Idle: return v1::MOTION_STATUS_IDLE;
+    case kin::MotionStatus::Moving: return v1::MOTION_STATUS_MOVING;
+    case kin::MotionStatus::Reached: return v1::MOTION_STATUS_REACHED;
+    case kin::MotionStatus::Holding: return v1::MOTION_STATUS_HOLDING;
+    case kin::MotionStatus::Unreachable: return v1::MOTION_STATUS_UNREACHABLE;
+  }
+  return v1::MOTION_STATUS_UNSPECIFIED;
+}
+
+double micros_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count();
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- scenario -> robots
+
+std::vector<RobotSpec> robots_from_scenario(const v1::Scenario& scenario) {
+  std::vector<RobotSpec> out;  // no robots is allowed: the service then only keeps the clock
+  std::set<std::string> seen;
+  for (const v1::RobotConfig& r : scenario.robots()) {
+    const std::string who = "robot '" + r.id() + "'";
+    try {
+      check_name("robot id", r.id());  // it becomes a key segment
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(who + ": " + e.what());
+    }
+    if (!seen.insert(r.id()).second) throw std::invalid_argument(who + " is listed twice");
+    if (r.urdf_path().empty()) throw std::invalid_argument(who + ": urdf_path is empty");
+    if (!(r.max_tcp_speed() > 0) || !std::isfinite(r.max_tcp_speed())) {
+      throw std::invalid_argument(who + ": max_tcp_speed must be > 0, got " + fmt(r.max_tcp_speed()));
+    }
+    const Eigen::Vector3d base = vec(r.base().xyz());
+    const Eigen::Vector3d home = vec(r.home());
+    if (!base.allFinite() || !std::isfinite(r.base().yaw_deg())) {
+      throw std::invalid_argument(who + ": base pose has a NaN or infinite value");
+    }
+    if (!home.allFinite()) throw std::invalid_argument(who + ": home has a NaN or infinite value");
+    RobotSpec s;
+    s.id = r.id();
+    s.urdf_path = r.urdf_path();
+    s.world_T_base.translation() = base;
+    s.world_T_base.linear() =
+        Eigen::AngleAxisd(r.base().yaw_deg() * kDegToRad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    s.max_tcp_speed = r.max_tcp_speed();
+    s.home = home;
+    s.home_yaw = 0.0;
+    out.push_back(std::move(s));
+  }
+  return out;
+}
+
+double tick_dt(const v1::Scenario& scenario) {
+  const double hz = scenario.info().tick_hz();
+  if (!(hz > 0) || !std::isfinite(hz)) {
+    throw std::invalid_argument("scenario info.tick_hz must be > 0, got " + fmt(hz));
+  }
+  return 1.0 / hz;
+}
+
+// ---------------------------------------------------------------- engine
+
+IkEngine::IkEngine(std::vector<RobotSpec> robots, double dt) : dt_(dt) {
+  if (!(dt > 0) || !std::isfinite(dt)) throw std::invalid_argument("IkEngine: dt must be > 0");
+  std::sort(robots.begin(), robots.end(), [](const RobotSpec& a, const RobotSpec& b) { return a.id < b.id; });
+  for (RobotSpec& spec : robots) {
+    if (!ids_.empty() && ids_.back() == spec.id) throw std::invalid_argument("robot '" + spec.id + "' is listed twice");
+    Arm arm;
+    try {
+      arm.model = std::make_unique<kin::RobotModel>(kin::RobotModel::fromUrdfFile(spec.urdf_path));
+    } catch (const std::exception& e) {
+      throw std::runtime_error("robot '" + spec.id + "': " + e.what());
+    }
+    kin::MotionLimits limits;
+    limits.max_tcp_speed = spec.max_tcp_speed;
+    arm.motion = std::make_unique<kin::MotionGenerator>(*arm.model, spec.world_T_base, dt, limits);
+    arm.probe = std::make_unique<kin::MotionGenerator>(*arm.model, spec.world_T_base, dt, limits);
+    if (!arm.motion->resetToPose(spec.home, spec.home_yaw)) {
+      throw std::runtime_error("robot '" + spec.id + "': home " + fmt_point(spec.home) +
+                               " is not reachable with the tool pointing down (URDF " + spec.urdf_path + ")");
+    }
+    arm.probe->reset(arm.motion->state().q);
+    ids_.push_back(spec.id);
+    arm.spec = std::move(spec);
+    arms_.push_back(std::move(arm));
+  }
+}
+
+int IkEngine::index_of(const std::string& robot) const {
+  const auto it = std::lower_bound(ids_.begin(), ids_.end(), robot);
+  return it != ids_.end() && *it == robot ? static_cast<int>(it - ids_.begin()) : -1;
+}
+
+std::string IkEngine::apply(const std::string& robot, const v1::RobotCommand& c) {
+  const int i = index_of(robot);
+  if (i < 0) {
+    std::string known;
+    for (const auto& id : ids_) known += (known.empty() ? "" : ", ") + id;
+    return "unknown robot '" + robot + "' (this scenario has " + known + ")";
+  }
+  Arm& arm = arms_[static_cast<std::size_t>(i)];
+  switch (c.kind()) {
+    case v1::RobotCommand::KIND_MOVE: {
+      const double nums[] = {c.target().x(), c.target().y(), c.target().z(), c.yaw_deg(),
+                             c.approach_height(), c.depart_height(), c.max_speed()};
+      for (const double v : nums) {
+        if (!std::isfinite(v)) return "move command has a NaN or infinite number";
+      }
+      if (c.approach_height() < 0 || c.depart_height() < 0) return "approach/depart height is negative";
+      if (c.max_speed() < 0) return "max_speed is negative";
+      kin::MoveCommand m;
+      m.target = vec(c.target());
+      m.yaw = c.yaw_deg() * kDegToRad;
+      m.approach_height = c.approach_height();
+      m.depart_height = c.depart_height();
+      // 0 = the robot's max_tcp_speed; anything above it is capped (the generator caps too).
+      m.max_speed = c.max_speed() > 0 ? std::min(c.max_speed(), arm.spec.max_tcp_speed) : 0.0;
+      arm.motion->move(m);
+      break;
+    }
+    case v1::RobotCommand::KIND_HOLD:
+      arm.motion->hold();
+      break;
+    default:
+      return "command kind " + std::to_string(static_cast<int>(c.kind())) + " is neither MOVE nor HOLD";
+  }
+  arm.command_id = c.command_id();
+  return {};
+}
+
+void IkEngine::step() {
+  for (Arm& arm : arms_) arm.motion->step();
+}
+
+const kin::MotionState& IkEngine::state(std::size_t index) const { return arms_.at(index).motion->state(); }
+const kin::RobotModel& IkEngine::model(std::size_t index) const { return *arms_.at(index).model; }
+uint64_t IkEngine::command_id(std::size_t index) const { return arms_.at(index).command_id; }
+
+void IkEngine::fill_state(std::size_t index, v1::RobotState& out) const {
+  const Arm& arm = arms_.at(index);
+  const kin::MotionState& s = arm.motion->state();
+  const auto& names = arm.model->jointNames();
+  const int n = static_cast<int>(names.size());
+  if (out.robot() != arm.spec.id) out.set_robot(arm.spec.id);
+  if (out.joint_names_size() != n) {
+    out.clear_joint_names();
+    for (const auto& name : names) out.add_joint_names(name);
+  }
+  auto* q = out.mutable_joint_positions();
+  if (q->size() != n) q->Resize(n, 0.0);
+  for (int i = 0; i < n; ++i) q->Set(i, s.q[i]);
+  const Eigen::Vector3d p = s.tcp.translation();
+  const Eigen::Quaterniond r = Eigen::Quaterniond(s.tcp.linear()).normalized();
+  v1::Pose* tcp = out.mutable_tcp();
+  tcp->mutable_position()->set_x(p.x());
+  tcp->mutable_position()->set_y(p.y());
+  tcp->mutable_position()->set_z(p.z());
+  tcp->mutable_orientation()->set_x(r.x());
+  tcp->mutable_orientation()->set_y(r.y());
+  tcp->mutable_orientation()->set_z(r.z());
+  tcp->mutable_orientation()->set_w(r.w());
+  out.set_tcp_speed(s.tcp_speed);
+  out.set_status(to_wire(s.status));
+  out.set_command_id(arm.command_id);
+  if (out.detail() != s.detail) out.set_detail(s.detail);
+}
+
+v1::ReachReply IkEngine::reach(const v1::ReachRequest& request) {
+  v1::ReachReply reply;
+  const std::lock_guard<std::mutex> lock(reach_mutex_);
+  for (const v1::ReachItem& item : request.items()) {
+    v1::ReachResult* r = reply.add_results();
+    r->set_id(item.id());
+    const int i = index_of(item.robot());
+    if (i < 0) {
+      r->set_reachable(false);
+      r->set_position_error_m(std::numeric_limits<double>::infinity());
+      r->set_detail("unknown robot '" + item.robot() + "'");
+      continue;
+    }
+    const Eigen::Vector3d target = vec(item.target());
+    if (!target.allFinite() || !std::isfinite(item.yaw_deg())) {
+      r->set_reachable(false);
+      r->set_position_error_m(std::numeric_limits<double>::infinity());
+      r->set_detail("target or yaw has a NaN or infinite value");
+      continue;
+    }
+    double err = 0.0;
+    const bool ok = arms_[static_cast<std::size_t>(i)].probe->reachable(target, item.yaw_deg() * kDegToRad, &err);
+    r->set_reachable(ok);
+    r->set_position_error_m(err);
+    if (!ok) {
+      r->set_detail("robot '" + item.robot() + "' cannot reach " + fmt_point(target) +
+                    " with the tool pointing down (closest " + fmt(err) + " m away)");
+    }
+  }
+  return reply;
+}
+
+// ---------------------------------------------------------------- tick times
+
+void TickTimes::add(double us) {
+  if (!(us >= 0)) us = 0;
+  const auto bin = static_cast<std::size_t>(std::min<double>(us, kBins));
+  ++bins_[std::min(bin, kBins)];
+  ++count_;
+  sum_ += us;
+  max_ = std::max(max_, us);
+}
+
+double TickTimes::quantile(double q) const {
+  if (count_ == 0) return 0.0;
+  const auto rank = static_cast<uint64_t>(std::ceil(std::clamp(q, 0.0, 1.0) * static_cast<double>(count_)));
+  uint64_t seen = 0;
+  for (std::size_t b = 0; b < kBins; ++b) {
+    seen += bins_[b];
+    if (seen >= std::max<uint64_t>(rank, 1)) return std::min(static_cast<double>(b + 1), max_);
+  }
+  return max_;
+}
+
+std::string TickTimes::summary() const {
+  if (count_ == 0) return "no ticks";
+  return "n " + std::to_string(count_) + ", mean " + fmt(mean()) + " us, p50 " + fmt(quantile(0.5)) +
+         " us, p99 " + fmt(quantile(0.99)) + " us, max " + fmt(max_) + " us";
+}
+
+// ---------------------------------------------------------------- service
+
+IkService::IkService(Bus& bus, LockstepParticipant& participant, IkEngine& engine)
+    : bus_(bus), participant_(participant), engine_(engine) {
+  // Publishers first, so subscribers can match them before alive/<name> is declared.
+  for (const std::string& id : engine_.robot_ids()) {
+    state_pubs_.push_back(&bus_.publisher(bus_.keys().robot_state(id)));
+    states_.emplace_back();
+  }
   participant.input<v1::RobotCommand>(
       bus_.keys().robot_commands(),
       [this](const std::string& key, const v1::RobotCommand& c) { on_command(key, c); });
   participant.on_tick([this](const v1::ClockTick& t) { step(t); });
+  bus_.queryable<v1::ReachRequest, v1::ReachReply>(bus_.keys().robot_reach(), [this](const v1::ReachRequest& req) {
+    v1::ReachReply reply = engine_.reach(req);
+    reply.mutable_header()->set_session(bus_.keys().session());
+    reply.mutable_header()->set_sender(bus_.sender());
+    return reply;
+  });
 }
 
 std::string IkService::validate_command(const std::string& key, const v1::RobotCommand& c) {
@@ -26,23 +292,85 @@ std::string IkService::validate_command(const std::string& key, const v1::RobotC
 }
 
 void IkService::on_command(const std::string& key, const v1::RobotCommand& command) {
-  const std::string problem = validate_command(key, command);
+  const auto t0 = std::chrono::steady_clock::now();
+  std::string problem = validate_command(key, command);
+  if (problem.empty()) problem = engine_.apply(Keys::robot_of(key), command);
+  // Planning a move (path check by IK along the line) is part of the tick it is applied in.
+  command_us_ += micros_since(t0);
   if (!problem.empty()) {
-    // Counted like a malformed payload so it shows in stats/ik_cpp and never drives the arm.
+    // Counted like a malformed payload so it shows in stats/<name>; it never drives the arm.
+    ++commands_rejected_;
     const uint64_t n = bus_.stats().count_error(key);
     log::warning("rejected command #" + std::to_string(n) + " on " + key + " from sender '" +
-                 command.header().sender() + "': " + problem);
+                 command.header().sender() + "' (command_id " + std::to_string(command.command_id()) +
+                 "): " + problem);
     return;
   }
   ++commands_received_;
-  latest_[Keys::robot_of(key)] = command;
+  if (log::enabled(log::Level::debug)) {
+    log::debug("command " + std::to_string(command.command_id()) + " on " + key + " applied");
+  }
 }
 
 void IkService::step(const v1::ClockTick& tick) {
-  // Extension point: for each robot, advance the motion toward latest_[robot] and publish
-  // v1::RobotState on bus_.keys().robot_state(robot) with
-  // bus_.publisher(key).put(state, tick.header().tick(), tick.header().sim_time()).
-  (void)tick;
+  if (!dt_warned_ && tick.dt() > 0 && std::abs(tick.dt() - engine_.dt()) > 1e-9 * engine_.dt()) {
+    dt_warned_ = true;
+    log::warning("the clock's dt " + fmt(tick.dt()) + " s differs from the scenario's " + fmt(engine_.dt()) +
+                 " s; the arms step by the scenario's dt");
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  engine_.step();
+  const double commands_us = command_us_;
+  command_us_ = 0.0;
+  compute_times_.add(commands_us + micros_since(t0));
+  publish_states(tick.header().tick(), tick.header().sim_time());
+  step_times_.add(commands_us + micros_since(t0));
+}
+
+void IkService::publish_states(uint64_t tick, double sim_time) {
+  for (std::size_t i = 0; i < states_.size(); ++i) {
+    engine_.fill_state(i, states_[i]);
+    state_pubs_[i]->put(states_[i], tick, sim_time);
+  }
+}
+
+uint64_t IkService::run_standalone(double hz, const std::function<bool()>& keep_going) {
+  if (!(hz > 0) || !std::isfinite(hz)) throw std::invalid_argument("standalone rate must be > 0 Hz");
+  bus_.subscribe<v1::RunEnd>(bus_.keys().run_end(), [this](const std::string&, const v1::RunEnd&) { run_ended_ = true; });
+  bus_.serve_stats();
+  bus_.declare_token();
+  using clock = std::chrono::steady_clock;
+  const auto period = std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(1.0 / hz));
+  v1::ClockTick tick;  // synthesized, reused: only header.tick / sim_time / dt change
+  tick.set_dt(1.0 / hz);
+  uint64_t k = 0;
+  auto next = clock::now();
+  while (keep_going() && !run_ended_) {
+    // No clock: every command that has arrived is due now (still in deterministic order).
+    participant_.inbox().deliver(std::numeric_limits<uint64_t>::max());
+    tick.mutable_header()->set_tick(k);
+    tick.mutable_header()->set_sim_time(static_cast<double>(k) / hz);
+    bus_.stats().tick(k);
+    step(tick);
+    ++k;
+    next += period;
+    const auto now = clock::now();
+    if (now > next + period) {
+      // More than a period behind: count it and restart the schedule rather than burst.
+      ++overruns_;
+      next = now;
+    } else {
+      std::this_thread::sleep_until(next);
+    }
+  }
+  return k;
+}
+
+std::string IkService::timing_summary() const {
+  std::string s = "per-tick compute (kinematics, " + std::to_string(engine_.size()) + " arms): " +
+                  compute_times_.summary() + "; with publishing: " + step_times_.summary();
+  if (overruns_ > 0) s += "; timer overruns: " + std::to_string(overruns_);
+  return s;
 }
 
 }  // namespace hrc

@@ -1,42 +1,168 @@
-// The ik_cpp service logic behind hrc-ik. Today it takes part in the clock and keeps the latest
-// RobotCommand per robot; the kinematics engineer extends step() to publish robot/<id>/state
-// (and may add the robot/reach queryable in the constructor).
+// The ik_cpp service logic behind hrc-ik (services/ik_cpp/README.md, "hrc-ik").
+//
+// IkEngine: the robots of a scenario, one hrc::kin::MotionGenerator each, and the mapping between
+// the wire contract and the kinematics (RobotCommand -> MoveCommand / hold, MotionState ->
+// RobotState, ReachRequest -> ReachReply). No bus: unit tests drive it directly.
+// IkService: wires an engine to the bus: commands through the LockstepParticipant's inbox, one
+// engine step + one RobotState per robot per tick, the robot/reach queryable, and the standalone
+// timer mode (--standalone-hz).
 #pragma once
 
-#include <cstdint>
-#include <map>
-#include <string>
+#include <Eigen/Geometry>
 
+#include <array>
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "hrc/kin/motion.hpp"
+#include "hrc/kin/robot_model.hpp"
 #include "hrc/lockstep.hpp"
 #include "hrc/typed_bus.hpp"
 
 namespace hrc {
 
+/// One robot as the service needs it (from a RobotConfig of the scenario).
+struct RobotSpec {
+  std::string id;
+  std::string urdf_path;
+  Eigen::Isometry3d world_T_base = Eigen::Isometry3d::Identity();
+  double max_tcp_speed = 0.0;  // m/s
+  Eigen::Vector3d home = Eigen::Vector3d::Zero();
+  double home_yaw = 0.0;  // rad (the orchestrator sends home moves with yaw 0)
+};
+
+/// The robots of `scenario` (possibly none). Throws std::invalid_argument naming the robot and the
+/// bad field (bad id, duplicate id, empty urdf_path, non-finite base/home, max_tcp_speed <= 0).
+std::vector<RobotSpec> robots_from_scenario(const v1::Scenario& scenario);
+/// Seconds per tick of `scenario` (1 / info.tick_hz). Throws std::invalid_argument if tick_hz <= 0.
+double tick_dt(const v1::Scenario& scenario);
+
+class IkEngine {
+ public:
+  /// Loads each URDF (base_link -> tool), builds its motion generator (max_tcp_speed, tick `dt`)
+  /// and puts the arm at its home pose, tool down. Throws std::runtime_error naming the robot if a
+  /// URDF does not load or a home pose is not reachable.
+  IkEngine(std::vector<RobotSpec> robots, double dt);
+  IkEngine(const IkEngine&) = delete;
+  IkEngine& operator=(const IkEngine&) = delete;
+
+  /// Robot ids in sorted order (the order of step() and of the published states).
+  const std::vector<std::string>& robot_ids() const { return ids_; }
+  std::size_t size() const { return arms_.size(); }
+  /// Index of `robot` in robot_ids(), or -1.
+  int index_of(const std::string& robot) const;
+  double dt() const { return dt_; }
+
+  /// Applies a command for `robot`: KIND_MOVE -> move (yaw deg -> rad, max_speed capped at the
+  /// robot's max_tcp_speed, 0 = max), KIND_HOLD -> hold. Returns "" when applied, else what is
+  /// wrong (unknown robot, NaN/inf numbers, negative heights/speed, unknown kind); a refused
+  /// command changes nothing. An unreachable target is applied (the arm reports UNREACHABLE).
+  std::string apply(const std::string& robot, const v1::RobotCommand& command);
+  /// Advances every arm by one tick.
+  void step();
+  /// Writes arm `index`'s state (everything but the header) into `out`; reuses out's storage,
+  /// so a caller that keeps its RobotState does not allocate per tick.
+  void fill_state(std::size_t index, v1::RobotState& out) const;
+  const kin::MotionState& state(std::size_t index) const;
+  const kin::RobotModel& model(std::size_t index) const;
+  uint64_t command_id(std::size_t index) const;
+
+  /// One result per item (reachable tool-down with the item's yaw, position error, detail).
+  /// Thread-safe with respect to step(): it uses solvers of its own.
+  v1::ReachReply reach(const v1::ReachRequest& request);
+
+ private:
+  struct Arm {
+    RobotSpec spec;
+    std::unique_ptr<kin::RobotModel> model;       // owned here: the generators keep a reference
+    std::unique_ptr<kin::MotionGenerator> motion;  // the arm (tick thread only)
+    std::unique_ptr<kin::MotionGenerator> probe;   // reach queries (under reach_mutex_)
+    uint64_t command_id = 0;
+  };
+
+  double dt_;
+  std::vector<Arm> arms_;  // sorted by id
+  std::vector<std::string> ids_;
+  std::mutex reach_mutex_;
+};
+
+/// Per-tick durations in a fixed histogram (1 µs bins up to 20 ms): recording never allocates.
+class TickTimes {
+ public:
+  void add(double us);
+  uint64_t count() const { return count_; }
+  /// Quantile q in [0, 1] in µs (upper edge of its bin; the max beyond the histogram).
+  double quantile(double q) const;
+  double max() const { return max_; }
+  double mean() const { return count_ ? sum_ / static_cast<double>(count_) : 0.0; }
+  /// "n N, p50 X us, p99 Y us, max Z us" (or "no ticks").
+  std::string summary() const;
+
+ private:
+  static constexpr std::size_t kBins = 20000;
+  std::array<uint32_t, kBins + 1> bins_{};  // last bin: overflow
+  uint64_t count_ = 0;
+  double sum_ = 0.0;
+  double max_ = 0.0;
+};
+
 class IkService {
  public:
-  /// Registers the inputs (robot/*/command) and the step with the participant; call before
-  /// participant.start().
-  IkService(Bus& bus, LockstepParticipant& participant);
+  /// Registers robot/*/command as an input of `participant` (through its inbox), the step, one
+  /// publisher per robot/<id>/state and the robot/reach queryable. Call before
+  /// participant.start() (which declares alive/<name>) or run_standalone().
+  IkService(Bus& bus, LockstepParticipant& participant, IkEngine& engine);
+  /// Closes the bus: the robot/reach queryable calls into this object, so it may not outlive it.
+  ~IkService() { bus_.close(); }
   IkService(const IkService&) = delete;
   IkService& operator=(const IkService&) = delete;
 
-  /// A well-formed command, delivered in deterministic order before the step of its tick.
+  /// A command delivered by the inbox: validated, applied, or counted as malformed and logged with
+  /// key and sender (the arm keeps what it was doing).
   void on_command(const std::string& key, const v1::RobotCommand& command);
-  /// Tick k: compute and publish the outputs of k (extension point: RobotState per robot).
+  /// Tick k: advance every arm one step, publish RobotState per robot in sorted id order.
   void step(const v1::ClockTick& tick);
+  /// Steps at `hz` by its own timer (no clock master): each step first takes every command that
+  /// has arrived. Runs until keep_going() is false or run/end arrives. Declares alive/<name>.
+  /// Returns the number of steps.
+  uint64_t run_standalone(double hz, const std::function<bool()>& keep_going);
 
   /// Rejects commands whose robot field disagrees with the key or whose numbers are not finite.
   static std::string validate_command(const std::string& key, const v1::RobotCommand& command);
 
   uint64_t commands_received() const { return commands_received_; }
-  /// Latest command per robot id (the id from the key).
-  const std::map<std::string, v1::RobotCommand>& latest_commands() const { return latest_; }
+  uint64_t commands_rejected() const { return commands_rejected_; }
+  /// Time of the kinematics (the tick's commands + engine step) and of the whole step including
+  /// publishing, per tick.
+  const TickTimes& compute_times() const { return compute_times_; }
+  const TickTimes& step_times() const { return step_times_; }
+  /// Timer overruns in standalone mode (a step started more than one period late).
+  uint64_t overruns() const { return overruns_; }
+  /// The lines main() logs at exit.
+  std::string timing_summary() const;
 
  private:
+  void publish_states(uint64_t tick, double sim_time);
+
   Bus& bus_;
-  // Touched only from the participant's tick processing (one tick at a time): no lock needed.
-  std::map<std::string, v1::RobotCommand> latest_;
+  LockstepParticipant& participant_;
+  IkEngine& engine_;
+  // Touched only from the tick processing (one tick at a time): no lock needed.
+  std::vector<TypedPublisher*> state_pubs_;  // per engine index
+  std::vector<v1::RobotState> states_;       // reused every tick
   uint64_t commands_received_ = 0;
+  uint64_t commands_rejected_ = 0;
+  bool dt_warned_ = false;
+  double command_us_ = 0.0;  // time spent applying the commands delivered for the coming step
+  TickTimes compute_times_;
+  TickTimes step_times_;
+  uint64_t overruns_ = 0;
+  std::atomic<bool> run_ended_{false};
 };
 
 }  // namespace hrc
