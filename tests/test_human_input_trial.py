@@ -26,7 +26,7 @@ WALL_FIELDS = {"wall_time", "wall_s", "realtime_factor", "created"}
 
 def trial(scenario: str, out: Path, **kw: Any) -> Path:
     opts = TrialOptions(scenario=ROOT / "scenarios" / f"{scenario}.toml", out=out,
-                        ticks=MAX_TICKS, **kw)
+                        max_ticks=MAX_TICKS, **kw)
     result = run_trial(opts, out)
     assert result.ok, result.message
     assert result.run_end is not None

@@ -62,7 +62,7 @@ class Line:
 def run_trial(scenario: Path, out: Path, ticks: int = TICK_CAP) -> tuple[dict, list[Line]]:
     env = dict(os.environ, HRC_ROOT=str(ROOT))
     proc = subprocess.run([str(HRC), "run", str(scenario), "--out", str(out),
-                           "--ticks", str(ticks)],
+                           "--max-ticks", str(ticks)],
                           cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
     orch_log = out / "services" / "orchestrator.log"
     log_text = orch_log.read_text(errors="replace") if orch_log.exists() else ""

@@ -137,8 +137,12 @@ class Bus:
             pass
 
     # ------------------------------------------------------------------ publish
-    def publisher(self, key: str, *, express: bool = False, block: bool = True) -> Publisher:
-        """A publisher for ``key`` (one per key and service; asking twice returns the same one)."""
+    def publisher(self, key: str, *, express: bool = True, block: bool = True) -> Publisher:
+        """A publisher for ``key`` (one per key and service; asking twice returns the same one).
+
+        Express (unbatched) by default: every tick waits on these messages, so latency beats
+        throughput; batching would hold a message back until the batch is flushed.
+        """
         pub = self._publishers.get(key)
         if pub is None:
             pub = Publisher(self, key, express=express, block=block)

@@ -54,6 +54,10 @@ class LockstepParticipant:
         self._cond = threading.Condition()
         self._ticks: deque[pb.ClockTick] = deque()
         self._busy = False  # a tick is being computed (one at a time, whichever thread)
+        # where a tick's time goes (reported at the end): hand-off, waiting for inputs, compute
+        self._ticks_done = 0
+        self._lag_s = self._wait_s = self._compute_s = 0.0
+        self._last_clock_rx = 0.0
         self._running = False
         self._end: Outcome | None = None
         self._physics_seen = False
@@ -79,7 +83,13 @@ class LockstepParticipant:
         self.bus.declare_token()
 
     # ------------------------------------------------------------------ zenoh threads
+    def report(self) -> str:
+        n = max(1, self._ticks_done)
+        return (f"{self._ticks_done} ticks; mean us per tick: hand-off {self._lag_s / n * 1e6:.0f}, "
+                f"input wait {self._wait_s / n * 1e6:.0f}, compute {self._compute_s / n * 1e6:.0f}")
+
     def _on_clock(self, _key: str, tick: pb.ClockTick) -> None:
+        self._last_clock_rx = time.perf_counter()
         # Fast path: when nothing is queued and every input of the tick is here, compute it right
         # on this thread (saves a thread hand-off per tick); otherwise the run() thread waits.
         with self._cond:
@@ -127,6 +137,7 @@ class LockstepParticipant:
                 ok = self._cond.wait_for(
                     lambda: (self._ticks and not self._busy) or self._end is not None, timeout)
                 if self._end is not None:
+                    log.info("%s", self.report())
                     return self._end
                 if not ok:
                     return Outcome(False, f"no clock tick within {timeout:g} s")
@@ -140,6 +151,8 @@ class LockstepParticipant:
 
     def _process(self, tick: pb.ClockTick) -> None:
         k = tick.header.tick
+        tw = time.perf_counter()
+        self._lag_s += tw - self._last_clock_rx
         if tick.mode == pb.CLOCK_MODE_LOCKSTEP:
             missing = self.inbox.wait_for(list(tick.published), self.input_timeout_s)
             if missing:
@@ -148,6 +161,8 @@ class LockstepParticipant:
                 self._finish(Outcome(False, f"tick {k}: inputs never arrived: {names}"))
                 return
         t0 = time.perf_counter()  # compute time, not time spent waiting for inputs
+        self._wait_s += t0 - tw
+        self._ticks_done += 1
         self.inbox.deliver(k, master=CLOCK_MASTER)
         self.last_tick = tick
         self.bus.stats.tick(k)
@@ -159,3 +174,4 @@ class LockstepParticipant:
             ack_key = self._ack_pub.key
             ack.published.extend(m for m in self.bus.published_marks() if m.key != ack_key)
             self._ack_pub.put(ack, k, tick.header.sim_time)
+        self._compute_s += time.perf_counter() - t0

@@ -40,14 +40,20 @@ def _cmd_run(args: argparse.Namespace) -> int:
         print(f"scenario rejected: {len(exc.problems)} problem(s); nothing was started",
               file=sys.stderr)
         return 2
-    if args.ticks < 0:
-        print(f"--ticks must be >= 0, got {args.ticks}", file=sys.stderr)
+    for name in ("ticks", "max_ticks"):
+        if getattr(args, name) < 0:
+            print(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}",
+                  file=sys.stderr)
+            return 2
+    if args.ticks and args.max_ticks:
+        print("give --ticks (exact length) or --max-ticks (a cap), not both", file=sys.stderr)
         return 2
     anticipation = s.conditions.anticipation
     trial_dir = (Path(args.out) if args.out else
                  default_trial_dir(Path("runs"), s.participant.name, s.scenario.name, anticipation))
     opts = TrialOptions(scenario=Path(args.scenario).resolve(), out=trial_dir, mode=args.mode,
-                        seed=args.seed, ticks=args.ticks, session=args.session,
+                        seed=args.seed, ticks=args.ticks, max_ticks=args.max_ticks,
+                        session=args.session,
                         port=args.port, barrier_timeout_s=args.barrier_timeout,
                         connect=args.connect or [],
                         viewer=args.viewer, web=args.web,
@@ -112,7 +118,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help="trial folder (default runs/<date>/<participant>/<scenario>_<condition>/)")
     r.add_argument("--mode", choices=["lockstep", "realtime"], default="lockstep")
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    r.add_argument("--ticks", type=int, default=0, help="stop after N ticks (0: when the task ends)")
+    r.add_argument("--ticks", type=int, default=0,
+                   help="run exactly N ticks, even past the task's end (default: until the task ends)")
+    r.add_argument("--max-ticks", type=int, default=0,
+                   help="stop after N ticks at the latest; the task's end stops it earlier")
     r.add_argument("--viewer", action="store_true", help="spawn the rerun viewer live")
     r.add_argument("--web", action="store_true", help="serve the rerun web viewer")
     r.add_argument("--record", default=None, help="record the participant's input to FILE (JSONL)")

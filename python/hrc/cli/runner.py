@@ -37,7 +37,8 @@ class TrialOptions:
     out: Path | None = None
     mode: str = "lockstep"
     seed: int | None = None
-    ticks: int = 0
+    ticks: int = 0  # > 0: run exactly this many ticks, even past the task's end
+    max_ticks: int = 0  # > 0: stop here at the latest (the task's end stops it earlier)
     session: str | None = None
     port: int = 0
     barrier_timeout_s: float = 10.0
@@ -151,7 +152,7 @@ def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_d
         # (peer-to-peer links would form later, by gossip, and could miss the first messages).
         argv = py + ["hrc_physics", *common, "--zenoh-mode", "router", "--listen", endpoint,
                      "--clock", opts.mode,
-                     "--ticks", str(opts.ticks), "--barrier-timeout", str(opts.barrier_timeout_s),
+                     "--ticks", str(opts.ticks or opts.max_ticks), "--barrier-timeout", str(opts.barrier_timeout_s),
                      "--start-timeout", str(opts.start_timeout_s)]
         return argv + extra
     connect = ["--connect", endpoint, "--zenoh-mode", "client"]
@@ -162,6 +163,8 @@ def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_d
                      "--out", str(trial_dir)]
         if opts.seed is not None:
             argv += ["--seed", str(opts.seed)]
+        if opts.ticks:
+            argv.append("--keep-running")
         return argv + extra
     if name == "human_input":
         argv = py + ["hrc_human_input", *common, *connect]

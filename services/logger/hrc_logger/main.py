@@ -8,6 +8,7 @@ Writes into the trial folder (``--out``): ``log.txt`` (thesis style), ``events.j
 from __future__ import annotations
 
 import argparse
+import os
 import logging
 import signal
 from pathlib import Path
@@ -37,6 +38,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     add_bus_arguments(p)
     p.add_argument("--out", required=True, help="trial folder (created if missing)")
+    p.add_argument("--nice", type=int, default=10,
+                   help="scheduling niceness added to this observer (default 10; 0 keeps it)")
     p.add_argument("--viewer", action="store_true", help="also stream to a spawned native rerun viewer")
     p.add_argument("--viewer-port", type=int, default=9876, help="port of the spawned viewer (default 9876)")
     p.add_argument("--web", action="store_true",
@@ -88,6 +91,10 @@ def stats_dict(obs: Observer, rec: TrialRecorder, view: View, bus: Bus, handler_
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     setup_logging(NAME, args.log_level)
+    if args.nice:
+        # An observer must never slow the co-simulation down: let the barrier's participants
+        # have the CPU first. Its lag behind the clock is measured and reported instead.
+        os.nice(args.nice)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     handler_errors = 0

@@ -34,6 +34,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     p.add_argument("--metrics-every", type=float, default=1.0, metavar="S",
                    help="publish interim metrics every S seconds of task time (0: only final)")
+    p.add_argument("--keep-running", action="store_true",
+                   help="do not ask the clock to stop when the task finishes (fixed-length runs)")
     p.add_argument("--no-reach-check", action="store_true",
                    help="skip the reach check when loading the scenario")
     p.add_argument("--log-level", default=None)
@@ -80,6 +82,7 @@ class Service:
         self.seed = int(spb.info.seed)
         self.task = Task(scenario)
         self.metrics_every_s = metrics_every_s
+        self.keep_running = False  # fixed-length runs: no stop request at the task's end
         self._next_metrics = metrics_every_s
         self._pending = Inputs()
         self._stop_sent = False
@@ -141,8 +144,9 @@ class Service:
         if out.stop and not self._stop_sent:
             self._stop_sent = True
             self.metrics_pub.put(metrics.to_proto(metrics.build(self.task, self.seed), True), k, t)
-            self.control_pub.put(pb.RunControl(command=pb.RunControl.COMMAND_STOP,
-                                               reason=out.stop), k, t)
+            if not self.keep_running:
+                self.control_pub.put(pb.RunControl(command=pb.RunControl.COMMAND_STOP,
+                                                   reason=out.stop), k, t)
 
     # ------------------------------------------------------------------ the end
     def finish(self, run_end: pb.RunEnd | None, out_dir: Path | None, reason: str = "") -> None:
@@ -185,6 +189,7 @@ def main(argv: list[str] | None = None) -> int:
         spb.header.sender = NAME
         bus.queryable(bus.keys.scenario(), None, lambda _req: spb)
         service = Service(bus, scenario, spb, args.metrics_every)
+        service.keep_running = args.keep_running
         service.part.start()
         log.info("serving scenario %r (seed %d, policy %s, anticipation %s)", spb.info.name,
                  spb.info.seed, spb.conditions.safety_policy, spb.conditions.anticipation)

@@ -74,7 +74,7 @@ struct Reply {
 
 struct PublisherOptions {
   bool congestion_block = true;  // reliable: block rather than drop when queues are full
-  bool express = false;          // true: no batching (latency over throughput)
+  bool express = true;           // no batching: every tick waits on these (latency first)
 };
 
 /// True if the key expressions intersect; throws BusError if either is invalid.
