@@ -155,7 +155,8 @@ class Trial:
 def trial_factory(tmp_path: Path, ik_bin: Path) -> Iterator:
     trials: list[Trial] = []
 
-    def make(scenario: str | Path = ROOT / "scenarios" / "empty.toml", ticks: int = 0,
+    # --ticks is an exact length: a huge one keeps the trial going until the test stops it
+    def make(scenario: str | Path = ROOT / "scenarios" / "empty.toml", ticks: int = 10**9,
              extra: list[str] = (), name: str = "trial") -> Trial:
         t = Trial(scenario, tmp_path / name, ticks, list(extra))
         trials.append(t)

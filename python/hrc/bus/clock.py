@@ -82,7 +82,11 @@ class ClockMaster:
     def start(self) -> None:
         keys = self.bus.keys
         self.bus.subscribe(keys.clock_acks(), pb.TickAck, self._on_ack)
-        self.bus.subscribe(keys.run_control(), pb.RunControl, self._on_control)
+        # A stop takes effect at a tick boundary fixed by the tick it was sent in (through the
+        # inbox, like any input), so the run's length is the same on every machine. An abort is
+        # also seen at once, so a stuck barrier can be broken.
+        self.inbox.add(keys.run_control(), pb.RunControl, self._on_control)
+        self.bus.subscribe(keys.run_control(), pb.RunControl, self._on_abort)
         self.bus.watch_liveliness(self._on_liveliness)
         self.bus.serve_stats()
         self.bus.declare_token()
@@ -103,6 +107,10 @@ class ClockMaster:
                 if m.seq > self._marks.get(mk, 0):
                     self._marks[mk] = m.seq
             self._cond.notify_all()
+
+    def _on_abort(self, key: str, ctl: pb.RunControl) -> None:
+        if ctl.command == pb.RunControl.COMMAND_ABORT:
+            self._on_control(key, ctl)
 
     def _on_control(self, _key: str, ctl: pb.RunControl) -> None:
         with self._cond:

@@ -91,7 +91,7 @@ def robot_unreachable(t: float, robot: str, detail: str) -> pb.TaskEvent:
 
 def human_finished(t: float, idle_s: float) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_HUMAN_FINISHED, t,
-                f"human - task FINISHED. Idle (hands outside the workspace) {fmt_t(idle_s)} sec.",
+                f"Human - task FINISHED. Idle (hands outside the workspace) {fmt_t(idle_s)} sec.",
                 agent="human", value=t, numbers={"idle_s": idle_s})
 
 

@@ -124,6 +124,12 @@ class Service:
         self._publish(out, k, t)
 
     def _publish(self, out: Outputs, k: int, t: float) -> None:
+        # Events first: what happened this tick, then what is done about it.
+        for event in out.events:
+            # One parseable line per event (tests and people read the service log too).
+            log.info("event %s | %s", pb.TaskEventKind.Name(event.kind).removeprefix(
+                "TASK_EVENT_KIND_"), event.text)
+            self.events_pub.put(event, k, t)
         for cmd in out.robot_commands:
             log.info("command %s #%d %s (%.4f, %.4f, %.4f)", cmd.robot, cmd.command_id,
                      pb.RobotCommand.Kind.Name(cmd.kind).removeprefix("KIND_"), cmd.target.x,
@@ -131,11 +137,6 @@ class Service:
             self.cmd_pubs[cmd.robot].put(cmd, k, t)
         if out.world_commands:
             self.world_pub.put(pb.WorldCommands(commands=out.world_commands), k, t)
-        for event in out.events:
-            # One parseable line per event (tests and people read the service log too).
-            log.info("event %s | %s", pb.TaskEventKind.Name(event.kind).removeprefix(
-                "TASK_EVENT_KIND_"), event.text)
-            self.events_pub.put(event, k, t)
         if out.cues:
             self.cues_pub.put(pb.Indicators(cues=out.cues), k, t)
         if self.task.running and self.metrics_every_s > 0 and self.task.now() >= self._next_metrics:
