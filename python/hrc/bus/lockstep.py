@@ -100,6 +100,10 @@ class LockstepParticipant:
                 self._cond.notify_all()
                 return
             self._busy = True
+        self._process_claimed(tick)
+
+    def _process_claimed(self, tick: pb.ClockTick) -> None:
+        """Computes a tick this thread claimed (``_busy`` set) and releases the claim."""
         try:
             self._process(tick)
         finally:
@@ -143,11 +147,7 @@ class LockstepParticipant:
                     return Outcome(False, f"no clock tick within {timeout:g} s")
                 tick = self._ticks.popleft()
                 self._busy = True
-            try:
-                self._process(tick)
-            finally:
-                with self._cond:
-                    self._busy = False
+            self._process_claimed(tick)
 
     def _process(self, tick: pb.ClockTick) -> None:
         k = tick.header.tick
