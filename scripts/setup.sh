@@ -52,6 +52,7 @@ APT_PACKAGES=(
   protobuf-compiler libprotobuf-dev libgtest-dev
   python3 python3-venv python3-dev
   git ca-certificates
+  chromium  # headless, for the VR page test (services/human_input serves a WebXR page)
 )
 
 # --help prints the comment block at the top of this file.
