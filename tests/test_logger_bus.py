@@ -26,6 +26,17 @@ from hrc_logger.synthetic import ROLES, Outgoing, SyntheticTrial
 
 from .conftest import HRC, ROOT, free_port, wait_until
 
+
+def read_with_dataframe_api(rrd: Path):  # noqa: ANN201 - a pyarrow.Table
+    """The recording through rerun's own dataframe API (0.41: a local catalog server and a
+    DataFusion reader indexed by the tick timeline)."""
+    import rerun as rr
+
+    with rr.server.Server(host="127.0.0.1", port=free_port(),
+                          datasets={"trial": [str(rrd)]}) as server:
+        client = server.client()  # must outlive the reader's materialisation
+        return client.get_dataset("trial").reader(index="tick").to_arrow_table()
+
 pytestmark = pytest.mark.slow
 
 THESIS = ROOT / "scenarios" / "thesis.toml"
@@ -230,8 +241,22 @@ def test_full_thesis_trial_logger_outputs(tmp_path: Path) -> None:
     kinds = Counter(r["kind"] for r in records if r["type"] == "event")
     assert kinds["COLLISION"] == col["human_robot_count"]
     assert kinds["NEAR_COLLISION"] == col["near_count"]
-    s = summarize(out / "recording.rrd")
+    # rerun's own reader: joint transforms of both robots over the whole trial, parts, cues
+    import pyarrow.compute as pc
+
+    table = read_with_dataframe_api(out / "recording.rrd")
+    cols = table.column_names
     ticks = metrics["run"]["ticks"]
+    for rid in metrics["robots"]:
+        for j in ("j1_base_yaw", "j5_wrist_roll"):
+            col = f"/robot_{rid}/joints/{j}:Transform3D:quaternion"
+            assert col in cols, col
+            seen = pc.filter(table.column("tick"), pc.is_valid(table.column(col)))
+            assert pc.min(seen).as_py() <= 1 and pc.max(seen).as_py() >= ticks - 2, (col, seen)
+    for pid in metrics["parts"]:
+        assert any(c.startswith(f"/world/parts/{pid}:") for c in cols), pid
+    assert any(c.startswith("/world/cues/") for c in cols)
+    s = summarize(out / "recording.rrd")
     for rid in metrics["robots"]:
         e = s[f"/robot_{rid}/joints/j1_base_yaw"]
         assert e.first_tick is not None and e.first_tick <= 1 and e.last_tick >= ticks - 2, (rid, e.first_tick, e.last_tick)
