@@ -156,6 +156,8 @@ class ClockMaster:
         # Acks are express (unbatched) and may overtake the outputs they vouch for; each ack
         # lists what its sender published, so wait for those messages too.
         with self._cond:
+            if self._stop is not None and not self._stop[0]:
+                return  # aborting: nothing more to wait for
             marks = [pb.PublishedMark(key=key, sender=sender, seq=seq)
                      for (key, sender), seq in self._marks.items()]
         if deadline is None:
