@@ -60,7 +60,11 @@ def _cmd_run(args: argparse.Namespace) -> int:
                         record=Path(args.record).resolve() if args.record else None,
                         replay=Path(args.replay).resolve() if args.replay else None)
     print(f"trial {s.scenario.name!r} ({args.mode}) -> {trial_dir}", flush=True)
-    result = run_trial(opts, trial_dir)
+    try:
+        result = run_trial(opts, trial_dir)
+    except KeyboardInterrupt:  # run_trial has stopped the services on its way out
+        print(f"trial interrupted; files so far in {trial_dir}", file=sys.stderr)
+        return 130
     if not result.ok:
         print(f"trial FAILED: {result.message}", file=sys.stderr)
         return result.exit_code

@@ -201,7 +201,7 @@ class _EndWatcher:
         self.bus.close()
 
 
-def run_trial(opts: TrialOptions, trial_dir: Path, participant_name: str = "") -> TrialResult:
+def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     session = opts.session or f"t{uuid.uuid4().hex[:10]}"
     port = opts.port or free_port()
     ik = ik_binary()
