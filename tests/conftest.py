@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -15,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from hrc.bus import Bus, BusConfig
+from hrc.cli.runner import free_port  # noqa: F401 - tests import it from here
 from hrc.paths import ik_binary, project_root
 from hrc.wire import pb
 
@@ -29,10 +29,6 @@ SERVICE_MARKERS = {
 }
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def wait_until(pred, timeout: float = 10.0, step: float = 0.02) -> bool:

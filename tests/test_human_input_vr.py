@@ -22,6 +22,7 @@ from pathlib import Path
 import pytest
 from websockets.sync.client import connect
 
+from hrc.cli.runner import free_port
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings
 from hrc.paths import project_root
@@ -30,11 +31,6 @@ from hrc.wire import pb
 ROOT = project_root()
 pytestmark = pytest.mark.slow
 
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @dataclass

@@ -9,7 +9,6 @@ the final metrics are published.
 from __future__ import annotations
 
 import json
-import socket
 import subprocess
 import sys
 import threading
@@ -18,6 +17,7 @@ from pathlib import Path
 
 import pytest
 
+from hrc.cli.runner import free_port
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings, LockstepParticipant
 from hrc.wire import pb
@@ -28,11 +28,6 @@ from orch_fakes import FakeRobot  # noqa: E402
 
 pytestmark = pytest.mark.slow
 
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 class FakeWorld:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import socket
 import time
 import uuid
 from collections.abc import Iterator
@@ -10,12 +9,9 @@ from collections.abc import Iterator
 import pytest
 
 from hrc.bus import Bus, BusConfig
+from hrc.cli.runner import free_port  # noqa: F401 - tests import it from here
 
 
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 @pytest.fixture
