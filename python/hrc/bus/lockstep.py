@@ -37,6 +37,22 @@ class Outcome:
         return 0 if self.ok else 1
 
 
+def watch_clock_master(bus: Bus, on_lost: Callable[[Outcome], None]) -> None:
+    """Calls ``on_lost`` when the clock master's token, once seen, disappears."""
+    seen = False
+
+    def on_change(service: str, alive: bool) -> None:
+        nonlocal seen
+        if service != CLOCK_MASTER:
+            return
+        if alive:
+            seen = True
+        elif seen:
+            on_lost(Outcome(False, f"the clock master '{CLOCK_MASTER}' disappeared"))
+
+    bus.watch_liveliness(on_change)
+
+
 class LockstepParticipant:
     """Takes part in the clock barrier (``ack=True``) or just follows it (observers).
 
@@ -60,7 +76,6 @@ class LockstepParticipant:
         self._last_clock_rx = 0.0
         self._running = False
         self._end: Outcome | None = None
-        self._physics_seen = False
         self.last_tick: pb.ClockTick | None = None
         self._ack_pub = None
 
@@ -78,7 +93,7 @@ class LockstepParticipant:
             self._ack_pub = self.bus.publisher(keys.clock_ack(self.name), express=True)
         self.bus.subscribe(keys.clock(), pb.ClockTick, self._on_clock)
         self.bus.subscribe(keys.run_end(), pb.RunEnd, self._on_run_end)
-        self.bus.watch_liveliness(self._on_liveliness)
+        watch_clock_master(self.bus, self._finish)
         self.bus.serve_stats()
         self.bus.declare_token()
 
@@ -113,14 +128,6 @@ class LockstepParticipant:
 
     def _on_run_end(self, _key: str, end: pb.RunEnd) -> None:
         self._finish(Outcome(end.ok, end.reason, end))
-
-    def _on_liveliness(self, service: str, alive: bool) -> None:
-        if service != CLOCK_MASTER:
-            return
-        if alive:
-            self._physics_seen = True
-        elif self._physics_seen:
-            self._finish(Outcome(False, f"the clock master '{CLOCK_MASTER}' disappeared"))
 
     def _finish(self, outcome: Outcome) -> None:
         with self._cond:

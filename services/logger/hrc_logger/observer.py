@@ -23,7 +23,7 @@ from typing import Callable
 
 from google.protobuf.message import Message
 
-from hrc.bus import CLOCK_MASTER, Bus, Inbox, Outcome
+from hrc.bus import CLOCK_MASTER, Bus, Inbox, Outcome, watch_clock_master
 from hrc.wire import pb
 
 from hrc_logger.sequence import SeqChecker
@@ -74,7 +74,6 @@ class Observer:
         self._ticks: deque[tuple[pb.ClockTick, float]] = deque()
         self._latest_seen = -1
         self._end: Outcome | None = None
-        self._physics_seen = False
         self._step: Callable[[pb.ClockTick], None] | None = None
         self._hurry = False  # stop waiting for inputs (terminated, or the run failed)
 
@@ -97,7 +96,7 @@ class Observer:
         keys = self.bus.keys
         self.bus.subscribe(keys.clock(), pb.ClockTick, self._on_clock)
         self.bus.subscribe(keys.run_end(), pb.RunEnd, self._on_run_end)
-        self.bus.watch_liveliness(self._on_liveliness)
+        watch_clock_master(self.bus, self.stop)
         self.bus.serve_stats()
         self.bus.declare_token()
 
@@ -111,14 +110,6 @@ class Observer:
 
     def _on_run_end(self, _key: str, end: pb.RunEnd) -> None:
         self.stop(Outcome(end.ok, end.reason, end))
-
-    def _on_liveliness(self, service: str, alive: bool) -> None:
-        if service != CLOCK_MASTER:
-            return
-        if alive:
-            self._physics_seen = True
-        elif self._physics_seen:
-            self.stop(Outcome(False, f"the clock master '{CLOCK_MASTER}' disappeared"))
 
     def stop(self, outcome: Outcome, hurry: bool = False) -> None:
         """Ends the run (first outcome wins); safe from any thread or a signal handler.

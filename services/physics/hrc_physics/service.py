@@ -62,36 +62,19 @@ class PhysicsService:
         self.world.close()
 
     def register_inputs(self, clock: ClockMaster) -> None:
-        # Validation happens in the handlers, not in the bus: a message the bus drops never
-        # reaches the inbox, so the clock would wait forever for the seq its sender's ack lists.
         keys = self.bus.keys
-        clock.input(keys.robot_states(), pb.RobotState, self._on_robot_state)
-        clock.input(keys.human_state(), pb.HumanState, self._on_human)
+        clock.input(keys.robot_states(), pb.RobotState, self._on_robot_state, validate=_robot_ok)
+        clock.input(keys.human_state(), pb.HumanState, self._on_human, validate=_human_ok)
         clock.input(keys.world_commands(), pb.WorldCommands, self._on_world_commands)
 
-    def _malformed(self, key: str, msg, problem: str) -> None:
-        n = self.bus.stats.count_error(key)
-        log.warning("malformed message #%d on %s from sender %r: %s", n, key, msg.header.sender,
-                    problem)
-
     def _on_robot_state(self, key: str, msg: pb.RobotState) -> None:
-        problem = _robot_ok(msg)
-        if problem:
-            self._malformed(key, msg, problem)
-            return
         robot = msg.robot or self.bus.keys.robot_of(key)
         try:
             self.world.set_robot_state(robot, list(msg.joint_names), list(msg.joint_positions))
         except CommandRejected as exc:
-            n = self.bus.stats.count_error(key)
-            log.warning("robot state #%d on %s from %r rejected: %s", n, key, msg.header.sender,
-                        exc)
+            self.bus.reject(key, msg.header.sender, f"robot state rejected: {exc}")
 
-    def _on_human(self, key: str, msg: pb.HumanState) -> None:
-        problem = _human_ok(msg)
-        if problem:
-            self._malformed(key, msg, problem)
-            return
+    def _on_human(self, _key: str, msg: pb.HumanState) -> None:
         self.world.set_human(msg)
 
     def _on_world_commands(self, _key: str, msg: pb.WorldCommands) -> None:
