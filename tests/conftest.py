@@ -10,6 +10,7 @@ import time
 import uuid
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -29,6 +30,16 @@ SERVICE_MARKERS = {
 }
 
 
+
+
+def strip_fields(obj: Any, fields: set[str]) -> Any:
+    """``obj`` without the keys in ``fields`` at any depth (wall-clock fields, which legitimately
+    differ between two runs of the same trial)."""
+    if isinstance(obj, dict):
+        return {k: strip_fields(v, fields) for k, v in obj.items() if k not in fields}
+    if isinstance(obj, list):
+        return [strip_fields(v, fields) for v in obj]
+    return obj
 
 
 def wait_until(pred, timeout: float = 10.0, step: float = 0.02) -> bool:

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from .conftest import HRC, ROOT
+from .conftest import HRC, ROOT, strip_fields
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
@@ -17,11 +17,7 @@ WALL = {"wall_time", "wall_s", "realtime_factor", "end_reason"}
 
 
 def _strip(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {k: _strip(v) for k, v in obj.items() if k not in WALL}
-    if isinstance(obj, list):
-        return [_strip(v) for v in obj]
-    return obj
+    return strip_fields(obj, WALL)
 
 
 def _run(out: Path, ik_bin: Path) -> tuple[list[dict], dict]:

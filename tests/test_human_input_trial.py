@@ -12,6 +12,8 @@ import pytest
 from hrc.cli.runner import TrialOptions, run_trial
 from hrc.paths import ik_binary, project_root
 
+from .conftest import strip_fields
+
 ROOT = project_root()
 pytestmark = [
     pytest.mark.e2e,
@@ -44,11 +46,7 @@ def events(trial_dir: Path) -> list[dict[str, Any]]:
 
 
 def strip(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {k: strip(v) for k, v in obj.items() if k not in WALL_FIELDS}
-    if isinstance(obj, list):
-        return [strip(v) for v in obj]
-    return obj
+    return strip_fields(obj, WALL_FIELDS)
 
 
 @pytest.mark.parametrize("scenario", ["minimal", "thesis"])

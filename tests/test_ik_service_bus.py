@@ -17,7 +17,6 @@ from __future__ import annotations
 import math
 import subprocess
 import threading
-import time
 import uuid
 import xml.etree.ElementTree as ET
 from collections.abc import Callable, Generator, Iterator
@@ -31,6 +30,8 @@ from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings, LockstepParticip
 from hrc.cli.runner import free_port
 from hrc.paths import ik_binary, project_root
 from hrc.wire import pb
+
+from .conftest import wait_until
 
 pytestmark = pytest.mark.slow
 
@@ -502,8 +503,8 @@ def test_standalone_timer_mode(tmp_path: Path) -> None:
                                  "--standalone-hz", str(hz)],
                                 stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
         try:
-            assert wait_for(lambda: "ik_cpp" in bus.alive_services(0.5), 30), log_path.read_text()
-            assert wait_for(lambda: latest() is not None, 10)
+            assert wait_until(lambda: "ik_cpp" in bus.alive_services(0.5), 30), log_path.read_text()
+            assert wait_until(lambda: latest() is not None, 10)
             target = (0.20, 0.25, 0.25)
             cmd = pb.RobotCommand(robot="r1", command_id=42, kind=pb.RobotCommand.KIND_MOVE,
                                   target=pb.Vec3(x=target[0], y=target[1], z=target[2]))
@@ -512,7 +513,7 @@ def test_standalone_timer_mode(tmp_path: Path) -> None:
             def reached() -> bool:
                 st = latest()
                 return st is not None and st.command_id == 42 and st.status == pb.MOTION_STATUS_REACHED
-            assert wait_for(reached, 60), f"last state {latest()}"
+            assert wait_until(reached, 60), f"last state {latest()}"
         finally:
             proc.terminate()
             code = proc.wait(10)
@@ -530,15 +531,6 @@ def test_standalone_timer_mode(tmp_path: Path) -> None:
         assert math.dist(vec(a.tcp.position), vec(b.tcp.position)) * hz <= 0.5 * SPEED_TOL
     text = log_path.read_text()
     assert "standalone run ended" in text and "per-tick compute" in text, text
-
-
-def wait_for(pred: Callable[[], bool], timeout: float, step: float = 0.01) -> bool:
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if pred():
-            return True
-        time.sleep(step)
-    return bool(pred())
 
 
 def test_bench_ik_passes_json_through(capsys: pytest.CaptureFixture[str]) -> None:
