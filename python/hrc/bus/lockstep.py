@@ -115,12 +115,12 @@ class LockstepParticipant:
                 self._cond.notify_all()
                 return
             self._busy = True
-        self._process_claimed(tick)
+        self._process_claimed(tick, inputs_ready=True)
 
-    def _process_claimed(self, tick: pb.ClockTick) -> None:
+    def _process_claimed(self, tick: pb.ClockTick, inputs_ready: bool = False) -> None:
         """Computes a tick this thread claimed (``_busy`` set) and releases the claim."""
         try:
-            self._process(tick)
+            self._process(tick, inputs_ready)
         finally:
             with self._cond:
                 self._busy = False
@@ -156,11 +156,12 @@ class LockstepParticipant:
                 self._busy = True
             self._process_claimed(tick)
 
-    def _process(self, tick: pb.ClockTick) -> None:
+    def _process(self, tick: pb.ClockTick, inputs_ready: bool = False) -> None:
+        """``inputs_ready``: the caller has just checked that nothing the tick lists is missing."""
         k = tick.header.tick
         tw = time.perf_counter()
         self._lag_s += tw - self._last_clock_rx
-        if tick.mode == pb.CLOCK_MODE_LOCKSTEP:
+        if tick.mode == pb.CLOCK_MODE_LOCKSTEP and not inputs_ready:
             missing = self.inbox.wait_for(list(tick.published), self.input_timeout_s)
             if missing:
                 names = ", ".join(f"{m.key}#{m.seq} from {m.sender}" for m in missing)
