@@ -55,7 +55,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
                         seed=args.seed, ticks=args.ticks, max_ticks=args.max_ticks,
                         session=args.session,
                         port=args.port, barrier_timeout_s=args.barrier_timeout,
-                        connect=args.connect or [],
+                        connect=args.connect or [], validated=True,
                         viewer=args.viewer, web=args.web,
                         record=Path(args.record).resolve() if args.record else None,
                         replay=Path(args.replay).resolve() if args.replay else None)

@@ -49,6 +49,7 @@ class TrialOptions:
     record: Path | None = None
     replay: Path | None = None
     connect: list[str] = field(default_factory=list)  # extra endpoints for every service (router)
+    validated: bool = False  # the scenario file was fully checked (reach included) just before
     extra: dict[str, list[str]] = field(default_factory=dict)  # per-service extra arguments
 
 
@@ -187,6 +188,8 @@ def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_d
     if name == "orchestrator":
         argv = py + ["hrc_orchestrator", *common, *connect, "--scenario", str(opts.scenario),
                      "--out", str(trial_dir)]
+        if opts.validated:
+            argv.append("--no-reach-check")  # the CLI has just checked this very file
         if opts.seed is not None:
             argv += ["--seed", str(opts.seed)]
         if opts.ticks:
