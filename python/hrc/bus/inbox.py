@@ -9,6 +9,7 @@ any machine at any load.
 
 from __future__ import annotations
 
+import heapq
 import threading
 import time
 from dataclasses import dataclass, field
@@ -41,7 +42,10 @@ class Inbox:
         self._cond = threading.Condition()
         self._handlers: list[Handler] = []
         self._exprs: list[zenoh.KeyExpr] = []
-        self._pending: list[_Pending] = []
+        # Pending messages by tick, and a heap of those ticks: delivery takes the oldest ticks
+        # without scanning everything held (an observer running behind holds thousands).
+        self._pending: dict[int, list[_Pending]] = {}
+        self._pending_ticks: list[int] = []
         self._received: dict[tuple[str, str], int] = {}
         self._matches: dict[str, bool] = {}
 
@@ -58,7 +62,11 @@ class Inbox:
             problem = validate(msg) if validate is not None else None
             with self._cond:
                 if problem is None:
-                    self._pending.append(_Pending(index, k, h.sender, h.seq, h.tick, msg))
+                    bucket = self._pending.get(h.tick)
+                    if bucket is None:
+                        bucket = self._pending[h.tick] = []
+                        heapq.heappush(self._pending_ticks, h.tick)
+                    bucket.append(_Pending(index, k, h.sender, h.seq, h.tick, msg))
                 mark = (k, h.sender)
                 if h.seq > self._received.get(mark, 0):
                     self._received[mark] = h.seq
@@ -99,14 +107,19 @@ class Inbox:
     def deliver(self, upto_tick: int, master: str | None = None) -> int:
         """Hands every message of ticks < ``upto_tick`` to its handler (plus the clock master's of
         tick ``upto_tick`` when ``master`` is given), in deterministic order. Returns the count."""
+        ready: list[_Pending] = []
         with self._cond:
-            ready = [p for p in self._pending
-                     if p.tick < upto_tick or (p.tick == upto_tick and p.sender == master)]
-            if not ready:
-                return 0
-            keep = [p for p in self._pending
-                    if not (p.tick < upto_tick or (p.tick == upto_tick and p.sender == master))]
-            self._pending = keep
+            heap = self._pending_ticks
+            while heap and heap[0] < upto_tick:
+                ready.extend(self._pending.pop(heapq.heappop(heap)))
+            if master is not None and upto_tick in self._pending:
+                bucket = self._pending[upto_tick]
+                ready.extend(p for p in bucket if p.sender == master)
+                # The others' messages of this tick stay (the bucket, maybe empty, stays in the
+                # heap until the tick is passed).
+                self._pending[upto_tick] = [p for p in bucket if p.sender != master]
+        if not ready:
+            return 0
         ready.sort()
         for p in ready:
             self._handlers[p.index](p.key, p.msg)
