@@ -75,6 +75,7 @@ class Publisher(Generic[M]):
         self.key = key
         self._bus = bus
         self.seq = 0
+        self.reported = 0  # the seq last listed by Bus.new_marks
         self._lock = threading.Lock()
         self._pub = bus.session.declare_publisher(
             key,
@@ -155,6 +156,19 @@ class Bus:
         return [pb.PublishedMark(key=k, sender=self.sender, seq=p.seq)
                 for k, p in self._publishers.items() if p.seq > 0]
 
+    def new_marks(self, exclude: str = "") -> list[pb.PublishedMark]:
+        """The marks that moved since the previous call (keys other than ``exclude``).
+
+        Tick-protocol messages list only these: a receiver keeps the highest seq per key and
+        sender, so repeating an unchanged mark every tick would only cost decoding.
+        """
+        out = []
+        for k, p in self._publishers.items():
+            if p.seq > p.reported and k != exclude:
+                p.reported = p.seq
+                out.append(pb.PublishedMark(key=k, sender=self.sender, seq=p.seq))
+        return out
+
     # ------------------------------------------------------------------ subscribe
     def subscribe(self, key: str, msg_type: type[M], callback: Callable[[str, M], None],
                   validate: Validator | None = None) -> None:
@@ -188,7 +202,10 @@ class Bus:
             except Exception:
                 log.exception("handler for %s failed", k)
 
-        self._declared.append(self.session.declare_subscriber(key, on_sample))
+        import os
+        direct = os.environ.get("HRC_DIRECT", "")
+        ind = not (direct and direct in key)
+        self._declared.append(self.session.declare_subscriber(key, zenoh.handlers.Callback(on_sample, indirect=ind)))
 
     def _malformed(self, key: str, sample: zenoh.Sample, problem: str) -> None:
         att = sample.attachment

@@ -62,9 +62,23 @@ class ClockMaster:
         self.settings = settings
         self.dt = 1.0 / settings.tick_hz
         self.inbox = Inbox(bus)
-        self._cond = threading.Condition()
+        self._cond = threading.Condition(threading.Lock())
         self._acked: dict[str, int] = {p: -1 for p in settings.participants}
-        self._marks: dict[tuple[str, str], int] = {}
+        self._marks: dict[tuple[str, str], int] = {}  # highest seq acked per (key, sender)
+        self._fresh: dict[tuple[str, str], int] = {}  # marks that moved since the last barrier
+        self._announce: dict[tuple[str, str], int] = {}  # ... not yet listed by a clock tick
+        self._barrier_tick = 0  # the tick whose acks are awaited
+        # The lockstep transition (apply k, step, publish k + 1) runs on whichever thread claims
+        # it: the ack thread inline, or the run() thread. See run().
+        self._inline = False
+        self._claimed = False
+        self._ending: tuple[bool, str] | None = None
+        self._crash: BaseException | None = None
+        self._published_at = time.perf_counter()
+        self.ticks_done = 0
+        self._mode = MODES[settings.mode]
+        self._publish_world: Callable[[int, float], None] = lambda k, t: None
+        self._step_world: Callable[[int, float], None] = lambda k, t: None
         self._alive: set[str] = set()
         self._lost: list[str] = []
         self._stop: tuple[bool, str] | None = None
@@ -94,6 +108,7 @@ class ClockMaster:
     # ------------------------------------------------------------------ zenoh threads
     def _on_ack(self, key: str, ack: pb.TickAck) -> None:
         name = self.bus.keys.last_segment(key)
+        inline = False
         with self._cond:
             if name not in self._acked:
                 log.warning("ack from %r, which is not a participant of this run", name)
@@ -105,8 +120,15 @@ class ClockMaster:
             for m in ack.published:
                 mk = (m.key, m.sender)
                 if m.seq > self._marks.get(mk, 0):
-                    self._marks[mk] = m.seq
-            self._cond.notify_all()
+                    self._marks[mk] = self._fresh[mk] = m.seq
+            # The last ack of the barrier: run the transition right here if nothing is missing
+            # (saves waking the run() thread), else wake it. Earlier acks wake nobody.
+            if all(t >= self._barrier_tick for t in self._acked.values()):
+                inline = self._try_inline()
+                if not inline:
+                    self._cond.notify_all()
+        if inline:
+            self._transition()
 
     def _on_abort(self, key: str, ctl: pb.RunControl) -> None:
         if ctl.command == pb.RunControl.COMMAND_ABORT:
@@ -158,8 +180,7 @@ class ClockMaster:
         with self._cond:
             if self._stop is not None and not self._stop[0]:
                 return  # aborting: nothing more to wait for
-            marks = [pb.PublishedMark(key=key, sender=sender, seq=seq)
-                     for (key, sender), seq in self._marks.items()]
+            marks = self._take_fresh()
         if deadline is None:
             missing = self.inbox.wait_for(marks, self.settings.barrier_timeout_s)
             if missing:
@@ -169,6 +190,13 @@ class ClockMaster:
                                 m.sender)
         else:  # realtime: whatever is late is applied with the next tick
             self.inbox.wait_for(marks, max(0.0, deadline - time.monotonic()))
+
+    def _take_fresh(self) -> list[pb.PublishedMark]:
+        """The marks acked since the last barrier (to wait for, and to announce). Under the lock."""
+        fresh, self._fresh = self._fresh, {}
+        self._announce.update(fresh)
+        return [pb.PublishedMark(key=key, sender=sender, seq=seq)
+                for (key, sender), seq in fresh.items()]
 
     def _await_acks(self, k: int, deadline: float | None) -> None:
         parts = self.settings.participants
@@ -195,58 +223,172 @@ class ClockMaster:
                     return
                 self._cond.wait(wait)
 
+    # ------------------------------------------------------------------ one tick's two halves
+    def _publish_tick(self, k: int) -> None:
+        """World state of k, then clock tick k (the participants' cue to compute k)."""
+        sim = k * self.dt
+        ta = time.perf_counter()
+        self._publish_world(k, sim)
+        tick = pb.ClockTick(mode=self._mode, dt=self.dt, participants=self.settings.participants)
+        # Only what moved since the previous clock tick (see Bus.new_marks).
+        tick.published.extend(pb.PublishedMark(key=key, sender=snd, seq=seq)
+                              for (key, snd), seq in self._announce.items())
+        self._announce.clear()
+        tick.published.extend(self.bus.new_marks(exclude=self._clock_pub.key))
+        with self._cond:
+            self._barrier_tick = k  # before the put: acks of k may come back at once
+        self._clock_pub.put(tick, k, sim)
+        self._published_at = tb = time.perf_counter()
+        self._own_s["publish"] += tb - ta
+
+    def _apply_tick(self, k: int) -> tuple[bool, str] | None:
+        """After the barrier of k: apply the outputs of k and step. Returns how the run ends
+        (ok, reason) if it ends after k, else None."""
+        tc = time.perf_counter()
+        self._own_s["barrier"] += tc - self._published_at
+        self.inbox.deliver_through(k)
+        self._step_world(k, k * self.dt)
+        self.ticks_done = k + 1
+        self._own_s["step"] += time.perf_counter() - tc
+        with self._cond:
+            stop = self._stop
+        if stop is not None:
+            return stop
+        if self.settings.ticks and k + 1 >= self.settings.ticks:
+            return (True, "ticks")
+        return None
+
+    # ------------------------------------------------------------------ lockstep
+    def _try_inline(self) -> bool:
+        """Under the lock, on the ack thread: may this thread run the tick transition itself?
+        Only when every ack and every output they list is here (nothing to wait for); it then
+        claims the transition and takes the fresh marks. Otherwise run() must do it (and wait)."""
+        if (not self._inline or self._claimed or self._ending is not None
+                or self._lost or self._stop is not None):
+            return False
+        k = self._barrier_tick
+        if any(t < k for t in self._acked.values()):
+            return False
+        wanted = [pb.PublishedMark(key=key, sender=sender, seq=seq)
+                  for (key, sender), seq in self._fresh.items()]
+        if wanted and self.inbox.missing(wanted):
+            return False
+        self._take_fresh()
+        self._claimed = True
+        return True
+
+    def _transition(self) -> None:
+        """With the claim held and the barrier of the current tick k complete: applies k,
+        publishes k + 1, and goes on with k + 1 if its barrier is complete too by then. Runs on
+        the ack thread (inline) or on run()'s; one at a time. Errors reach run()."""
+        while True:
+            k = self._barrier_tick
+            try:
+                end = self._apply_tick(k)
+                if end is None:
+                    self._publish_tick(k + 1)
+            except BaseException as exc:  # noqa: BLE001 - raised again by run()
+                with self._cond:
+                    self._crash = exc
+                    self._claimed = False
+                    self._cond.notify_all()
+                return
+            with self._cond:
+                if end is not None and self._ending is None:
+                    self._ending = end
+                self._claimed = False
+                if self._try_inline():  # the acks of k + 1 came back meanwhile
+                    continue
+                # Wake run() only if it has something to do; else the next ack carries on.
+                if (self._ending is not None or self._lost or self._stop is not None
+                        or all(t >= self._barrier_tick for t in self._acked.values())):
+                    self._cond.notify_all()
+                return
+
+    def _run_lockstep(self) -> tuple[bool, str]:
+        """run()'s part: the transitions that could not run inline (outputs still missing),
+        and the watch over timeouts, lost participants and aborts."""
+        s = self.settings
+        self._publish_tick(0)
+        while True:
+            with self._cond:
+                while True:
+                    if self._crash is not None:
+                        raise self._crash
+                    if not self._claimed:
+                        if self._ending is not None:
+                            return self._ending
+                        self._check_lost()
+                        k = self._barrier_tick
+                        aborting = self._stop is not None and not self._stop[0]
+                        if aborting or all(t >= k for t in self._acked.values()):
+                            self._claimed = True
+                            break
+                        waited = time.perf_counter() - self._published_at
+                        if waited >= s.barrier_timeout_s:
+                            late = [p for p in s.participants if self._acked[p] < k]
+                            raise RunFailed(
+                                f"participant '{late[0]}' missed the barrier of tick {k} "
+                                f"(no ack within {s.barrier_timeout_s:g} s)", late[0])
+                        self._cond.wait(s.barrier_timeout_s - waited)
+                    else:
+                        self._cond.wait(s.barrier_timeout_s)
+            try:
+                self._barrier(k, None)  # the acks are in: wait for the outputs they list
+            except BaseException:
+                with self._cond:
+                    self._claimed = False
+                raise
+            self._transition()
+
+    # ------------------------------------------------------------------ realtime
+    def _run_realtime(self, t0: float) -> tuple[bool, str]:
+        """Paced by the wall clock on the run() thread; the barrier's deadline is the next
+        tick's start."""
+        k = 0
+        while True:
+            self._publish_tick(k)
+            self._barrier(k, t0 + (k + 1) * self.dt)
+            end = self._apply_tick(k)
+            if end is not None:
+                return end
+            k += 1
+            pause = t0 + k * self.dt - time.monotonic()
+            if pause > 0:
+                time.sleep(pause)
+
     def run(self, publish_world: Callable[[int, float], None],
             step: Callable[[int, float], None]) -> pb.RunEnd:
-        """Runs the clock to the end and publishes ``run/end``; returns it."""
+        """Runs the clock to the end and publishes ``run/end``; returns it.
+
+        lockstep: the thread that receives the last ack of tick k (or the last output it
+        vouches for) applies k, steps and publishes k + 1 itself, saving a thread hand-off per
+        tick; this thread takes over whenever something must be waited for, and watches the
+        timeouts. realtime: everything on this thread.
+        """
         s = self.settings
-        mode = MODES[s.mode]
-        realtime = s.mode == "realtime"
-        k = 0
+        self._mode = MODES[s.mode]
+        self._publish_world, self._step_world = publish_world, step
         t0 = time.monotonic()
         ok, reason, failed = True, "", ""
         try:
             self.wait_ready()
             t0 = time.monotonic()
-            while True:
-                sim = k * self.dt
-                ta = time.perf_counter()
-                publish_world(k, sim)
-                tick = pb.ClockTick(mode=mode, dt=self.dt, participants=s.participants)
+            if s.mode == "realtime":
+                ok, reason = self._run_realtime(t0)
+            else:
                 with self._cond:
-                    marks = dict(self._marks)
-                for m in self.bus.published_marks():
-                    marks[(m.key, m.sender)] = m.seq
-                tick.published.extend(pb.PublishedMark(key=key, sender=snd, seq=seq)
-                                      for (key, snd), seq in marks.items())
-                self._clock_pub.put(tick, k, sim)
-                tb = time.perf_counter()
-                self._barrier(k, t0 + (k + 1) * self.dt if realtime else None)
-                tc = time.perf_counter()
-                self.inbox.deliver_through(k)
-                step(k, sim)
-                td = time.perf_counter()
-                self._own_s["publish"] += tb - ta
-                self._own_s["barrier"] += tc - tb
-                self._own_s["step"] += td - tc
-                k += 1
-                with self._cond:
-                    stop = self._stop
-                if stop is not None:
-                    ok, reason = stop
-                    break
-                if s.ticks and k >= s.ticks:
-                    reason = "ticks"
-                    break
-                if realtime:
-                    pause = t0 + k * self.dt - time.monotonic()
-                    if pause > 0:
-                        time.sleep(pause)
+                    self._inline = True
+                ok, reason = self._run_lockstep()
         except RunFailed as exc:
             ok, reason, failed = False, exc.reason, exc.participant
             log.error("run failed: %s", reason)
+        finally:
+            self._halt()
+        k = self.ticks_done
         wall = time.monotonic() - t0
         end = pb.RunEnd(ok=ok, reason=reason, failed_participant=failed, ticks=k,
-                        sim_time=k * self.dt, wall_s=wall, mode=mode,
+                        sim_time=k * self.dt, wall_s=wall, mode=self._mode,
                         realtime_factor=(k * self.dt / wall) if wall > 0 else 0.0)
         for p, n in self.misses.items():
             end.deadline_misses[p] = n
@@ -257,6 +399,16 @@ class ClockMaster:
         self._end_pub.put(end, k, k * self.dt)
         self._linger()
         return end
+
+    def _halt(self) -> None:
+        """No tick after this: stop the inline path and wait for a transition under way."""
+        deadline = time.monotonic() + self.settings.barrier_timeout_s
+        with self._cond:
+            self._inline = False
+            if self._ending is None:
+                self._ending = (False, "halted")
+            while self._claimed and time.monotonic() < deadline:
+                self._cond.wait(0.1)
 
     def _linger(self, timeout: float = 3.0) -> None:
         """Stays until the other services have left, so run/end reaches them before we go."""

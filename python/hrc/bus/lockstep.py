@@ -67,7 +67,7 @@ class LockstepParticipant:
         self.input_timeout_s = input_timeout_s
         self.inbox = Inbox(bus)
         self._step: Callable[[pb.ClockTick], None] | None = None
-        self._cond = threading.Condition()
+        self._cond = threading.Condition(threading.Lock())
         self._ticks: deque[pb.ClockTick] = deque()
         self._busy = False  # a tick is being computed (one at a time, whichever thread)
         # where a tick's time goes (reported at the end): hand-off, waiting for inputs, compute
@@ -124,7 +124,8 @@ class LockstepParticipant:
         finally:
             with self._cond:
                 self._busy = False
-                self._cond.notify_all()
+                if self._ticks:  # only a queued tick concerns the run() thread; don't wake it idly
+                    self._cond.notify_all()
 
     def _on_run_end(self, _key: str, end: pb.RunEnd) -> None:
         self._finish(Outcome(end.ok, end.reason, end))
@@ -179,7 +180,6 @@ class LockstepParticipant:
         if self._ack_pub is not None:
             ack = pb.TickAck(participant=self.name,
                              compute_us=int((time.perf_counter() - t0) * 1e6))
-            ack_key = self._ack_pub.key
-            ack.published.extend(m for m in self.bus.published_marks() if m.key != ack_key)
+            ack.published.extend(self.bus.new_marks(exclude=self._ack_pub.key))
             self._ack_pub.put(ack, k, tick.header.sim_time)
         self._compute_s += time.perf_counter() - t0

@@ -126,3 +126,54 @@ def test_a_stop_request_ends_the_run_cleanly(session_id: str) -> None:
         assert end.ticks > 50  # the request is handled at a tick boundary after it arrives
     finally:
         s.close()
+
+
+def test_the_tick_transition_runs_on_the_ack_thread_when_nothing_is_missing(
+        session_id: str) -> None:
+    # Lockstep: whoever receives the last ack of a tick applies it and publishes the next one, so
+    # in a plain run (outputs arrive before the acks that list them) the run() thread only waits.
+    names = ["ik_cpp", "orchestrator", "human_input"]
+    s = Session(session_id, ClockSettings(ticks=200, observers=[]), names)
+    try:
+        _run_participants(s, {})
+        threads: list[str] = []
+        s.clock.start()
+        end = s.clock.run(lambda k, t: None,
+                          lambda k, t: threads.append(threading.current_thread().name))
+        assert end.ok and end.ticks == 200
+        on_main = threads.count(threading.current_thread().name)
+        assert on_main < 20, f"{on_main} of 200 transitions ran on the run() thread"
+    finally:
+        s.close()
+
+
+def test_an_output_acked_before_it_arrives_is_waited_for_and_applied_in_its_tick(
+        session_id: str) -> None:
+    # The ack lists an output that is still on its way (published 20 ms after the ack): the clock
+    # master must not apply the tick without it, whichever thread ends up doing the transition.
+    s = Session(session_id, ClockSettings(ticks=30, participants=["ik_cpp"], observers=[]),
+                ["ik_cpp"])
+    try:
+        bus = s.buses["ik_cpp"]
+        out_key = bus.keys.robot_state("r1")
+        out = bus.publisher(out_key)
+        ack = bus.publisher(bus.keys.clock_ack("ik_cpp"))
+
+        def on_clock(_k: str, tick: pb.ClockTick) -> None:
+            k = tick.header.tick
+            mark = pb.PublishedMark(key=out_key, sender="ik_cpp", seq=out.seq + 1)
+            ack.put(pb.TickAck(participant="ik_cpp", published=[mark]), k)
+            threading.Timer(0.02, lambda: out.put(pb.RobotState(robot="r1"), k)).start()
+
+        bus.subscribe(bus.keys.clock(), pb.ClockTick, on_clock)
+        bus.declare_token()
+        applied: list[int] = []
+        stepped: list[tuple[int, list[int]]] = []
+        s.clock.input(out_key, pb.RobotState, lambda _k, m: applied.append(m.header.tick))
+        s.clock.start()
+        end = s.clock.run(lambda k, t: None, lambda k, t: stepped.append((k, list(applied))))
+        assert end.ok and end.ticks == 30, end.reason
+        for k, seen in stepped:
+            assert seen == list(range(k + 1)), (k, seen)  # tick k's output, and nothing later
+    finally:
+        s.close()

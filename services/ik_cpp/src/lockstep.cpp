@@ -46,8 +46,8 @@ void LockstepParticipant::on_clock(const v1::ClockTick& tick) {
     std::unique_lock<std::mutex> lock(mutex_);
     // Fast path: nothing queued or in progress and every input of the tick is here, so compute
     // right on this zenoh thread (saves a thread hand-off per tick). Otherwise run() takes it.
-    const bool inline_ok = running_ && !busy_ && ticks_.empty() && !end_.has_value() &&
-                           inbox_.missing(marks_of(tick)).empty();
+    const bool inline_ok = options_.inline_ticks && running_ && !busy_ && ticks_.empty() &&
+                           !end_.has_value() && inbox_.missing(marks_of(tick)).empty();
     if (!inline_ok) {
       ticks_.push_back(tick);
       lock.unlock();
@@ -57,11 +57,13 @@ void LockstepParticipant::on_clock(const v1::ClockTick& tick) {
     busy_ = true;
   }
   process(tick);
+  bool queued = false;
   {
     const std::lock_guard<std::mutex> lock(mutex_);
     busy_ = false;
+    queued = !ticks_.empty() || end_.has_value();
   }
-  cond_.notify_all();
+  if (queued) cond_.notify_all();  // only then has run() something to do: don't wake it idly
 }
 
 void LockstepParticipant::on_run_end(const v1::RunEnd& end) {
@@ -176,9 +178,7 @@ void LockstepParticipant::process(const v1::ClockTick& tick) {
       ack.set_participant(name());
       const auto us = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0);
       ack.set_compute_us(static_cast<uint32_t>(std::min<int64_t>(us.count(), UINT32_MAX)));
-      for (auto& m : bus_.published_marks()) {
-        if (m.key() != ack_pub_->key()) *ack.add_published() = std::move(m);
-      }
+      for (auto& m : bus_.new_marks(ack_pub_->key())) *ack.add_published() = std::move(m);
       ack_pub_->put(ack, k, tick.header().sim_time());
     }
   } catch (const std::exception& e) {

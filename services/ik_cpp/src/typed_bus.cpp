@@ -143,6 +143,23 @@ std::vector<v1::PublishedMark> Bus::published_marks() const {
   return marks;
 }
 
+std::vector<v1::PublishedMark> Bus::new_marks(const std::string& exclude) {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<v1::PublishedMark> marks;
+  for (const auto& [key, pub] : publishers_) {
+    const uint64_t seq = pub->seq();
+    uint64_t& reported = reported_[key];
+    if (seq <= reported || key == exclude) continue;
+    reported = seq;
+    v1::PublishedMark m;
+    m.set_key(key);
+    m.set_sender(sender_);
+    m.set_seq(seq);
+    marks.push_back(std::move(m));
+  }
+  return marks;
+}
+
 void Bus::malformed(const SampleView& s, const std::string& problem) {
   const std::string key(s.key);
   const std::string sender = s.attachment.empty() ? std::string("?") : std::string(s.attachment);

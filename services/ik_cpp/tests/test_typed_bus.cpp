@@ -64,6 +64,19 @@ TEST(HeaderSeq, PerKeyStartingAtOneWithSessionTickTimeSender) {
   EXPECT_EQ(marks[0].sender(), "ik_cpp");
   EXPECT_EQ(marks[1].key(), "hrc/seqs/robot/r2/state");
   EXPECT_EQ(marks[1].seq(), 1u);
+
+  // new_marks: what moved since the previous call, without the excluded key.
+  const auto first = bus.new_marks(bus.keys().robot_state("r2"));
+  ASSERT_EQ(first.size(), 1u);
+  EXPECT_EQ(first[0].key(), "hrc/seqs/robot/r1/state");
+  EXPECT_EQ(first[0].seq(), 3u);
+  EXPECT_TRUE(bus.new_marks(bus.keys().robot_state("r2")).empty());  // nothing new
+  p1.put(s, 10, 0.10);
+  const auto again = bus.new_marks();
+  ASSERT_EQ(again.size(), 2u);  // r1 moved; r2 was never reported
+  EXPECT_EQ(again[0].seq(), 4u);
+  EXPECT_EQ(again[1].key(), "hrc/seqs/robot/r2/state");
+  EXPECT_TRUE(bus.new_marks().empty());
 }
 
 TEST_F(TwoPeers, TypedRoundTripCarriesSenderAttachmentAndHeader) {

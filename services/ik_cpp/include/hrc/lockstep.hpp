@@ -34,6 +34,10 @@ struct LockstepOptions {
   bool ack = true;                     // false: observer (follows the clock, never acks)
   double input_timeout_s = 10.0;       // lockstep: how long a tick may wait for its inputs
   std::string clock_master = "physics";
+  // Compute a tick right on the zenoh thread that delivered it when nothing is missing (saves a
+  // thread hand-off). Off with zenoh's low-latency transport: a put from a zenoh runtime thread
+  // makes tokio hand that thread's work to another one (block_in_place), which costs more.
+  bool inline_ticks = true;
 };
 
 class LockstepParticipant {

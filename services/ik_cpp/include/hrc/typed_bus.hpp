@@ -115,6 +115,9 @@ class Bus {
   TypedPublisher& publisher(const std::string& key, PublisherOptions options = {});
   /// The last seq of every key this service has published on (for TickAck.published).
   std::vector<v1::PublishedMark> published_marks() const;
+  /// The marks that moved since the previous call, keys other than `exclude` (tick-protocol
+  /// messages list only these; receivers keep the highest seq per key and sender).
+  std::vector<v1::PublishedMark> new_marks(const std::string& exclude = "");
 
   /// Calls handler(key, msg) on a zenoh thread for each well-formed message on `key_expr`.
   template <class M>
@@ -212,6 +215,7 @@ class Bus {
   Session session_;  // declared before every entity below, so it is destroyed after them
   mutable std::mutex mutex_;
   std::map<std::string, std::unique_ptr<TypedPublisher>> publishers_;
+  std::map<std::string, uint64_t> reported_;  // seq last listed by new_marks, per key
   std::vector<Subscriber> subscribers_;
   std::vector<Queryable> queryables_;
   std::vector<LivelinessToken> tokens_;
