@@ -4,8 +4,11 @@ from __future__ import annotations
 
 import json
 import subprocess
+import threading
 
-from .conftest import HRC, ROOT
+from hrc.wire import pb
+
+from .conftest import HRC, ROOT, wait_until
 
 
 def test_hrc_run_empty_runs_2000_lockstep_ticks_and_writes_metrics(tmp_path, ik_bin) -> None:
@@ -39,6 +42,43 @@ def test_the_five_services_are_separate_processes_that_all_take_part(trial_facto
     assert code == 0, err
     m = json.loads((trial.out / "metrics.json").read_text())
     assert m["run"]["ticks"] > 0 and "stopped by tester" in m["run"]["end_reason"]
+
+
+def test_an_idle_trial_sends_states_only_as_one_keyframe_per_simulated_second(
+        trial_factory) -> None:
+    # Robots at home and a participant with nothing to do: their states do not change, so per
+    # tick only the clock and the acks flow; a keyframe per simulated second keeps late joiners
+    # (like this test) informed.
+    trial = trial_factory()
+    trial.wait_ticking()
+    bus = trial.bus()
+    lock = threading.Lock()
+    clock: list[int] = []
+    states: dict[str, list[int]] = {"r1": [], "r2": [], "human": []}
+
+    def on_state(key: str, msg) -> None:
+        with lock:
+            states[msg.robot if key != bus.keys.human_state() else "human"].append(msg.header.tick)
+
+    bus.subscribe(bus.keys.clock(), pb.ClockTick, lambda _k, m: clock.append(m.header.tick))
+    bus.subscribe(bus.keys.robot_states(), pb.RobotState, on_state)
+    bus.subscribe(bus.keys.human_state(), pb.HumanState, on_state)
+    # (the scripted participant's head settles within its first ~5 simulated seconds)
+    assert wait_until(lambda: clock and clock[-1] >= 10 * 240, timeout=120), "too few ticks"
+    trial.stop()
+    code, _out, err = trial.communicate()
+    assert code == 0, err
+    with lock:
+        first, last = clock[0], clock[-1]
+        seconds = [k for k in range(first + 1, last) if k % 240 == 0]
+        for robot in ("r1", "r2"):
+            inside = [k for k in states[robot] if first < k < last]
+            assert inside == seconds, (robot, inside, seconds)
+        inside = [k for k in states["human"] if first < k < last]
+        quiet_from = max((k for k in inside if k % 240), default=first)
+        assert last - quiet_from > 3 * 240, f"the participant still moved at tick {quiet_from}"
+        assert ([k for k in inside if k > quiet_from] ==
+                [k for k in seconds if k > quiet_from]), inside
 
 
 def test_realtime_mode_is_paced_by_the_wall_clock(tmp_path, ik_bin) -> None:

@@ -66,7 +66,10 @@ class Sent:
 
 @dataclass
 class Record:
-    states: dict[str, list[pb.RobotState]] = field(default_factory=dict)  # per robot, by tick
+    # What came over the wire per robot (states are sent on change, plus a keyframe per second)...
+    received: dict[str, list[pb.RobotState]] = field(default_factory=dict)
+    # ... and the state in force at every tick (the last one received holds), indexed by tick.
+    states: dict[str, list[pb.RobotState]] = field(default_factory=dict)
     sent: list[Sent] = field(default_factory=list)
     marks: dict[str, int] = field(default_factory=dict)  # name -> tick, set by the script
     reached: dict[tuple[str, int], pb.RobotState] = field(default_factory=dict)
@@ -113,7 +116,11 @@ class Session:
     # ------------------------------------------------------------------ the orchestrator role
     def _on_state(self, key: str, msg: pb.RobotState) -> None:
         robot = self.orch.keys.robot_of(key)
-        self.record.states.setdefault(robot, []).append(msg)
+        self.record.received.setdefault(robot, []).append(msg)
+        held = self.record.states.setdefault(robot, [])
+        while held and len(held) < msg.header.tick:
+            held.append(held[-1])  # no state in between: nothing changed
+        held.append(msg)
         self.latest[robot] = msg
 
     def _step(self, tick: pb.ClockTick) -> None:
@@ -304,18 +311,33 @@ def vec(v: pb.Vec3) -> tuple[float, float, float]:
     return (v.x, v.y, v.z)
 
 
-def test_run_completes_and_every_robot_reports_every_tick(run: tuple[Session, pb.RunEnd]) -> None:
+def _content(st: pb.RobotState) -> bytes:
+    body = pb.RobotState()
+    body.CopyFrom(st)
+    body.ClearField("header")
+    return body.SerializeToString()
+
+
+def test_run_completes_and_every_robot_reports_every_change(run: tuple[Session, pb.RunEnd]) -> None:
     s, end = run
     assert s.error is None, f"{s.error}\n{s.log_tail()}"
     assert end.ok, f"{end.reason}\n{s.log_tail()}"
     assert s.proc.returncode == 0, s.log_tail()
-    assert sorted(s.record.states) == ["r1", "r2"]
-    for robot, states in s.record.states.items():
+    assert sorted(s.record.received) == ["r1", "r2"]
+    keyframe = round(1 / s.dt)
+    for robot, states in s.record.received.items():
         ticks = [st.header.tick for st in states]
-        # one state per tick, every tick the clock ran (the last tick's arrives after the stop)
-        assert ticks == list(range(len(ticks))), robot
-        assert len(ticks) >= end.ticks - 1
+        assert ticks[0] == 0 and ticks == sorted(set(ticks)), robot
         assert [st.header.seq for st in states] == list(range(1, len(states) + 1))
+        # a keyframe every simulated second (the last tick's state may come after the stop)
+        assert set(range(0, end.ticks - 1, keyframe)) <= set(ticks), robot
+        for a, b in zip(states, states[1:]):
+            # sent because it changed (or as a keyframe) ...
+            assert _content(b) != _content(a) or b.header.tick % keyframe == 0, b
+            # ... and a silence only while the arm stood still
+            if b.header.tick > a.header.tick + 1:
+                assert a.tcp_speed == 0.0 and a.status != pb.MOTION_STATUS_MOVING, (a, b)
+        assert sum(1 for k in ticks if k % keyframe) < end.ticks * 0.9  # it did go quiet
         urdf_names = list(urdf_velocity_limits(s.robots[robot].urdf_path))
         for st in states:
             assert st.robot == robot and st.header.sender == "ik_cpp"
@@ -523,8 +545,13 @@ def test_standalone_timer_mode(tmp_path: Path) -> None:
     st = got[-1]
     assert math.dist(vec(st.tcp.position), target) <= REACH_TOL
     # the arm stepped by 1/HZ: ticks and sim_time count from 0 in steps of one period
+    # (states come on change: none while the arm stood at home, one per tick while it moved)
     ticks = [s.header.tick for s in got]
-    assert ticks == list(range(ticks[0], ticks[0] + len(ticks)))  # none lost, none repeated
+    seqs = [s.header.seq for s in got]
+    assert seqs == list(range(seqs[0], seqs[0] + len(seqs)))  # none lost, none repeated
+    assert ticks == sorted(set(ticks))
+    moving = [s.header.tick for s in got if s.status == pb.MOTION_STATUS_MOVING]
+    assert len(moving) > 10 and moving == list(range(moving[0], moving[0] + len(moving)))
     assert all(s.header.sim_time == pytest.approx(s.header.tick / hz) for s in got)
     # speed measured with dt = 1/HZ stays within the limit
     for a, b in zip(got, got[1:]):

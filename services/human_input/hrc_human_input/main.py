@@ -20,6 +20,7 @@ from hrc.wire import pb
 
 from hrc_human_input import facts as facts_mod
 from hrc_human_input.replay import Recorder, Recording, ReplayError, Replayer, load_recording
+from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource
 from hrc_human_input.task_view import TaskView
@@ -136,13 +137,20 @@ def main(argv: list[str] | None = None) -> int:
                 "seed": facts.seed, "tick_hz": facts.tick_hz, "session": keys.session,
                 "anticipation": facts.anticipation}))
         publisher = bus.publisher(keys.human_state())
+        keyframe_every = max(1, round(facts.tick_hz))  # once per simulated second
+        last_sent: Sample | None = None
 
         def step(tick: pb.ClockTick) -> None:
+            nonlocal last_sent
             k, t = tick.header.tick, tick.header.sim_time
             sample = source.sample(t)
             if sample.t != t:
                 sample = sample.at(t)
-            publisher.put(sample.to_proto(source.name), k, t)
+            # On change, plus a keyframe for late joiners: a participant at rest costs the
+            # receivers nothing (they hold the last state).
+            if last_sent is None or not sample.same_as(last_sent) or k % keyframe_every == 0:
+                publisher.put(sample.to_proto(source.name), k, t)
+                last_sent = sample
             if recorder is not None:
                 recorder.write(sample)
 

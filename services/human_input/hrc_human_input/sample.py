@@ -67,6 +67,11 @@ class Sample:
     def hand(self, name: str) -> Pose:
         return self.left if name == "left" else self.right
 
+    def same_as(self, other: "Sample") -> bool:
+        """Same poses and grips (the time aside)."""
+        return (self.left == other.left and self.right == other.right and self.head == other.head
+                and self.left_grip == other.left_grip and self.right_grip == other.right_grip)
+
     def grip(self, name: str) -> float:
         return self.left_grip if name == "left" else self.right_grip
 

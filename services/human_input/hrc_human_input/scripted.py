@@ -185,7 +185,7 @@ class ScriptedParticipant:
             robot = view.robots[rid]
             if dist(robot.tcp, goal) < radius:
                 return rid
-            v = robot.velocity
+            v = view.robot_velocity(robot, self.t)
             speed = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
             if speed > 0.02:
                 # closest approach of the straight-line extrapolation within the horizon

@@ -85,10 +85,19 @@ class TaskView:
         prev = self.robots.get(msg.robot)
         velocity: Vec = (0.0, 0.0, 0.0)
         if prev is not None and t > prev.t:
-            dt = t - prev.t
+            # States are published on change: the arm stood at prev.tcp until the tick before
+            # this one, so the displacement took one tick, however long ago prev came.
+            dt = 1.0 / self.facts.tick_hz
             velocity = ((tcp[0] - prev.tcp[0]) / dt, (tcp[1] - prev.tcp[1]) / dt,
                         (tcp[2] - prev.tcp[2]) / dt)
         self.robots[msg.robot] = RobotView(msg.robot, tcp, msg.tcp_speed, velocity, msg.status, t)
+
+    def robot_velocity(self, robot: RobotView, now: float) -> Vec:
+        """The arm's TCP velocity at ``now``: zero once its last state is older than a tick (no
+        new state means nothing changed, so it stands still)."""
+        if now - robot.t > 1.5 / self.facts.tick_hz:
+            return (0.0, 0.0, 0.0)
+        return robot.velocity
 
     def on_indicators(self, msg: pb.Indicators) -> None:
         for cue in msg.cues:

@@ -221,14 +221,20 @@ def test_caution_uses_the_anticipation_cues_only_when_enabled() -> None:
 def test_caution_sees_a_robot_moving_towards_the_goal_without_anticipation() -> None:
     p, view = view_for_caution(anticipation=False)
     goal = p.grasp_point(view, "H1")
-    for k, t in enumerate((0.3, 0.4)):  # r2 sweeping towards the part at 0.5 m/s
-        x = goal[0] + 0.35 - 0.05 * k
+    dt = 1.0 / view.facts.tick_hz
+    for k in range(2):  # r2 sweeping towards the part at 0.5 m/s, states on two ticks
+        x = goal[0] + 0.35 - 0.5 * dt * k
         rs = pb.RobotState(robot="r2", tcp=pb.Pose(position=pb.Vec3(x=x, y=goal[1], z=goal[2] + 0.08)))
-        rs.header.sim_time = t
+        rs.header.sim_time = 0.3 + k * dt
         view.on_robot_state(rs)
-    assert p.danger(view, (goal[0], goal[1], goal[2] + 0.08)) == "r2"
+    above = (goal[0], goal[1], goal[2] + 0.08)
+    p.t = 0.3 + 2 * dt  # the tick after the last state
+    assert p.danger(view, above) == "r2"
+    p.t = 0.3 + 3 * dt  # no state since: it has stopped (states come on change)
+    assert p.danger(view, above) is None
+    p.t = 0.3 + 2 * dt
     p.caution = 0.0
-    assert p.danger(view, (goal[0], goal[1], goal[2] + 0.08)) is None
+    assert p.danger(view, above) is None
 
 
 def test_provoke_at_a_task_time_reaches_into_the_robot() -> None:

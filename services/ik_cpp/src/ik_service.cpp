@@ -264,6 +264,7 @@ IkService::IkService(Bus& bus, LockstepParticipant& participant, IkEngine& engin
   for (const std::string& id : engine_.robot_ids()) {
     state_pubs_.push_back(&bus_.publisher(bus_.keys().robot_state(id)));
     states_.emplace_back();
+    last_sent_.emplace_back();
   }
   participant.input<v1::RobotCommand>(
       bus_.keys().robot_commands(),
@@ -328,9 +329,17 @@ void IkService::step(const v1::ClockTick& tick) {
 }
 
 void IkService::publish_states(uint64_t tick, double sim_time) {
+  // An arm at rest would otherwise cost every receiver a message per tick for nothing.
+  const auto keyframe_every = static_cast<uint64_t>(std::max(1.0, std::round(1.0 / engine_.dt())));
+  const bool keyframe = tick % keyframe_every == 0;
   for (std::size_t i = 0; i < states_.size(); ++i) {
-    engine_.fill_state(i, states_[i]);
-    state_pubs_[i]->put(states_[i], tick, sim_time);
+    v1::RobotState& state = states_[i];
+    engine_.fill_state(i, state);
+    state.clear_header();
+    std::string body = state.SerializeAsString();
+    if (!keyframe && body == last_sent_[i]) continue;
+    last_sent_[i] = std::move(body);
+    state_pubs_[i]->put(state, tick, sim_time);
   }
 }
 

@@ -333,7 +333,7 @@ TEST(IkService, ValidatesCommands) {
   EXPECT_NE(hrc::IkService::validate_command("hrc/s/robot/r1/command", c), "");
 }
 
-TEST(IkService, PublishesEveryRobotEachTickAndCountsBadCommands) {
+TEST(IkService, PublishesStatesOnChangeWithKeyframesAndCountsBadCommands) {
   const auto peers = hrc::test::peer_pair();
   hrc::IkEngine engine(hrc::robots_from_scenario(minimal_scenario()), kDt);
   hrc::Bus bus(peers.a, "iks", "ik_cpp");
@@ -363,31 +363,51 @@ TEST(IkService, PublishesEveryRobotEachTickAndCountsBadCommands) {
   EXPECT_EQ(bus.stats().decode_errors("hrc/iks/robot/r1/command"), 1u);
   EXPECT_EQ(bus.stats().decode_errors("hrc/iks/robot/r9/command"), 1u);
 
+  // r1 moves to its target: a state every tick while it moves, then nothing until the keyframe
+  // once per simulated second. r2 stands still: its first state and the keyframe (receivers
+  // hold the last state).
+  const uint64_t keyframe = static_cast<uint64_t>(std::lround(1.0 / kDt));
   hrc::v1::ClockTick tick;
   tick.set_dt(kDt);
-  for (uint64_t k = 0; k < 3; ++k) {
+  for (uint64_t k = 0; k <= keyframe; ++k) {
     tick.mutable_header()->set_tick(k);
     tick.mutable_header()->set_sim_time(static_cast<double>(k) * kDt);
     service.step(tick);
   }
+  std::vector<uint64_t> r1_ticks;
+  std::vector<uint64_t> r2_ticks;
+  std::vector<RobotState> r1;
   ASSERT_TRUE(hrc::test::wait_until([&] {
     const std::lock_guard<std::mutex> lock(mutex);
-    return got.size() >= 6;
-  }));
-  const std::lock_guard<std::mutex> lock(mutex);
-  ASSERT_EQ(got.size(), 6u);
-  for (const auto& s : got) {
-    EXPECT_EQ(s.header().sender(), "ik_cpp");
-    if (s.robot() == "r1") {
-      EXPECT_EQ(s.command_id(), 5u);
-      EXPECT_EQ(s.status(), hrc::v1::MOTION_STATUS_MOVING);
-      EXPECT_EQ(s.header().seq(), s.header().tick() + 1);  // one state per tick, seq from 1
-    } else {
-      EXPECT_EQ(s.status(), hrc::v1::MOTION_STATUS_IDLE);
+    r1.clear();
+    r1_ticks.clear();
+    r2_ticks.clear();
+    for (const auto& s : got) {
+      EXPECT_EQ(s.header().sender(), "ik_cpp");
+      if (s.robot() == "r1") {
+        r1.push_back(s);
+        r1_ticks.push_back(s.header().tick());
+      } else {
+        r2_ticks.push_back(s.header().tick());
+        EXPECT_EQ(s.status(), hrc::v1::MOTION_STATUS_IDLE);
+      }
     }
+    return r2_ticks.size() >= 2 && !r1_ticks.empty() && r1_ticks.back() == keyframe;
+  }));
+  EXPECT_EQ(r2_ticks, (std::vector<uint64_t>{0, keyframe}));
+  ASSERT_GE(r1.size(), 3u);
+  for (std::size_t i = 0; i < r1.size(); ++i) {
+    EXPECT_EQ(r1[i].header().seq(), i + 1);  // seq counts what was sent, from 1
+    EXPECT_EQ(r1[i].command_id(), 5u);
   }
-  EXPECT_EQ(service.compute_times().count(), 3u);
-  EXPECT_EQ(service.step_times().count(), 3u);
+  // Moving: ticks 0, 1, 2, ... without a gap, until it reached the target.
+  const std::size_t last_change = r1.size() - 2;  // the one before the keyframe
+  for (std::size_t i = 0; i <= last_change; ++i) EXPECT_EQ(r1_ticks[i], i);
+  EXPECT_EQ(r1[0].status(), hrc::v1::MOTION_STATUS_MOVING);
+  EXPECT_EQ(r1[last_change].status(), hrc::v1::MOTION_STATUS_REACHED);
+  EXPECT_LT(r1_ticks[last_change], keyframe - 1);  // then it stood still and sent nothing
+  EXPECT_EQ(service.compute_times().count(), keyframe + 1);
+  EXPECT_EQ(service.step_times().count(), keyframe + 1);
 }
 
 TEST(IkService, ServesReachQueries) {

@@ -33,7 +33,7 @@ import shutil
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 import rerun as rr
@@ -113,6 +113,8 @@ class RobotView:
     tcp: np.ndarray | None = None
     next_due: int = 0
     pending: pb.RobotState | None = None  # last state not yet logged (logged at close)
+    last: pb.RobotState | None = None     # the latest state (held until the next: on change)
+    logged_tick: int = -1
     unknown_joints_warned: bool = False
     chain: np.ndarray | None = None
 
@@ -160,6 +162,18 @@ def open_recording(path: Path, recording_id: str, *, viewer: bool = False, web: 
     return rec
 
 
+S = TypeVar("S", pb.RobotState, pb.HumanState)
+
+
+def _restamped(msg: S, tick: int, sim_time: float) -> S:
+    """A copy of a held state, dated ``tick``."""
+    out = type(msg)()
+    out.CopyFrom(msg)
+    out.header.tick = tick
+    out.header.sim_time = sim_time
+    return out
+
+
 class View:
     """Turns the session's messages into rerun entities (see the module docstring)."""
 
@@ -175,6 +189,9 @@ class View:
         self.hands: dict[str, np.ndarray] = {}
         self.human_next_due = 0
         self.human_pending: pb.HumanState | None = None
+        self.human_last: pb.HumanState | None = None
+        self.human_logged_tick = -1
+        self.clock: tuple[int, float] | None = None  # the latest clock tick (tick, sim time)
         self.button = np.zeros(3)
         self._flash_phase: int | None = None
         self.logged = 0  # rerun log calls, for the service's summary
@@ -281,6 +298,7 @@ class View:
         p = st.tcp.position
         if finite((p.x, p.y, p.z)):
             rv.tcp = np.array([p.x, p.y, p.z])
+        rv.last = st
         tick = st.header.tick
         if tick < rv.next_due:
             rv.pending = st
@@ -291,6 +309,7 @@ class View:
 
     def _log_robot(self, rv: RobotView, st: pb.RobotState) -> None:
         self._time(st.header.tick, st.header.sim_time)
+        rv.logged_tick = st.header.tick
         if rv.model is not None:
             unknown = [n for n in rv.q if n not in rv.model.by_name]
             if unknown and not rv.unknown_joints_warned:
@@ -311,6 +330,7 @@ class View:
             p = pose.position
             if finite((p.x, p.y, p.z)):
                 self.hands[hand] = np.array([p.x, p.y, p.z])
+        self.human_last = hs
         tick = hs.header.tick
         if tick < self.human_next_due:
             self.human_pending = hs
@@ -321,6 +341,7 @@ class View:
 
     def _log_human(self, hs: pb.HumanState) -> None:
         self._time(hs.header.tick, hs.header.sim_time)
+        self.human_logged_tick = hs.header.tick
         h = hs.head.position
         if finite((h.x, h.y, h.z)):
             self._log("world/human/head", rr.Points3D([[h.x, h.y, h.z]], radii=[0.09], colors=[(230, 190, 160)]))
@@ -441,6 +462,7 @@ class View:
 
     def tick(self, k: int, sim_time: float) -> None:
         """Blinks the flashing cues on the sim timeline (on for the first half of each period)."""
+        self.clock = (k, sim_time)
         phase = int(math.floor(sim_time * self.s.flash_hz * 2.0))
         if phase == self._flash_phase:
             return
@@ -471,7 +493,8 @@ class View:
 
     # ------------------------------------------------------------------ end
     def close(self) -> None:
-        """Logs the last states that the rate limit held back (so the timeline reaches the end)."""
+        """Logs the last states that the rate limit held back, and the held states once more at
+        the last clock tick (states come on change), so every timeline reaches the end."""
         for rv in self.robots.values():
             if rv.pending is not None:
                 self._log_robot(rv, rv.pending)
@@ -479,5 +502,12 @@ class View:
         if self.human_pending is not None:
             self._log_human(self.human_pending)
             self.human_pending = None
+        if self.clock is not None:
+            k, t = self.clock
+            for rv in self.robots.values():
+                if rv.last is not None and rv.logged_tick < k:
+                    self._log_robot(rv, _restamped(rv.last, k, t))
+            if self.human_last is not None and self.human_logged_tick < k:
+                self._log_human(_restamped(self.human_last, k, t))
         self.rec.flush()
         self.rec.disconnect()  # closes the file sink (writes the rrd footer)

@@ -111,12 +111,16 @@ class RobotAgent:
     def tcp(self) -> Vec | None:
         return from_pb(self.state.tcp.position) if self.state is not None else None
 
-    def observe(self, state: pb.RobotState, sample_speed: bool) -> None:
+    def observe(self, state: pb.RobotState) -> None:
         self.state = state
-        if sample_speed and not self.finished:
+
+    def sample_speed(self) -> None:
+        """One sample per tick of the latest state (states come on change: an unchanged arm
+        sends none, and its last state still holds)."""
+        if self.state is not None and not self.finished:
             self.speed_n += 1
-            self.speed_sum += state.tcp_speed
-            self.speed_max = max(self.speed_max, state.tcp_speed)
+            self.speed_sum += self.state.tcp_speed
+            self.speed_max = max(self.speed_max, self.state.tcp_speed)
 
     @property
     def avg_speed(self) -> float:

@@ -106,7 +106,10 @@ class Task:
         for state in inputs.robot_states:
             agent = self.agents.get(state.robot)
             if agent is not None:
-                agent.observe(state, sampling)
+                agent.observe(state)
+        if sampling:
+            for agent in self.agents.values():
+                agent.sample_speed()
         if inputs.human is not None:
             self.human_state = inputs.human
         if not self.started and not self.human.sequence:

@@ -43,7 +43,10 @@ def create_hand(client: int, name: str) -> Hand:
     return Hand(name, body)
 
 
-def pose_hand(client: int, hand: Hand, pos: Vec, rot: Quat, grip: float) -> None:
+def pose_hand(client: int, hand: Hand, pos: Vec, rot: Quat, grip: float) -> bool:
+    """Puts the hand there; True if it moved (or became active)."""
+    moved = (pos, rot) != (hand.pos, hand.rot) or not hand.active
     if (pos, rot) != (hand.pos, hand.rot):
         p.resetBasePositionAndOrientation(hand.body, list(pos), list(rot), physicsClientId=client)
     hand.pos, hand.rot, hand.grip, hand.active = pos, rot, grip, True
+    return moved

@@ -100,13 +100,15 @@ class KinematicRobot:
         self.positions = new
         return None
 
-    def apply(self) -> None:
-        """Puts the links where the recorded joint positions say (zero velocities)."""
+    def apply(self) -> bool:
+        """Puts the links where the recorded joint positions say (zero velocities); True if
+        they moved."""
         if self.positions == self._applied:
-            return  # the arm stands still: nothing to move
+            return False  # the arm stands still: nothing to move
         p.resetJointStatesMultiDof(self.body, self.movable, [[v] for v in self.positions],
                                    physicsClientId=self._c)
         self._applied = list(self.positions)
+        return True
 
     def aabb(self) -> tuple[Vec, Vec]:
         """World AABB of all link colliders (cheap prefilter for the distance queries)."""

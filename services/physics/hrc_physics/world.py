@@ -77,6 +77,9 @@ class World:
         if not self.settings.dt > 0:
             raise ValueError(f"time step must be > 0, got {self.settings.dt}")
         self._human: pb.HumanState | None = None
+        self._human_applied: pb.HumanState | None = None
+        # Contacts involve only hands and arms: while neither moved, they are what they were.
+        self._contacts_stale = True
         self.c = p.connect(p.DIRECT)
         try:
             self._build()
@@ -206,13 +209,17 @@ class World:
         self.steps += 1
         self._track_motion()
         for robot in self.robots.values():
-            robot.apply()
-        if self._human is not None:
-            h = self._human
+            if robot.apply():
+                self._contacts_stale = True
+        if self._human is not None and self._human is not self._human_applied:
+            # A participant at rest sends no new state (states come on change): same message,
+            # nothing to do.
+            h = self._human_applied = self._human
             for hand, pose, grip in ((self.hands["left"], h.left_hand, h.left_grip),
                                      (self.hands["right"], h.right_hand, h.right_grip)):
                 pos, rot = pose_from_pb(pose)
-                pose_hand(c, hand, pos, rot, grip)
+                if pose_hand(c, hand, pos, rot, grip):
+                    self._contacts_stale = True
         problems: list[str] = []
         for cmd in commands or ():
             try:
@@ -474,6 +481,9 @@ class World:
 
     def contact_events(self) -> list[pb.Contact]:
         """Begin / end events of the contacts since the last call."""
+        if not self._contacts_stale:
+            return []
+        self._contacts_stale = False
         return self.tracker.update(self.current_contacts())
 
     # ------------------------------------------------------------------ inspection

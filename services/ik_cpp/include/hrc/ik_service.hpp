@@ -147,6 +147,8 @@ class IkService {
   std::string timing_summary() const;
 
  private:
+  /// Publishes each arm's state when it differs from the last one published, and at least
+  /// once per simulated second (a keyframe for late joiners); receivers hold the last state.
   void publish_states(uint64_t tick, double sim_time);
 
   Bus& bus_;
@@ -155,6 +157,7 @@ class IkService {
   // Touched only from the tick processing (one tick at a time): no lock needed.
   std::vector<TypedPublisher*> state_pubs_;  // per engine index
   std::vector<v1::RobotState> states_;       // reused every tick
+  std::vector<std::string> last_sent_;       // per engine index: last published state, header-less
   uint64_t commands_received_ = 0;
   uint64_t commands_rejected_ = 0;
   bool dt_warned_ = false;
