@@ -38,8 +38,11 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     add_bus_arguments(p)
     p.add_argument("--out", required=True, help="trial folder (created if missing)")
+    p.add_argument("--sched", choices=["idle", "nice", "normal"], default="idle",
+                   help="CPU priority of this observer: idle (Linux SCHED_IDLE: only CPU time nobody "
+                        "else wants; the default), nice (--nice added), normal")
     p.add_argument("--nice", type=int, default=10,
-                   help="scheduling niceness added to this observer (default 10; 0 keeps it)")
+                   help="niceness added with --sched nice (default 10)")
     p.add_argument("--viewer", action="store_true", help="also stream to a spawned native rerun viewer")
     p.add_argument("--viewer-port", type=int, default=9876, help="port of the spawned viewer (default 9876)")
     p.add_argument("--web", action="store_true",
@@ -88,13 +91,25 @@ def stats_dict(obs: Observer, rec: TrialRecorder, view: View, bus: Bus, handler_
     }
 
 
+def lower_priority(sched: str, nice: int) -> None:
+    if sched == "idle" and hasattr(os, "SCHED_IDLE"):
+        try:
+            os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+            return
+        except OSError as exc:
+            log.warning("SCHED_IDLE refused (%s); using nice %d instead", exc, nice)
+            sched = "nice"
+    if sched in ("idle", "nice") and nice:
+        os.nice(nice)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     setup_logging(NAME, args.log_level)
-    if args.nice:
-        # An observer must never slow the co-simulation down: let the barrier's participants
-        # have the CPU first. Its lag behind the clock is measured and reported instead.
-        os.nice(args.nice)
+    # An observer must never slow the co-simulation down: the barrier's participants get the CPU
+    # first. Its lag behind the clock is measured and reported instead. Set before any thread
+    # starts (zenoh's, rerun's): on Linux the policy is per thread and new threads inherit it.
+    lower_priority(args.sched, args.nice)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     handler_errors = 0
