@@ -30,6 +30,10 @@ class BusConfig:
     connect: list[str] = field(default_factory=list)
     listen: list[str] = field(default_factory=lambda: ["tcp/127.0.0.1:0"])
     multicast_scouting: bool = False
+    # Zenoh's low-latency transport: a put writes to the socket on the caller's thread (no
+    # hand-off to a tx thread), no QoS priorities, and no message above 64 KiB (no
+    # fragmentation). A link falls back to the standard transport unless both ends ask for it.
+    lowlatency: bool = False
     config_file: str | None = None
 
     def to_zenoh(self) -> zenoh.Config:
@@ -43,6 +47,9 @@ class BusConfig:
             cfg.insert_json5("connect/retry", CONNECT_RETRY)
         if self.listen:
             cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
+        if self.lowlatency:
+            cfg.insert_json5("transport/unicast/lowlatency", "true")
+            cfg.insert_json5("transport/unicast/qos/enabled", "false")  # required by lowlatency
         return cfg
 
 
@@ -60,6 +67,10 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
                    default=os.environ.get("HRC_ZENOH_MODE", "peer"), help="Zenoh mode (default peer)")
     g.add_argument("--zenoh-config", default=None, metavar="FILE",
                    help="a Zenoh JSON5 config file applied before the options above")
+    g.add_argument("--zenoh-lowlatency", action="store_true",
+                   default=os.environ.get("HRC_ZENOH_LOWLATENCY", "") not in ("", "0"),
+                   help="Zenoh's low-latency transport (no QoS, messages <= 64 KiB; both ends of "
+                        "a link must ask for it; env HRC_ZENOH_LOWLATENCY=1)")
 
 
 def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
@@ -72,4 +83,4 @@ def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
     else:  # a client only connects; peers and routers accept links on a free loopback port
         listen = [] if args.zenoh_mode == "client" else ["tcp/127.0.0.1:0"]
     return BusConfig(session=args.session, mode=args.zenoh_mode, connect=connect, listen=listen,
-                     config_file=args.zenoh_config)
+                     lowlatency=args.zenoh_lowlatency, config_file=args.zenoh_config)

@@ -54,7 +54,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
     opts = TrialOptions(scenario=Path(args.scenario).resolve(), out=trial_dir, mode=args.mode,
                         seed=args.seed, ticks=args.ticks, max_ticks=args.max_ticks,
                         session=args.session,
-                        port=args.port, barrier_timeout_s=args.barrier_timeout,
+                        port=args.port, unix_socket=not args.tcp,
+                        lowlatency=False if args.no_lowlatency else None,
+                        barrier_timeout_s=args.barrier_timeout,
                         connect=args.connect or [], validated=True,
                         viewer=args.viewer, web=args.web,
                         record=Path(args.record).resolve() if args.record else None,
@@ -132,6 +134,11 @@ def build_parser() -> argparse.ArgumentParser:
     r.add_argument("--replay", default=None, help="replay a recording instead of the scenario's input")
     r.add_argument("--session", default=None, help="session id (default: random)")
     r.add_argument("--port", type=int, default=0, help="loopback port physics listens on (0: free)")
+    r.add_argument("--tcp", action="store_true",
+                   help="the services talk over TCP loopback (the --port) instead of a Unix socket")
+    r.add_argument("--no-lowlatency", action="store_true",
+                   help="use Zenoh's standard transport (default: the low-latency one, unless the "
+                        "scenario is too large for it)")
     r.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
                    help="also connect every service to this Zenoh endpoint (router, shared bus)")
     r.add_argument("--barrier-timeout", type=float, default=10.0,

@@ -16,6 +16,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import threading
 import time
 import uuid
@@ -41,7 +42,9 @@ class TrialOptions:
     ticks: int = 0  # > 0: run exactly this many ticks, even past the task's end
     max_ticks: int = 0  # > 0: stop here at the latest (the task's end stops it earlier)
     session: str | None = None
-    port: int = 0
+    port: int = 0  # tcp/127.0.0.1:<port> physics listens on (0: a free one)
+    unix_socket: bool = True  # the services meet on a Unix socket (else on the TCP port)
+    lowlatency: bool | None = None  # Zenoh's low-latency transport; None: if the scenario fits
     barrier_timeout_s: float = 10.0
     start_timeout_s: float = 60.0
     viewer: bool = False
@@ -166,9 +169,39 @@ class ServiceGroup:
         return "\n".join(text[-lines:])
 
 
-def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_dir: Path) -> list[str]:
-    endpoint = f"tcp/127.0.0.1:{port}"
-    common = ["--session", session]
+def local_socket(session: str) -> Path | None:
+    """Where the services of one trial meet on this machine: a Unix socket (cheaper per message
+    than TCP loopback), or None where the path would be too long for one (~107 bytes)."""
+    path = Path(tempfile.gettempdir()) / f"hrc-{session}.sock"
+    return path if len(str(path)) <= 100 else None
+
+
+LOWLATENCY_MAX_SCENARIO_BYTES = 48 * 1024
+
+
+def fits_lowlatency(scenario: Path) -> bool:
+    """Zenoh's low-latency transport does not fragment: a message must fit one 64 KiB batch.
+    The scenario (served on the bus) is the largest message of a trial, about 0.4 KiB a part;
+    keep a margin for the rest (the full world state at tick 0, the final metrics)."""
+    from hrc import scenario as sc
+
+    try:
+        size = len(sc.to_proto(sc.load(scenario, reach_checker=None)).SerializeToString())
+    except (sc.ScenarioError, OSError):
+        return False  # the orchestrator reports what is wrong with it
+    if size > LOWLATENCY_MAX_SCENARIO_BYTES:
+        log.info("scenario is %d bytes on the wire: using Zenoh's standard transport", size)
+        return False
+    return True
+
+
+def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_dir: Path,
+                 sock: Path | None = None, lowlatency: bool = False) -> list[str]:
+    """Physics listens on tcp/127.0.0.1:``port`` (for tools and other hosts) and on the Unix
+    socket ``sock`` if given; the other services connect to the socket, else to the port."""
+    tcp = f"tcp/127.0.0.1:{port}"
+    endpoint = f"unixsock-stream/{sock}" if sock is not None else tcp
+    common = ["--session", session] + (["--zenoh-lowlatency"] if lowlatency else [])
     for ep in opts.connect:
         common += ["--connect", ep]
     py = [sys.executable, "-m"]
@@ -177,7 +210,8 @@ def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_d
         # Star topology: physics's session is a router and every other service a client of it,
         # so a route between any two services exists as soon as both have announced themselves
         # (peer-to-peer links would form later, by gossip, and could miss the first messages).
-        argv = py + ["hrc_physics", *common, "--zenoh-mode", "router", "--listen", endpoint,
+        listen = ["--listen", tcp] + (["--listen", endpoint] if sock is not None else [])
+        argv = py + ["hrc_physics", *common, "--zenoh-mode", "router", *listen,
                      "--clock", opts.mode,
                      "--ticks", str(opts.ticks or opts.max_ticks), "--barrier-timeout", str(opts.barrier_timeout_s),
                      "--start-timeout", str(opts.start_timeout_s)]
@@ -233,6 +267,8 @@ class _EndWatcher:
 def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     session = opts.session or f"t{uuid.uuid4().hex[:10]}"
     port = opts.port or free_port()
+    sock = local_socket(session) if opts.unix_socket else None
+    lowlatency = opts.lowlatency if opts.lowlatency is not None else fits_lowlatency(opts.scenario)
     ik = ik_binary()
     if not ik.exists():
         return TrialResult(False, 2, trial_dir,
@@ -244,7 +280,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     try:
         # physics first: it listens on the port everybody else connects to.
         for name in ("physics", "orchestrator", "ik_cpp", "human_input", "logger"):
-            group.start(name, service_argv(name, opts, session, port, trial_dir))
+            group.start(name, service_argv(name, opts, session, port, trial_dir, sock, lowlatency))
         time.sleep(0.2)
         try:
             watcher = _EndWatcher(session, port)
@@ -303,3 +339,5 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             watcher.close()
         group.stop_all(grace_s=1.0)
         group.close()
+        if sock is not None:
+            sock.unlink(missing_ok=True)

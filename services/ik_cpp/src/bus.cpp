@@ -114,6 +114,10 @@ std::vector<std::pair<std::string, std::string>> BusConfig::insertions() const {
                      "{ period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2 }");
   }
   if (!listen.empty()) out.emplace_back("listen/endpoints", json_list(listen));
+  if (lowlatency) {
+    out.emplace_back("transport/unicast/lowlatency", "true");
+    out.emplace_back("transport/unicast/qos/enabled", "false");  // required by lowlatency
+  }
   return out;
 }
 
@@ -128,6 +132,7 @@ std::string BusConfig::to_json5() const {
            "period_increase_factor: 2 } },\n";
   }
   if (!listen.empty()) out += "  listen: { endpoints: " + json_list(listen) + " },\n";
+  if (lowlatency) out += "  transport: { unicast: { lowlatency: true, qos: { enabled: false } } },\n";
   out += "}\n";
   return out;
 }

@@ -97,6 +97,8 @@ std::vector<std::string> bus_single_flags() { return {"--session", "--mode", "--
 
 std::vector<std::string> bus_repeatable_flags() { return {"--connect", "--listen"}; }
 
+std::vector<std::string> bus_bool_flags() { return {"--zenoh-lowlatency"}; }
+
 std::string bus_usage() {
   return "bus options:\n"
          "  --session ID         session id; every key is under hrc/<ID>/ (env HRC_SESSION, default 'default')\n"
@@ -104,7 +106,9 @@ std::string bus_usage() {
          "                       env HRC_CONNECT, comma-separated)\n"
          "  --listen EP          zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:0)\n"
          "  --mode peer|client|router   zenoh mode (alias --zenoh-mode; env HRC_ZENOH_MODE, default peer)\n"
-         "  --zenoh-config FILE  zenoh JSON5 config file applied before the options above\n";
+         "  --zenoh-config FILE  zenoh JSON5 config file applied before the options above\n"
+         "  --zenoh-lowlatency   zenoh's low-latency transport (no QoS, messages <= 64 KiB; both ends\n"
+         "                       of a link must ask for it; env HRC_ZENOH_LOWLATENCY=1)\n";
 }
 
 BusArgs bus_args(const Args& args) {
@@ -136,6 +140,8 @@ BusArgs bus_args(const Args& args) {
     out.config.listen.clear();  // a client only connects
   }
   out.config.config_file = args.get_or("--zenoh-config", "");
+  const std::string ll_env = env_or("HRC_ZENOH_LOWLATENCY", "");
+  out.config.lowlatency = args.flag("--zenoh-lowlatency") || (!ll_env.empty() && ll_env != "0");
   try {
     out.config.validate();
   } catch (const std::invalid_argument& e) {

@@ -76,7 +76,9 @@ int run(const std::vector<std::string>& argv) {
   try {
     auto single = hrc::cli::bus_single_flags();
     single.insert(single.end(), {"--name", "--input-timeout", "--start-timeout", "--standalone-hz"});
-    const hrc::cli::Args args(argv, single, hrc::cli::bus_repeatable_flags(), {"--help"});
+    auto flags = hrc::cli::bus_bool_flags();
+    flags.emplace_back("--help");
+    const hrc::cli::Args args(argv, single, hrc::cli::bus_repeatable_flags(), flags);
     if (args.flag("--help")) {
       std::cout << kUsage << "\n" << hrc::cli::bus_usage();
       return 0;
@@ -142,6 +144,7 @@ int run(const std::vector<std::string>& argv) {
 
     hrc::LockstepOptions options;
     options.input_timeout_s = opt.input_timeout;
+    options.inline_ticks = !opt.bus.config.lowlatency;
     hrc::LockstepParticipant participant(bus, options);
     hrc::IkService service(bus, participant, engine);
     StopWatching stop_watching{signals};

@@ -220,7 +220,7 @@ int run(const std::vector<std::string>& argv) {
     single.insert(single.end(), {"--name", "--in", "--out", "--type", "--count", "--timeout-s", "--key",
                                  "--interval-ms", "--wait-s", "--linger-ms"});
     args = std::make_unique<hrc::cli::Args>(std::vector<std::string>(argv.begin() + 1, argv.end()), single,
-                                            hrc::cli::bus_repeatable_flags());
+                                            hrc::cli::bus_repeatable_flags(), hrc::cli::bus_bool_flags());
     for (const char* required : mode == "echo" ? std::vector<const char*>{"--in", "--out"}
                                                : std::vector<const char*>{"--key", "--count"}) {
       if (!args->has(required)) throw UsageError(mode + " needs " + required);

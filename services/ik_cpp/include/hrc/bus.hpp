@@ -29,6 +29,9 @@ struct BusConfig {
   std::vector<std::string> connect;
   std::vector<std::string> listen{"tcp/127.0.0.1:0"};
   bool multicast_scouting = false;
+  /// Zenoh's low-latency transport (puts write on the caller's thread; no QoS; messages up to
+  /// 64 KiB). A link uses it only if both ends ask for it.
+  bool lowlatency = false;
   std::string config_file;  // optional zenoh JSON5 file applied first (insertions override it)
 
   /// (path, JSON5 value) pairs applied on top of the zenoh defaults / config_file.

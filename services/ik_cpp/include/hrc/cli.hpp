@@ -43,6 +43,8 @@ class Args {
 /// Bus flags: --session --connect --listen --mode/--zenoh-mode --zenoh-config.
 std::vector<std::string> bus_single_flags();
 std::vector<std::string> bus_repeatable_flags();
+/// The bus options that take no value.
+std::vector<std::string> bus_bool_flags();
 /// Usage text for the bus flags.
 std::string bus_usage();
 
