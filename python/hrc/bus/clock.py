@@ -122,10 +122,11 @@ class ClockMaster:
                 if m.seq > self._marks.get(mk, 0):
                     self._marks[mk] = self._fresh[mk] = m.seq
             # The last ack of the barrier: run the transition right here if nothing is missing
-            # (saves waking the run() thread), else wake it. Earlier acks wake nobody.
+            # (saves waking the run() thread), else wake it -- unless a transition is under way,
+            # whose thread looks again when it is done. Earlier acks wake nobody.
             if all(t >= self._barrier_tick for t in self._acked.values()):
                 inline = self._try_inline()
-                if not inline:
+                if not inline and not self._claimed:
                     self._cond.notify_all()
         if inline:
             self._transition()
