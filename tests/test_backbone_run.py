@@ -104,3 +104,16 @@ def test_a_bad_scenario_starts_nothing_and_names_the_problem(tmp_path, ik_bin) -
     assert proc.returncode == 2
     assert "tick_hz" in proc.stderr
     assert not out.exists()
+
+
+def test_bench_bus_prints_the_figures_as_one_json_object(ik_bin) -> None:
+    # The shape the issue asks for; the figures themselves are the benchmark's business.
+    proc = subprocess.run([HRC, "bench", "bus", "--json", "--n", "300"], capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    result = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert sorted(result) == ["lockstep_ticks_per_s", "rtt_us"]
+    assert sorted(result["rtt_us"]) == ["py_cpp", "py_py"]
+    for pair in result["rtt_us"].values():
+        assert sorted(pair) == ["p50", "p99"] and 0 < pair["p50"] <= pair["p99"]
+    assert result["lockstep_ticks_per_s"] > 0
