@@ -202,10 +202,7 @@ class Bus:
             except Exception:
                 log.exception("handler for %s failed", k)
 
-        import os
-        direct = os.environ.get("HRC_DIRECT", "")
-        ind = not (direct and direct in key)
-        self._declared.append(self.session.declare_subscriber(key, zenoh.handlers.Callback(on_sample, indirect=ind)))
+        self._declared.append(self.session.declare_subscriber(key, on_sample))
 
     def _malformed(self, key: str, sample: zenoh.Sample, problem: str) -> None:
         att = sample.attachment

@@ -128,17 +128,22 @@ TypedPublisher& Bus::publisher(const std::string& key, PublisherOptions options)
   return *it->second;
 }
 
+namespace {
+v1::PublishedMark make_mark(const std::string& key, const std::string& sender, uint64_t seq) {
+  v1::PublishedMark m;
+  m.set_key(key);
+  m.set_sender(sender);
+  m.set_seq(seq);
+  return m;
+}
+}  // namespace
+
 std::vector<v1::PublishedMark> Bus::published_marks() const {
   const std::lock_guard<std::mutex> lock(mutex_);
   std::vector<v1::PublishedMark> marks;
   for (const auto& [key, pub] : publishers_) {
     const uint64_t seq = pub->seq();
-    if (seq == 0) continue;
-    v1::PublishedMark m;
-    m.set_key(key);
-    m.set_sender(sender_);
-    m.set_seq(seq);
-    marks.push_back(std::move(m));
+    if (seq > 0) marks.push_back(make_mark(key, sender_, seq));
   }
   return marks;
 }
@@ -151,11 +156,7 @@ std::vector<v1::PublishedMark> Bus::new_marks(const std::string& exclude) {
     uint64_t& reported = reported_[key];
     if (seq <= reported || key == exclude) continue;
     reported = seq;
-    v1::PublishedMark m;
-    m.set_key(key);
-    m.set_sender(sender_);
-    m.set_seq(seq);
-    marks.push_back(std::move(m));
+    marks.push_back(make_mark(key, sender_, seq));
   }
   return marks;
 }
