@@ -37,8 +37,9 @@ def format_summary(m: dict[str, Any]) -> list[str]:
                  f"{_f(run.get('wall_s'), ' s wall')}, {_f(run.get('realtime_factor'), 'x realtime', 1)}")
     lag = m.get("logger")
     if lag:
+        # The logger only gets CPU time nobody else wants (SCHED_IDLE) and catches up at the end.
         lines.append(f"logger lag          mean {_f(lag.get('lag_mean_ticks'), ' ticks', 1)}, "
-                     f"max {lag.get('lag_max_ticks', '-')} ticks")
+                     f"max {lag.get('lag_max_ticks', '-')} ticks (it yields the CPU, then catches up)")
     return lines
 
 
