@@ -33,7 +33,7 @@ import shutil
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Generic, TypeVar
 
 import numpy as np
 import rerun as rr
@@ -103,6 +103,49 @@ class ViewSettings:
     tick_hz: float = 240.0   # replaced by the scenario's / clock's rate when known
 
 
+S = TypeVar("S", pb.RobotState, pb.HumanState)
+
+
+class StateStream(Generic[S]):
+    """One robot's (or the hands') states for the view: at most one logged per ``every`` ticks;
+    the last one held back is logged at the end, and, since states come on change, the last one
+    seen is logged once more at the final clock tick so the timeline reaches it."""
+
+    def __init__(self) -> None:
+        self.next_due = 0
+        self.pending: S | None = None  # held back by the rate limit
+        self.last: S | None = None     # in force until the next one
+        self.logged_tick = -1
+
+    def offer(self, msg: S, every: int) -> bool:
+        """Takes a new state; True if it is to be logged now."""
+        self.last = msg
+        tick = msg.header.tick
+        if tick < self.next_due:
+            self.pending = msg
+            return False
+        self.next_due = tick + every
+        self.pending = None
+        return True
+
+    def logged(self, msg: S) -> None:
+        self.logged_tick = msg.header.tick
+
+    def closing(self, clock: tuple[int, float] | None) -> list[S]:
+        """What is still to be logged at the end, in order."""
+        out: list[S] = []
+        if self.pending is not None:
+            out.append(self.pending)
+            self.logged_tick = self.pending.header.tick
+            self.pending = None
+        if clock is not None and self.last is not None and self.logged_tick < clock[0]:
+            held = type(self.last)()
+            held.CopyFrom(self.last)
+            held.header.tick, held.header.sim_time = clock
+            out.append(held)
+        return out
+
+
 @dataclass
 class RobotView:
     rid: str
@@ -111,10 +154,7 @@ class RobotView:
     model: UrdfModel | None = None
     q: dict[str, float] = field(default_factory=dict)
     tcp: np.ndarray | None = None
-    next_due: int = 0
-    pending: pb.RobotState | None = None  # last state not yet logged (logged at close)
-    last: pb.RobotState | None = None     # the latest state (held until the next: on change)
-    logged_tick: int = -1
+    states: StateStream[pb.RobotState] = field(default_factory=StateStream)
     unknown_joints_warned: bool = False
     chain: np.ndarray | None = None
 
@@ -162,18 +202,6 @@ def open_recording(path: Path, recording_id: str, *, viewer: bool = False, web: 
     return rec
 
 
-S = TypeVar("S", pb.RobotState, pb.HumanState)
-
-
-def _restamped(msg: S, tick: int, sim_time: float) -> S:
-    """A copy of a held state, dated ``tick``."""
-    out = type(msg)()
-    out.CopyFrom(msg)
-    out.header.tick = tick
-    out.header.sim_time = sim_time
-    return out
-
-
 class View:
     """Turns the session's messages into rerun entities (see the module docstring)."""
 
@@ -187,10 +215,7 @@ class View:
         self.owner_color: dict[str, tuple[int, int, int]] = {"human": HUMAN_COLOR}
         self.cues: dict[str, CueView] = {}
         self.hands: dict[str, np.ndarray] = {}
-        self.human_next_due = 0
-        self.human_pending: pb.HumanState | None = None
-        self.human_last: pb.HumanState | None = None
-        self.human_logged_tick = -1
+        self.human: StateStream[pb.HumanState] = StateStream()
         self.clock: tuple[int, float] | None = None  # the latest clock tick (tick, sim time)
         self.button = np.zeros(3)
         self._flash_phase: int | None = None
@@ -298,18 +323,12 @@ class View:
         p = st.tcp.position
         if finite((p.x, p.y, p.z)):
             rv.tcp = np.array([p.x, p.y, p.z])
-        rv.last = st
-        tick = st.header.tick
-        if tick < rv.next_due:
-            rv.pending = st
-            return
-        rv.next_due = tick + self.every
-        rv.pending = None
-        self._log_robot(rv, st)
+        if rv.states.offer(st, self.every):
+            self._log_robot(rv, st)
 
     def _log_robot(self, rv: RobotView, st: pb.RobotState) -> None:
         self._time(st.header.tick, st.header.sim_time)
-        rv.logged_tick = st.header.tick
+        rv.states.logged(st)
         if rv.model is not None:
             unknown = [n for n in rv.q if n not in rv.model.by_name]
             if unknown and not rv.unknown_joints_warned:
@@ -330,18 +349,12 @@ class View:
             p = pose.position
             if finite((p.x, p.y, p.z)):
                 self.hands[hand] = np.array([p.x, p.y, p.z])
-        self.human_last = hs
-        tick = hs.header.tick
-        if tick < self.human_next_due:
-            self.human_pending = hs
-            return
-        self.human_next_due = tick + self.every
-        self.human_pending = None
-        self._log_human(hs)
+        if self.human.offer(hs, self.every):
+            self._log_human(hs)
 
     def _log_human(self, hs: pb.HumanState) -> None:
         self._time(hs.header.tick, hs.header.sim_time)
-        self.human_logged_tick = hs.header.tick
+        self.human.logged(hs)
         h = hs.head.position
         if finite((h.x, h.y, h.z)):
             self._log("world/human/head", rr.Points3D([[h.x, h.y, h.z]], radii=[0.09], colors=[(230, 190, 160)]))
@@ -496,18 +509,9 @@ class View:
         """Logs the last states that the rate limit held back, and the held states once more at
         the last clock tick (states come on change), so every timeline reaches the end."""
         for rv in self.robots.values():
-            if rv.pending is not None:
-                self._log_robot(rv, rv.pending)
-                rv.pending = None
-        if self.human_pending is not None:
-            self._log_human(self.human_pending)
-            self.human_pending = None
-        if self.clock is not None:
-            k, t = self.clock
-            for rv in self.robots.values():
-                if rv.last is not None and rv.logged_tick < k:
-                    self._log_robot(rv, _restamped(rv.last, k, t))
-            if self.human_last is not None and self.human_logged_tick < k:
-                self._log_human(_restamped(self.human_last, k, t))
+            for st in rv.states.closing(self.clock):
+                self._log_robot(rv, st)
+        for hs in self.human.closing(self.clock):
+            self._log_human(hs)
         self.rec.flush()
         self.rec.disconnect()  # closes the file sink (writes the rrd footer)
