@@ -181,7 +181,8 @@ class ClockMaster:
         with self._cond:
             if self._stop is not None and not self._stop[0]:
                 return  # aborting: nothing more to wait for
-            marks = self._take_fresh()
+            marks = self._fresh_marks()
+            self._consume_fresh()
         if deadline is None:
             missing = self.inbox.wait_for(marks, self.settings.barrier_timeout_s)
             if missing:
@@ -192,12 +193,21 @@ class ClockMaster:
         else:  # realtime: whatever is late is applied with the next tick
             self.inbox.wait_for(marks, max(0.0, deadline - time.monotonic()))
 
-    def _take_fresh(self) -> list[pb.PublishedMark]:
-        """The marks acked since the last barrier (to wait for, and to announce). Under the lock."""
-        fresh, self._fresh = self._fresh, {}
-        self._announce.update(fresh)
+    def _fresh_marks(self) -> list[pb.PublishedMark]:
+        """The marks acked since the last barrier, as messages. Under the lock."""
         return [pb.PublishedMark(key=key, sender=sender, seq=seq)
-                for (key, sender), seq in fresh.items()]
+                for (key, sender), seq in self._fresh.items()]
+
+    def _consume_fresh(self) -> None:
+        """The fresh marks, waited for, go to the next clock tick's list. Under the lock."""
+        self._announce.update(self._fresh)
+        self._fresh = {}
+
+    def _missed_barrier(self, k: int) -> RunFailed:
+        """The error for a barrier of tick k that timed out. Under the lock."""
+        late = [p for p in self.settings.participants if self._acked[p] < k]
+        return RunFailed(f"participant '{late[0]}' missed the barrier of tick {k} "
+                         f"(no ack within {self.settings.barrier_timeout_s:g} s)", late[0])
 
     def _await_acks(self, k: int, deadline: float | None) -> None:
         parts = self.settings.participants
@@ -216,9 +226,7 @@ class ClockMaster:
                     wait = deadline - now
                 else:
                     if now >= timeout_at:
-                        raise RunFailed(
-                            f"participant '{late[0]}' missed the barrier of tick {k} "
-                            f"(no ack within {self.settings.barrier_timeout_s:g} s)", late[0])
+                        raise self._missed_barrier(k)
                     wait = timeout_at - now
                 if self._stop is not None and not self._stop[0]:
                     return
@@ -270,11 +278,10 @@ class ClockMaster:
         k = self._barrier_tick
         if any(t < k for t in self._acked.values()):
             return False
-        wanted = [pb.PublishedMark(key=key, sender=sender, seq=seq)
-                  for (key, sender), seq in self._fresh.items()]
+        wanted = self._fresh_marks()
         if wanted and self.inbox.missing(wanted):
             return False
-        self._take_fresh()
+        self._consume_fresh()
         self._claimed = True
         return True
 
@@ -327,10 +334,7 @@ class ClockMaster:
                             break
                         waited = time.perf_counter() - self._published_at
                         if waited >= s.barrier_timeout_s:
-                            late = [p for p in s.participants if self._acked[p] < k]
-                            raise RunFailed(
-                                f"participant '{late[0]}' missed the barrier of tick {k} "
-                                f"(no ack within {s.barrier_timeout_s:g} s)", late[0])
+                            raise self._missed_barrier(k)
                         self._cond.wait(s.barrier_timeout_s - waited)
                     else:
                         self._cond.wait(s.barrier_timeout_s)
