@@ -45,8 +45,9 @@ def create_hand(client: int, name: str) -> Hand:
 
 def pose_hand(client: int, hand: Hand, pos: Vec, rot: Quat, grip: float) -> bool:
     """Puts the hand there; True if it moved (or became active)."""
-    moved = (pos, rot) != (hand.pos, hand.rot) or not hand.active
-    if (pos, rot) != (hand.pos, hand.rot):
+    moved = (pos, rot) != (hand.pos, hand.rot)
+    if moved:
         p.resetBasePositionAndOrientation(hand.body, list(pos), list(rot), physicsClientId=client)
+    activated = not hand.active
     hand.pos, hand.rot, hand.grip, hand.active = pos, rot, grip, True
-    return moved
+    return moved or activated
