@@ -1,0 +1,65 @@
+"""The golden trials and the outputs they must give.
+
+Each golden trial is `scenarios/thesis.toml` with a few keys changed (`GOLDEN_TRIALS`); its
+events.jsonl, log.txt and metrics.json are committed under `tests/golden/<name>/`. The golden
+test runs each trial and compares; `scripts/update-golden.sh` rewrites them after a deliberate
+change of behaviour or of an output's shape (the commit says which).
+
+Only what legitimately differs between two runs of one trial is ignored: wall-clock times
+(`wall_time`, `wall_s`, `realtime_factor`), the run's end reason (it names the wall time spent)
+and the date line at the top of log.txt.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+GOLDEN_ROOT = Path(__file__).resolve().parent / "golden"
+THESIS = ROOT / "scenarios" / "thesis.toml"
+WALL = {"wall_time", "wall_s", "realtime_factor", "end_reason"}
+FILES = ("events.jsonl", "log.txt", "metrics.json")
+
+# name -> (text in thesis.toml, replacement) pairs; the default trial, and one with collisions
+GOLDEN_TRIALS: dict[str, list[tuple[str, str]]] = {
+    "thesis": [],
+    "thesis-collisions": [("provoke_collisions = false", "provoke_collisions = [3.0, 12.0]")],
+}
+
+
+def scenario_file(name: str, tmp: Path) -> Path:
+    """The golden trial's scenario (written next to thesis.toml so relative paths resolve)."""
+    text = THESIS.read_text()
+    for old, new in GOLDEN_TRIALS[name]:
+        assert old in text, f"{old!r} is no longer in scenarios/thesis.toml"
+        text = text.replace(old, new)
+    if not GOLDEN_TRIALS[name]:
+        return THESIS
+    path = tmp / f"golden-{name}.toml"
+    path.write_text(text)
+    return path
+
+
+def strip_wall(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: strip_wall(v) for k, v in obj.items() if k not in WALL}
+    if isinstance(obj, list):
+        return [strip_wall(v) for v in obj]
+    return obj
+
+
+def run_trial(hrc: str, scenario: Path, out: Path) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([hrc, "run", str(scenario), "--out", str(out), "--max-ticks", "60000"],
+                          capture_output=True, text=True, timeout=900)
+
+
+def normalised(folder: Path) -> dict[str, Any]:
+    """A trial folder's three outputs with the wall-clock parts removed."""
+    events = [strip_wall(json.loads(line))
+              for line in (folder / "events.jsonl").read_text().splitlines()]
+    log_lines = (folder / "log.txt").read_text().splitlines()[1:]  # line 0: the date
+    metrics = strip_wall(json.loads((folder / "metrics.json").read_text()))
+    return {"events.jsonl": events, "log.txt": log_lines, "metrics.json": metrics}
