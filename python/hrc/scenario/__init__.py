@@ -7,6 +7,7 @@
 The format is documented in docs/scenario.md.
 """
 
+from hrc.scenario.conventions import APPROACH_HEIGHT_M
 from hrc.scenario.convert import from_proto, to_proto
 from hrc.scenario.errors import Problem, ScenarioError
 from hrc.scenario.loader import DEFAULT_REACH, load, loads, validate
@@ -25,7 +26,6 @@ from hrc.scenario.models import (
 )
 from hrc.scenario.paths import find_project_root, resolve_path
 from hrc.scenario.reach import (
-    APPROACH_HEIGHT,
     PybulletReachChecker,
     ReachChecker,
     ReachItem,
@@ -34,7 +34,7 @@ from hrc.scenario.reach import (
 )
 
 __all__ = [
-    "APPROACH_HEIGHT", "DEFAULT_REACH", "HUMAN", "Box", "Conditions", "Part", "Participant",
+    "APPROACH_HEIGHT_M", "DEFAULT_REACH", "HUMAN", "Box", "Conditions", "Part", "Participant",
     "Placement", "PoseYaw", "Problem", "PybulletReachChecker", "ReachChecker", "ReachItem",
     "ReachResult", "Robot", "Scenario", "ScenarioError", "ScenarioInfo", "Workspace",
     "find_project_root", "from_proto", "load", "loads", "reach_items", "resolve_path",

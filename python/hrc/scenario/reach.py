@@ -2,7 +2,7 @@
 
 `reach_items` lists the points: every robot pose (home, intermediate, retreat, feeder) and, for
 each part a robot owns, its pick (start) and place (target) positions plus the approach point
-APPROACH_HEIGHT above each (picks and places approach and leave vertically, SPEC §3).
+APPROACH_HEIGHT_M above each (picks and places approach and leave vertically).
 
 `PybulletReachChecker` answers by the arm's own kinematics: it loads the robot's URDF at its
 base pose in a private pybullet DIRECT client, solves inverse kinematics for the tool link at the
@@ -20,10 +20,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Protocol
 
+from hrc.scenario.conventions import APPROACH_HEIGHT_M
+
 if TYPE_CHECKING:
     from hrc.scenario.models import Part, Robot
 
-APPROACH_HEIGHT = 0.05  # m above picks and places, where vertical approaches start
 REACH_TOLERANCE_M = 0.005  # a target counts as reached within 5 mm (SPEC §3)
 AXIS_TOLERANCE_DEG = 2.0  # "pointing down" within this angle
 TOOL_LINK = "tool"
@@ -80,8 +81,8 @@ def _with_approach(key: str, rid: str, pos: Sequence[float], yaw: float | None) 
     x, y, z = _vec(pos)
     return [
         ReachItem(key, rid, (x, y, z), yaw),
-        ReachItem(key, rid, (x, y, z + APPROACH_HEIGHT), yaw,
-                  f"approach point {APPROACH_HEIGHT:g} m above"),
+        ReachItem(key, rid, (x, y, z + APPROACH_HEIGHT_M), yaw,
+                  f"approach point {APPROACH_HEIGHT_M:g} m above"),
     ]
 
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 from hrc.scenario import (
-    APPROACH_HEIGHT,
+    APPROACH_HEIGHT_M,
     DEFAULT_REACH,
     PybulletReachChecker,
     ReachItem,
@@ -66,7 +66,7 @@ def test_reach_items_cover_poses_picks_places_and_approaches(minimal_raw, write_
     assert keys == ["robots.r1.home", "robots.r1.intermediate", "robots.r1.retreat",
                     "parts.RA1.start", "parts.RA1.start", "parts.RA1.target", "parts.RA1.target"]
     start, above = r1[3], r1[4]
-    assert above.position[2] == pytest.approx(start.position[2] + APPROACH_HEIGHT)
+    assert above.position[2] == pytest.approx(start.position[2] + APPROACH_HEIGHT_M)
     r2 = [i.key for i in reach_items(scenario.robot("r2"), scenario.parts)]
     assert r2.count("robots.r2.feeder") == 2 and r2.count("parts.S1.target") == 2
     assert "parts.H1.target" not in keys + r2  # the human's parts are not the robots' business

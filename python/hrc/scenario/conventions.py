@@ -1,0 +1,43 @@
+"""Task conventions that more than one service relies on, defined once (docs/task-semantics.md
+describes the behaviour they belong to).
+
+The scenario's own defaults and bounds (tick rate, placement tolerance, ...) live with the
+models in :mod:`hrc.scenario.models`; the participant's hands, the grasp rule, the robots'
+vertical approach and the cue ids live here.
+"""
+
+from __future__ import annotations
+
+# ---------------------------------------------------------------- the participant's hands
+
+HANDS = ("left", "right")  # hand names on the wire (HumanState fields, contacts, events)
+GRIP_CLOSED = 0.5  # a grip >= this holds a part; below it lets go
+GRASP_DISTANCE_M = 0.03  # a closed hand grasps a grabbable part this close to it
+
+# ---------------------------------------------------------------- the robots
+
+# Picks and places are approached and left vertically from this far above (the orchestrator's
+# commands, and the reach check of the scenario validation).
+APPROACH_HEIGHT_M = 0.05
+
+# ---------------------------------------------------------------- cues (task/indicators)
+
+WAITING_TEXT = "Waiting.."  # the label of a robot that waits for a part (the thesis's text)
+WAITING_HEIGHT_M = 0.6  # where that label floats, above the robot's base
+CONTINUE_BUTTON_CUE = "continue_button"
+TARGET_CUE_PREFIX = "target:"
+
+
+def outline_cue_id(part: str) -> str:
+    """The outline of the part the participant may grab next."""
+    return f"outline:{part}"
+
+
+def target_cue_id(part: str) -> str:
+    """The target of a part that is being carried (or that a robot heads to, with anticipation)."""
+    return f"{TARGET_CUE_PREFIX}{part}"
+
+
+def waiting_cue_id(robot: str) -> str:
+    """A robot's "Waiting.." label."""
+    return f"waiting:{robot}"
