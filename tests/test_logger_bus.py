@@ -22,9 +22,11 @@ from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, Publisher
 from hrc.wire import pb
 from hrc_logger.rrd import summarize
-from hrc_logger.synthetic import ROLES, Outgoing, SyntheticTrial
 
 from .conftest import HRC, ROOT, free_port, wait_until
+
+sys.path.insert(0, str(ROOT / "services" / "logger" / "tests"))
+from synthetic import ROLES, Outgoing, SyntheticTrial  # noqa: E402
 
 
 def read_with_dataframe_api(rrd: Path):  # noqa: ANN201 - a pyarrow.Table

@@ -1,4 +1,4 @@
-"""The scripted participant's decisions, on the mini world (hrc_human_input.minisim) and on
+"""The scripted participant's decisions, on the mini world (minisim.py, next to the tests) and on
 synthetic task state."""
 
 from __future__ import annotations
@@ -7,13 +7,13 @@ import functools
 
 import numpy as np
 import pytest
+from minisim import MiniWorld
 
 from hrc import scenario as sc
 from hrc.paths import project_root
 from hrc.wire import pb
 
 from hrc_human_input import facts as facts_mod
-from hrc_human_input.minisim import MiniWorld
 from hrc_human_input.scripted import Phase, ScriptedParticipant
 from hrc_human_input.task_view import TaskView
 

@@ -8,14 +8,14 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+from offline import run_offline
+from synthetic import SyntheticTrial
 
 from hrc import scenario as sc
 from hrc.paths import project_root
 from hrc.wire import pb
-from hrc_logger.offline import run_offline
 from hrc_logger.records import event_record, metrics_body
 from hrc_logger.rrd import summarize
-from hrc_logger.synthetic import SyntheticTrial
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,7 @@
 """A synthetic trial: what physics, ik_cpp, human_input and the orchestrator would send.
 
-Used by the logger's tests (and handy to try the view without the other services): a short
+A test double, used by the logger's tests (services/logger/tests, tests/test_logger_bus.py) and
+handy to try the view without the other services: a short
 thesis-board trial with a collision-and-continue twice, a robot-robot near collision, cues
 turning on and off, parts moving, both robots' joint states every tick, the finishes, TASK
 FINISHED and the final metrics on the very last tick (which no clock tick lists, so only the
@@ -17,6 +18,8 @@ from typing import Iterator
 import numpy as np
 from google.protobuf.message import Message
 
+from hrc.geometry import pose_to_pb, vec3_to_pb, yaw_pose_deg
+from hrc.scenario.conventions import WAITING_TEXT
 from hrc.wire import pb
 
 from hrc_logger.urdf_fk import UrdfModel, matrix_to_quat_xyzw, yaw_transform
@@ -48,17 +51,8 @@ class Expected:
     cue_ids: set[str] = field(default_factory=set)
 
 
-def _v(x: float, y: float, z: float) -> pb.Vec3:
-    return pb.Vec3(x=x, y=y, z=z)
-
-
 def _lerp(a: np.ndarray, b: np.ndarray, s: float) -> np.ndarray:
     return a + (b - a) * min(1.0, max(0.0, s))
-
-
-def _yaw_q(yaw_deg: float) -> pb.Quat:
-    h = math.radians(yaw_deg) / 2
-    return pb.Quat(x=0.0, y=0.0, z=math.sin(h), w=math.cos(h))
 
 
 class SyntheticTrial:
@@ -106,7 +100,7 @@ class SyntheticTrial:
     def _object(self, pid: str, k: int) -> pb.ObjectState:
         pos, yaw, holder, placed = self._part_pose(pid, k)
         a, b, _ = self.moves.get(pid, (0, 0, ""))
-        return pb.ObjectState(id=pid, pose=pb.Pose(position=_v(*pos), orientation=_yaw_q(yaw)),
+        return pb.ObjectState(id=pid, pose=pose_to_pb(yaw_pose_deg(pos, yaw)),
                               held_by=holder, grabbable=False, placed=placed, moving=a <= k <= b)
 
     def q(self, rid: str, k: int) -> list[float]:
@@ -125,7 +119,7 @@ class SyntheticTrial:
         speed = float(np.linalg.norm(tool[:3, 3] - prev[:3, 3]) / self.dt)
         qx, qy, qz, qw = matrix_to_quat_xyzw(tool[:3, :3])
         return pb.RobotState(robot=rid, joint_names=model.movable, joint_positions=q,
-                             tcp=pb.Pose(position=_v(*tool[:3, 3]), orientation=pb.Quat(x=qx, y=qy, z=qz, w=qw)),
+                             tcp=pb.Pose(position=vec3_to_pb(tool[:3, 3]), orientation=pb.Quat(x=qx, y=qy, z=qz, w=qw)),
                              tcp_speed=speed, status=pb.MOTION_STATUS_MOVING, command_id=1)
 
     def human_state(self, k: int) -> pb.HumanState:
@@ -133,9 +127,9 @@ class SyntheticTrial:
         left, _, _, _ = self._part_pose("H1", k)
         right = np.array([0.2 + 0.05 * math.sin(t), -0.3, 0.15])
         grip = 1.0 if 50 <= k < 200 else 0.0
-        return pb.HumanState(head=pb.Pose(position=_v(0.0, -0.6, 0.5), orientation=pb.Quat(w=1.0)),
-                             left_hand=pb.Pose(position=_v(*(left + [0, 0, 0.03])), orientation=pb.Quat(w=1.0)),
-                             right_hand=pb.Pose(position=_v(*right), orientation=pb.Quat(w=1.0)),
+        return pb.HumanState(head=pb.Pose(position=vec3_to_pb((0.0, -0.6, 0.5)), orientation=pb.Quat(w=1.0)),
+                             left_hand=pb.Pose(position=vec3_to_pb(left + [0, 0, 0.03]), orientation=pb.Quat(w=1.0)),
+                             right_hand=pb.Pose(position=vec3_to_pb(right), orientation=pb.Quat(w=1.0)),
                              left_grip=grip, right_grip=0.0, source="scripted")
 
     def _event(self, k: int, kind: int, **kw: object) -> pb.TaskEvent:
@@ -201,7 +195,7 @@ class SyntheticTrial:
             out.append(self._cue("target:H1", C.CUE_KIND_TARGET, True, part="H1", color="#5a96eb"))
         if k == 100:
             out.append(self._cue("target:RA1", C.CUE_KIND_TARGET, True, part="RA1", robot="r1", color="yellow"))
-            out.append(self._cue("waiting:r2", C.CUE_KIND_WAITING, True, robot="r2", color="green", text="Waiting.."))
+            out.append(self._cue("waiting:r2", C.CUE_KIND_WAITING, True, robot="r2", color="green", text=WAITING_TEXT))
         if k == 200:
             out.append(self._cue("waiting:r2", C.CUE_KIND_WAITING, False, robot="r2"))
             out.append(self._cue("target:H1", C.CUE_KIND_TARGET, False, part="H1"))
@@ -255,10 +249,10 @@ class SyntheticTrial:
         contacts: list[pb.Contact] = []
         if k in (250, 262):
             contacts.append(pb.Contact(kind=pb.CONTACT_KIND_HAND_ROBOT, begin=k == 250, a="left", b="r1",
-                                       link="link3_forearm", point=_v(0.3, 0.2, 0.3)))
+                                       link="link3_forearm", point=vec3_to_pb((0.3, 0.2, 0.3))))
         if k in (400, 420):
             contacts.append(pb.Contact(kind=pb.CONTACT_KIND_ROBOT_ROBOT, begin=k == 400, a="r1", b="r2",
-                                       point=_v(0.0, 0.35, 0.4)))
+                                       point=vec3_to_pb((0.0, 0.35, 0.4))))
         if k == 5:
             contacts.append(pb.Contact(kind=pb.CONTACT_KIND_HAND_ENVELOPE, begin=True, a="left", b="0"))
         if contacts:

@@ -1,4 +1,5 @@
-"""Feed a synthetic trial straight into a TrialRecorder (no bus): for tests and trying the view."""
+"""Feed a synthetic trial straight into a TrialRecorder (no bus): a test double, also handy for
+trying the view."""
 
 from __future__ import annotations
 
@@ -7,8 +8,8 @@ from pathlib import Path
 from hrc.wire import pb
 
 from hrc_logger.recorder import TrialRecorder
-from hrc_logger.synthetic import Outgoing, SyntheticTrial
 from hrc_logger.view import View, open_recording
+from synthetic import Outgoing, SyntheticTrial
 
 
 def run_offline(trial: SyntheticTrial, out: Path, session: str = "offline") -> TrialRecorder:

@@ -2,12 +2,13 @@
 
 It runs the scripted participant in-process, tick by tick, feeding its TaskView the same wire
 messages the bus would (world/objects, task/indicators, task/events, robot/<id>/state,
-world/contacts), following the task conventions of docs/ARCHITECTURE.md: a grabbable object is
-attached to a hand whose grip >= 0.5 within 3 cm of it; grip < 0.5 releases it; a release within
-the placement tolerance snaps onto the target, otherwise the part rests where it was let go.
-Robots do not move arms here: each robot part is "placed" a fixed delay after its dependencies,
-and a robot TCP can be parked anywhere. Used by the unit tests and for tuning parameters offline;
-the real run is always the five services.
+world/contacts), following the task conventions (hrc.scenario.conventions): a grabbable object
+is attached to a closed hand (grip >= GRIP_CLOSED) within GRASP_DISTANCE_M of its centre (physics
+measures to its surface); an open hand releases it; a release within the placement tolerance
+snaps onto the target, otherwise the part rests where it was let go. Robots do not move arms here:
+each robot part is "placed" a fixed delay after its dependencies, and a robot TCP can be parked
+anywhere. A test double for the participant's unit tests (and for tuning parameters offline); the
+real run is always the five services.
 """
 
 from __future__ import annotations
@@ -15,27 +16,28 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+from hrc.geometry import (Pose, Vec3, add, distance, pose_to_pb, quat_yaw_rad, rotate_z_rad, sub,
+                          vec3_to_pb, wrap_angle_rad, yaw_quat_rad)
+from hrc.scenario.conventions import (GRASP_DISTANCE_M, GRIP_CLOSED, HANDS, outline_cue_id,
+                                      target_cue_id)
+from hrc.scenario.models import DEFAULT_TOLERANCE_DEG, HUMAN
 from hrc.wire import pb
 
 from hrc_human_input.facts import ScenarioFacts
-from hrc_human_input.geometry import Vec, dist, rot_z, sub, wrap_angle, yaw_of, yaw_quat
 from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.task_view import TaskView
-
-GRASP_RADIUS = 0.03
-GRIP_CLOSED = 0.5
 
 
 @dataclass
 class SimObject:
     id: str
-    pos: Vec
-    yaw: float
+    pos: Vec3
+    yaw_rad: float
     held_by: str = ""
     grabbable: bool = False
     placed: bool = False
-    grab_rel: tuple[Vec, float] | None = None  # (object - hand, object yaw - hand yaw)
+    grab_rel: tuple[Vec3, float] | None = None  # (object - hand, object - hand yaw_rad)
 
 
 @dataclass
@@ -45,7 +47,7 @@ class MiniWorld:
     robot_delay_s: float = 2.0             # a robot part is placed this long after it may be
     collision_radius: float = 0.05         # hand this close to a robot TCP: collision
     continue_after_s: float = 2.0          # COLLISION -> CONTINUED
-    tcp: dict[str, Vec] = field(default_factory=dict)
+    tcp: dict[str, Vec3] = field(default_factory=dict)
     view: TaskView = field(init=False)
     objects: dict[str, SimObject] = field(default_factory=dict)
     tick: int = 0
@@ -104,17 +106,18 @@ class MiniWorld:
                 continue
             g = pid == nxt and self.collision_until is None
             o.grabbable = g
-            self._cue(f"outline:{pid}", g and not o.held_by, part=pid, kind=pb.CUE_KIND_OUTLINE)
+            self._cue(outline_cue_id(pid), g and not o.held_by, part=pid, kind=pb.CUE_KIND_OUTLINE)
 
     def _place(self, t: float, pid: str) -> None:
         self.placed_at[pid] = t
         part = self.facts.parts[pid]
         o = self.objects.get(pid)
         if o is not None:
-            o.pos, o.yaw, o.held_by, o.placed = part.target, math.radians(part.target_yaw_deg), "", True
+            o.pos, o.yaw_rad, o.held_by, o.placed = (part.target, math.radians(part.target_yaw_deg),
+                                                      "", True)
             self._pending_events.append(pb.ObjectEvent(kind=pb.ObjectEvent.KIND_SNAPPED, object=pid))
         self._event(t, pb.TASK_EVENT_KIND_PART_PLACED, part=pid)
-        self._cue(f"target:{pid}", False, part=pid)
+        self._cue(target_cue_id(pid), False, part=pid)
 
     def _robots(self, t: float) -> None:
         if self.task_start is None:
@@ -130,7 +133,7 @@ class MiniWorld:
                     break  # robots work their sequence in order
                 ready = max([last] + [self.placed_at[a] for a in after])
                 if self.facts.anticipation:
-                    self._cue(f"target:{pid}", True, part=pid, robot=rid,
+                    self._cue(target_cue_id(pid), True, part=pid, robot=rid,
                               kind=pb.CUE_KIND_TARGET)
                 if t >= ready + self.robot_delay_s:
                     self._place(t, pid)
@@ -138,23 +141,24 @@ class MiniWorld:
 
     # ------------------------------------------------------------------ physics-lite
     def _apply(self, t: float, s: Sample) -> None:
-        for hand in ("left", "right"):
+        for hand in HANDS:
             pose, grip = s.hand(hand), s.grip(hand)
-            hyaw = yaw_of(pose.orientation)
+            hyaw_rad = quat_yaw_rad(pose.orientation)
             held = [o for o in self.objects.values() if o.held_by == hand]
             for o in held:
                 assert o.grab_rel is not None
-                rel, dyaw = o.grab_rel
+                rel, dyaw_rad = o.grab_rel
                 if grip < GRIP_CLOSED:
                     o.held_by = ""
                     part = self.facts.parts[o.id]
-                    d = dist(o.pos, part.target)
-                    ang = abs(math.degrees(wrap_angle(o.yaw - math.radians(part.target_yaw_deg))))
+                    d = distance(o.pos, part.target)
+                    ang = abs(math.degrees(wrap_angle_rad(
+                        o.yaw_rad - math.radians(part.target_yaw_deg))))
                     self.released.append((t, o.id, d))
                     self._pending_events.append(pb.ObjectEvent(
                         kind=pb.ObjectEvent.KIND_RELEASED, object=o.id, holder=hand,
                         target_distance_m=d, target_angle_deg=ang))
-                    if d <= self.facts.place_tolerance_m and ang <= 20.0:
+                    if d <= self.facts.place_tolerance_m and ang <= DEFAULT_TOLERANCE_DEG:
                         self._place(t, o.id)
                     else:
                         o.pos = (o.pos[0], o.pos[1], part.size[2] / 2.0)
@@ -162,13 +166,15 @@ class MiniWorld:
                             kind=pb.ObjectEvent.KIND_RESTED, object=o.id))
                     self._update_grabbable(t)
                 else:
-                    o.pos = tuple(a + b for a, b in zip(pose.position, rot_z(rel, hyaw)))  # type: ignore[assignment]
-                    o.yaw = hyaw + dyaw
+                    o.pos = add(pose.position, rotate_z_rad(rel, hyaw_rad))
+                    o.yaw_rad = hyaw_rad + dyaw_rad
             if grip >= GRIP_CLOSED and not held:
                 for o in sorted(self.objects.values(), key=lambda o: o.id):
-                    if o.grabbable and not o.held_by and dist(pose.position, o.pos) <= GRASP_RADIUS:
+                    if (o.grabbable and not o.held_by
+                            and distance(pose.position, o.pos) <= GRASP_DISTANCE_M):
                         o.held_by = hand
-                        o.grab_rel = (rot_z(sub(o.pos, pose.position), -hyaw), o.yaw - hyaw)
+                        o.grab_rel = (rotate_z_rad(sub(o.pos, pose.position), -hyaw_rad),
+                                      o.yaw_rad - hyaw_rad)
                         self.grabbed_at.setdefault(o.id, []).append(t)
                         self._pending_events.append(pb.ObjectEvent(
                             kind=pb.ObjectEvent.KIND_GRABBED, object=o.id, holder=hand))
@@ -176,13 +182,13 @@ class MiniWorld:
                             self.task_start = t
                             self._event(t, pb.TASK_EVENT_KIND_TASK_STARTED)
                         part = self.facts.parts[o.id]
-                        self._cue(f"outline:{o.id}", False, part=o.id)
+                        self._cue(outline_cue_id(o.id), False, part=o.id)
                         if all(a in self.placed_at for a in part.after):
-                            self._cue(f"target:{o.id}", True, part=o.id)
+                            self._cue(target_cue_id(o.id), True, part=o.id)
                         break
             # hand-robot contacts
             for rid, tcp in sorted(self.tcp.items()):
-                touching = dist(pose.position, tcp) <= self.collision_radius
+                touching = distance(pose.position, tcp) <= self.collision_radius
                 key = (hand, rid)
                 if touching and key not in self._touching:
                     self._touching.add(key)
@@ -205,10 +211,8 @@ class MiniWorld:
         msg.header.sim_time = t
         msg.header.tick = self.tick
         for o in sorted(self.objects.values(), key=lambda o: o.id):
-            q = yaw_quat(o.yaw)
             msg.objects.add(id=o.id, held_by=o.held_by, grabbable=o.grabbable, placed=o.placed,
-                            pose=pb.Pose(position=pb.Vec3(x=o.pos[0], y=o.pos[1], z=o.pos[2]),
-                                         orientation=pb.Quat(x=q[0], y=q[1], z=q[2], w=q[3])))
+                            pose=pose_to_pb(Pose(o.pos, yaw_quat_rad(o.yaw_rad))))
         msg.events.extend(self._pending_events)
         self._pending_events = []
         self.view.on_objects(msg)
@@ -218,8 +222,7 @@ class MiniWorld:
             self.view.on_contacts(c)
             self._contacts = []
         for rid, tcp in sorted(self.tcp.items()):
-            rs = pb.RobotState(robot=rid, tcp=pb.Pose(position=pb.Vec3(x=tcp[0], y=tcp[1],
-                                                                       z=tcp[2])))
+            rs = pb.RobotState(robot=rid, tcp=pb.Pose(position=vec3_to_pb(tcp)))
             rs.header.sim_time = t
             self.view.on_robot_state(rs)
         if self._cue_changes:
@@ -246,7 +249,7 @@ class MiniWorld:
 
     def done(self) -> bool:
         return all(p.id in self.placed_at for p in self.facts.parts.values()
-                   if p.owner == "human" or p.owner in self.facts.robots)
+                   if p.owner == HUMAN or p.owner in self.facts.robots)
 
     def run(self, max_s: float) -> bool:
         while self.tick * self.dt < max_s:
