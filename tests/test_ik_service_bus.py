@@ -28,6 +28,7 @@ import pytest
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings, LockstepParticipant
 from hrc.cli.runner import free_port
+from hrc.geometry import quat_from_pb, vec3_from_pb
 from hrc.paths import ik_binary, project_root
 from hrc.wire import pb
 
@@ -307,10 +308,6 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[tuple[Session, pb.
         s.close()
 
 
-def vec(v: pb.Vec3) -> tuple[float, float, float]:
-    return (v.x, v.y, v.z)
-
-
 def _content(st: pb.RobotState) -> bytes:
     body = pb.RobotState()
     body.CopyFrom(st)
@@ -346,8 +343,8 @@ def test_run_completes_and_every_robot_reports_every_change(run: tuple[Session, 
     # IDLE before the first command
     assert s.record.states["r1"][0].status == pb.MOTION_STATUS_IDLE
     assert s.record.states["r1"][0].command_id == 0
-    home = vec(s.robots["r1"].home)
-    assert math.dist(vec(s.record.states["r1"][0].tcp.position), home) < 1e-3
+    home = vec3_from_pb(s.robots["r1"].home)
+    assert math.dist(vec3_from_pb(s.record.states["r1"][0].tcp.position), home) < 1e-3
 
 
 def test_targets_are_reached_within_5_mm_with_the_command_id_echoed(run: tuple[Session, pb.RunEnd]) -> None:
@@ -360,7 +357,7 @@ def test_targets_are_reached_within_5_mm_with_the_command_id_echoed(run: tuple[S
         if st is None or st.status != pb.MOTION_STATUS_REACHED:
             continue  # interrupted (retarget) or held: checked elsewhere
         assert st.command_id == c.command_id
-        err = math.dist(vec(st.tcp.position), c.target)
+        err = math.dist(vec3_from_pb(st.tcp.position), c.target)
         assert err <= REACH_TOL, f"{c.robot} #{c.command_id} reached {err * 1000:.2f} mm from {c.target}"
         # ... and the tool points down
         q = st.tcp.orientation
@@ -382,7 +379,7 @@ def test_measured_tcp_speed_never_exceeds_the_limit_by_more_than_2_percent(
         vmax = s.robots[robot].max_tcp_speed
         fastest = 0.0
         for a, b in zip(states, states[1:]):
-            v = math.dist(vec(a.tcp.position), vec(b.tcp.position)) / s.dt
+            v = math.dist(vec3_from_pb(a.tcp.position), vec3_from_pb(b.tcp.position)) / s.dt
             fastest = max(fastest, v)
             assert v <= vmax * SPEED_TOL, f"{robot} tick {b.header.tick}: {v:.4f} m/s > {vmax} m/s"
             # the reported tcp_speed is the same measurement
@@ -408,8 +405,9 @@ def test_retarget_mid_move_has_no_joint_jump(run: tuple[Session, pb.RunEnd]) -> 
     # the new target's line points elsewhere: the TCP velocity turns without a step (the motion
     # brakes along the old direction first, at most max_tcp_accel = 2 m/s^2 per tick)
     for a, b, c in zip(states[k0 - 1:k1], states[k0:k1], states[k0 + 1:k1 + 1]):
-        v1 = [(y - x) / s.dt for x, y in zip(vec(a.tcp.position), vec(b.tcp.position))]
-        v2 = [(y - x) / s.dt for x, y in zip(vec(b.tcp.position), vec(c.tcp.position))]
+        pa, pb_, pc = (vec3_from_pb(x.tcp.position) for x in (a, b, c))
+        v1 = [(y - x) / s.dt for x, y in zip(pa, pb_)]
+        v2 = [(y - x) / s.dt for x, y in zip(pb_, pc)]
         dv = math.dist(v1, v2)
         assert dv <= 2.0 * s.dt * 1.1 + 2e-3, f"tick {c.header.tick}: TCP velocity jumped by {dv:.4f} m/s"
     assert worst > 0.05  # the check saw real motion
@@ -423,14 +421,14 @@ def test_unreachable_target_is_reported_and_nothing_is_nan(run: tuple[Session, p
     st = states[sent.tick + 1]
     assert st.status == pb.MOTION_STATUS_UNREACHABLE and st.command_id == sent.command_id
     assert "unreachable" in st.detail
-    before = vec(states[sent.tick].tcp.position)
+    before = vec3_from_pb(states[sent.tick].tcp.position)
     for later in states[sent.tick + 1:sent.tick + 60]:
         assert later.status == pb.MOTION_STATUS_UNREACHABLE
-        assert math.dist(vec(later.tcp.position), before) < 1e-3  # it held where it was
+        assert math.dist(vec3_from_pb(later.tcp.position), before) < 1e-3  # it held where it was
     for states_of in s.record.states.values():
         for st in states_of:
-            nums = [*st.joint_positions, *vec(st.tcp.position), st.tcp_speed, st.tcp.orientation.x,
-                    st.tcp.orientation.y, st.tcp.orientation.z, st.tcp.orientation.w]
+            nums = [*st.joint_positions, *vec3_from_pb(st.tcp.position), st.tcp_speed,
+                    *quat_from_pb(st.tcp.orientation)]
             assert all(math.isfinite(x) for x in nums), st
 
 
@@ -543,7 +541,7 @@ def test_standalone_timer_mode(tmp_path: Path) -> None:
     with lock:
         got = list(states)
     st = got[-1]
-    assert math.dist(vec(st.tcp.position), target) <= REACH_TOL
+    assert math.dist(vec3_from_pb(st.tcp.position), target) <= REACH_TOL
     # the arm stepped by 1/HZ: ticks and sim_time count from 0 in steps of one period
     # (states come on change: none while the arm stood at home, one per tick while it moved)
     ticks = [s.header.tick for s in got]
@@ -555,7 +553,8 @@ def test_standalone_timer_mode(tmp_path: Path) -> None:
     assert all(s.header.sim_time == pytest.approx(s.header.tick / hz) for s in got)
     # speed measured with dt = 1/HZ stays within the limit
     for a, b in zip(got, got[1:]):
-        assert math.dist(vec(a.tcp.position), vec(b.tcp.position)) * hz <= 0.5 * SPEED_TOL
+        step_m = math.dist(vec3_from_pb(a.tcp.position), vec3_from_pb(b.tcp.position))
+        assert step_m * hz <= 0.5 * SPEED_TOL
     text = log_path.read_text()
     assert "standalone run ended" in text and "per-tick compute" in text, text
 

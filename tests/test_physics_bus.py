@@ -25,17 +25,16 @@ import pytest
 
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, LockstepParticipant
+from hrc.geometry import IDENTITY, Pose, pose_to_pb, yaw_quat_deg
 from hrc.cli.runner import free_port
 from hrc.paths import project_root
 from hrc.wire import pb
-from hrc_physics.geometry import pose_to_pb, yaw_quat
 from hrc_physics.hands import HAND_SIZE
 
 pytestmark = pytest.mark.slow
 
 ROOT = project_root()
 MINIMAL = ROOT / "scenarios" / "minimal.toml"
-IDENTITY = (0.0, 0.0, 0.0, 1.0)
 AWAY = (0.0, -0.8, 0.4)  # outside every envelope box, far from both robots
 
 Step = Callable[[int, float, "Role"], None]
@@ -177,8 +176,9 @@ def physics_run(tmp_path: Path):
 
 def human_state(left=AWAY, right=AWAY, left_grip=0.0, right_grip=0.0,
                 rot=IDENTITY) -> pb.HumanState:
-    return pb.HumanState(left_hand=pose_to_pb(left, rot), right_hand=pose_to_pb(right, rot),
-                         head=pose_to_pb((0.0, -0.7, 0.5), IDENTITY), left_grip=left_grip,
+    return pb.HumanState(left_hand=pose_to_pb(Pose(left, rot)),
+                         right_hand=pose_to_pb(Pose(right, rot)),
+                         head=pose_to_pb(Pose((0.0, -0.7, 0.5))), left_grip=left_grip,
                          right_grip=right_grip, source="replay")
 
 
@@ -199,7 +199,7 @@ class Geometry:
         self.robots = {}
         for rid, robot in scen.robots.items():
             self.robots[rid] = p.loadURDF(str(scen.urdf_path(rid)), robot.base.xyz,
-                                          yaw_quat(robot.base.yaw), useFixedBase=True,
+                                          yaw_quat_deg(robot.base.yaw), useFixedBase=True,
                                           physicsClientId=self.c)
         shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[s / 2 for s in HAND_SIZE],
                                        physicsClientId=self.c)
@@ -395,7 +395,7 @@ def test_bad_inputs_are_counted_and_the_run_goes_on(physics_run) -> None:
             bad = pb.WorldCommands(commands=[
                 pb.WorldCommand(attach=pb.Attach(object="NOPE", holder="r1")),
                 pb.WorldCommand(release=pb.Release(object="H1", snap=True, pose=pose_to_pb(
-                    (math.inf, 0.0, 0.0), IDENTITY))),
+                    Pose((math.inf, 0.0, 0.0))))),
                 pb.WorldCommand(set_grabbable=pb.SetGrabbable(object="H1", grabbable=True)),
             ])
             role.put(role.bus.keys.world_commands(), bad, k, t)

@@ -2,11 +2,11 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from pathlib import Path
 
 from pydantic import ValidationError
 
+from hrc.geometry import pose_yaw_to_pb, vec3_from_pb, vec3_to_pb
 from hrc.scenario.errors import Problem, ScenarioError
 from hrc.scenario.models import (
     SCRIPTED_PARAMS,
@@ -52,14 +52,14 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
         rc.role = robot.role
         urdf = scenario.resolve(robot.urdf)
         rc.urdf_path = str(urdf) if urdf else robot.urdf
-        rc.base.CopyFrom(_pose(robot.base))
+        rc.base.CopyFrom(pose_yaw_to_pb(robot.base.xyz, robot.base.yaw))
         rc.max_tcp_speed = robot.max_tcp_speed
-        rc.home.CopyFrom(_vec(robot.home))
-        rc.intermediate.CopyFrom(_vec(robot.intermediate))
-        rc.retreat.CopyFrom(_vec(robot.retreat))
+        rc.home.CopyFrom(vec3_to_pb(robot.home))
+        rc.intermediate.CopyFrom(vec3_to_pb(robot.intermediate))
+        rc.retreat.CopyFrom(vec3_to_pb(robot.retreat))
         rc.color = robot.color_or_default
         if robot.feeder is not None:  # presence tells from_proto the feeder exists
-            rc.feeder.CopyFrom(_vec(robot.feeder))
+            rc.feeder.CopyFrom(vec3_to_pb(robot.feeder))
         rc.screw_time_s = robot.screw_time_or_default
         rc.near_margin = robot.near_margin
 
@@ -68,11 +68,11 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
         pcfg.id = p.id
         pcfg.owner = p.owner
         pcfg.kind = p.kind
-        pcfg.size.CopyFrom(_vec(p.size))
+        pcfg.size.CopyFrom(vec3_to_pb(p.size))
         pcfg.start_given = p.start is not None
         if p.start is not None:
-            pcfg.start.CopyFrom(_pose(p.start))
-        pcfg.target.CopyFrom(_pose(p.target))
+            pcfg.start.CopyFrom(pose_yaw_to_pb(p.start.xyz, p.start.yaw))
+        pcfg.target.CopyFrom(pose_yaw_to_pb(p.target.xyz, p.target.yaw))
         pcfg.after.extend(p.after)
 
     # One sequence per agent, empty ones included, so services see every agent.
@@ -80,9 +80,9 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
         msg.sequences.add(agent=agent, parts=scenario.sequence_of(agent))
 
     for box in scenario.workspace.envelope:
-        msg.workspace.envelope.add(min=_vec(box.min), max=_vec(box.max))
+        msg.workspace.envelope.add(min=vec3_to_pb(box.min), max=vec3_to_pb(box.max))
     if scenario.workspace.continue_button is not None:
-        msg.workspace.continue_button.CopyFrom(_vec(scenario.workspace.continue_button))
+        msg.workspace.continue_button.CopyFrom(vec3_to_pb(scenario.workspace.continue_button))
     msg.workspace.SetInParent()
 
     msg.place_tolerance_m = scenario.placement.tolerance_m
@@ -158,18 +158,9 @@ def _from_proto(msg: pb.Scenario) -> Scenario:
     return scenario
 
 
-def _vec(v: Sequence[float]) -> pb.Vec3:
-    return pb.Vec3(x=v[0], y=v[1], z=v[2])
-
-
 def _vec_back(v: pb.Vec3) -> list[float]:
-    return [v.x, v.y, v.z]
-
-
-def _pose(p: PoseYaw) -> pb.PoseYaw:
-    return pb.PoseYaw(xyz=_vec(p.xyz), yaw_deg=p.yaw)
+    return list(vec3_from_pb(v))  # the models hold lists
 
 
 def _pose_back(p: pb.PoseYaw) -> PoseYaw:
     return PoseYaw(xyz=_vec_back(p.xyz), yaw=p.yaw_deg)
-

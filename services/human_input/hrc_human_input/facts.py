@@ -11,9 +11,9 @@ import logging
 import math
 from dataclasses import dataclass, field
 
+from hrc.geometry import Vec3, vec3_from_pb
+from hrc.scenario.models import DEFAULT_TICK_HZ, DEFAULT_TOLERANCE_M, HUMAN
 from hrc.wire import pb
-
-from hrc_human_input.geometry import Vec
 
 log = logging.getLogger(__name__)
 
@@ -55,10 +55,10 @@ PARAM_RANGES: dict[str, tuple[float, float]] = {
 class PartFacts:
     id: str
     owner: str
-    size: Vec
-    start: Vec | None
+    size: Vec3
+    start: Vec3 | None
     start_yaw_deg: float
-    target: Vec
+    target: Vec3
     target_yaw_deg: float
     after: tuple[str, ...] = ()
 
@@ -67,14 +67,14 @@ class PartFacts:
 class RobotFacts:
     id: str
     color: str
-    retreat: Vec
+    retreat: Vec3
 
 
 @dataclass
 class ScenarioFacts:
     name: str = ""
     seed: int = 1
-    tick_hz: float = 240.0
+    tick_hz: float = DEFAULT_TICK_HZ
     participant: str = ""
     input: str = "scripted"
     replay_file: str = ""
@@ -83,18 +83,14 @@ class ScenarioFacts:
     parts: dict[str, PartFacts] = field(default_factory=dict)
     robots: dict[str, RobotFacts] = field(default_factory=dict)
     human_sequence: list[str] = field(default_factory=list)
-    continue_button: Vec | None = None
-    place_tolerance_m: float = 0.02
+    continue_button: Vec3 | None = None
+    place_tolerance_m: float = DEFAULT_TOLERANCE_M
     params: dict[str, float] = field(default_factory=lambda: dict(PARAM_DEFAULTS))
     provoke_times_s: list[float] = field(default_factory=list)
     provoke_probability: float = 0.0
 
     def param(self, name: str) -> float:
         return self.params.get(name, PARAM_DEFAULTS[name])
-
-
-def _vec(v: pb.Vec3) -> Vec:
-    return (v.x, v.y, v.z)
 
 
 def read_params(raw: dict[str, float]) -> dict[str, float]:
@@ -119,11 +115,11 @@ def read_params(raw: dict[str, float]) -> dict[str, float]:
 def from_proto(msg: pb.Scenario) -> ScenarioFacts:
     pc = msg.participant
     facts = ScenarioFacts(
-        name=msg.info.name, seed=int(msg.info.seed), tick_hz=msg.info.tick_hz or 240.0,
+        name=msg.info.name, seed=int(msg.info.seed), tick_hz=msg.info.tick_hz or DEFAULT_TICK_HZ,
         participant=pc.name, input=pc.input or "scripted", replay_file=pc.replay_file,
         anticipation=msg.conditions.anticipation,
         safety_policy=msg.conditions.safety_policy or "retreat",
-        place_tolerance_m=msg.place_tolerance_m or 0.02,
+        place_tolerance_m=msg.place_tolerance_m or DEFAULT_TOLERANCE_M,
         params=read_params(dict(pc.params)),
         provoke_times_s=sorted(t for t in pc.provoke_times_s if math.isfinite(t) and t >= 0),
         provoke_probability=min(1.0, max(0.0, pc.provoke_probability))
@@ -131,14 +127,15 @@ def from_proto(msg: pb.Scenario) -> ScenarioFacts:
     )
     for p in msg.parts:
         facts.parts[p.id] = PartFacts(
-            id=p.id, owner=p.owner, size=_vec(p.size),
-            start=_vec(p.start.xyz) if p.start_given else None, start_yaw_deg=p.start.yaw_deg,
-            target=_vec(p.target.xyz), target_yaw_deg=p.target.yaw_deg, after=tuple(p.after))
+            id=p.id, owner=p.owner, size=vec3_from_pb(p.size),
+            start=vec3_from_pb(p.start.xyz) if p.start_given else None,
+            start_yaw_deg=p.start.yaw_deg, target=vec3_from_pb(p.target.xyz),
+            target_yaw_deg=p.target.yaw_deg, after=tuple(p.after))
     for r in msg.robots:
-        facts.robots[r.id] = RobotFacts(id=r.id, color=r.color, retreat=_vec(r.retreat))
+        facts.robots[r.id] = RobotFacts(id=r.id, color=r.color, retreat=vec3_from_pb(r.retreat))
     for s in msg.sequences:
-        if s.agent == "human":
+        if s.agent == HUMAN:
             facts.human_sequence = list(s.parts)
     if msg.workspace.HasField("continue_button"):
-        facts.continue_button = _vec(msg.workspace.continue_button)
+        facts.continue_button = vec3_from_pb(msg.workspace.continue_button)
     return facts

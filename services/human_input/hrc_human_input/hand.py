@@ -9,14 +9,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hrc_human_input.geometry import Vec, dist, wrap_angle
+from hrc.geometry import Vec3, distance, wrap_angle_rad
+
 from hrc_human_input.motor import MotorParams, Segment, movement_time
 
 
 @dataclass(frozen=True)
 class Move:
-    goal: Vec
-    yaw: float | None = None   # radians; None keeps the current yaw
+    goal: Vec3
+    yaw_rad: float | None = None  # None keeps the current yaw
     width: float = 0.06        # Fitts target width (m): the accuracy the move needs
     label: str = ""
 
@@ -37,11 +38,11 @@ Step = Move | Dwell | Grip
 
 
 class Hand:
-    def __init__(self, name: str, pos: Vec, yaw: float, motor: MotorParams,
+    def __init__(self, name: str, pos: Vec3, yaw_rad: float, motor: MotorParams,
                  rng: np.random.Generator) -> None:
         self.name = name
         self.pos = pos
-        self.yaw = yaw
+        self.yaw_rad = yaw_rad
         self.grip = 0.0
         self.motor = motor
         self.rng = rng
@@ -72,7 +73,7 @@ class Hand:
     def pending_grip_change(self) -> bool:
         return self._grip_target is not None or any(isinstance(s, Grip) for s in self.plan)
 
-    def goal(self) -> Vec:
+    def goal(self) -> Vec3:
         """Where the hand is heading (its current move's end), or where it is."""
         if self.segment is not None:
             return self.segment.p1
@@ -101,11 +102,11 @@ class Hand:
         for _ in range(64):  # a few zero-length steps may complete in one tick
             if self.segment is not None:
                 if self.segment.done(t):
-                    self.pos, self.yaw = self.segment.p1, self.segment.yaw1
+                    self.pos, self.yaw_rad = self.segment.p1, self.segment.yaw1_rad
                     self._cursor = self.segment.t_end
                     self.segment = None
                     continue
-                self.pos, self.yaw = self.segment.position(t), self.segment.yaw(t)
+                self.pos, self.yaw_rad = self.segment.position(t), self.segment.yaw_rad(t)
                 return
             if self._dwell_until is not None:
                 if t >= self._dwell_until:
@@ -126,14 +127,15 @@ class Hand:
 
     def _start(self, step: Step, t0: float) -> None:
         if isinstance(step, Move):
-            yaw1 = self.yaw if step.yaw is None else self.yaw + wrap_angle(step.yaw - self.yaw)
-            d = dist(self.pos, step.goal)
-            if d < 1e-6 and abs(yaw1 - self.yaw) < 1e-6:
+            yaw1_rad = self.yaw_rad if step.yaw_rad is None else (
+                self.yaw_rad + wrap_angle_rad(step.yaw_rad - self.yaw_rad))
+            d = distance(self.pos, step.goal)
+            if d < 1e-6 and abs(yaw1_rad - self.yaw_rad) < 1e-6:
                 return
             mt = movement_time(d, step.width, self.motor, self.rng)
             if d < 1e-6:  # a pure turn of the wrist
                 mt = max(mt, 0.2)
-            self.segment = Segment(t0, mt, self.pos, step.goal, self.yaw, yaw1)
+            self.segment = Segment(t0, mt, self.pos, step.goal, self.yaw_rad, yaw1_rad)
             self.segments.append(self.segment)
         elif isinstance(step, Dwell):
             if step.seconds > 0:

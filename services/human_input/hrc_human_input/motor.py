@@ -17,7 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hrc_human_input.geometry import Vec, dist, lerp, lerp3
+from hrc.geometry import Vec3, distance, lerp, lerp3
+
 
 # Peak speed of a minimum-jerk reach is this factor times the mean speed D / MT.
 MIN_JERK_PEAK_FACTOR = 1.875
@@ -89,10 +90,10 @@ class Segment:
 
     t0: float
     mt: float
-    p0: Vec
-    p1: Vec
-    yaw0: float = 0.0
-    yaw1: float = 0.0
+    p0: Vec3
+    p1: Vec3
+    yaw0_rad: float = 0.0
+    yaw1_rad: float = 0.0
 
     @property
     def t_end(self) -> float:
@@ -100,7 +101,7 @@ class Segment:
 
     @property
     def distance(self) -> float:
-        return dist(self.p0, self.p1)
+        return distance(self.p0, self.p1)
 
     @property
     def peak_speed(self) -> float:
@@ -109,11 +110,11 @@ class Segment:
     def progress(self, t: float) -> float:
         return min_jerk((t - self.t0) / self.mt) if self.mt > 0 else 1.0
 
-    def position(self, t: float) -> Vec:
+    def position(self, t: float) -> Vec3:
         return lerp3(self.p0, self.p1, self.progress(t))
 
-    def yaw(self, t: float) -> float:
-        return lerp(self.yaw0, self.yaw1, self.progress(t))
+    def yaw_rad(self, t: float) -> float:
+        return lerp(self.yaw0_rad, self.yaw1_rad, self.progress(t))
 
     def done(self, t: float) -> bool:
         return t >= self.t_end - 1e-12

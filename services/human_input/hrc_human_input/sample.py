@@ -15,9 +15,8 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
+from hrc.geometry import Pose, interpolate_pose, lerp, normalized, pose_from_pb, pose_to_pb
 from hrc.wire import pb
-
-from hrc_human_input.geometry import IDENTITY, Quat, Vec, lerp, lerp3, normalize, slerp
 
 POSE_NAMES = ("head", "left", "right")
 GRIP_NAMES = ("left_grip", "right_grip")
@@ -27,30 +26,8 @@ POSE_KEYS = frozenset({"position", "orientation"})
 MAX_ABS_COORD_M = 10.0
 
 
-@dataclass(frozen=True)
-class Pose:
-    position: Vec = (0.0, 0.0, 0.0)
-    orientation: Quat = IDENTITY
-
-    def to_proto(self) -> pb.Pose:
-        p, q = self.position, self.orientation
-        return pb.Pose(position=pb.Vec3(x=p[0], y=p[1], z=p[2]),
-                       orientation=pb.Quat(x=q[0], y=q[1], z=q[2], w=q[3]))
-
-    @staticmethod
-    def from_proto(msg: pb.Pose) -> "Pose":
-        p, q = msg.position, msg.orientation
-        quat = (q.x, q.y, q.z, q.w)
-        if quat == (0.0, 0.0, 0.0, 0.0):  # unset field
-            quat = IDENTITY
-        return Pose((p.x, p.y, p.z), quat)
-
-    def to_json(self) -> dict[str, list[float]]:
-        return {"position": list(self.position), "orientation": list(self.orientation)}
-
-
-def interpolate_pose(a: Pose, b: Pose, u: float) -> Pose:
-    return Pose(lerp3(a.position, b.position, u), slerp(a.orientation, b.orientation, u))
+def pose_json(pose: Pose) -> dict[str, list[float]]:
+    return {"position": list(pose.position), "orientation": list(pose.orientation)}
 
 
 @dataclass(frozen=True)
@@ -80,19 +57,19 @@ class Sample:
         return Sample(t, self.head, self.left, self.right, self.left_grip, self.right_grip)
 
     def to_proto(self, source: str) -> pb.HumanState:
-        return pb.HumanState(head=self.head.to_proto(), left_hand=self.left.to_proto(),
-                             right_hand=self.right.to_proto(), left_grip=self.left_grip,
+        return pb.HumanState(head=pose_to_pb(self.head), left_hand=pose_to_pb(self.left),
+                             right_hand=pose_to_pb(self.right), left_grip=self.left_grip,
                              right_grip=self.right_grip, source=source)
 
     @staticmethod
     def from_proto(msg: pb.HumanState) -> "Sample":
-        return Sample(msg.header.sim_time, Pose.from_proto(msg.head),
-                      Pose.from_proto(msg.left_hand), Pose.from_proto(msg.right_hand),
+        return Sample(msg.header.sim_time, pose_from_pb(msg.head),
+                      pose_from_pb(msg.left_hand), pose_from_pb(msg.right_hand),
                       msg.left_grip, msg.right_grip)
 
     def to_json(self) -> dict[str, Any]:
-        return {"t": self.t, "head": self.head.to_json(), "left": self.left.to_json(),
-                "right": self.right.to_json(), "left_grip": self.left_grip,
+        return {"t": self.t, "head": pose_json(self.head), "left": pose_json(self.left),
+                "right": pose_json(self.right), "left_grip": self.left_grip,
                 "right_grip": self.right_grip}
 
 
@@ -142,7 +119,7 @@ def _pose(obj: Any, name: str, problems: list[str]) -> Pose | None:
                         "the origin (metres, world frame expected)")
     if quat is not None:
         try:
-            quat = normalize(quat)  # type: ignore[arg-type]
+            quat = normalized(quat)
         except ValueError:
             problems.append(f"{name}.orientation has zero length")
     if len(problems) > n0 or pos is None or quat is None:

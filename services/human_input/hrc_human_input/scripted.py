@@ -27,20 +27,20 @@ from enum import Enum
 
 import numpy as np
 
+from hrc.geometry import Pose, Vec3, add, distance, look_quat, rotate_z_rad, slerp, yaw_quat_rad
+from hrc.scenario.conventions import CONTINUE_BUTTON_CUE, GRIP_CLOSED, HANDS
 from hrc.wire import pb
 
 from hrc_human_input.facts import PartFacts, ScenarioFacts
-from hrc_human_input.geometry import Vec, add, dist, look_quat, rot_z, slerp, yaw_quat
 from hrc_human_input.hand import Dwell, Grip, Hand, Move
 from hrc_human_input.motor import MotorParams, reaction_time
-from hrc_human_input.sample import Pose, Sample
+from hrc_human_input.sample import Sample
 from hrc_human_input.task_view import TaskView
 
 log = logging.getLogger(__name__)
 
-HANDS = ("left", "right")
-HEAD_POS: Vec = (0.0, -0.70, 0.60)           # standing at -y, eyes 0.6 m above the board
-REST: dict[str, Vec] = {"left": (-0.22, -0.56, 0.10), "right": (0.22, -0.56, 0.10)}
+HEAD_POS: Vec3 = (0.0, -0.70, 0.60)           # standing at -y, eyes 0.6 m above the board
+REST: dict[str, Vec3] = {"left": (-0.22, -0.56, 0.10), "right": (0.22, -0.56, 0.10)}
 GRASP_HEIGHT_MAX = 0.02      # hand this far above a part's centre at most (top face if lower)
 APPROACH_CLEARANCE = 0.08    # approach and leave a part vertically from this far above
 CARRY_CLEARANCE = 0.10       # carry a held part this far above the higher of start and goal
@@ -107,7 +107,7 @@ class ScriptedParticipant:
         self.hold_since: float | None = None  # holding back (caution) since
         self.hold_expired = False
         self.hold_backs: list[tuple[float, str]] = []  # (time, robot) whenever caution held back
-        self.grasp: tuple[Vec, float, float] | None = None  # (hand - object, hand yaw, object yaw)
+        self.grasp: tuple[Vec3, float, float] | None = None  # hand - object, hand & object yaw_rad
         self.in_collision = False
         self.collision_since = 0.0
         self.collision_confirmed = False      # the orchestrator announced it (COLLISION event)
@@ -145,37 +145,37 @@ class ScriptedParticipant:
     def _part(self, pid: str) -> PartFacts:
         return self.facts.parts[pid]
 
-    def _object_pos(self, view: TaskView, pid: str) -> Vec:
+    def _object_pos(self, view: TaskView, pid: str) -> Vec3:
         o = view.objects.get(pid)
         if o is not None:
             return o.position
         part = self._part(pid)
         return part.start if part.start is not None else part.target
 
-    def grasp_point(self, view: TaskView, pid: str) -> Vec:
+    def grasp_point(self, view: TaskView, pid: str) -> Vec3:
         size = self._part(pid).size
         return add(self._object_pos(view, pid), (0.0, 0.0, min(size[2] / 2.0, GRASP_HEIGHT_MAX)))
 
     def deps_done(self, view: TaskView, pid: str) -> bool:
         return all(view.is_placed(a) for a in self._part(pid).after)
 
-    def release_point(self, pid: str) -> tuple[Vec, float]:
-        """Where the hand lets go (and its yaw) so that the held part lands on its target."""
+    def release_point(self, pid: str) -> tuple[Vec3, float]:
+        """Where the hand lets go, and its yaw_rad, so that the held part lands on its target."""
         part = self._part(pid)
         assert self.grasp is not None
-        offset, hand_yaw0, obj_yaw0 = self.grasp
-        delta = math.remainder(math.radians(part.target_yaw_deg) - obj_yaw0, 2.0 * math.pi)
+        offset, hand_yaw0_rad, obj_yaw0_rad = self.grasp
+        delta_rad = math.remainder(math.radians(part.target_yaw_deg) - obj_yaw0_rad, 2.0 * math.pi)
         err = self.rng_place.normal(0.0, self.place_error, size=2) if self.place_error > 0 \
             else np.zeros(2)
-        hand = add(part.target, rot_z(offset, delta))
+        hand = add(part.target, rotate_z_rad(offset, delta_rad))
         return ((hand[0] + float(err[0]), hand[1] + float(err[1]), hand[2] + RELEASE_CLEARANCE),
-                hand_yaw0 + delta)
+                hand_yaw0_rad + delta_rad)
 
     # ------------------------------------------------------------------ caution
     def caution_radius(self) -> float:
         return 0.08 + 0.17 * self.caution
 
-    def danger(self, view: TaskView, goal: Vec) -> str | None:
+    def danger(self, view: TaskView, goal: Vec3) -> str | None:
         """The robot heading into the region around ``goal``, as this participant can tell."""
         if self.caution <= 0.0:
             return None
@@ -183,7 +183,7 @@ class ScriptedParticipant:
         horizon = 0.5 + self.caution
         for rid in sorted(view.robots):
             robot = view.robots[rid]
-            if dist(robot.tcp, goal) < radius:
+            if distance(robot.tcp, goal) < radius:
                 return rid
             v = view.robot_velocity(robot, self.t)
             speed = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
@@ -193,17 +193,17 @@ class ScriptedParticipant:
                 s = (rel[0] * v[0] + rel[1] * v[1] + rel[2] * v[2]) / (speed * speed)
                 s = min(horizon, max(0.0, s))
                 p = add(robot.tcp, (v[0] * s, v[1] * s, v[2] * s))
-                if dist(p, goal) < radius:
+                if distance(p, goal) < radius:
                     return rid
         if self.facts.anticipation:
             for rid in sorted(self.facts.robots):
                 if view.robot_waiting(rid):
                     continue
-                if any(dist(p, goal) < radius for p in view.robot_heading_points(rid)):
+                if any(distance(p, goal) < radius for p in view.robot_heading_points(rid)):
                     return rid
         return None
 
-    def _held_back(self, t: float, view: TaskView, goal: Vec) -> bool:
+    def _held_back(self, t: float, view: TaskView, goal: Vec3) -> bool:
         """True while caution holds this action back (and arranges the reaction afterwards)."""
         if self.hold_expired:  # waited long enough for this action: go anyway
             return False
@@ -239,7 +239,8 @@ class ScriptedParticipant:
         self._look(t)
         left, right = self.hands["left"], self.hands["right"]
         return Sample(t, Pose(HEAD_POS, self.head_q),
-                      Pose(left.pos, yaw_quat(left.yaw)), Pose(right.pos, yaw_quat(right.yaw)),
+                      Pose(left.pos, yaw_quat_rad(left.yaw_rad)),
+                      Pose(right.pos, yaw_quat_rad(right.yaw_rad)),
                       left.grip, right.grip)
 
     def _perceive(self, t: float, view: TaskView) -> None:
@@ -305,7 +306,7 @@ class ScriptedParticipant:
         hand = self.hand
         if not view.robots:
             return False
-        rid = min(sorted(view.robots), key=lambda r: dist(view.robots[r].tcp, hand.pos))
+        rid = min(sorted(view.robots), key=lambda r: distance(view.robots[r].tcp, hand.pos))
         hand.cancel()
         if not (self.part is not None and view.held_by(self.part) == self.active):
             hand.do(Grip(0.0))
@@ -315,7 +316,7 @@ class ScriptedParticipant:
         return True
 
     @staticmethod
-    def _provoke_goal(view: TaskView, rid: str) -> Vec:
+    def _provoke_goal(view: TaskView, rid: str) -> Vec3:
         # just above the tool tip: inside the tool/wrist links' colliders
         return add(view.robots[rid].tcp, (0.0, 0.0, 0.02))
 
@@ -389,7 +390,7 @@ class ScriptedParticipant:
             self.go_t = t + self._rt()
             self._set(Phase.REACT, t, f"{pid} is grabbable")
             return
-        if not hand.busy and dist(hand.pos, REST[self.active]) > 0.01:
+        if not hand.busy and distance(hand.pos, REST[self.active]) > 0.01:
             if t - self.phase_since > 1.0:  # nothing to do for a while: hands down
                 hand.do(Move(REST[self.active], 0.0, GROSS_WIDTH, "rest"))
 
@@ -411,10 +412,10 @@ class ScriptedParticipant:
                     return
         hand = self.hand
         hand.cancel()
-        obj_yaw = view.objects[pid].yaw if pid in view.objects else math.radians(
+        obj_yaw_rad = view.objects[pid].yaw_rad if pid in view.objects else math.radians(
             self._part(pid).start_yaw_deg)
-        hand.do(Grip(0.0), Move(above, obj_yaw, PICK_WIDTH, "reach"),
-                Move(goal, obj_yaw, PICK_WIDTH, "descend"), Grip(1.0, "grip"),
+        hand.do(Grip(0.0), Move(above, obj_yaw_rad, PICK_WIDTH, "reach"),
+                Move(goal, obj_yaw_rad, PICK_WIDTH, "descend"), Grip(1.0, "grip"),
                 Dwell(max(0.0, self.pick_dwell - self.motor.grip_close_s), "pick dwell"))
         self._action_started()
         self._set(Phase.REACH, t, f"reaching for {pid}")
@@ -429,9 +430,9 @@ class ScriptedParticipant:
             return
         if hand.busy:
             # the part moved (e.g. still rolling after a missed release): aim again
-            if hand.pending_grip_change() and any(isinstance(s, Grip) and s.value > 0.5
+            if hand.pending_grip_change() and any(isinstance(s, Grip) and s.value >= GRIP_CLOSED
                                                   for s in hand.plan):
-                if dist(self.grasp_point(view, pid), self._planned_grasp(hand)) > 0.02:
+                if distance(self.grasp_point(view, pid), self._planned_grasp(hand)) > 0.02:
                     self.go_t = t
                     self._set(Phase.REACT, t, f"{pid} moved")
             return
@@ -447,7 +448,7 @@ class ScriptedParticipant:
         return t - end
 
     @staticmethod
-    def _planned_grasp(hand: Hand) -> Vec:
+    def _planned_grasp(hand: Hand) -> Vec3:
         moves = [s for s in hand.plan if isinstance(s, Move)]
         if moves:
             return moves[-1].goal
@@ -459,7 +460,7 @@ class ScriptedParticipant:
         hand = self.hand
         obj = view.objects[pid]
         self.grasp = ((hand.pos[0] - obj.position[0], hand.pos[1] - obj.position[1],
-                       hand.pos[2] - obj.position[2]), hand.yaw, obj.yaw)
+                       hand.pos[2] - obj.position[2]), hand.yaw_rad, obj.yaw_rad)
         self.go_t = t  # a continuous action: no new reaction time
         self._set(Phase.HOLD, t, f"holding {pid}")
 
@@ -473,7 +474,7 @@ class ScriptedParticipant:
             return
         if self.grasp is None:
             self._grasped(t, view)
-        release, yaw = self.release_point(pid)
+        release, yaw_rad = self.release_point(pid)
         part = self._part(pid)
         carry_z = max(hand.pos[2], release[2] + CARRY_CLEARANCE)
         if not self.deps_done(view, pid):
@@ -490,8 +491,8 @@ class ScriptedParticipant:
         steps: list = []
         if carry_z - hand.pos[2] > 0.01:
             steps.append(Move((hand.pos[0], hand.pos[1], carry_z), None, GROSS_WIDTH, "lift"))
-        steps += [Move(hover, yaw, PICK_WIDTH, "carry"),
-                  Move(release, yaw, 2.0 * self.facts.place_tolerance_m, "lower"),
+        steps += [Move(hover, yaw_rad, PICK_WIDTH, "carry"),
+                  Move(release, yaw_rad, 2.0 * self.facts.place_tolerance_m, "lower"),
                   Dwell(self.place_dwell / 2.0, "place dwell"), Grip(0.0, "release"),
                   Dwell(self.place_dwell / 2.0, "after release")]
         hand.do(*steps)
@@ -520,7 +521,7 @@ class ScriptedParticipant:
         button = self.facts.continue_button
         if button is None or self.facts.safety_policy != "retreat_button":
             return
-        if not view.cue_on("continue_button") and t - self.collision_since < 2.0:
+        if not view.cue_on(CONTINUE_BUTTON_CUE) and t - self.collision_since < 2.0:
             return
         if self.last_press is not None and t - self.last_press < BUTTON_REPEAT_S:
             return

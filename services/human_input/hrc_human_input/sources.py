@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from typing import Protocol
 
-from hrc_human_input.geometry import look_quat
+from hrc.geometry import Pose, look_quat
+
 from hrc_human_input.replay import Replayer
-from hrc_human_input.sample import Pose, Sample
+from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import HEAD_POS, REST, ScriptedParticipant
 from hrc_human_input.task_view import TaskView
 from hrc_human_input.vr_bridge import VrBridge

@@ -8,19 +8,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from hrc.geometry import Vec3, quat_from_pb, quat_yaw_rad, vec3_from_pb
+from hrc.scenario.conventions import TARGET_CUE_PREFIX, outline_cue_id, waiting_cue_id
 from hrc.wire import pb
 
 from hrc_human_input.facts import ScenarioFacts
-from hrc_human_input.geometry import Vec, yaw_of
 
-HUMAN = "human"
 
 
 @dataclass
 class ObjectView:
     id: str
-    position: Vec
-    yaw: float  # radians
+    position: Vec3
+    yaw_rad: float
     held_by: str = ""
     grabbable: bool = False
     placed: bool = False
@@ -29,9 +29,9 @@ class ObjectView:
 @dataclass
 class RobotView:
     id: str
-    tcp: Vec
+    tcp: Vec3
     speed: float = 0.0
-    velocity: Vec = (0.0, 0.0, 0.0)
+    velocity: Vec3 = (0.0, 0.0, 0.0)
     status: int = 0
     t: float = 0.0
 
@@ -71,19 +71,17 @@ class TaskView:
     def on_objects(self, msg: pb.WorldObjects) -> None:
         t = msg.header.sim_time
         for o in msg.objects:
-            p, q = o.pose.position, o.pose.orientation
-            quat = (q.x, q.y, q.z, q.w) if (q.x, q.y, q.z, q.w) != (0, 0, 0, 0) else (0, 0, 0, 1)
-            self.objects[o.id] = ObjectView(o.id, (p.x, p.y, p.z), yaw_of(quat), o.held_by,
-                                            o.grabbable, o.placed)
+            self.objects[o.id] = ObjectView(o.id, vec3_from_pb(o.pose.position),
+                                            quat_yaw_rad(quat_from_pb(o.pose.orientation)),
+                                            o.held_by, o.grabbable, o.placed)
         for e in msg.events:
             self.object_events.append(ObjectEventView(t, e.kind, e.object, e.holder))
 
     def on_robot_state(self, msg: pb.RobotState) -> None:
         t = msg.header.sim_time
-        p = msg.tcp.position
-        tcp = (p.x, p.y, p.z)
+        tcp = vec3_from_pb(msg.tcp.position)
         prev = self.robots.get(msg.robot)
-        velocity: Vec = (0.0, 0.0, 0.0)
+        velocity: Vec3 = (0.0, 0.0, 0.0)
         if prev is not None and t > prev.t:
             # States are published on change: the arm stood at prev.tcp until the tick before
             # this one, so the displacement took one tick, however long ago prev came.
@@ -92,7 +90,7 @@ class TaskView:
                         (tcp[2] - prev.tcp[2]) / dt)
         self.robots[msg.robot] = RobotView(msg.robot, tcp, msg.tcp_speed, velocity, msg.status, t)
 
-    def robot_velocity(self, robot: RobotView, now: float) -> Vec:
+    def robot_velocity(self, robot: RobotView, now: float) -> Vec3:
         """The arm's TCP velocity at ``now``: zero once its last state is older than a tick (no
         new state means nothing changed, so it stands still)."""
         if now - robot.t > 1.5 / self.facts.tick_hz:
@@ -141,7 +139,7 @@ class TaskView:
 
     def is_grabbable(self, part: str) -> bool:
         o = self.objects.get(part)
-        return (o is not None and o.grabbable) or self.cue_on(f"outline:{part}")
+        return (o is not None and o.grabbable) or self.cue_on(outline_cue_id(part))
 
     def held_by(self, part: str) -> str:
         o = self.objects.get(part)
@@ -152,15 +150,15 @@ class TaskView:
 
     def robot_waiting(self, robot: str) -> bool:
         """Only visible to a participant through the "Waiting.." cue (anticipation on)."""
-        return self.cue_on(f"waiting:{robot}")
+        return self.cue_on(waiting_cue_id(robot))
 
-    def robot_heading_points(self, robot: str) -> list[Vec]:
+    def robot_heading_points(self, robot: str) -> list[Vec3]:
         """Where the anticipation cues say this robot is heading (lit `target:<part>` cues)."""
-        points: list[Vec] = []
+        points: list[Vec3] = []
         for cue_id, cue in sorted(self.cues.items()):
-            if not cue.on or not cue_id.startswith("target:"):
+            if not cue.on or not cue_id.startswith(TARGET_CUE_PREFIX):
                 continue
-            part = cue.part or cue_id.split(":", 1)[1]
+            part = cue.part or cue_id.removeprefix(TARGET_CUE_PREFIX)
             owner = cue.robot
             facts = self.facts.parts.get(part)
             if not owner and facts is not None:
@@ -168,7 +166,7 @@ class TaskView:
             if owner != robot:
                 continue
             if cue.HasField("position"):
-                points.append((cue.position.x, cue.position.y, cue.position.z))
+                points.append(vec3_from_pb(cue.position))
             elif facts is not None:
                 points.append(facts.target)
         return points

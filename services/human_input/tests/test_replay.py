@@ -8,10 +8,11 @@ from pathlib import Path
 
 import pytest
 
-from hrc_human_input.geometry import quat_norm, yaw_of, yaw_quat
+from hrc.geometry import Pose, quat_norm, quat_yaw_rad, yaw_quat_rad
+
 from hrc_human_input.replay import (FORMAT, VERSION, Recorder, ReplayError, Replayer,
                                     load_recording, parse_recording)
-from hrc_human_input.sample import Pose, Sample, interpolate, parse_sample
+from hrc_human_input.sample import Sample, interpolate, parse_sample
 
 HEADER = json.dumps({"format": FORMAT, "version": VERSION, "scenario": "x"})
 
@@ -84,12 +85,12 @@ def test_empty_and_header_only_files(tmp_path: Path) -> None:
 
 
 def test_interpolation_lerps_positions_and_grips_and_slerps_orientations() -> None:
-    a = Sample(1.0, Pose((0, 0, 0), yaw_quat(0.0)), Pose((0, 0, 0)), Pose((0, 0, 0)), 0.0, 0.0)
-    b = Sample(2.0, Pose((1, 2, 3), yaw_quat(math.pi / 2)), Pose((1, 0, 0)), Pose((0, 1, 0)),
+    a = Sample(1.0, Pose((0, 0, 0), yaw_quat_rad(0.0)), Pose((0, 0, 0)), Pose((0, 0, 0)), 0.0, 0.0)
+    b = Sample(2.0, Pose((1, 2, 3), yaw_quat_rad(math.pi / 2)), Pose((1, 0, 0)), Pose((0, 1, 0)),
                1.0, 0.5)
     m = interpolate(a, b, 1.25)
     assert m.head.position == pytest.approx((0.25, 0.5, 0.75))
-    assert yaw_of(m.head.orientation) == pytest.approx(math.pi / 8)
+    assert quat_yaw_rad(m.head.orientation) == pytest.approx(math.pi / 8)
     assert quat_norm(m.head.orientation) == pytest.approx(1.0)
     assert m.left_grip == pytest.approx(0.25) and m.right_grip == pytest.approx(0.125)
     rp = Replayer(parse_recording(lines(HEADER, a.to_json(), b.to_json())))
@@ -100,10 +101,10 @@ def test_interpolation_lerps_positions_and_grips_and_slerps_orientations() -> No
 
 
 def test_slerp_takes_the_short_way() -> None:
-    a = Sample(0.0, Pose((0, 0, 0), yaw_quat(math.radians(170))))
-    b = Sample(1.0, Pose((0, 0, 0), tuple(-c for c in yaw_quat(math.radians(-170)))))
+    a = Sample(0.0, Pose((0, 0, 0), yaw_quat_rad(math.radians(170))))
+    b = Sample(1.0, Pose((0, 0, 0), tuple(-c for c in yaw_quat_rad(math.radians(-170)))))
     m = interpolate(a, b, 0.5)
-    assert abs(math.degrees(yaw_of(m.head.orientation))) == pytest.approx(180.0, abs=1e-6)
+    assert abs(math.degrees(quat_yaw_rad(m.head.orientation))) == pytest.approx(180.0, abs=1e-6)
 
 
 def test_record_then_replay_is_bit_identical(tmp_path: Path) -> None:
@@ -111,7 +112,7 @@ def test_record_then_replay_is_bit_identical(tmp_path: Path) -> None:
     samples = []
     for k in range(50):
         t = k / 240.0
-        q = yaw_quat(0.1 * k)
+        q = yaw_quat_rad(0.1 * k)
         samples.append(Sample(t, Pose((0.1 * k / 3, -0.5, 0.2), q), Pose((k / 7, 0.0, 0.1), q),
                               Pose((0.3, k / 11, 0.1)), (k % 10) / 9, 1.0 / 3.0))
     with Recorder(path, {"scenario": "demo", "seed": 3}) as rec:

@@ -39,6 +39,8 @@ import numpy as np
 import rerun as rr
 from rerun.urdf import UrdfTree
 
+from hrc.geometry import to_array, vec3_from_array, vec3_from_pb, yaw_quat_deg
+from hrc.scenario.conventions import WAITING_HEIGHT_M, WAITING_TEXT
 from hrc.wire import pb
 
 from hrc_logger.textlog import kind_name
@@ -81,15 +83,6 @@ def part(name: str) -> str:
 
 def cue_entity(cue_id: str) -> str:
     return "world/cues/" + "/".join(part(p) for p in cue_id.split(":"))
-
-
-def yaw_quat(yaw_deg: float) -> tuple[float, float, float, float]:
-    h = math.radians(yaw_deg) / 2
-    return 0.0, 0.0, math.sin(h), math.cos(h)
-
-
-def vec(v: pb.Vec3) -> list[float]:
-    return [v.x, v.y, v.z]
 
 
 def finite(values: Any) -> bool:
@@ -253,30 +246,31 @@ class View:
             size = (p.size.x, p.size.y, p.size.z)
             self.objects[p.id] = ObjectView(p.id, size, color)
             self._log(f"world/targets/{part(p.id)}", rr.Boxes3D(
-                half_sizes=[[s / 2 for s in size]], centers=[vec(p.target.xyz)],
-                quaternions=[yaw_quat(p.target.yaw_deg)], colors=[rgba(color, 110)],
+                half_sizes=[[s / 2 for s in size]], centers=[vec3_from_pb(p.target.xyz)],
+                quaternions=[yaw_quat_deg(p.target.yaw_deg)], colors=[rgba(color, 110)],
                 fill_mode="majorwireframe", labels=[f"{p.id} target"], show_labels=False),
                 static=True)
         for i, b in enumerate(scenario.workspace.envelope):
-            lo, hi = np.array(vec(b.min)), np.array(vec(b.max))
+            lo, hi = np.array(vec3_from_pb(b.min)), np.array(vec3_from_pb(b.max))
             self._log(f"world/workspace/envelope_{i}", rr.Boxes3D(
                 half_sizes=[(hi - lo) / 2], centers=[(hi + lo) / 2], colors=[(150, 150, 150, 60)],
                 fill_mode="majorwireframe"), static=True)
-        self.button = np.array(vec(scenario.workspace.continue_button))
+        self.button = np.array(vec3_from_pb(scenario.workspace.continue_button))
         self._log("world/workspace/continue_button", rr.Points3D(
             [self.button], radii=[0.015], colors=[(120, 120, 120)], labels=["continue button"]),
             static=True)
         for r in scenario.robots:
             if r.role == "screwing":
                 self._log(f"world/workspace/feeder_{part(r.id)}", rr.Points3D(
-                    [vec(r.feeder)], radii=[0.02], colors=[rgb(r.color)], labels=[f"{r.id} feeder"]),
+                    [vec3_from_pb(r.feeder)], radii=[0.02], colors=[rgb(r.color)],
+                    labels=[f"{r.id} feeder"]),
                     static=True)
         for rid, rv in self.robots.items():
             self._log(f"plots/tcp_speed/{part(rid)}", rr.SeriesLines(colors=[rv.color], names=[f"{rid} TCP speed"]),
                       static=True)
 
     def _setup_robot(self, r: pb.RobotConfig) -> None:
-        base = yaw_transform(vec(r.base.xyz), r.base.yaw_deg)
+        base = yaw_transform(vec3_from_pb(r.base.xyz), r.base.yaw_deg)
         rv = RobotView(r.id, rgb(r.color), base)
         self.robots[r.id] = rv
         ent = f"robot_{part(r.id)}"
@@ -415,9 +409,9 @@ class View:
             kind = pb.ContactKind.Name(c.kind).removeprefix("CONTACT_KIND_").lower()
             name = "_".join(part(x) for x in (c.a, c.b, c.link) if x)
             ent = f"world/contacts/{kind}/{name}"
-            if c.begin and finite(vec(c.point)):
+            if c.begin and finite(vec3_from_pb(c.point)):
                 color = (255, 40, 40) if c.kind == pb.CONTACT_KIND_HAND_ROBOT else (255, 150, 0)
-                self._log(ent, rr.Points3D([vec(c.point)], radii=[0.025], colors=[color],
+                self._log(ent, rr.Points3D([vec3_from_pb(c.point)], radii=[0.025], colors=[color],
                                            labels=[f"{c.a}-{c.b}"]))
             elif not c.begin:
                 self._log(ent, rr.Clear(recursive=False))
@@ -440,13 +434,14 @@ class View:
 
     def _show_cue(self, ent: str, c: pb.Cue) -> None:
         color = rgb(c.color, self.owner_color.get(c.robot, (255, 255, 255)))
-        pos = vec(c.position)
+        pos = vec3_from_pb(c.position)
         given = any(abs(v) > 1e-12 for v in pos) and finite(pos)
         p = self.parts.get(c.part)
         if c.kind == pb.CUE_KIND_TARGET and p is not None:
             size = np.array([p.size.x, p.size.y, p.size.z]) * 1.15
-            self._log(ent, rr.Boxes3D(half_sizes=[size / 2], centers=[vec(p.target.xyz)],
-                                      quaternions=[yaw_quat(p.target.yaw_deg)], colors=[rgba(color, 170)],
+            self._log(ent, rr.Boxes3D(half_sizes=[size / 2], centers=[vec3_from_pb(p.target.xyz)],
+                                      quaternions=[yaw_quat_deg(p.target.yaw_deg)],
+                                      colors=[rgba(color, 170)],
                                       fill_mode="solid", labels=[c.text or f"{c.part}"]))
         elif c.kind == pb.CUE_KIND_OUTLINE and (
                 (c.part in self.objects and self.objects[c.part].pos is not None)
@@ -457,15 +452,16 @@ class View:
             else:  # not seen on world/objects yet: where the scenario puts it
                 assert p is not None
                 size = np.array([p.size.x, p.size.y, p.size.z])
-                center, quat = np.array(vec(p.start.xyz)), np.array(yaw_quat(p.start.yaw_deg))
+                center = to_array(vec3_from_pb(p.start.xyz))
+                quat = to_array(yaw_quat_deg(p.start.yaw_deg))
             self._log(ent, rr.Boxes3D(half_sizes=[size * 1.3 / 2], centers=[center], quaternions=[quat],
                                       colors=[rgba(color, 255)], fill_mode="majorwireframe"))
         elif c.kind == pb.CUE_KIND_WAITING:
             rv = self.robots.get(c.robot)
             if not given and rv is not None:
-                pos = list(rv.base[:3, 3] + np.array([0.0, 0.0, 0.6]))
+                pos = vec3_from_array(rv.base[:3, 3] + np.array([0.0, 0.0, WAITING_HEIGHT_M]))
             self._log(ent, rr.Points3D([pos], radii=[0.02], colors=[color],
-                                       labels=[c.text or "Waiting.."], show_labels=True))
+                                       labels=[c.text or WAITING_TEXT], show_labels=True))
         elif c.kind == pb.CUE_KIND_CONTINUE_BUTTON:
             where = pos if given else list(self.button)
             self._log(ent, rr.Points3D([where], radii=[0.03], colors=[rgb(c.color, (255, 60, 60))],

@@ -8,21 +8,6 @@ from hrc.wire import pb
 HUMAN_COLOR = "blue"  # the participant's colour in the thesis (hands, own outlines and targets)
 
 
-def outline_id(part: str) -> str:
-    return f"outline:{part}"
-
-
-def target_id(part: str) -> str:
-    return f"target:{part}"
-
-
-def waiting_id(robot: str) -> str:
-    return f"waiting:{robot}"
-
-
-CONTINUE_BUTTON = "continue_button"
-
-
 class CueBoard:
     """Remembers which cues are on and turns a desired set into on/off changes, sorted by id."""
 

@@ -7,6 +7,7 @@ function of the scenario and the inputs.
 
 from __future__ import annotations
 
+from hrc.scenario.conventions import WAITING_TEXT
 from hrc.wire import pb
 
 K = pb.TaskEventKind
@@ -63,7 +64,7 @@ def robot_phase(t: float, robot: str, phase: str, part: str) -> pb.TaskEvent:
 
 def robot_waiting(t: float, robot: str, part: str, waits_for: list[str]) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_ROBOT_WAITING, t,
-                f"{robot} - Waiting.. {part} needs {', '.join(waits_for)} first.",
+                f"{robot} - {WAITING_TEXT} {part} needs {', '.join(waits_for)} first.",
                 agent=robot, robot=robot, part=part)
 
 

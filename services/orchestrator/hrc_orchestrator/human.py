@@ -10,13 +10,13 @@ counted from the start until the human's last part is placed.
 from __future__ import annotations
 
 from hrc import scenario as sc
+from hrc.geometry import (distance, pose_to_pb, quat_from_pb, quat_yaw_deg, vec3, vec3_from_pb,
+                          yaw_difference_deg, yaw_pose_deg)
+from hrc.scenario.conventions import HANDS
 from hrc.wire import pb
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
-from hrc_orchestrator.geom import dist, from_pb, pose, quat_yaw_deg, vec, yaw_diff_deg
 from hrc_orchestrator.idle import IntervalClock
-
-HANDS = ("left", "right")
 
 
 class HumanAgent:
@@ -69,25 +69,27 @@ class HumanAgent:
         hand = self.held_hand
         self.held_part, self.held_hand = "", ""
         if e.HasField("pose"):
-            distance = dist(from_pb(e.pose.position), vec(part.target.xyz))
-            angle = yaw_diff_deg(quat_yaw_deg(e.pose.orientation), part.target.yaw)
+            distance_m = distance(vec3_from_pb(e.pose.position), vec3(part.target.xyz))
+            angle_deg = yaw_difference_deg(quat_yaw_deg(quat_from_pb(e.pose.orientation)),
+                                           part.target.yaw)
         else:  # physics' own figures
-            distance, angle = e.target_distance_m, e.target_angle_deg
+            distance_m, angle_deg = e.target_distance_m, e.target_angle_deg
         missing = self.board.missing_deps(e.object)
         if missing:
             why = f"its target waits for {', '.join(missing)}"
-        elif distance > self.tol_m or angle > self.tol_deg:
+        elif distance_m > self.tol_m or angle_deg > self.tol_deg:
             why = f"tolerance {self.tol_m * 100:g} cm / {self.tol_deg:g} deg"
         else:
+            snap = yaw_pose_deg(part.target.xyz, part.target.yaw)
             self.board.command(pb.WorldCommand(release=pb.Release(
-                object=e.object, snap=True, pose=pose(vec(part.target.xyz), part.target.yaw))))
+                object=e.object, snap=True, pose=pose_to_pb(snap))))
             self.board.mark_placed(e.object, t)
             self.board.emit(ev.part_placed(t, sc.HUMAN, e.object, hand))
             self.index += 1
             if self.done:
                 self.finish(t)
             return
-        self.board.emit(ev.part_released(t, e.object, hand, distance, angle, why))
+        self.board.emit(ev.part_released(t, e.object, hand, distance_m, angle_deg, why))
 
     def finish(self, t: float) -> None:
         self.completion_s = t

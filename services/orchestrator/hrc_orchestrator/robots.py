@@ -17,13 +17,13 @@ import enum
 from dataclasses import dataclass
 
 from hrc import scenario as sc
+from hrc.geometry import Vec3, add, pose_to_pb, vec3, vec3_from_pb, vec3_to_pb, yaw_pose_deg
+from hrc.scenario.conventions import APPROACH_HEIGHT_M
 from hrc.wire import pb
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
-from hrc_orchestrator.geom import Vec, add, from_pb, pose, to_pb, vec
 from hrc_orchestrator.idle import IntervalClock
 
-APPROACH_HEIGHT = 0.05  # m: picks and places approach and leave vertically (ARCHITECTURE.md)
 DWELL_EPS = 1e-9  # tick times are sums of floats; a dwell of exactly screw_time_s must count
 
 
@@ -45,13 +45,13 @@ class Motion:
     """A robot command without its id; equal motions are not sent twice."""
 
     kind: int  # pb.RobotCommand.KIND_MOVE | KIND_HOLD
-    target: Vec = (0.0, 0.0, 0.0)
+    target: Vec3 = (0.0, 0.0, 0.0)
     yaw_deg: float = 0.0
     approach: float = 0.0
     depart: float = 0.0
 
     @staticmethod
-    def move(target: Vec, yaw_deg: float, approach: float = 0.0, depart: float = 0.0) -> "Motion":
+    def move(target: Vec3, yaw_deg: float, approach: float = 0.0, depart: float = 0.0) -> "Motion":
         return Motion(pb.RobotCommand.KIND_MOVE, target, yaw_deg, approach, depart)
 
     @property
@@ -60,14 +60,14 @@ class Motion:
 
     def to_proto(self, robot: str, command_id: int) -> pb.RobotCommand:
         return pb.RobotCommand(robot=robot, command_id=command_id, kind=self.kind,
-                               target=to_pb(self.target), yaw_deg=self.yaw_deg,
+                               target=vec3_to_pb(self.target), yaw_deg=self.yaw_deg,
                                approach_height=self.approach, depart_height=self.depart)
 
 
 HOLD = Motion(pb.RobotCommand.KIND_HOLD)
 
 
-def grasp_point(centre: Vec, size: list[float]) -> Vec:
+def grasp_point(centre: Vec3, size: list[float]) -> Vec3:
     """The TCP for a part whose box centre is `centre`: the centre of its top face."""
     return add(centre, (0.0, 0.0, size[2] / 2.0))
 
@@ -108,8 +108,8 @@ class RobotAgent:
         return self.phase == Phase.FINISHED
 
     @property
-    def tcp(self) -> Vec | None:
-        return from_pb(self.state.tcp.position) if self.state is not None else None
+    def tcp(self) -> Vec3 | None:
+        return vec3_from_pb(self.state.tcp.position) if self.state is not None else None
 
     def observe(self, state: pb.RobotState) -> None:
         self.state = state
@@ -138,24 +138,25 @@ class RobotAgent:
         return self.sent_id
 
     # ------------------------------------------------------------------ targets
-    def _intermediate(self, yaw: float, depart: bool) -> Motion:
-        return Motion.move(vec(self.cfg.intermediate), yaw, 0.0, APPROACH_HEIGHT if depart else 0.0)
+    def _intermediate(self, yaw_deg: float, depart: bool) -> Motion:
+        return Motion.move(vec3(self.cfg.intermediate), yaw_deg, 0.0,
+                           APPROACH_HEIGHT_M if depart else 0.0)
 
     def _pick(self, part_id: str) -> Motion:
         part = self.board.parts[part_id]
         if self.screwing:
-            feeder = vec(self.cfg.feeder or (0.0, 0.0, 0.0))
-            return Motion.move(grasp_point(feeder, part.size), 0.0, APPROACH_HEIGHT)
+            feeder = vec3(self.cfg.feeder or (0.0, 0.0, 0.0))
+            return Motion.move(grasp_point(feeder, part.size), 0.0, APPROACH_HEIGHT_M)
         assert part.start is not None  # checked by the scenario loader
-        return Motion.move(grasp_point(vec(part.start.xyz), part.size), part.start.yaw,
-                           APPROACH_HEIGHT)
+        return Motion.move(grasp_point(vec3(part.start.xyz), part.size), part.start.yaw,
+                           APPROACH_HEIGHT_M)
 
     def _place(self, part_id: str) -> Motion:
         part = self.board.parts[part_id]
-        return Motion.move(grasp_point(vec(part.target.xyz), part.size), part.target.yaw,
-                           APPROACH_HEIGHT)
+        return Motion.move(grasp_point(vec3(part.target.xyz), part.size), part.target.yaw,
+                           APPROACH_HEIGHT_M)
 
-    def current_target(self) -> Vec | None:
+    def current_target(self) -> Vec3 | None:
         return self.goal.target if self.goal is not None and self.goal.is_move else None
 
     # ------------------------------------------------------------------ phase machine
@@ -171,7 +172,7 @@ class RobotAgent:
             self._enter(Phase.TO_FEEDER if self.screwing else Phase.TO_PICK, t,
                         self._pick(self.part))
         else:
-            self._enter(Phase.TO_HOME, t, Motion.move(vec(self.cfg.home), 0.0))
+            self._enter(Phase.TO_HOME, t, Motion.move(vec3(self.cfg.home), 0.0))
 
     def start(self, t: float) -> None:
         if self.phase == Phase.NOT_STARTED:
@@ -211,17 +212,17 @@ class RobotAgent:
         handler(t)
 
     def _returning(self) -> Motion:
-        yaw = self.goal.yaw_deg if self.goal is not None else 0.0
-        return self._intermediate(yaw, depart=True)
+        yaw_deg = self.goal.yaw_deg if self.goal is not None else 0.0
+        return self._intermediate(yaw_deg, depart=True)
 
     def _grab(self, t: float) -> None:
         part_id = self.part
         part = self.board.parts[part_id]
         if self.screwing:
-            feeder = vec(self.cfg.feeder or (0.0, 0.0, 0.0))
+            feeder = vec3(self.cfg.feeder or (0.0, 0.0, 0.0))
             self.board.command(pb.WorldCommand(spawn=pb.Spawn(
-                object=part_id, pose=pose(feeder, 0.0), size=to_pb(vec(part.size)),
-                kind=part.kind, owner=self.id)))
+                object=part_id, pose=pose_to_pb(yaw_pose_deg(feeder, 0.0)),
+                size=vec3_to_pb(part.size), kind=part.kind, owner=self.id)))
         self.board.command(pb.WorldCommand(attach=pb.Attach(object=part_id, holder=self.id)))
         self.carrying = part_id
         self.board.mark_grabbed(part_id, t)
@@ -240,8 +241,9 @@ class RobotAgent:
     def _release(self, t: float) -> None:
         part_id = self.carrying
         part = self.board.parts[part_id]
+        snap = yaw_pose_deg(part.target.xyz, part.target.yaw)
         self.board.command(pb.WorldCommand(release=pb.Release(
-            object=part_id, snap=True, pose=pose(vec(part.target.xyz), part.target.yaw))))
+            object=part_id, snap=True, pose=pose_to_pb(snap))))
         self.board.mark_placed(part_id, t)
         self.board.emit(ev.part_placed(t, self.id, part_id))
         self.carrying = ""

@@ -19,10 +19,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from hrc.geometry import distance, vec3
 from hrc.wire import pb
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
-from hrc_orchestrator.geom import dist, vec
 from hrc_orchestrator.robots import HOLD, Motion, RobotAgent
 
 POLICIES = ("retreat", "retreat_button", "stop_colliding")
@@ -118,9 +118,9 @@ class Safety:
             rec = self._new_record(t, robot, hand, c.link)
             retreat: dict[str, Motion] = {}
             for rid, agent in self.agents.items():
-                yaw = agent.sent.yaw_deg if agent.sent is not None and agent.sent.is_move else (
+                yaw_deg = agent.sent.yaw_deg if agent.sent is not None and agent.sent.is_move else (
                     agent.goal.yaw_deg if agent.goal is not None else 0.0)
-                retreat[rid] = Motion.move(vec(agent.cfg.retreat), yaw)
+                retreat[rid] = Motion.move(vec3(agent.cfg.retreat), yaw_deg)
             self.retreating = RetreatState(rec, retreat, {rid: False for rid in self.agents})
 
     def _new_record(self, t: float, robot: str, hand: str, link: str) -> CollisionRecord:
@@ -184,7 +184,7 @@ class Safety:
             target = agent.goal.target
         if tcp is None or target is None:
             return 0.0
-        return dist(tcp, target)
+        return distance(tcp, target)
 
     # ------------------------------------------------------------------ per tick
     def update(self, t: float) -> None:

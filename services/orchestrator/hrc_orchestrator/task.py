@@ -16,24 +16,23 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hrc import scenario as sc
+from hrc.geometry import Vec3, add, vec3, vec3_from_pb, vec3_to_pb
+from hrc.scenario.conventions import (
+    CONTINUE_BUTTON_CUE,
+    HANDS,
+    WAITING_HEIGHT_M,
+    WAITING_TEXT,
+    outline_cue_id,
+    target_cue_id,
+    waiting_cue_id,
+)
 from hrc.wire import pb
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
-from hrc_orchestrator.cues import (
-    CONTINUE_BUTTON,
-    HUMAN_COLOR,
-    CueBoard,
-    outline_id,
-    target_id,
-    waiting_id,
-)
-from hrc_orchestrator.geom import Vec, add, from_pb, to_pb, vec
-from hrc_orchestrator.human import HANDS, HumanAgent
+from hrc_orchestrator.cues import HUMAN_COLOR, CueBoard
+from hrc_orchestrator.human import HumanAgent
 from hrc_orchestrator.robots import Phase, RobotAgent
 from hrc_orchestrator.safety import Safety
-
-WAITING_TEXT = "Waiting.."
-WAITING_HEIGHT = 0.6  # m above a robot's base, where its "Waiting.." cue floats
 
 
 def wall_clock_now() -> str:
@@ -83,8 +82,8 @@ class Task:
         self.sim_time = 0.0
         self.human_state: pb.HumanState | None = None
         self._grabbable: dict[str, bool] = {}
-        self._positions: dict[str, Vec] = {
-            p.id: vec(p.start.xyz) for p in scenario.parts if p.start is not None
+        self._positions: dict[str, Vec3] = {
+            p.id: vec3(p.start.xyz) for p in scenario.parts if p.start is not None
         }
 
     # ------------------------------------------------------------------ time
@@ -116,7 +115,7 @@ class Task:
             self._start("")  # nothing to grab: the task starts at once
         for msg in inputs.objects:
             for obj in msg.objects:
-                self._positions[obj.id] = from_pb(obj.pose.position)
+                self._positions[obj.id] = vec3_from_pb(obj.pose.position)
             for e in msg.events:
                 self._object_event(e)
         for msg in inputs.contacts:
@@ -211,29 +210,29 @@ class Task:
         cues: list[pb.Cue] = []
         nxt = self.human.next_part
         if nxt and not self.human.held_part and self.human.grabbable(nxt, self.safety.blocks_grab):
-            cues.append(pb.Cue(id=outline_id(nxt), kind=pb.CUE_KIND_OUTLINE, part=nxt,
-                               color=HUMAN_COLOR, position=to_pb(self._positions[nxt]),
+            cues.append(pb.Cue(id=outline_cue_id(nxt), kind=pb.CUE_KIND_OUTLINE, part=nxt,
+                               color=HUMAN_COLOR, position=vec3_to_pb(self._positions[nxt]),
                                flashing=True))
         if self.human.target_cue_wanted():
             part = self.board.parts[self.human.held_part]
-            cues.append(pb.Cue(id=target_id(part.id), kind=pb.CUE_KIND_TARGET, part=part.id,
-                               color=HUMAN_COLOR, position=to_pb(vec(part.target.xyz)),
+            cues.append(pb.Cue(id=target_cue_id(part.id), kind=pb.CUE_KIND_TARGET, part=part.id,
+                               color=HUMAN_COLOR, position=vec3_to_pb(part.target.xyz),
                                flashing=True))
         button = self.scenario.workspace.continue_button
         if self.safety.button_wanted and button is not None:
-            cues.append(pb.Cue(id=CONTINUE_BUTTON, kind=pb.CUE_KIND_CONTINUE_BUTTON,
-                               position=to_pb(vec(button)), flashing=True))
+            cues.append(pb.Cue(id=CONTINUE_BUTTON_CUE, kind=pb.CUE_KIND_CONTINUE_BUTTON,
+                               position=vec3_to_pb(button), flashing=True))
         if self.anticipation and self.running:
             for rid, agent in self.agents.items():
                 color = agent.cfg.color_or_default
                 if agent.carrying:
                     part = self.board.parts[agent.carrying]
-                    cues.append(pb.Cue(id=target_id(part.id), kind=pb.CUE_KIND_TARGET,
+                    cues.append(pb.Cue(id=target_cue_id(part.id), kind=pb.CUE_KIND_TARGET,
                                        part=part.id, robot=rid, color=color,
-                                       position=to_pb(vec(part.target.xyz)), flashing=True))
+                                       position=vec3_to_pb(part.target.xyz), flashing=True))
                 if agent.phase == Phase.WAITING:
-                    base = vec(agent.cfg.base.xyz)
-                    cues.append(pb.Cue(id=waiting_id(rid), kind=pb.CUE_KIND_WAITING, robot=rid,
+                    above_base = add(vec3(agent.cfg.base.xyz), (0.0, 0.0, WAITING_HEIGHT_M))
+                    cues.append(pb.Cue(id=waiting_cue_id(rid), kind=pb.CUE_KIND_WAITING, robot=rid,
                                        color=color, text=WAITING_TEXT, flashing=True,
-                                       position=to_pb(add(base, (0.0, 0.0, WAITING_HEIGHT)))))
+                                       position=vec3_to_pb(above_base)))
         return cues

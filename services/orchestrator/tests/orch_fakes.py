@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hrc import scenario as sc
+from hrc.geometry import Vec3, add, distance, pose_to_pb, vec3, yaw_pose_deg
 from hrc.wire import pb
-from hrc_orchestrator.geom import Vec, add, dist, pose, vec
 from hrc_orchestrator.task import Inputs, Outputs, Task
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -36,10 +36,10 @@ def load(name: str, **overrides: object) -> sc.Scenario:
 class FakeRobot:
     """Moves the TCP straight toward the commanded target at max speed; REACHED within 5 mm."""
 
-    def __init__(self, rid: str, start: Vec, speed: float, dt: float) -> None:
+    def __init__(self, rid: str, start: Vec3, speed: float, dt: float) -> None:
         self.id, self.tcp, self.speed, self.dt = rid, start, speed, dt
         self.cmd: pb.RobotCommand | None = None
-        self.waypoints: list[Vec] = []
+        self.waypoints: list[Vec3] = []
         self.status = pb.MOTION_STATUS_IDLE
         self.frozen = False  # a test can stop it to keep it in a place
 
@@ -49,7 +49,7 @@ class FakeRobot:
             self.waypoints, self.status = [], pb.MOTION_STATUS_HOLDING
             return
         target = (cmd.target.x, cmd.target.y, cmd.target.z)
-        pts: list[Vec] = []
+        pts: list[Vec3] = []
         if cmd.depart_height > 0:
             pts.append(add(self.tcp, (0.0, 0.0, cmd.depart_height)))
         if cmd.approach_height > 0:
@@ -62,7 +62,7 @@ class FakeRobot:
         budget = 0.0 if self.frozen else self.speed * self.dt
         while self.waypoints and budget > 1e-12:
             wp = self.waypoints[0]
-            d = dist(self.tcp, wp)
+            d = distance(self.tcp, wp)
             if d <= budget:
                 self.tcp, budget, moved = wp, budget - d, moved + d
                 self.waypoints.pop(0)
@@ -72,7 +72,7 @@ class FakeRobot:
                 moved, budget = moved + budget, 0.0
         if self.cmd is not None and self.cmd.kind == pb.RobotCommand.KIND_MOVE:
             target = (self.cmd.target.x, self.cmd.target.y, self.cmd.target.z)
-            if not self.waypoints and dist(self.tcp, target) <= REACHED_M:
+            if not self.waypoints and distance(self.tcp, target) <= REACHED_M:
                 self.status = pb.MOTION_STATUS_REACHED
         st = pb.RobotState(robot=self.id, status=self.status, tcp_speed=moved / self.dt,
                            command_id=self.cmd.command_id if self.cmd else 0)
@@ -107,7 +107,7 @@ class Sim:
     def __post_init__(self) -> None:
         self.task = Task(self.scenario, wall_clock=lambda: self.wall)
         self.dt = 1.0 / self.scenario.scenario.tick_hz
-        self.robots = {rid: FakeRobot(rid, vec(r.home), r.max_tcp_speed, self.dt)
+        self.robots = {rid: FakeRobot(rid, vec3(r.home), r.max_tcp_speed, self.dt)
                        for rid, r in self.scenario.robots.items()}
         self.k = 0
         self.states: list[pb.RobotState] = []
@@ -128,17 +128,18 @@ class Sim:
         self._contacts.append(pb.Contact(kind=kind, begin=begin, a=a, b=b, link=link))
 
     def object_event(self, kind: int, obj: str, holder: str = "",
-                     position: Vec | None = None, yaw: float = 0.0) -> None:
+                     position: Vec3 | None = None, yaw_deg: float = 0.0) -> None:
         e = pb.ObjectEvent(kind=kind, object=obj, holder=holder)
         if position is not None:
-            e.pose.CopyFrom(pose(position, yaw))
+            e.pose.CopyFrom(pose_to_pb(yaw_pose_deg(position, yaw_deg)))
         self._object_events.append(e)
 
     def grab(self, part: str, hand: str = "right") -> None:
         self.object_event(pb.ObjectEvent.KIND_GRABBED, part, hand)
 
-    def release(self, part: str, position: Vec, yaw: float = 0.0, hand: str = "right") -> None:
-        self.object_event(pb.ObjectEvent.KIND_RELEASED, part, hand, position, yaw)
+    def release(self, part: str, position: Vec3, yaw_deg: float = 0.0,
+                hand: str = "right") -> None:
+        self.object_event(pb.ObjectEvent.KIND_RELEASED, part, hand, position, yaw_deg)
 
     # ---------------------------------------------------------------- running
     @property
@@ -220,7 +221,7 @@ class Sim:
             h._since = now
         elif now - h._since >= h.place_delay_s:
             part = self.scenario.part(h._held)
-            target = vec(part.target.xyz)
+            target = vec3(part.target.xyz)
             if h._missed < h.misses:
                 h._missed += 1
                 target = add(target, (h.miss_m, 0.0, 0.0))

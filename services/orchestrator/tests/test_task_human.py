@@ -5,8 +5,8 @@ from __future__ import annotations
 import pytest
 from orch_fakes import K, Sim, load
 
+from hrc.geometry import add, vec3
 from hrc.wire import pb
-from hrc_orchestrator.geom import add, vec
 
 
 def grabbable_cmds(out: pb.WorldCommand | list) -> dict[str, bool]:
@@ -54,8 +54,8 @@ def test_release_within_tolerance_snaps_onto_the_target() -> None:
     s = load("thesis.toml")
     sim = Sim(s, human=None)
     start(sim)
-    target = vec(s.part("H1").target.xyz)
-    sim.release("H1", add(target, (0.012, -0.01, 0.0)), yaw=15.0)  # 1.56 cm, 15 deg
+    target = vec3(s.part("H1").target.xyz)
+    sim.release("H1", add(target, (0.012, -0.01, 0.0)), yaw_deg=15.0)  # 1.56 cm, 15 deg
     out = sim.step()
     snap = [w.release for w in out.world_commands if w.HasField("release")]
     assert len(snap) == 1 and snap[0].object == "H1" and snap[0].snap
@@ -67,12 +67,12 @@ def test_release_within_tolerance_snaps_onto_the_target() -> None:
     assert sim.task.board.placed_s["H1"] == pytest.approx(sim.dt)
 
 
-@pytest.mark.parametrize("offset,yaw", [((0.03, 0.0, 0.0), 0.0), ((0.0, 0.0, 0.0), 25.0)])
-def test_release_outside_tolerance_is_a_miss_and_can_be_grabbed_again(offset, yaw) -> None:
+@pytest.mark.parametrize("offset,yaw_deg", [((0.03, 0.0, 0.0), 0.0), ((0.0, 0.0, 0.0), 25.0)])
+def test_release_outside_tolerance_is_a_miss_and_can_be_grabbed_again(offset, yaw_deg) -> None:
     s = load("thesis.toml")
     sim = Sim(s, human=None)
     start(sim)
-    sim.release("H1", add(vec(s.part("H1").target.xyz), offset), yaw=yaw)
+    sim.release("H1", add(vec3(s.part("H1").target.xyz), offset), yaw_deg=yaw_deg)
     out = sim.step()
     assert not any(w.HasField("release") for w in out.world_commands)
     missed = [e for e in out.events if e.kind == K.TASK_EVENT_KIND_PART_RELEASED]
@@ -81,7 +81,7 @@ def test_release_outside_tolerance_is_a_miss_and_can_be_grabbed_again(offset, ya
     assert sim.grabbable["H1"] is True and "outline:H1" in sim.cues
     sim.grab("H1")
     sim.step()
-    sim.release("H1", vec(s.part("H1").target.xyz))
+    sim.release("H1", vec3(s.part("H1").target.xyz))
     out = sim.step()
     assert any(e.kind == K.TASK_EVENT_KIND_PART_PLACED for e in out.events)
     assert sim.task.board.grabbed_s["H1"] == 0.0  # metrics keep the first grab
@@ -91,12 +91,12 @@ def test_target_cue_and_placement_wait_for_after_parts() -> None:
     s = load("thesis.toml")
     sim = Sim(s, human=None)
     start(sim)
-    sim.release("H1", vec(s.part("H1").target.xyz))
+    sim.release("H1", vec3(s.part("H1").target.xyz))
     sim.step()
     sim.grab("H2")  # H2 needs RA2 (placed by r1 after a few seconds)
     sim.step()
     assert "target:H2" not in sim.cues
-    sim.release("H2", vec(s.part("H2").target.xyz))
+    sim.release("H2", vec3(s.part("H2").target.xyz))
     out = sim.step()
     released = [e for e in out.events if e.kind == K.TASK_EVENT_KIND_PART_RELEASED]
     assert released and "RA2" in released[0].text
@@ -105,7 +105,7 @@ def test_target_cue_and_placement_wait_for_after_parts() -> None:
     sim.run(lambda x: x.task.board.is_done("RA2"), max_s=30)
     sim.step()
     assert "target:H2" in sim.cues
-    sim.release("H2", vec(s.part("H2").target.xyz))
+    sim.release("H2", vec3(s.part("H2").target.xyz))
     out = sim.step()
     assert any(e.kind == K.TASK_EVENT_KIND_PART_PLACED and e.part == "H2" for e in out.events)
 
@@ -128,7 +128,7 @@ def test_human_idle_is_time_with_no_hand_in_any_envelope_box() -> None:
     sim.step()
     t_out = sim.t
     sim.run(lambda x: x.t >= 4.5)
-    sim.release("H1", vec(s.part("H1").target.xyz))
+    sim.release("H1", vec3(s.part("H1").target.xyz))
     sim.step()
     t_done = sim.t
     expected = t_in + (t_done - t_out)

@@ -5,8 +5,9 @@ from __future__ import annotations
 import pytest
 from orch_fakes import K, Sim, idle_seconds, load
 
+from hrc.geometry import vec3
+from hrc.scenario.conventions import APPROACH_HEIGHT_M
 from hrc.wire import pb
-from hrc_orchestrator.geom import vec
 
 PHASES_R1 = ["to_pick", "to_intermediate", "to_place", "returning", "to_home"]
 
@@ -51,7 +52,7 @@ def test_transport_robot_phases_commands_and_world_commands() -> None:
     assert mid.depart_height == 0.05
     assert (place.target.x, place.target.y, place.target.z) == pytest.approx(
         (part.target.xyz[0], part.target.xyz[1], part.target.xyz[2] + top))
-    assert place.approach_height == 0.05 and place.yaw_deg == part.target.yaw
+    assert place.approach_height == APPROACH_HEIGHT_M and place.yaw_deg == part.target.yaw
     assert back.depart_height == 0.05
     assert (home.target.x, home.target.y, home.target.z) == tuple(s.robots["r1"].home)
     attach = [w.attach for w in sim.world if w.HasField("attach") and w.attach.holder == "r1"]
@@ -103,7 +104,7 @@ def test_dependency_wait_accrues_idle_time_and_shows_waiting_cue() -> None:
     cue = sim.cues["waiting:r2"]
     assert cue.text == "Waiting.." and cue.color == "green" and cue.kind == pb.CUE_KIND_WAITING
     sim.run(lambda x: x.t >= 6.0)
-    sim.release("H1", vec(s.part("H1").target.xyz))
+    sim.release("H1", vec3(s.part("H1").target.xyz))
     sim.step()
     t_done = sim.t
     over = sim.kinds(K.TASK_EVENT_KIND_ROBOT_WAIT_OVER)

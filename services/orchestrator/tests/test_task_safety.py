@@ -5,8 +5,9 @@ from __future__ import annotations
 import pytest
 from orch_fakes import K, Sim, load
 
+from hrc.geometry import vec3
+from hrc.scenario.conventions import CONTINUE_BUTTON_CUE
 from hrc.wire import pb
-from hrc_orchestrator.geom import vec
 
 HR = pb.CONTACT_KIND_HAND_ROBOT
 RR = pb.CONTACT_KIND_ROBOT_ROBOT
@@ -85,8 +86,8 @@ def test_retreat_button_waits_for_the_button() -> None:
     sim = started("retreat_button")
     sim.contact(HR, True, "left", "r2", "tool")
     sim.step()
-    assert sim.cues["continue_button"].kind == pb.CUE_KIND_CONTINUE_BUTTON
-    assert sim.cues["continue_button"].flashing
+    assert sim.cues[CONTINUE_BUTTON_CUE].kind == pb.CUE_KIND_CONTINUE_BUTTON
+    assert sim.cues[CONTINUE_BUTTON_CUE].flashing
     sim.run(lambda x: len(x.kinds(K.TASK_EVENT_KIND_RETREAT_REACHED)) == 2, max_s=10)
     sim.contact(HR, False, "left", "r2", "tool")
     sim.run(lambda x: x.t >= 15.0)  # a long time at the retreat poses: nobody resumes
@@ -156,7 +157,7 @@ def test_no_new_grab_during_a_collision_but_the_held_part_can_be_placed() -> Non
     out = sim.step()
     assert not any(w.HasField("set_grabbable") and not w.set_grabbable.grabbable
                    and w.set_grabbable.object == "H1" for w in out.world_commands)
-    sim.release("H1", vec(s.part("H1").target.xyz))
+    sim.release("H1", vec3(s.part("H1").target.xyz))
     out = sim.step()
     assert any(e.kind == K.TASK_EVENT_KIND_PART_PLACED and e.part == "H1" for e in out.events)
     assert sim.grabbable.get("H2") is False and "outline:H2" not in sim.cues

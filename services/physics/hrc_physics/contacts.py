@@ -12,7 +12,7 @@ from typing import NamedTuple
 
 from hrc.wire import pb
 
-from hrc_physics.geometry import Vec
+from hrc.geometry import Vec3
 
 
 class ContactKey(NamedTuple):
@@ -25,7 +25,7 @@ class Touch(NamedTuple):
     """Where a present contact is: the link(s), a point, the distance (<= 0: penetration)."""
 
     link: str = ""
-    point: Vec = (0.0, 0.0, 0.0)
+    point: Vec3 = (0.0, 0.0, 0.0)
     distance: float = 0.0
 
 

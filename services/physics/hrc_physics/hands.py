@@ -12,19 +12,17 @@ from dataclasses import dataclass
 
 import pybullet as p
 
-from hrc_physics.geometry import IDENTITY, Quat, Vec
+from hrc.geometry import IDENTITY, Quat, Vec3
 
-HANDS = ("left", "right")
-HAND_SIZE: Vec = (0.09, 0.18, 0.03)
-GRIP_CLOSED = 0.5  # grip >= this holds, below releases
-PARKED: Vec = (0.0, 0.0, -10.0)  # where a hand waits before its first HumanState
+HAND_SIZE: Vec3 = (0.09, 0.18, 0.03)
+PARKED: Vec3 = (0.0, 0.0, -10.0)  # where a hand waits before its first HumanState
 
 
 @dataclass
 class Hand:
     name: str
     body: int
-    pos: Vec = PARKED
+    pos: Vec3 = PARKED
     rot: Quat = IDENTITY
     grip: float = 0.0
     active: bool = False  # a HumanState has placed it
@@ -43,7 +41,7 @@ def create_hand(client: int, name: str) -> Hand:
     return Hand(name, body)
 
 
-def pose_hand(client: int, hand: Hand, pos: Vec, rot: Quat, grip: float) -> bool:
+def pose_hand(client: int, hand: Hand, pos: Vec3, rot: Quat, grip: float) -> bool:
     """Puts the hand there; True if it moved (or became active)."""
     moved = (pos, rot) != (hand.pos, hand.rot)
     if moved:

@@ -16,9 +16,9 @@ import math
 from dataclasses import dataclass
 
 from hrc import scenario as sc
-from hrc_physics.geometry import Vec
+from hrc.geometry import Vec3
 
-BOARD_SIZE: Vec = (0.60, 0.40, 0.02)
+BOARD_SIZE: Vec3 = (0.60, 0.40, 0.02)
 TABLE_THICKNESS = 0.04
 TABLE_MARGIN = 0.08  # around the board and the participant's parts
 PICKING_MARGIN = 0.05
@@ -36,8 +36,8 @@ class StaticBox:
     """A fixed box: ``collides`` boxes carry parts, the others are markers (visual only)."""
 
     name: str
-    center: Vec
-    half: Vec
+    center: Vec3
+    half: Vec3
     yaw_deg: float = 0.0
     collides: bool = True
     rgba: tuple[float, float, float, float] = (0.6, 0.5, 0.4, 1.0)

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import pybullet as p
 
-from hrc_physics.geometry import IDENTITY, Quat, Vec
+from hrc.geometry import Pose, Quat, Vec3
 
 DENSITY = 700.0  # kg/m^3: plastic-and-metal parts; only the ratio to gravity matters here
 MIN_MASS = 0.005
@@ -26,12 +26,12 @@ class WorldObject:
     id: str
     kind: str
     owner: str
-    size: Vec
+    size: Vec3
     mass: float
     body: int
-    target: tuple[Vec, float] | None  # (centre, yaw_deg) from the scenario, if it has one
+    target: tuple[Vec3, float] | None  # (centre, yaw_deg) from the scenario, if it has one
     held_by: str = ""
-    hold_offset: tuple[Vec, Quat] = ((0.0, 0.0, 0.0), IDENTITY)  # object pose in holder frame
+    hold_offset: Pose = Pose()  # the object's pose in its holder's frame
     grabbable: bool = False
     placed: bool = False
     frozen: bool = False  # static (mass 0): held or snapped
@@ -41,10 +41,10 @@ class WorldObject:
     last_holder: str = ""
     still_ticks: int = 0
     dirty: bool = True  # state changed: publish it with the next world/objects
-    pose: tuple[Vec, Quat] = field(default=((0.0, 0.0, 0.0), IDENTITY))
+    pose: Pose = Pose()
 
     @property
-    def half(self) -> Vec:
+    def half(self) -> Vec3:
         return (self.size[0] / 2, self.size[1] / 2, self.size[2] / 2)
 
 
@@ -52,7 +52,7 @@ def mass_of(size: Sequence[float]) -> float:
     return max(MIN_MASS, DENSITY * size[0] * size[1] * size[2])
 
 
-def create_box(client: int, size: Sequence[float], pos: Vec, rot: Quat, mass: float,
+def create_box(client: int, size: Sequence[float], pos: Vec3, rot: Quat, mass: float,
                rgba: Sequence[float] = (0.8, 0.8, 0.8, 1.0)) -> int:
     half = [s / 2 for s in size]
     shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=client)
@@ -90,6 +90,6 @@ def set_frozen(client: int, obj: WorldObject, frozen: bool) -> None:
         wake(client, obj)
 
 
-def place(client: int, obj: WorldObject, pos: Vec, rot: Quat) -> None:
+def place(client: int, obj: WorldObject, pos: Vec3, rot: Quat) -> None:
     p.resetBasePositionAndOrientation(obj.body, list(pos), list(rot), physicsClientId=client)
-    obj.pose = (pos, rot)
+    obj.pose = Pose(pos, rot)

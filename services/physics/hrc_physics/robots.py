@@ -8,7 +8,7 @@ from typing import Sequence
 
 import pybullet as p
 
-from hrc_physics.geometry import Quat, Vec, yaw_quat
+from hrc.geometry import Pose, Vec3, yaw_quat_deg
 
 TOOL_LINK = "tool"
 BASE = -1  # pybullet's link index of a body's base
@@ -29,7 +29,7 @@ class KinematicRobot:
         self._c = client
         try:
             self.body = p.loadURDF(str(urdf), basePosition=list(base_xyz),
-                                   baseOrientation=yaw_quat(base_yaw_deg), useFixedBase=True,
+                                   baseOrientation=yaw_quat_deg(base_yaw_deg), useFixedBase=True,
                                    physicsClientId=client)
         except p.error as exc:
             raise RobotModelError(f"robot {robot_id}: pybullet cannot load {urdf}: {exc}") from exc
@@ -110,17 +110,17 @@ class KinematicRobot:
         self._applied = list(self.positions)
         return True
 
-    def aabb(self) -> tuple[Vec, Vec]:
+    def aabb(self) -> tuple[Vec3, Vec3]:
         """World AABB of all link colliders (cheap prefilter for the distance queries)."""
         boxes = [p.getAABB(self.body, link, physicsClientId=self._c) for link in self._links]
         lo = tuple(map(min, zip(*(b[0] for b in boxes))))
         hi = tuple(map(max, zip(*(b[1] for b in boxes))))
         return lo, hi  # type: ignore[return-value]
 
-    def tool_pose(self) -> tuple[Vec, Quat]:
+    def tool_pose(self) -> Pose:
         s = p.getLinkState(self.body, self.tool, computeForwardKinematics=True,
                            physicsClientId=self._c)
-        return tuple(s[4]), tuple(s[5])  # type: ignore[return-value]
+        return Pose(tuple(s[4]), tuple(s[5]))  # type: ignore[arg-type]
 
     def link_name(self, index: int) -> str:
         return self.link_names.get(index, str(index))

@@ -4,7 +4,7 @@ Tick work (:meth:`World.step`, called with the participants' outputs of tick k):
 1. the dynamics advance one fixed step (free parts fall, slide, come to rest);
 2. robots and hands are posed from the latest RobotState / HumanState (kinematic);
 3. world commands are applied in the order received (attach, release/snap, spawn, grabbable);
-4. held parts follow their holder; hands release (grip < 0.5) and then grasp (grip >= 0.5);
+4. held parts follow their holder; open hands release, then closed hands grasp (GRIP_CLOSED);
 the world is then the world of tick k + 1: :meth:`contact_events` and :meth:`object_states` read
 it for `world/contacts` and `world/objects`.
 """
@@ -23,12 +23,10 @@ import pybullet as p
 from hrc import scenario as sc
 from hrc.scenario.models import ID_PATTERN
 from hrc.bus import check_pose
-from hrc.wire import pb
-from hrc_physics import objects as ob
-from hrc_physics.contacts import ContactKey, ContactTracker, Touch
-from hrc_physics.geometry import (
+from hrc.geometry import (
+    Pose,
     Quat,
-    Vec,
+    Vec3,
     compose,
     distance,
     point_box_distance,
@@ -37,9 +35,13 @@ from hrc_physics.geometry import (
     quat_yaw_deg,
     relative,
     yaw_difference_deg,
-    yaw_quat,
+    yaw_quat_deg,
 )
-from hrc_physics.hands import GRIP_CLOSED, HANDS, Hand, create_hand, pose_hand
+from hrc.scenario.conventions import GRASP_DISTANCE_M, GRIP_CLOSED, HANDS
+from hrc.wire import pb
+from hrc_physics import objects as ob
+from hrc_physics.contacts import ContactKey, ContactTracker, Touch
+from hrc_physics.hands import Hand, create_hand, pose_hand
 from hrc_physics.layout import BUTTON_HEIGHT, BUTTON_RADIUS, FLOOR_Z, StaticBox, furniture
 from hrc_physics.objects import WorldObject
 from hrc_physics.robots import KinematicRobot
@@ -47,7 +49,6 @@ from hrc_physics.robots import KinematicRobot
 log = logging.getLogger(__name__)
 
 GRAVITY = -9.81
-GRASP_DISTANCE = 0.03  # m from the hand's grasp point to the object's surface
 BUTTON_ID = "continue_button"
 HAND_ROBOT, ROBOT_ROBOT = pb.CONTACT_KIND_HAND_ROBOT, pb.CONTACT_KIND_ROBOT_ROBOT
 HAND_ENVELOPE, HAND_BUTTON = pb.CONTACT_KIND_HAND_ENVELOPE, pb.CONTACT_KIND_HAND_BUTTON
@@ -61,7 +62,7 @@ DEFAULT_PART_COLOR = (0.7, 0.7, 0.75, 1.0)
 class WorldSettings:
     dt: float = 1.0 / 240.0
     solver_iterations: int = 50
-    grasp_distance: float = GRASP_DISTANCE
+    grasp_distance: float = GRASP_DISTANCE_M  # hand's grasp point to the object's surface
 
 
 class CommandRejected(ValueError):
@@ -132,7 +133,7 @@ class World:
                                             physicsClientId=c)
             p.setCollisionFilterGroupMask(self.button, -1, 0, 0, physicsClientId=c)
             self._button_box = p.getAABB(self.button, -1, physicsClientId=c)
-        self.envelope: list[tuple[Vec, Vec]] = [
+        self.envelope: list[tuple[Vec3, Vec3]] = [
             (tuple(b.min), tuple(b.max)) for b in ws.envelope]  # type: ignore[misc]
 
         self.robots: dict[str, KinematicRobot] = {}
@@ -152,7 +153,7 @@ class World:
         for part in self.scenario.parts:
             if part.start is not None:
                 self._add_object(part.id, part.kind, part.owner, tuple(part.size),  # type: ignore[arg-type]
-                                 tuple(part.start.xyz), yaw_quat(part.start.yaw))  # type: ignore[arg-type]
+                                 tuple(part.start.xyz), yaw_quat_deg(part.start.yaw))  # type: ignore[arg-type]
         # Parts that start lying on something start asleep: they are at rest, and the first
         # steps' gravity-versus-contact jitter is nothing to report. The others fall.
         for obj in self.objects.values():
@@ -168,14 +169,14 @@ class World:
                                            physicsClientId=c)
         visual = p.createVisualShape(p.GEOM_BOX, halfExtents=list(box.half),
                                      rgbaColor=list(box.rgba), physicsClientId=c)
-        body = p.createMultiBody(0.0, shape, visual, list(box.center), yaw_quat(box.yaw_deg),
+        body = p.createMultiBody(0.0, shape, visual, list(box.center), yaw_quat_deg(box.yaw_deg),
                                  physicsClientId=c)
         if box.collides:
             p.changeDynamics(body, -1, lateralFriction=ob.FRICTION, restitution=0.0,
                              physicsClientId=c)
         return body
 
-    def _add_object(self, oid: str, kind: str, owner: str, size: Vec, pos: Vec,
+    def _add_object(self, oid: str, kind: str, owner: str, size: Vec3, pos: Vec3,
                     rot: Quat) -> WorldObject:
         mass = ob.mass_of(size)
         color = PART_COLORS.get(owner, DEFAULT_PART_COLOR)
@@ -183,7 +184,7 @@ class World:
         part = self.parts.get(oid)
         target = (tuple(part.target.xyz), part.target.yaw) if part is not None else None
         obj = WorldObject(oid, kind, owner, size, mass, body, target,  # type: ignore[arg-type]
-                          pose=(pos, rot))
+                          pose=Pose(pos, rot))
         self.objects[oid] = obj
         return obj
 
@@ -217,7 +218,7 @@ class World:
             h = self._human_applied = self._human
             for hand, pose, grip in ((self.hands["left"], h.left_hand, h.left_grip),
                                      (self.hands["right"], h.right_hand, h.right_grip)):
-                pos, rot = pose_from_pb(pose)
+                pos, rot = pose_from_pb(pose, unit=True)
                 if pose_hand(c, hand, pos, rot, grip):
                     self._contacts_stale = True
         problems: list[str] = []
@@ -303,11 +304,10 @@ class World:
             return
         if obj.held_by:
             self._detach(obj)
-        tool_pos, tool_rot = robot.tool_pose()
-        _, rel_rot = relative(tool_pos, tool_rot, *obj.pose)
+        _, rel_rot = relative(robot.tool_pose(), obj.pose)
         # Convention: the part hangs below the TCP, its top-face centre at the tool tip; the
         # tool's z axis points down, so the centre is sz / 2 along tool z.
-        self._hold(obj, cmd.holder, ((0.0, 0.0, obj.size[2] / 2), rel_rot))
+        self._hold(obj, cmd.holder, Pose((0.0, 0.0, obj.size[2] / 2), rel_rot))
 
     def _release_cmd(self, cmd: pb.Release) -> None:
         obj = self._object(cmd.object, "release")
@@ -320,7 +320,7 @@ class World:
             holder = obj.held_by or obj.last_holder
             if obj.held_by:
                 self._detach(obj)
-            pos, rot = pose_from_pb(cmd.pose)
+            pos, rot = pose_from_pb(cmd.pose, unit=True)
             ob.set_frozen(self.c, obj, True)
             ob.place(self.c, obj, pos, rot)
             obj.placed, obj.moving, obj.settling, obj.dirty = True, False, False, True
@@ -342,12 +342,12 @@ class World:
         problem = check_pose(cmd.pose)
         if problem:
             self._reject(oid, f"spawn {oid!r}: {problem}")
-        pos, rot = pose_from_pb(cmd.pose)
+        pos, rot = pose_from_pb(cmd.pose, unit=True)
         obj = self._add_object(oid, cmd.kind or "part", cmd.owner, size, pos, rot)
         self._event(pb.ObjectEvent.KIND_SPAWNED, obj, cmd.owner)
 
     # ------------------------------------------------------------------ holding
-    def _hold(self, obj: WorldObject, holder: str, offset: tuple[Vec, Quat]) -> None:
+    def _hold(self, obj: WorldObject, holder: str, offset: Pose) -> None:
         ob.set_frozen(self.c, obj, True)  # kinematic while held
         obj.held_by, obj.hold_offset = holder, offset
         obj.placed, obj.moving, obj.settling, obj.dirty = False, False, False, True
@@ -372,14 +372,14 @@ class World:
         obj.placed, obj.moving, obj.settling, obj.still_ticks = False, True, True, 0
         self._event(pb.ObjectEvent.KIND_RELEASED, obj, holder)
 
-    def _holder_pose(self, holder: str) -> tuple[Vec, Quat]:
+    def _holder_pose(self, holder: str) -> Pose:
         hand = self.hands.get(holder)
         if hand is not None:
-            return hand.pos, hand.rot
+            return Pose(hand.pos, hand.rot)
         return self.robots[holder].tool_pose()
 
     def _follow(self, obj: WorldObject) -> None:
-        pos, rot = compose(*self._holder_pose(obj.held_by), *obj.hold_offset)
+        pos, rot = compose(self._holder_pose(obj.held_by), obj.hold_offset)
         if (pos, rot) != obj.pose:
             ob.place(self.c, obj, pos, rot)
 
@@ -389,7 +389,7 @@ class World:
                 self._follow(obj)
 
     def _hand_grips(self) -> None:
-        """Releases first (grip < 0.5), then grasps (grip >= 0.5); left before right."""
+        """Releases first (grip below GRIP_CLOSED), then grasps; left before right."""
         for hand in self.hands.values():
             if hand.holding and hand.grip < GRIP_CLOSED:
                 self._let_go(self.objects[hand.holding])
@@ -400,17 +400,18 @@ class World:
             for obj in self.objects.values():
                 if not obj.grabbable or obj.held_by or obj.placed:  # placed parts are done
                     continue
-                d = point_box_distance(hand.pos, obj.pose[0], obj.pose[1], obj.half)
+                d = point_box_distance(hand.pos, obj.pose, obj.half)
                 if d <= self.settings.grasp_distance and (best is None or d < best[0]):
                     best = (d, obj)
             if best is not None:
                 obj = best[1]
-                self._hold(obj, hand.name, relative(hand.pos, hand.rot, *obj.pose))
+                self._hold(obj, hand.name, relative(Pose(hand.pos, hand.rot), obj.pose))
 
     # ------------------------------------------------------------------ outputs
     def _event(self, kind: int, obj: WorldObject, holder: str) -> None:
         pos, rot = obj.pose
-        ev = pb.ObjectEvent(kind=kind, object=obj.id, holder=holder, pose=pose_to_pb(pos, rot))  # type: ignore[arg-type]
+        ev = pb.ObjectEvent(kind=kind, object=obj.id, holder=holder,  # type: ignore[arg-type]
+                            pose=pose_to_pb(obj.pose))
         if obj.target is not None:
             ev.target_distance_m = distance(pos, obj.target[0])
             ev.target_angle_deg = yaw_difference_deg(quat_yaw_deg(rot), obj.target[1])
@@ -426,8 +427,7 @@ class World:
         for obj in self.objects.values():
             moving = obj.moving or bool(obj.held_by)
             if full or obj.dirty or moving:
-                pos, rot = obj.pose
-                out.append(pb.ObjectState(id=obj.id, pose=pose_to_pb(pos, rot), held_by=obj.held_by,
+                out.append(pb.ObjectState(id=obj.id, pose=pose_to_pb(obj.pose), held_by=obj.held_by,
                                           grabbable=obj.grabbable, placed=obj.placed,
                                           moving=moving))
                 obj.dirty = False
@@ -487,7 +487,7 @@ class World:
         return self.tracker.update(self.current_contacts())
 
     # ------------------------------------------------------------------ inspection
-    def tool_pose(self, robot_id: str) -> tuple[Vec, Quat]:
+    def tool_pose(self, robot_id: str) -> Pose:
         return self.robots[robot_id].tool_pose()
 
 
@@ -509,6 +509,6 @@ def _overlap(a: tuple, b: tuple, margin: float) -> bool:
             and alo[2] <= bhi[2] + margin and blo[2] <= ahi[2] + margin)
 
 
-def _base_pose(client: int, body: int) -> tuple[Vec, Quat]:
+def _base_pose(client: int, body: int) -> Pose:
     pos, rot = p.getBasePositionAndOrientation(body, physicsClientId=client)
-    return tuple(pos), tuple(rot)  # type: ignore[return-value]
+    return Pose(tuple(pos), tuple(rot))  # type: ignore[arg-type]

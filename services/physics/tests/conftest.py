@@ -7,7 +7,7 @@ import pytest
 from hrc import scenario as sc
 from hrc.paths import project_root
 from hrc.wire import pb
-from hrc_physics.geometry import pose_to_pb
+from hrc.geometry import IDENTITY, Pose, pose_to_pb
 from hrc_physics.world import World
 
 ROOT = project_root()
@@ -32,17 +32,19 @@ def world(minimal: sc.Scenario):
 def human(left=(0.0, -0.6, 0.3), right=(0.3, -0.6, 0.3), left_grip=0.0, right_grip=0.0,
           rot=(0.0, 0.0, 0.0, 1.0)) -> pb.HumanState:
     """A HumanState with both hands at the given positions (flat hands, fingers to +y)."""
-    return pb.HumanState(left_hand=pose_to_pb(left, rot), right_hand=pose_to_pb(right, rot),
+    return pb.HumanState(left_hand=pose_to_pb(Pose(left, rot)),
+                         right_hand=pose_to_pb(Pose(right, rot)),
                          left_grip=left_grip, right_grip=right_grip,
-                         head=pose_to_pb((0.0, -0.7, 0.5), (0.0, 0.0, 0.0, 1.0)))
+                         head=pose_to_pb(Pose((0.0, -0.7, 0.5))))
 
 
 def grabbable(obj: str, on: bool = True) -> pb.WorldCommand:
     return pb.WorldCommand(set_grabbable=pb.SetGrabbable(object=obj, grabbable=on))
 
 
-def snap(obj: str, pos, yaw_quat=(0.0, 0.0, 0.0, 1.0)) -> pb.WorldCommand:
-    return pb.WorldCommand(release=pb.Release(object=obj, snap=True, pose=pose_to_pb(pos, yaw_quat)))
+def snap(obj: str, pos, rot=IDENTITY) -> pb.WorldCommand:
+    return pb.WorldCommand(release=pb.Release(object=obj, snap=True,
+                                              pose=pose_to_pb(Pose(pos, rot))))
 
 
 def attach(obj: str, holder: str) -> pb.WorldCommand:
@@ -50,7 +52,7 @@ def attach(obj: str, holder: str) -> pb.WorldCommand:
 
 
 def spawn(obj: str, pos, size, owner="r2") -> pb.WorldCommand:
-    return pb.WorldCommand(spawn=pb.Spawn(object=obj, pose=pose_to_pb(pos, (0.0, 0.0, 0.0, 1.0)),
+    return pb.WorldCommand(spawn=pb.Spawn(object=obj, pose=pose_to_pb(Pose(pos)),
                                           size=pb.Vec3(x=size[0], y=size[1], z=size[2]),
                                           kind="screw", owner=owner))
 

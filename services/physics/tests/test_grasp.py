@@ -8,7 +8,7 @@ import pybullet as p
 import pytest
 
 from hrc.wire import pb
-from hrc_physics.geometry import pose_to_pb, rotate, yaw_quat
+from hrc.geometry import Pose, pose_to_pb, rotate, yaw_quat_deg
 from hrc_physics.world import CommandRejected, World
 
 K = pb.ObjectEvent
@@ -67,7 +67,7 @@ def test_held_part_follows_the_hand_and_reports_release(world: World, helpers) -
 def test_released_far_from_target_falls_and_rests_on_the_table(world: World, helpers) -> None:
     h = helpers
     _grab_h1(world, h)
-    turned = yaw_quat(30.0)
+    turned = yaw_quat_deg(30.0)
     above = (H1_TARGET[0] + 0.10, H1_TARGET[1], 0.15)  # 10 cm off, 13 cm above the board
     h.run(world, 2, h.human(left=above, left_grip=1.0, rot=turned))
     events = h.run(world, 1, h.human(left=above, left_grip=0.0, rot=turned))
@@ -97,7 +97,7 @@ def test_snap_places_exactly_and_freezes(world: World, helpers) -> None:
     _grab_h1(world, h)
     h.run(world, 1, h.human(left=(-0.16, -0.03, 0.05), left_grip=0.0))
     world.take_events()
-    target_rot = yaw_quat(0.0)
+    target_rot = yaw_quat_deg(0.0)
     world.step([h.snap("H1", H1_TARGET, target_rot)])
     events = world.take_events()
     assert _kinds(events) == [(K.KIND_SNAPPED, "H1", "left")]
@@ -160,7 +160,7 @@ def test_spawned_screw_rests_on_the_feeder(world: World, helpers) -> None:
 
 def test_bad_commands_are_rejected_naming_the_object(world: World, helpers) -> None:
     h = helpers
-    nan_pose = pose_to_pb((math.nan, 0.0, 0.0), (0.0, 0.0, 0.0, 1.0))
+    nan_pose = pose_to_pb(Pose((math.nan, 0.0, 0.0)))
     problems = world.step([
         h.attach("X9", "r1"),
         h.attach("H1", "left"),

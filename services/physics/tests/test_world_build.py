@@ -9,7 +9,7 @@ import pytest
 
 from hrc import scenario as sc
 from hrc.paths import project_root
-from hrc_physics.geometry import quat_yaw_deg, yaw_difference_deg
+from hrc.geometry import quat_yaw_deg, yaw_difference_deg
 from hrc_physics.layout import furniture
 from hrc_physics.world import World
 
