@@ -23,6 +23,7 @@ from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
+import numpy.typing as npt
 
 from hrc.wire import pb
 
@@ -277,11 +278,11 @@ def pose_yaw_to_pb(position: Sequence[float], yaw_deg: float) -> pb.PoseYaw:
 
 # ---------------------------------------------------------------- numpy
 
-def to_array(v: Sequence[float]) -> np.ndarray:
+def to_array(v: Sequence[float]) -> npt.NDArray[np.float64]:
     """A vector or quaternion as a float64 numpy array."""
     return np.array(v, dtype=np.float64)
 
 
-def vec3_from_array(a: np.ndarray) -> Vec3:
+def vec3_from_array(a: npt.NDArray[np.float64]) -> Vec3:
     """The first three entries of a numpy array as a ``Vec3`` of Python floats."""
     return (float(a[0]), float(a[1]), float(a[2]))

@@ -28,7 +28,7 @@ from enum import Enum
 import numpy as np
 
 from hrc.geometry import Pose, Vec3, add, distance, look_quat, rotate_z_rad, slerp, yaw_quat_rad
-from hrc.scenario.conventions import CONTINUE_BUTTON_CUE, GRIP_CLOSED, HANDS
+from hrc.scenario.conventions import CONTINUE_BUTTON_CUE, GRIP_CLOSED
 from hrc.wire import pb
 
 from hrc_human_input.facts import PartFacts, ScenarioFacts

@@ -41,6 +41,7 @@ from rerun.urdf import UrdfTree
 
 from hrc.geometry import to_array, vec3_from_array, vec3_from_pb, yaw_quat_deg
 from hrc.scenario.conventions import WAITING_HEIGHT_M, WAITING_TEXT
+from hrc.scenario.models import DEFAULT_TICK_HZ, HUMAN
 from hrc.wire import pb
 
 from hrc_logger.textlog import kind_name
@@ -93,7 +94,7 @@ def finite(values: Any) -> bool:
 class ViewSettings:
     view_hz: float = 30.0    # robot/hand/object updates per simulated second (logging cost)
     flash_hz: float = 2.0    # cue blinking: on for half of each 1/flash_hz period
-    tick_hz: float = 240.0   # replaced by the scenario's / clock's rate when known
+    tick_hz: float = DEFAULT_TICK_HZ  # replaced by the scenario's / clock's rate when known
 
 
 S = TypeVar("S", pb.RobotState, pb.HumanState)
@@ -205,7 +206,7 @@ class View:
         self.robots: dict[str, RobotView] = {}
         self.objects: dict[str, ObjectView] = {}
         self.parts: dict[str, pb.PartConfig] = {}
-        self.owner_color: dict[str, tuple[int, int, int]] = {"human": HUMAN_COLOR}
+        self.owner_color: dict[str, tuple[int, int, int]] = {HUMAN: HUMAN_COLOR}
         self.cues: dict[str, CueView] = {}
         self.hands: dict[str, np.ndarray] = {}
         self.human: StateStream[pb.HumanState] = StateStream()

@@ -20,6 +20,7 @@ from google.protobuf.message import Message
 
 from hrc.geometry import pose_to_pb, vec3_to_pb, yaw_pose_deg
 from hrc.scenario.conventions import WAITING_TEXT
+from hrc.scenario.models import DEFAULT_TICK_HZ
 from hrc.wire import pb
 
 from hrc_logger.urdf_fk import UrdfModel, matrix_to_quat_xyzw, yaw_transform
@@ -63,7 +64,7 @@ class SyntheticTrial:
             raise ValueError(f"the synthetic trial needs at least 580 ticks, got {n_ticks}")
         self.sc = scenario
         self.n = n_ticks
-        self.dt = 1.0 / (scenario.info.tick_hz or 240.0)
+        self.dt = 1.0 / (scenario.info.tick_hz or DEFAULT_TICK_HZ)
         self.parts = {p.id: p for p in scenario.parts}
         self.robots = {r.id: r for r in scenario.robots}
         self.models = {r.id: UrdfModel.from_file(r.urdf_path) for r in scenario.robots}

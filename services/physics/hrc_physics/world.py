@@ -21,7 +21,7 @@ from pathlib import Path
 import pybullet as p
 
 from hrc import scenario as sc
-from hrc.scenario.models import ID_PATTERN
+from hrc.scenario.models import DEFAULT_TICK_HZ, ID_PATTERN
 from hrc.bus import check_pose
 from hrc.geometry import (
     Pose,
@@ -54,13 +54,13 @@ HAND_ROBOT, ROBOT_ROBOT = pb.CONTACT_KIND_HAND_ROBOT, pb.CONTACT_KIND_ROBOT_ROBO
 HAND_ENVELOPE, HAND_BUTTON = pb.CONTACT_KIND_HAND_ENVELOPE, pb.CONTACT_KIND_HAND_BUTTON
 _ID_RE = re.compile(ID_PATTERN)
 
-PART_COLORS = {"human": (0.9, 0.5, 0.2, 1.0)}
+PART_COLORS = {sc.HUMAN: (0.9, 0.5, 0.2, 1.0)}
 DEFAULT_PART_COLOR = (0.7, 0.7, 0.75, 1.0)
 
 
 @dataclass
 class WorldSettings:
-    dt: float = 1.0 / 240.0
+    dt: float = 1.0 / DEFAULT_TICK_HZ
     solver_iterations: int = 50
     grasp_distance: float = GRASP_DISTANCE_M  # hand's grasp point to the object's surface
 
