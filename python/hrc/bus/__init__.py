@@ -8,7 +8,7 @@
 - :class:`LockstepParticipant` and :class:`ClockMaster` implement the tick protocol.
 """
 
-from hrc.bus.bus import Bus, InputStats, Publisher, check_pose
+from hrc.bus.bus import Bus, InputStats, Publisher
 from hrc.bus.clock import ClockMaster, ClockSettings, RunFailed
 from hrc.bus.config import BusConfig, add_bus_arguments, bus_config_from_args
 from hrc.bus.inbox import Inbox
@@ -18,5 +18,5 @@ from hrc.bus.lockstep import CLOCK_MASTER, LockstepParticipant, Outcome, watch_c
 __all__ = [
     "Bus", "BusConfig", "CLOCK_MASTER", "ClockMaster", "ClockSettings", "Inbox", "InputStats",
     "Keys", "LockstepParticipant", "Outcome", "Publisher", "RunFailed", "add_bus_arguments",
-    "bus_config_from_args", "check_pose", "watch_clock_master",
+    "bus_config_from_args", "watch_clock_master",
 ]

@@ -22,7 +22,7 @@ import pybullet as p
 
 from hrc import scenario as sc
 from hrc.scenario.models import ID_PATTERN
-from hrc.bus import check_pose
+from hrc.validate import check_pose
 from hrc.wire import pb
 from hrc_physics import objects as ob
 from hrc_physics.contacts import ContactKey, ContactTracker, Touch
