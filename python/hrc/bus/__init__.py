@@ -13,10 +13,10 @@ from hrc.bus.clock import ClockMaster, ClockSettings, RunFailed
 from hrc.bus.config import BusConfig, add_bus_arguments, bus_config_from_args
 from hrc.bus.inbox import Inbox
 from hrc.bus.keys import Keys
-from hrc.bus.lockstep import CLOCK_MASTER, LockstepParticipant, Outcome, watch_clock_master
+from hrc.bus.lockstep import LockstepParticipant, Outcome, watch_clock_master
 
 __all__ = [
-    "Bus", "BusConfig", "CLOCK_MASTER", "ClockMaster", "ClockSettings", "Inbox", "InputStats",
+    "Bus", "BusConfig", "ClockMaster", "ClockSettings", "Inbox", "InputStats",
     "Keys", "LockstepParticipant", "Outcome", "Publisher", "RunFailed", "add_bus_arguments",
     "bus_config_from_args", "watch_clock_master",
 ]
