@@ -76,7 +76,8 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
                    help="Zenoh's low-latency transport (no QoS, messages <= 64 KiB; both ends of "
                         "a link must ask for it; env HRC_ZENOH_LOWLATENCY=1)")
     g.add_argument("--clock-master", default=CLOCK_MASTER, metavar="NAME",
-                   help=f"the service whose clock this one follows (default {CLOCK_MASTER})")
+                   help="the service whose clock a participant or observer follows "
+                        f"(default {CLOCK_MASTER}, the service table's)")
 
 
 def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
