@@ -1,7 +1,8 @@
 """The service table (hrc.services) against what it describes: the installed programs, the
 services' own command-line parsers, and the processes ``hrc run`` starts.
 
-The deploy files are checked against it in deploy/tests/test_deploy_files.py.
+Here, not in python/tests, because it imports the services and runs the C++ one. The deploy files
+are checked against the table in deploy/tests/test_deploy_files.py.
 """
 
 from __future__ import annotations
