@@ -26,9 +26,9 @@ PC_HEADER = """\
 # One hrc-cosim session: the services as separate processes on this machine.
 #
 #   scripts/setup.sh                                   # builds tools/bin/process-compose too
-#   tools/bin/process-compose -f deploy/process-compose.yaml up -U           # from the repo root; TUI
+#   tools/bin/process-compose -f deploy/process-compose.yaml up -U     # from the repo root; TUI
 #   HRC_SESSION=s2 HRC_PORT=7461 HRC_TICKS=2000 \\
-#     tools/bin/process-compose -f deploy/process-compose.yaml up -U -t=false  # headless: logs on stdout
+#     tools/bin/process-compose -f deploy/process-compose.yaml up -U -t=false  # logs on stdout
 # (-U: control socket instead of TCP port 8080, so several sessions can run at once)
 #
 # Settings (environment, with defaults):
@@ -122,7 +122,7 @@ def _pc_process(svc: Service) -> str:
                    "        condition: process_started\n")
     out.append("    availability:\n      restart: exit_on_failure\n")
     out.append("    readiness_probe:\n      exec:\n")
-    out.append(f"        command: {json.dumps(' '.join(pc_probe(svc)))}\n")
+    out.append(_folded("command", pc_probe(svc), "        "))
     out.append("      initial_delay_seconds: 1\n      period_seconds: 5\n"
                "      timeout_seconds: 10\n      failure_threshold: 6\n")
     out.append(f"    shutdown:\n      signal: 15\n      timeout_seconds: {svc.stop_timeout_s}\n")
@@ -140,7 +140,8 @@ COMPOSE_HEADER = """\
 #
 #   docker compose -f deploy/compose.yaml build
 #   docker compose -f deploy/compose.yaml up --abort-on-container-failure
-#   HRC_SESSION=s2 HRC_PORT=7461 HRC_TICKS=2000 docker compose -f deploy/compose.yaml up --abort-on-container-failure
+#   HRC_SESSION=s2 HRC_PORT=7461 HRC_TICKS=2000 \\
+#     docker compose -f deploy/compose.yaml up --abort-on-container-failure
 #
 # Settings as in deploy/process-compose.yaml: HRC_SESSION (compose), HRC_SCENARIO
 # (scenarios/thesis.toml), HRC_OUT (runs/compose), HRC_PORT (7460), HRC_TICKS (0 = until
