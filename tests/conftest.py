@@ -17,17 +17,13 @@ import pytest
 from hrc.bus import Bus, BusConfig
 from hrc.cli.runner import free_port  # noqa: F401 - tests import it from here
 from hrc.paths import ik_binary, project_root
+from hrc.services import SERVICES
 from hrc.wire import pb
 
 ROOT = project_root()
 HRC = str(Path(sys.executable).with_name("hrc"))
-SERVICE_MARKERS = {
-    "physics": "hrc_physics",
-    "orchestrator": "hrc_orchestrator",
-    "human_input": "hrc_human_input",
-    "logger": "hrc_logger",
-    "ik_cpp": "hrc-ik",
-}
+# what identifies each service's process on its command line (hrc run: python -m / the binary)
+SERVICE_MARKERS = {s.name: s.module or s.script for s in SERVICES}
 
 
 

@@ -6,9 +6,11 @@ import time
 
 import zenoh
 
+from hrc.services import names
+
 from .conftest import wait_until
 
-SERVICES = ("physics", "orchestrator", "ik_cpp", "human_input", "logger")
+SERVICES = names()
 GARBAGE = b"\xff" * 12  # an unterminated varint: no message type can decode it
 
 

@@ -1,8 +1,12 @@
-"""Checks of the deployment files: the Zenoh router config, deploy/process-compose.yaml, scripts.
+"""Checks of the deployment files: the Zenoh router config, deploy/process-compose.yaml,
+deploy/compose.yaml, scripts.
 
-The process-compose tests run the real process-compose binary (built by scripts/setup.sh into
-tools/bin/) against fake services, so they check what the file makes process-compose do: the
-command lines, the readiness probes, and that one failing service ends the session non-zero.
+Both compose files are generated from the service table (hrc.services, `hrc deploy-files`): the
+committed files must equal the generated ones, and read back as YAML they must say what the table
+says (services, commands, start dependencies, readiness probes). The process-compose tests also
+run the real process-compose binary (built by scripts/setup.sh into tools/bin/) against fake
+services, so they check what the file makes process-compose do: the command lines, the readiness
+probes, and that one failing service ends the session non-zero.
 """
 
 from __future__ import annotations
@@ -14,17 +18,23 @@ import re
 import socket
 import stat
 import subprocess
+import sys
 import time
 from pathlib import Path
 
 import pytest
+import yaml
 import zenoh
+
+from hrc import services
+from hrc.cli import deploy_files
+from hrc.services import Role, Settings
 
 ROOT = Path(__file__).resolve().parents[2]
 ROUTER_CONFIG = ROOT / "deploy" / "zenoh-router.json5"
 PC_FILE = ROOT / "deploy" / "process-compose.yaml"
+COMPOSE_FILE = ROOT / "deploy" / "compose.yaml"
 PC_BIN = ROOT / "tools" / "bin" / "process-compose"
-SERVICES = ("physics", "orchestrator", "ik_cpp", "human_input", "logger")
 
 
 def _free_port() -> int:
@@ -71,6 +81,56 @@ def test_router_config_routes_between_clients() -> None:
     assert alive == ["hrc/deploytest/alive/a"]
 
 
+# --------------------------------------------------------------------------- against the table
+
+
+def test_committed_deploy_files_are_the_generated_ones() -> None:
+    for path, text in deploy_files.files(ROOT).items():
+        assert path.read_text() == text, f"{path} is out of date: run `hrc deploy-files`"
+
+
+def test_hrc_deploy_files_check_says_up_to_date() -> None:
+    hrc = Path(sys.executable).with_name("hrc")
+    proc = subprocess.run([str(hrc), "deploy-files", "--check"], capture_output=True, text=True,
+                          timeout=60)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_process_compose_file_says_what_the_table_says() -> None:
+    pc = yaml.safe_load(PC_FILE.read_text())
+    procs = pc["processes"]
+    assert list(procs) == list(services.names())
+    for svc in services.SERVICES:
+        p = procs[svc.name]
+        program = f".venv/bin/{svc.script}" if svc.module else f"build/{svc.binary}"
+        assert p["command"].split() == [program, *services.argv(svc, deploy_files.PC_SETTINGS)]
+        if svc.role is Role.CLOCK_MASTER:
+            assert "depends_on" not in p
+        else:
+            assert p["depends_on"] == {services.CLOCK_MASTER: {"condition": "process_started"}}
+        probe = p["readiness_probe"]["exec"]["command"].split()
+        assert probe[:4] == [".venv/bin/hrc", "alive", svc.name, "--wait"]
+        assert p["availability"] == {"restart": "exit_on_failure"}
+        assert p["shutdown"]["timeout_seconds"] == svc.stop_timeout_s
+
+
+def test_compose_file_says_what_the_table_says() -> None:
+    compose = yaml.safe_load(COMPOSE_FILE.read_text())
+    got = {n: s for n, s in compose["services"].items() if "profiles" not in s}  # not the router
+    assert list(got) == list(services.names())
+    for svc in services.SERVICES:
+        c = got[svc.name]
+        assert c["entrypoint"] == [svc.script]
+        assert c["command"] == services.argv(svc, deploy_files.COMPOSE_SETTINGS)
+        if svc.role is Role.CLOCK_MASTER:
+            assert "depends_on" not in c
+        else:
+            assert c["depends_on"] == {services.CLOCK_MASTER: {"condition": "service_started"}}
+        assert c["healthcheck"]["test"][:4] == ["CMD", "hrc", "alive", svc.name]
+        assert c["stop_grace_period"] == f"{svc.stop_timeout_s}s"
+        assert c["restart"] == "no" and c["network_mode"] == "host"  # from x-service
+
+
 # --------------------------------------------------------------------------- process-compose
 
 FAKE_SERVICE = """#!/bin/sh
@@ -92,9 +152,8 @@ def _fake_root(tmp: Path) -> Path:
     root = tmp / "root"
     (root / ".venv" / "bin").mkdir(parents=True)
     (root / "build" / "ik_cpp").mkdir(parents=True)
-    exes = [root / ".venv" / "bin" / n for n in
-            ("hrc-physics", "hrc-orchestrator", "hrc-human-input", "hrc-logger")]
-    exes.append(root / "build" / "ik_cpp" / "hrc-ik")
+    exes = [root / (f".venv/bin/{s.script}" if s.module else f"build/{s.binary}")
+            for s in services.SERVICES]
     for exe in exes:
         exe.write_text(FAKE_SERVICE)
     (root / ".venv" / "bin" / "hrc").write_text(FAKE_HRC)
@@ -124,37 +183,41 @@ def test_process_compose_file_validates() -> None:
     proc = subprocess.run([str(PC_BIN), "-f", str(PC_FILE), "--dry-run"], capture_output=True,
                           text=True, timeout=60, stdin=subprocess.DEVNULL)
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert re.search(r"Validated 5 configured processes", proc.stdout + proc.stderr)
+    assert re.search(rf"Validated {len(services.SERVICES)} configured processes",
+                     proc.stdout + proc.stderr)
 
 
-def test_process_compose_starts_five_services_with_session_settings(tmp_path: Path) -> None:
+def _expected(settings: Settings) -> dict[str, list[str]]:
+    return {s.script: [s.script, *services.argv(s, settings)] for s in services.SERVICES}
+
+
+def test_process_compose_starts_every_service_with_session_settings(tmp_path: Path) -> None:
     code, out = _run_pc(tmp_path, HRC_SESSION="s7", HRC_PORT="7999", HRC_TICKS="123",
                         HRC_SCENARIO="scenarios/x.toml", HRC_OUT="runs/x", FAKE_SLEEP="3")
     assert code == 0
     argv = {p.name.removeprefix("argv-"): p.read_text().split() for p in out.glob("argv-*")}
     bus = "tcp/127.0.0.1:7999"
-    client = ["--zenoh-mode", "client", "--connect", bus]  # star: physics routes for all
-    assert argv["hrc-physics"] == ["hrc-physics", "--session", "s7", "--zenoh-mode", "router",
-                                   "--listen", bus, "--clock", "lockstep", "--ticks", "123"]
-    assert argv["hrc-orchestrator"] == ["hrc-orchestrator", "--session", "s7", *client,
-                                        "--scenario", "scenarios/x.toml", "--out", "runs/x"]
-    assert argv["hrc-ik"] == ["hrc-ik", "--session", "s7", *client]
-    assert argv["hrc-human-input"] == ["hrc-human-input", "--session", "s7", *client]
-    assert argv["hrc-logger"] == ["hrc-logger", "--session", "s7", *client, "--out", "runs/x"]
+    assert argv == _expected(Settings(session="s7", bus=bus, listen=(bus,), clock="lockstep",
+                                      ticks="123", scenario="scenarios/x.toml", out="runs/x"))
+    # star: physics routes for all
+    assert argv["hrc-physics"][:7] == ["hrc-physics", "--session", "s7", "--zenoh-mode",
+                                       "router", "--listen", bus]
+    assert argv["hrc-ik"][:7] == ["hrc-ik", "--session", "s7", "--zenoh-mode", "client",
+                                  "--connect", bus]
     probes = (out / "probes").read_text().splitlines()
     probed = {line.split()[1] for line in probes}
-    assert probed == set(SERVICES)
+    assert probed == set(services.names())
     assert all(f"--session s7 --zenoh-mode client --connect {bus}" in line for line in probes)
 
 
 def test_process_compose_defaults(tmp_path: Path) -> None:
     code, out = _run_pc(tmp_path, FAKE_SLEEP="0")
     assert code == 0
-    physics = (out / "argv-hrc-physics").read_text().split()
-    assert physics == ["hrc-physics", "--session", "pc", "--zenoh-mode", "router", "--listen",
-                       "tcp/127.0.0.1:7460", "--clock", "lockstep", "--ticks", "0"]
-    orch = (out / "argv-hrc-orchestrator").read_text().split()
-    assert orch[-4:] == ["--scenario", "scenarios/thesis.toml", "--out", "runs/pc"]
+    argv = {p.name.removeprefix("argv-"): p.read_text().split() for p in out.glob("argv-*")}
+    bus = "tcp/127.0.0.1:7460"
+    assert argv == _expected(Settings(session="pc", bus=bus, listen=(bus,), clock="lockstep",
+                                      ticks="0", scenario="scenarios/thesis.toml",
+                                      out="runs/pc"))
 
 
 def test_process_compose_one_failing_service_ends_the_session(tmp_path: Path) -> None:

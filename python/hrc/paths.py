@@ -19,9 +19,12 @@ def build_dir() -> Path:
 
 
 def ik_binary() -> Path:
-    """The C++ IK service (``HRC_IK_BIN`` overrides)."""
-    env = os.environ.get("HRC_IK_BIN")
-    return Path(env) if env else build_dir() / "ik_cpp" / "hrc-ik"
+    """The C++ IK service, where the service table says it is built."""
+    from hrc.services import service
+
+    binary = service("ik_cpp").binary
+    assert binary is not None  # a C++ service
+    return build_dir() / binary
 
 
 def bus_probe_binary() -> Path:

@@ -7,12 +7,13 @@ from pathlib import Path
 
 import pytest
 
+from hrc import services
 from hrc.cli import runner
 from hrc.cli.runner import TrialOptions, fits_lowlatency, local_socket, service_argv
 from hrc.paths import project_root
 
 THESIS = project_root() / "scenarios" / "thesis.toml"
-SERVICES = ("physics", "orchestrator", "ik_cpp", "human_input", "logger")
+SERVICES = services.names()  # the clock master first
 
 
 def _argv(name: str, sock: Path | None, lowlatency: bool) -> list[str]:

@@ -8,15 +8,15 @@
 - :class:`LockstepParticipant` and :class:`ClockMaster` implement the tick protocol.
 """
 
-from hrc.bus.bus import Bus, InputStats, Publisher, check_pose
+from hrc.bus.bus import Bus, InputStats, Publisher
 from hrc.bus.clock import ClockMaster, ClockSettings, RunFailed
 from hrc.bus.config import BusConfig, add_bus_arguments, bus_config_from_args
 from hrc.bus.inbox import Inbox
 from hrc.bus.keys import Keys
-from hrc.bus.lockstep import CLOCK_MASTER, LockstepParticipant, Outcome, watch_clock_master
+from hrc.bus.lockstep import LockstepParticipant, Outcome, watch_clock_master
 
 __all__ = [
-    "Bus", "BusConfig", "CLOCK_MASTER", "ClockMaster", "ClockSettings", "Inbox", "InputStats",
+    "Bus", "BusConfig", "ClockMaster", "ClockSettings", "Inbox", "InputStats",
     "Keys", "LockstepParticipant", "Outcome", "Publisher", "RunFailed", "add_bus_arguments",
-    "bus_config_from_args", "check_pose", "watch_clock_master",
+    "bus_config_from_args", "watch_clock_master",
 ]

@@ -8,11 +8,10 @@ it is counted per key, logged with key and sender, and never reaches service cod
 from __future__ import annotations
 
 import logging
-import math
 import threading
 import time
 from collections import Counter
-from typing import Callable, Generic, Iterable, TypeVar
+from typing import Callable, Generic, TypeVar
 
 import zenoh
 from google.protobuf.message import DecodeError, Message
@@ -54,18 +53,6 @@ class InputStats:
             for k, v in self.decode_errors.items():
                 msg.decode_errors[k] = v
         return msg
-
-
-def _finite(values: Iterable[float]) -> bool:
-    return all(math.isfinite(v) for v in values)
-
-
-def check_pose(pose: pb.Pose) -> str | None:
-    """NaN/inf poses are rejected at the door (SPEC §7)."""
-    p, q = pose.position, pose.orientation
-    if not _finite((p.x, p.y, p.z, q.x, q.y, q.z, q.w)):
-        return "pose has a NaN or infinite value"
-    return None
 
 
 class Publisher(Generic[M]):

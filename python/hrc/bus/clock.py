@@ -20,6 +20,7 @@ from google.protobuf.message import Message
 
 from hrc.bus.bus import Bus, Validator
 from hrc.bus.inbox import Handler, Inbox
+from hrc.services import OBSERVERS, PARTICIPANTS
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
@@ -33,8 +34,9 @@ class ClockSettings:
     mode: ClockModeName = "lockstep"
     tick_hz: float = 240.0
     ticks: int = 0  # 0: until a stop request
-    participants: list[str] = field(default_factory=lambda: ["ik_cpp", "orchestrator", "human_input"])
-    observers: list[str] = field(default_factory=lambda: ["logger"])
+    # the services whose acks close the barrier, and those that must be there but never ack
+    participants: list[str] = field(default_factory=lambda: list(PARTICIPANTS))
+    observers: list[str] = field(default_factory=lambda: list(OBSERVERS))
     barrier_timeout_s: float = 10.0
     start_timeout_s: float = 60.0
 

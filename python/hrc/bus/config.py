@@ -10,6 +10,8 @@ from typing import Literal
 
 import zenoh
 
+from hrc.services import CLOCK_MASTER
+
 Mode = Literal["peer", "client", "router"]
 
 CONNECT_TIMEOUT_MS = 60000
@@ -35,6 +37,8 @@ class BusConfig:
     # fragmentation). A link falls back to the standard transport unless both ends ask for it.
     lowlatency: bool = False
     config_file: str | None = None
+    # The service whose clock participants and observers follow (``hrc run`` passes it).
+    clock_master: str = CLOCK_MASTER
 
     def to_zenoh(self) -> zenoh.Config:
         cfg = zenoh.Config.from_file(self.config_file) if self.config_file else zenoh.Config()
@@ -71,6 +75,9 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
                    default=os.environ.get("HRC_ZENOH_LOWLATENCY", "") not in ("", "0"),
                    help="Zenoh's low-latency transport (no QoS, messages <= 64 KiB; both ends of "
                         "a link must ask for it; env HRC_ZENOH_LOWLATENCY=1)")
+    g.add_argument("--clock-master", default=CLOCK_MASTER, metavar="NAME",
+                   help="the service whose clock a participant or observer follows "
+                        f"(default {CLOCK_MASTER}, the service table's)")
 
 
 def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
@@ -83,4 +90,5 @@ def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
     else:  # a client only connects; peers and routers accept links on a free loopback port
         listen = [] if args.zenoh_mode == "client" else ["tcp/127.0.0.1:0"]
     return BusConfig(session=args.session, mode=args.zenoh_mode, connect=connect, listen=listen,
-                     lowlatency=args.zenoh_lowlatency, config_file=args.zenoh_config)
+                     lowlatency=args.zenoh_lowlatency, config_file=args.zenoh_config,
+                     clock_master=args.clock_master)

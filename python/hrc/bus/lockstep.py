@@ -21,8 +21,6 @@ from hrc.wire import pb
 
 log = logging.getLogger(__name__)
 
-CLOCK_MASTER = "physics"
-
 
 @dataclass
 class Outcome:
@@ -39,16 +37,17 @@ class Outcome:
 
 def watch_clock_master(bus: Bus, on_lost: Callable[[Outcome], None]) -> None:
     """Calls ``on_lost`` when the clock master's token, once seen, disappears."""
+    master = bus.config.clock_master
     seen = False
 
     def on_change(service: str, alive: bool) -> None:
         nonlocal seen
-        if service != CLOCK_MASTER:
+        if service != master:
             return
         if alive:
             seen = True
         elif seen:
-            on_lost(Outcome(False, f"the clock master '{CLOCK_MASTER}' disappeared"))
+            on_lost(Outcome(False, f"the clock master '{master}' disappeared"))
 
     bus.watch_liveliness(on_change)
 
@@ -172,7 +171,7 @@ class LockstepParticipant:
         t0 = time.perf_counter()  # compute time, not time spent waiting for inputs
         self._wait_s += t0 - tw
         self._ticks_done += 1
-        self.inbox.deliver(k, master=CLOCK_MASTER)
+        self.inbox.deliver(k, master=self.bus.config.clock_master)
         self.last_tick = tick
         self.bus.stats.tick(k)
         if self._step is not None:

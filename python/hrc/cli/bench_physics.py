@@ -1,84 +1,42 @@
-"""``hrc bench physics``: the cost of one physics tick of the thesis world with nothing else around.
+"""``hrc bench physics``: the physics service's own bench, ``python -m hrc_physics.bench``
+(services/physics/README.md), run as a process: the library never imports a service.
 
-Per tick, as the physics service does it (minus the bus): take a robot state per arm and a human
-state, step the world (dynamics, kinematic robots and hands, grasp logic), collect the changed
-object states and events, and run the contact queries. The arms sweep and the hands move over
-the board, so every query runs with fresh poses. The figure is the upper bound for how fast a
-lockstep trial can tick.
+It prints a table, or with ``--json`` one JSON object ``{"us_per_tick": x}``.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
-import math
-import time
+import subprocess
+import sys
 
-from hrc.paths import project_root
-from hrc.wire import pb
-
-WARMUP_TICKS = 240  # parts settle and fall asleep, as in a real trial's first second
+from hrc import services
 
 
-def _human(k: int, dt: float) -> pb.HumanState:
-    t = k * dt
-    msg = pb.HumanState(left_grip=0.0, right_grip=0.0)
-    for hand, x0 in ((msg.left_hand, -0.15), (msg.right_hand, 0.15)):
-        hand.position.x = x0 + 0.10 * math.sin(1.3 * t)
-        hand.position.y = -0.10 + 0.15 * math.sin(0.7 * t)
-        hand.position.z = 0.15 + 0.05 * math.sin(2.1 * t)
-        hand.orientation.w = 1.0
-    return msg
-
-
-def _joints(k: int, dt: float, phase: float) -> list[float]:
-    t = k * dt
-    q2 = 0.5 + 0.3 * math.sin(0.9 * t + phase)
-    q3 = 1.6 + 0.3 * math.sin(1.1 * t + phase)
-    return [0.4 * math.sin(0.5 * t + phase), q2, q3, math.pi - q2 - q3, 0.0]
-
-
-def measure(n: int) -> dict[str, float]:
-    from hrc import scenario as sc
-    from hrc_physics.world import World, WorldSettings
-
-    scenario = sc.load(project_root() / "scenarios" / "thesis.toml", reach_checker=None)
-    dt = 1.0 / scenario.scenario.tick_hz
-    with World(scenario, WorldSettings(dt=dt)) as world:
-        robots = list(world.robots)
-        total = WARMUP_TICKS + n
-        # Inputs made up front: the figure is the world's cost, not the bench's.
-        humans = [_human(k, dt) for k in range(total)]
-        joints = [[_joints(k, dt, math.pi * i) for i in range(len(robots))] for k in range(total)]
-        contacts = 0
-
-        def tick(k: int) -> None:
-            nonlocal contacts
-            for rid, q in zip(robots, joints[k]):
-                world.set_robot_state(rid, [], q)
-            world.set_human(humans[k])
-            world.step()
-            world.object_states(full=k == 0)
-            world.take_events()
-            contacts += len(world.contact_events())
-
-        for k in range(WARMUP_TICKS):
-            tick(k)
-        t0 = time.perf_counter()
-        for k in range(WARMUP_TICKS, total):
-            tick(k)
-        wall = time.perf_counter() - t0
-    return {"us_per_tick": round(wall / n * 1e6, 1), "ticks": n, "contact_events": contacts}
+def bench_argv(args: argparse.Namespace) -> list[str]:
+    """The command line of the bench for ``hrc bench physics`` arguments (``json``, ``n``)."""
+    argv = [sys.executable, "-m", f"{services.service('physics').module}.bench"]
+    if getattr(args, "n", 0):
+        argv += ["--n", str(args.n)]
+    if getattr(args, "json", False):
+        argv.append("--json")
+    return argv
 
 
 def run(args: argparse.Namespace) -> int:
-    n = getattr(args, "n", 0) or 5000
-    result = measure(n)
+    if getattr(args, "n", 0) < 0:
+        print(f"--n must be >= 0, got {args.n}", file=sys.stderr)
+        return 2
+    proc = subprocess.run(bench_argv(args), stdout=subprocess.PIPE, text=True, check=False)
+    sys.stdout.write(proc.stdout)
+    if proc.returncode != 0:
+        print(f"the physics bench failed with exit code {proc.returncode}", file=sys.stderr)
+        return proc.returncode
     if getattr(args, "json", False):
-        print(json.dumps({"us_per_tick": result["us_per_tick"]}))
-    else:
-        rate = 1e6 / result["us_per_tick"] if result["us_per_tick"] > 0 else math.inf
-        print(f"physics tick, thesis world, no bus ({n} ticks after {WARMUP_TICKS} warm-up): "
-              f"{result['us_per_tick']:.1f} us/tick (at most {rate:,.0f} ticks/s), "
-              f"{result['contact_events']} contact events")
+        try:
+            json.loads(proc.stdout)  # one JSON object, as documented
+        except json.JSONDecodeError as exc:
+            print(f"the physics bench printed no valid JSON: {exc}", file=sys.stderr)
+            return 1
     return 0

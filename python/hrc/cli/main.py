@@ -107,6 +107,23 @@ def _cmd_router(args: argparse.Namespace) -> int:
             return 0
 
 
+def _cmd_deploy_files(args: argparse.Namespace) -> int:
+    from hrc.cli import deploy_files
+
+    return deploy_files.main(args)
+
+
+def _cmd_services(_args: argparse.Namespace) -> int:
+    from hrc import services
+
+    for svc in services.SERVICES:
+        program = f"python -m {svc.module}" if svc.module else f"build/{svc.binary}"
+        print(f"{svc.name:<13} {svc.role.value:<13} {program:<26} {svc.description}")
+        for need in svc.needs:
+            print(f"{'':<14}needs {need}")
+    return 0
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from hrc.cli import bench
 
@@ -164,6 +181,15 @@ def build_parser() -> argparse.ArgumentParser:
     ro.add_argument("--config", default=None, help="Zenoh JSON5 config, e.g. deploy/zenoh-router.json5")
     ro.add_argument("--listen", action="append", default=None, metavar="ENDPOINT")
     ro.set_defaults(func=_cmd_router)
+
+    se = sub.add_parser("services", help="list the services of a session (the service table)")
+    se.set_defaults(func=_cmd_services)
+
+    d = sub.add_parser("deploy-files", help="write deploy/process-compose.yaml and "
+                       "deploy/compose.yaml from the service table")
+    d.add_argument("--check", action="store_true",
+                   help="write nothing; exit 1 if a file is out of date")
+    d.set_defaults(func=_cmd_deploy_files)
 
     b = sub.add_parser("bench", help="benchmarks that print their figures")
     b.add_argument("what", choices=["bus", "ik", "physics"])

@@ -25,13 +25,11 @@ from pathlib import Path
 from typing import IO
 
 from hrc.bus import Bus, BusConfig
-from hrc.paths import ik_binary, project_root
+from hrc import services
+from hrc.paths import build_dir
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
-
-SERVICES = ("orchestrator", "physics", "ik_cpp", "human_input", "logger")
-
 
 @dataclass
 class TrialOptions:
@@ -195,55 +193,41 @@ def fits_lowlatency(scenario: Path) -> bool:
     return True
 
 
+def trial_settings(opts: TrialOptions, session: str, port: int, trial_dir: Path,
+                   sock: Path | None = None, lowlatency: bool = False) -> services.Settings:
+    """The values of the services' options in one trial.
+
+    Physics listens on tcp/127.0.0.1:``port`` (for tools and other hosts) and on the Unix socket
+    ``sock`` if given; the other services connect to the socket, else to the port."""
+    tcp = f"tcp/127.0.0.1:{port}"
+    bus = f"unixsock-stream/{sock}" if sock is not None else tcp
+    return services.Settings(
+        session=session, bus=bus, listen=(tcp, bus) if sock is not None else (tcp,),
+        connect=tuple(opts.connect), lowlatency=lowlatency,
+        clock=opts.mode, ticks=str(opts.ticks or opts.max_ticks),
+        barrier_timeout=str(opts.barrier_timeout_s), start_timeout=str(opts.start_timeout_s),
+        scenario=str(opts.scenario), out=str(trial_dir),
+        seed=None if opts.seed is None else str(opts.seed),
+        no_reach_check=opts.validated, keep_running=bool(opts.ticks),
+        record=str(opts.record) if opts.record else None,
+        replay=str(opts.replay) if opts.replay else None,
+        viewer=opts.viewer, web=opts.web)
+
+
+def program(svc: services.Service) -> list[str]:
+    """How ``hrc run`` starts ``svc``: its module with this interpreter, or its built binary."""
+    if svc.module is not None:
+        return [sys.executable, "-m", svc.module]
+    assert svc.binary is not None  # the table guarantees one of the two
+    return [str(build_dir() / svc.binary)]
+
+
 def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_dir: Path,
                  sock: Path | None = None, lowlatency: bool = False) -> list[str]:
-    """Physics listens on tcp/127.0.0.1:``port`` (for tools and other hosts) and on the Unix
-    socket ``sock`` if given; the other services connect to the socket, else to the port."""
-    tcp = f"tcp/127.0.0.1:{port}"
-    endpoint = f"unixsock-stream/{sock}" if sock is not None else tcp
-    common = ["--session", session] + (["--zenoh-lowlatency"] if lowlatency else [])
-    for ep in opts.connect:
-        common += ["--connect", ep]
-    py = [sys.executable, "-m"]
-    extra = opts.extra.get(name, [])
-    if name == "physics":
-        # Star topology: physics's session is a router and every other service a client of it,
-        # so a route between any two services exists as soon as both have announced themselves
-        # (peer-to-peer links would form later, by gossip, and could miss the first messages).
-        listen = ["--listen", tcp] + (["--listen", endpoint] if sock is not None else [])
-        argv = py + ["hrc_physics", *common, "--zenoh-mode", "router", *listen,
-                     "--clock", opts.mode,
-                     "--ticks", str(opts.ticks or opts.max_ticks), "--barrier-timeout", str(opts.barrier_timeout_s),
-                     "--start-timeout", str(opts.start_timeout_s)]
-        return argv + extra
-    connect = ["--connect", endpoint, "--zenoh-mode", "client"]
-    if name == "ik_cpp":
-        return [str(ik_binary()), *common, *connect] + extra
-    if name == "orchestrator":
-        argv = py + ["hrc_orchestrator", *common, *connect, "--scenario", str(opts.scenario),
-                     "--out", str(trial_dir)]
-        if opts.validated:
-            argv.append("--no-reach-check")  # the CLI has just checked this very file
-        if opts.seed is not None:
-            argv += ["--seed", str(opts.seed)]
-        if opts.ticks:
-            argv.append("--keep-running")
-        return argv + extra
-    if name == "human_input":
-        argv = py + ["hrc_human_input", *common, *connect]
-        if opts.record:
-            argv += ["--record", str(opts.record)]
-        if opts.replay:
-            argv += ["--replay", str(opts.replay)]
-        return argv + extra
-    if name == "logger":
-        argv = py + ["hrc_logger", *common, *connect, "--out", str(trial_dir)]
-        if opts.viewer:
-            argv.append("--viewer")
-        if opts.web:
-            argv.append("--web")
-        return argv + extra
-    raise ValueError(f"unknown service {name!r}")
+    """The command line of service ``name`` in one trial (``opts.extra`` appended)."""
+    svc = services.service(name)
+    settings = trial_settings(opts, session, port, trial_dir, sock, lowlatency)
+    return program(svc) + services.argv(svc, settings) + opts.extra.get(name, [])
 
 
 class _EndWatcher:
@@ -269,17 +253,18 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     port = opts.port or free_port()
     sock = local_socket(session) if opts.unix_socket else None
     lowlatency = opts.lowlatency if opts.lowlatency is not None else fits_lowlatency(opts.scenario)
-    ik = ik_binary()
-    if not ik.exists():
-        return TrialResult(False, 2, trial_dir,
-                           f"the IK service binary {ik} is missing: run scripts/setup.sh")
+    master = services.CLOCK_MASTER
+    for svc in services.SERVICES:
+        if svc.binary is not None and not (build_dir() / svc.binary).exists():
+            return TrialResult(False, 2, trial_dir, f"the {svc.name} service binary "
+                               f"{build_dir() / svc.binary} is missing: run scripts/setup.sh")
     trial_dir.mkdir(parents=True, exist_ok=True)
     group = ServiceGroup(trial_dir)
     watcher: _EndWatcher | None = None
     t0 = time.monotonic()
     try:
-        # physics first: it listens on the port everybody else connects to.
-        for name in ("physics", "orchestrator", "ik_cpp", "human_input", "logger"):
+        # the table lists the clock master first: it listens where everybody else connects.
+        for name in services.names():
             group.start(name, service_argv(name, opts, session, port, trial_dir, sock, lowlatency))
         time.sleep(0.2)
         try:
@@ -290,18 +275,18 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         failure = ""
         while True:
             status = group.poll()
-            dead = [n for n, rc in status.items() if rc is not None and rc != 0 and n != "physics"]
-            if status["physics"] is not None:
+            dead = [n for n, rc in status.items() if rc is not None and rc != 0 and n != master]
+            if status[master] is not None:
                 break
             if dead:
-                # A clean exit (0) is not a failure by itself: physics notices the lost
+                # A clean exit (0) is not a failure by itself: the clock master notices the lost
                 # liveliness and ends the run naming the service, if the run was still going.
                 failed = dead[0]
                 failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
                 break
             time.sleep(0.05)
         if not failed:
-            # physics is done; the others leave on run/end.
+            # the clock master is done; the others leave on run/end.
             deadline = time.monotonic() + 15.0
             while any(rc is None for rc in group.poll().values()) and time.monotonic() < deadline:
                 time.sleep(0.05)
@@ -310,20 +295,21 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         group.stop_all(grace_s=0.5 if failed else 2.0)
         end = watcher.end if watcher else None
         wall = time.monotonic() - t0
-        killed = [n for n in SERVICES if (status.get(n) or 0) < 0]
+        killed = [n for n in services.names() if (status.get(n) or 0) < 0]
         if killed and (not failed or (status.get(failed) or 0) >= 0):
             # a service killed by a signal is the root cause; the others' errors follow from it
             failed = killed[0]
             failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
-        phys = status.get("physics")
+        phys = status.get(master)
         if not failed and phys is not None and (phys < 0 or (end is None and phys != 0)):
-            # physics itself died: the others' errors ("clock master disappeared") follow from it
-            failed = "physics"
-            failure = f"service 'physics' {describe_exit(phys)} during the run"
+            # the clock master itself died: the others' errors ("clock master disappeared")
+            # follow from it
+            failed = master
+            failure = f"service '{master}' {describe_exit(phys)} during the run"
         if not failed:
-            bad = [n for n in SERVICES if status.get(n) not in (0, None)]
+            bad = [n for n in services.names() if status.get(n) not in (0, None)]
             if end is not None and not end.ok:
-                failed = end.failed_participant or (bad[0] if bad else "physics")
+                failed = end.failed_participant or (bad[0] if bad else master)
                 failure = f"run failed: {end.reason}"
             elif bad:
                 failed = bad[0]

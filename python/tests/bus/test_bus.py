@@ -5,7 +5,8 @@ from __future__ import annotations
 import math
 import threading
 
-from hrc.bus import Bus, check_pose
+from hrc.bus import Bus
+from hrc.validate import check_pose
 from hrc.wire import pb
 
 from .conftest import wait_until

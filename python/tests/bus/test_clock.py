@@ -8,7 +8,7 @@ import time
 from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings, LockstepParticipant
 from hrc.wire import pb
 
-from .conftest import free_port
+from .conftest import free_port, wait_until
 
 
 class Session:
@@ -177,3 +177,26 @@ def test_an_output_acked_before_it_arrives_is_waited_for_and_applied_in_its_tick
             assert seen == list(range(k + 1)), (k, seen)  # tick k's output, and nothing later
     finally:
         s.close()
+
+
+def test_a_participant_follows_the_clock_master_its_config_names(session_id: str) -> None:
+    # hrc run passes --clock-master; the lost token of that service, not physics's, ends the run.
+    ep = f"tcp/127.0.0.1:{free_port()}"
+    master = Bus(BusConfig(session=session_id, listen=[ep]), "world")
+    bus = Bus(BusConfig(session=session_id, connect=[ep], clock_master="world"), "ik_cpp")
+    bystander = Bus(BusConfig(session=session_id, connect=[ep]), "physics")
+    try:
+        p = LockstepParticipant(bus)
+        p.start()
+        master.declare_token()
+        bystander.declare_token()
+        assert wait_until(lambda: {"world", "physics"} <= bus.alive_services(timeout=0.2), 10)
+        time.sleep(0.2)  # the participant's own liveliness watch has seen both too
+        bystander.close()  # not its clock master: nothing happens
+        time.sleep(0.3)
+        threading.Timer(0.2, master.close).start()
+        outcome = p.run(10)
+        assert not outcome.ok and outcome.reason == "the clock master 'world' disappeared"
+    finally:
+        bus.close()
+        master.close()

@@ -17,7 +17,6 @@ log = logging.getLogger(__name__)
 
 FORMAT = "hrc-human-input"
 VERSION = 1
-HEADER_REQUIRED = ("format", "version")
 
 
 class ReplayError(ValueError):

@@ -117,7 +117,6 @@ class ScriptedParticipant:
         self.provoke_robot: str | None = None
         self.released_at: float | None = None
         self.rested = False
-        self.idle_since = 0.0
         self.t = 0.0
         self.log: list[tuple[float, str]] = []  # (time, what) decisions, for tests and debugging
 

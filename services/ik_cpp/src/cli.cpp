@@ -4,6 +4,7 @@
 #include <cstdlib>
 
 #include "hrc/keys.hpp"
+#include "hrc/lockstep.hpp"
 
 namespace hrc::cli {
 namespace {
@@ -93,7 +94,9 @@ double Args::get_double(const std::string& flag, double fallback, double min, do
 
 bool Args::flag(const std::string& name) const { return has(name); }
 
-std::vector<std::string> bus_single_flags() { return {"--session", "--mode", "--zenoh-mode", "--zenoh-config"}; }
+std::vector<std::string> bus_single_flags() {
+  return {"--session", "--mode", "--zenoh-mode", "--zenoh-config", "--clock-master"};
+}
 
 std::vector<std::string> bus_repeatable_flags() { return {"--connect", "--listen"}; }
 
@@ -108,7 +111,9 @@ std::string bus_usage() {
          "  --mode peer|client|router   zenoh mode (alias --zenoh-mode; env HRC_ZENOH_MODE, default peer)\n"
          "  --zenoh-config FILE  zenoh JSON5 config file applied before the options above\n"
          "  --zenoh-lowlatency   zenoh's low-latency transport (no QoS, messages <= 64 KiB; both ends\n"
-         "                       of a link must ask for it; env HRC_ZENOH_LOWLATENCY=1)\n";
+         "                       of a link must ask for it; env HRC_ZENOH_LOWLATENCY=1)\n"
+         "  --clock-master NAME  the service whose clock this one follows (default " +
+         LockstepOptions{}.clock_master + ")\n";
 }
 
 BusArgs bus_args(const Args& args) {
@@ -116,6 +121,12 @@ BusArgs bus_args(const Args& args) {
   out.session = args.get_or("--session", env_or("HRC_SESSION", "default"));
   try {
     Keys{out.session};
+  } catch (const std::invalid_argument& e) {
+    throw UsageError(e.what());
+  }
+  out.clock_master = args.get("--clock-master");
+  try {
+    if (out.clock_master) check_name("clock master", *out.clock_master);
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }

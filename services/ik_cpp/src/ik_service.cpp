@@ -75,7 +75,6 @@ std::vector<RobotSpec> robots_from_scenario(const v1::Scenario& scenario) {
         Eigen::AngleAxisd(r.base().yaw_deg() * kDegToRad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     s.max_tcp_speed = r.max_tcp_speed();
     s.home = home;
-    s.home_yaw = 0.0;
     out.push_back(std::move(s));
   }
   return out;
@@ -106,7 +105,7 @@ IkEngine::IkEngine(std::vector<RobotSpec> robots, double dt) : dt_(dt) {
     limits.max_tcp_speed = spec.max_tcp_speed;
     arm.motion = std::make_unique<kin::MotionGenerator>(*arm.model, spec.world_T_base, dt, limits);
     arm.probe = std::make_unique<kin::MotionGenerator>(*arm.model, spec.world_T_base, dt, limits);
-    if (!arm.motion->resetToPose(spec.home, spec.home_yaw)) {
+    if (!arm.motion->resetToPose(spec.home, kHomeYaw)) {
       throw std::runtime_error("robot '" + spec.id + "': home " + fmt_point(spec.home) +
                                " is not reachable with the tool pointing down (URDF " + spec.urdf_path + ")");
     }
@@ -130,15 +129,15 @@ std::string IkEngine::apply(const std::string& robot, const v1::RobotCommand& c)
     return "unknown robot '" + robot + "' (this scenario has " + known + ")";
   }
   Arm& arm = arms_[static_cast<std::size_t>(i)];
+  const double nums[] = {c.target().x(), c.target().y(), c.target().z(), c.yaw_deg(),
+                         c.approach_height(), c.depart_height(), c.max_speed()};
+  for (const double v : nums) {
+    if (!std::isfinite(v)) return "command has a NaN or infinite number";
+  }
+  if (c.max_speed() < 0) return "max_speed is negative";
   switch (c.kind()) {
     case v1::RobotCommand::KIND_MOVE: {
-      const double nums[] = {c.target().x(), c.target().y(), c.target().z(), c.yaw_deg(),
-                             c.approach_height(), c.depart_height(), c.max_speed()};
-      for (const double v : nums) {
-        if (!std::isfinite(v)) return "move command has a NaN or infinite number";
-      }
       if (c.approach_height() < 0 || c.depart_height() < 0) return "approach/depart height is negative";
-      if (c.max_speed() < 0) return "max_speed is negative";
       kin::MoveCommand m;
       m.target = vec(c.target());
       m.yaw = c.yaw_deg() * kDegToRad;
@@ -283,12 +282,6 @@ std::string IkService::validate_command(const std::string& key, const v1::RobotC
   if (!c.robot().empty() && c.robot() != robot) {
     return "robot field '" + c.robot() + "' does not match the key's robot '" + robot + "'";
   }
-  const double nums[] = {c.target().x(), c.target().y(), c.target().z(), c.yaw_deg(),
-                         c.approach_height(), c.depart_height(), c.max_speed()};
-  for (const double v : nums) {
-    if (!std::isfinite(v)) return "command has a NaN or infinite number";
-  }
-  if (c.max_speed() < 0) return "max_speed is negative";
   return {};
 }
 

@@ -144,6 +144,7 @@ int run(const std::vector<std::string>& argv) {
 
     hrc::LockstepOptions options;
     options.input_timeout_s = opt.input_timeout;
+    if (opt.bus.clock_master) options.clock_master = *opt.bus.clock_master;
     options.inline_ticks = !opt.bus.config.lowlatency;
     hrc::LockstepParticipant participant(bus, options);
     hrc::IkService service(bus, participant, engine);

@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "hrc/bus.hpp"
+#include "hrc/cli.hpp"
 
 namespace {
 
@@ -86,6 +87,18 @@ TEST(BusConfig, MissingConfigFileIsNamed) {
   } catch (const hrc::BusError& e) {
     EXPECT_NE(std::string(e.what()).find("/nonexistent/zenoh.json5"), std::string::npos) << e.what();
   }
+}
+
+hrc::cli::BusArgs parse_bus(const std::vector<std::string>& argv) {
+  const hrc::cli::Args args(argv, hrc::cli::bus_single_flags(), hrc::cli::bus_repeatable_flags(),
+                            hrc::cli::bus_bool_flags());
+  return hrc::cli::bus_args(args);
+}
+
+TEST(BusArgs, ClockMasterIsTakenFromTheCommandLine) {
+  EXPECT_FALSE(parse_bus({}).clock_master.has_value());  // the participant's default applies
+  EXPECT_EQ(parse_bus({"--clock-master", "world"}).clock_master, "world");
+  EXPECT_THROW(parse_bus({"--clock-master", "a/b"}), hrc::cli::UsageError);
 }
 
 }  // namespace

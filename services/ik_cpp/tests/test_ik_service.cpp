@@ -203,6 +203,13 @@ TEST_F(Engine, BadCommandsChangeNothing) {
   auto neg = move(0.2, 0.25, 0.25, 6);
   neg.set_approach_height(-0.1);
   EXPECT_NE(engine.apply("r1", neg), "");
+  auto slow = move(0.2, 0.25, 0.25, 7);
+  slow.set_max_speed(-1);
+  EXPECT_NE(engine.apply("r1", slow).find("max_speed"), std::string::npos);
+  RobotCommand nan_hold;  // every kind's numbers are checked
+  nan_hold.set_kind(RobotCommand::KIND_HOLD);
+  nan_hold.mutable_target()->set_y(std::nan(""));
+  EXPECT_NE(engine.apply("r1", nan_hold).find("NaN"), std::string::npos);
   auto unspecified = move(0.2, 0.25, 0.25, 8);
   unspecified.set_kind(RobotCommand::KIND_UNSPECIFIED);
   EXPECT_NE(engine.apply("r1", unspecified).find("neither MOVE nor HOLD"), std::string::npos);
@@ -320,17 +327,14 @@ TEST(TickTimes, Quantiles) {
 
 // ---------------------------------------------------------------- over the bus
 
-TEST(IkService, ValidatesCommands) {
+TEST(IkService, ValidatesTheCommandsAddress) {
   RobotCommand c;
   c.set_robot("r1");
   c.mutable_target()->set_x(0.4);
   EXPECT_EQ(hrc::IkService::validate_command("hrc/s/robot/r1/command", c), "");
   EXPECT_NE(hrc::IkService::validate_command("hrc/s/robot/r2/command", c).find("'r2'"), std::string::npos);
-  c.mutable_target()->set_y(std::nan(""));
-  EXPECT_NE(hrc::IkService::validate_command("hrc/s/robot/r1/command", c).find("NaN"), std::string::npos);
-  c.mutable_target()->set_y(0);
-  c.set_max_speed(-1);
-  EXPECT_NE(hrc::IkService::validate_command("hrc/s/robot/r1/command", c), "");
+  c.clear_robot();  // an empty robot field takes the key's
+  EXPECT_EQ(hrc::IkService::validate_command("hrc/s/robot/r2/command", c), "");
 }
 
 TEST(IkService, PublishesStatesOnChangeWithKeyframesAndCountsBadCommands) {

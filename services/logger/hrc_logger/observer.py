@@ -23,7 +23,7 @@ from typing import Callable
 
 from google.protobuf.message import Message
 
-from hrc.bus import CLOCK_MASTER, Bus, Inbox, Outcome, watch_clock_master
+from hrc.bus import Bus, Inbox, Outcome, watch_clock_master
 from hrc.wire import pb
 
 from hrc_logger.sequence import SeqChecker
@@ -148,7 +148,7 @@ class Observer:
         with self._cond:
             latest = self._latest_seen
         self.lag.add(latest - k, time.monotonic() - arrived)
-        self.inbox.deliver(k, master=CLOCK_MASTER)
+        self.inbox.deliver(k, master=self.bus.config.clock_master)
         self.bus.stats.tick(k)
         if self._step is not None:
             self._step(tick)

@@ -18,9 +18,6 @@ class CueBoard:
     def on(self) -> dict[str, pb.Cue]:
         return dict(self._on)
 
-    def is_on(self, cue_id: str) -> bool:
-        return cue_id in self._on
-
     def update(self, desired: list[pb.Cue]) -> list[pb.Cue]:
         wanted = {c.id: c for c in desired}
         changes: list[pb.Cue] = []

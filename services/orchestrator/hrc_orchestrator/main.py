@@ -14,8 +14,9 @@ from pathlib import Path
 from google.protobuf.message import Message
 
 from hrc import scenario as scenario_mod
-from hrc.bus import Bus, LockstepParticipant, add_bus_arguments, bus_config_from_args, check_pose
+from hrc.bus import Bus, LockstepParticipant, add_bus_arguments, bus_config_from_args
 from hrc.logsetup import setup_logging
+from hrc.validate import check_pose
 from hrc.wire import pb
 from hrc_orchestrator import metrics
 from hrc_orchestrator.metrics_file import write_json

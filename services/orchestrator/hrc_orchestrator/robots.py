@@ -156,9 +156,6 @@ class RobotAgent:
         return Motion.move(grasp_point(vec3(part.target.xyz), part.size), part.target.yaw,
                            APPROACH_HEIGHT_M)
 
-    def current_target(self) -> Vec3 | None:
-        return self.goal.target if self.goal is not None and self.goal.is_move else None
-
     # ------------------------------------------------------------------ phase machine
     def _enter(self, phase: Phase, t: float, goal: Motion | None) -> None:
         self.phase = phase

@@ -8,6 +8,7 @@ import logging
 from hrc.bus import Bus, ClockMaster, ClockSettings, RunFailed, add_bus_arguments, bus_config_from_args
 from hrc.logsetup import setup_logging
 from hrc.scenario import ScenarioError
+from hrc.services import OBSERVERS, PARTICIPANTS
 from hrc.wire import pb
 from hrc_physics.robots import RobotModelError
 from hrc_physics.service import PhysicsService
@@ -30,10 +31,12 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--ticks", type=int, default=0, help="stop after N ticks (0: when told to stop)")
     p.add_argument("--tick-hz", type=float, default=0.0,
                    help="override the scenario's tick_hz (0: use the scenario's)")
-    p.add_argument("--participants", default="ik_cpp,orchestrator,human_input",
-                   help="comma-separated services whose acks close the barrier")
-    p.add_argument("--observers", default="logger",
-                   help="comma-separated services that must be present but never ack")
+    p.add_argument("--participants", default=",".join(PARTICIPANTS),
+                   help="comma-separated services whose acks close the barrier "
+                        "(default: the service table's, %(default)s)")
+    p.add_argument("--observers", default=",".join(OBSERVERS),
+                   help="comma-separated services that must be present but never ack "
+                        "(default: the service table's, %(default)s)")
     p.add_argument("--barrier-timeout", type=float, default=10.0,
                    help="lockstep: seconds a participant may take for one tick (default 10)")
     p.add_argument("--start-timeout", type=float, default=60.0,

@@ -6,7 +6,8 @@ import logging
 import math
 
 from hrc import scenario as sc
-from hrc.bus import Bus, ClockMaster, check_pose
+from hrc.bus import Bus, ClockMaster
+from hrc.validate import check_pose
 from hrc.wire import pb
 from hrc_physics.world import CommandRejected, World, WorldSettings
 

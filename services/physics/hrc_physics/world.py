@@ -22,7 +22,7 @@ import pybullet as p
 
 from hrc import scenario as sc
 from hrc.scenario.models import DEFAULT_TICK_HZ, ID_PATTERN
-from hrc.bus import check_pose
+from hrc.validate import check_pose
 from hrc.geometry import (
     Pose,
     Quat,

@@ -40,7 +40,7 @@ class Args {
   std::map<std::string, std::vector<std::string>> values_;
 };
 
-/// Bus flags: --session --connect --listen --mode/--zenoh-mode --zenoh-config.
+/// Bus flags: --session --connect --listen --mode/--zenoh-mode --zenoh-config --clock-master.
 std::vector<std::string> bus_single_flags();
 std::vector<std::string> bus_repeatable_flags();
 /// The bus options that take no value.
@@ -51,6 +51,8 @@ std::string bus_usage();
 struct BusArgs {
   std::string session;
   BusConfig config;
+  // --clock-master: whose clock to follow (hrc run passes it); empty: LockstepOptions' default.
+  std::optional<std::string> clock_master;
 };
 
 /// Reads the bus flags with the environment defaults HRC_SESSION, HRC_CONNECT (comma-separated),

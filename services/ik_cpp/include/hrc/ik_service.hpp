@@ -26,14 +26,16 @@
 
 namespace hrc {
 
+/// The tool's yaw at the home pose (rad): the orchestrator sends its home moves with yaw 0.
+constexpr double kHomeYaw = 0.0;
+
 /// One robot as the service needs it (from a RobotConfig of the scenario).
 struct RobotSpec {
   std::string id;
   std::string urdf_path;
   Eigen::Isometry3d world_T_base = Eigen::Isometry3d::Identity();
   double max_tcp_speed = 0.0;  // m/s
-  Eigen::Vector3d home = Eigen::Vector3d::Zero();
-  double home_yaw = 0.0;  // rad (the orchestrator sends home moves with yaw 0)
+  Eigen::Vector3d home = Eigen::Vector3d::Zero();  // reached tool down, with kHomeYaw
 };
 
 /// The robots of `scenario` (possibly none). Throws std::invalid_argument naming the robot and the
@@ -60,8 +62,9 @@ class IkEngine {
 
   /// Applies a command for `robot`: KIND_MOVE -> move (yaw deg -> rad, max_speed capped at the
   /// robot's max_tcp_speed, 0 = max), KIND_HOLD -> hold. Returns "" when applied, else what is
-  /// wrong (unknown robot, NaN/inf numbers, negative heights/speed, unknown kind); a refused
-  /// command changes nothing. An unreachable target is applied (the arm reports UNREACHABLE).
+  /// wrong (unknown robot, NaN/inf numbers in any kind, negative heights/speed, unknown kind); a
+  /// refused command changes nothing. An unreachable target is applied (the arm reports
+  /// UNREACHABLE). The one place a command's content is checked.
   std::string apply(const std::string& robot, const v1::RobotCommand& command);
   /// Advances every arm by one tick.
   void step();
@@ -132,7 +135,8 @@ class IkService {
   /// Returns the number of steps.
   uint64_t run_standalone(double hz, const std::function<bool()>& keep_going);
 
-  /// Rejects commands whose robot field disagrees with the key or whose numbers are not finite.
+  /// Rejects commands whose robot field disagrees with the key (the content is the engine's to
+  /// check, in IkEngine::apply).
   static std::string validate_command(const std::string& key, const v1::RobotCommand& command);
 
   uint64_t commands_received() const { return commands_received_; }

@@ -37,8 +37,7 @@ MotionGenerator::MotionGenerator(const RobotModel& model, const Eigen::Isometry3
       base_T_world_(world_T_base.inverse()),
       dt_(dt),
       limits_(limits),
-      ik_(model, ik_options),
-      kdl_(model) {
+      ik_(model, ik_options) {
   if (!(dt > 0) || !finite(dt)) throw std::invalid_argument("MotionGenerator: dt must be > 0");
   if (!(limits.max_tcp_speed > 0) || !(limits.max_tcp_accel > 0) || !(limits.max_tcp_jerk > 0) ||
       !(limits.reach_tolerance > 0) || !(limits.rotation_length > 0) || !(limits.check_step > 0))

@@ -98,7 +98,6 @@ class MotionGenerator {
   double dt_;
   MotionLimits limits_;
   IkSolver ik_;
-  KdlKinematics kdl_;
 
   MotionState state_;
   std::deque<Segment> segments_;

@@ -1,0 +1,211 @@
+"""The services of a session, declared once: name, program, options, barrier role, needs.
+
+Everything that starts services reads this table:
+
+- ``hrc run`` (``hrc.cli.runner``) builds every process's command line with :func:`argv`;
+- the clock master (physics, ``hrc.bus.ClockSettings``) takes the barrier's participants and
+  observers from it, and the others learn the clock master's name from it (``--clock-master``,
+  which every command line built here passes explicitly);
+- ``hrc deploy-files`` writes ``deploy/process-compose.yaml`` and ``deploy/compose.yaml`` from it
+  (``hrc.cli.deploy_files``; a test keeps the committed files equal to the generated ones).
+
+Why a typed Python table rather than a YAML file like dora-rs's ``dataflow.yml``: the command
+lines are not fixed strings but depend on the deployment (a trial's socket, seed and options for
+``hrc run``; ``{{.X}}`` variables for process-compose; ``${HRC_X}`` for compose), so a file would
+need a template language of its own; the bus library reads the table at import time, where a file
+would have to be found on disk; and mypy checks every use of it.
+
+Readiness is the same for every service: it declares the liveliness token ``alive/<name>`` once
+everything it subscribes to exists (``hrc alive NAME`` is the probe).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+from dataclasses import dataclass
+
+
+class Role(enum.Enum):
+    """A service's part in the tick protocol."""
+
+    CLOCK_MASTER = "clock master"  # publishes the clock, waits for the participants' acks
+    PARTICIPANT = "participant"  # computes each tick and acks it: closes the barrier
+    OBSERVER = "observer"  # follows the clock, never acks; must be present at the start
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The values one deployment gives the services' options.
+
+    Strings, because a deploy file gives placeholders (``{{.SESSION}}``, ``${HRC_TICKS:-0}``).
+    An option whose setting is None, False, empty or () is left out of the command line.
+    """
+
+    session: str | None = None
+    bus: str = ""  # the endpoint every other service connects to
+    listen: tuple[str, ...] = ()  # where the clock master listens (``bus`` among them)
+    connect: tuple[str, ...] = ()  # more endpoints for every service (a router)
+    lowlatency: bool = False  # Zenoh's low-latency transport (all services, or none)
+    clock: str = ""  # lockstep | realtime
+    ticks: str = ""  # 0: until the task ends
+    barrier_timeout: str | None = None
+    start_timeout: str | None = None
+    scenario: str = ""
+    out: str = ""  # the trial folder
+    seed: str | None = None
+    no_reach_check: bool = False  # the caller has just checked the scenario's reach
+    keep_running: bool = False  # the orchestrator does not stop the run at the task's end
+    record: str | None = None
+    replay: str | None = None
+    viewer: bool = False
+    web: bool = False
+
+
+Value = str | bool | tuple[str, ...] | None
+SETTINGS = frozenset(f.name for f in dataclasses.fields(Settings))
+
+
+@dataclass(frozen=True)
+class Option:
+    """``flag`` with the value of ``setting`` (a switch for a bool, repeated for a tuple), or the
+    fixed ``value``."""
+
+    flag: str
+    setting: str | None = None
+    value: str | None = None
+    required: bool = False  # a deployment that leaves it out is an error
+
+    def __post_init__(self) -> None:
+        if (self.setting is None) == (self.value is None):
+            raise ValueError(f"{self.flag}: give a setting or a fixed value")
+        if self.setting is not None and self.setting not in SETTINGS:
+            raise ValueError(f"{self.flag}: no setting {self.setting!r}")
+
+    def argv(self, settings: Settings, service: str) -> list[str]:
+        value: Value = self.value if self.setting is None else getattr(settings, self.setting)
+        if value is None or value is False or value == "" or value == ():
+            if self.required:
+                raise ValueError(f"{service}: {self.flag} needs the setting {self.setting!r}")
+            return []
+        if value is True:
+            return [self.flag]
+        if isinstance(value, tuple):
+            return [token for v in value for token in (self.flag, v)]
+        return [self.flag, value]
+
+
+@dataclass(frozen=True)
+class Service:
+    name: str  # also its bus name: alive/<name>, clock/ack/<name>, stats/<name>
+    role: Role
+    description: str
+    script: str  # the installed command (console script, or the C++ binary's name)
+    module: str | None = None  # Python: started as ``python -m <module>``
+    binary: str | None = None  # C++: the executable, relative to the build folder
+    options: tuple[Option, ...] = ()  # its own options (the bus and role ones are added)
+    needs: tuple[str, ...] = ()  # what must be there besides the .venv
+    stop_timeout_s: int = 10  # how long it may take to finish its files after SIGTERM
+
+    def __post_init__(self) -> None:
+        if (self.module is None) == (self.binary is None):
+            raise ValueError(f"{self.name}: give a Python module or a binary")
+
+    @property
+    def ready_token(self) -> str:
+        """The liveliness key (under ``hrc/<session>/``) that says the service is ready."""
+        return f"alive/{self.name}"
+
+
+SERVICES: tuple[Service, ...] = (
+    # The clock master comes first: the others connect to it, so it is started first.
+    Service(
+        "physics", Role.CLOCK_MASTER, "world + clock master (pybullet)",
+        script="hrc-physics", module="hrc_physics",
+        options=(Option("--clock", "clock", required=True),
+                 Option("--ticks", "ticks", required=True),
+                 Option("--barrier-timeout", "barrier_timeout"),
+                 Option("--start-timeout", "start_timeout")),
+    ),
+    Service(
+        "ik_cpp", Role.PARTICIPANT, "both arms: Cartesian motion + IK (C++/KDL)",
+        script="hrc-ik", binary="ik_cpp/hrc-ik",
+        needs=("the C++ build (scripts/setup.sh)",),
+    ),
+    Service(
+        "orchestrator", Role.PARTICIPANT, "scenario, task logic, metrics",
+        script="hrc-orchestrator", module="hrc_orchestrator",
+        options=(Option("--scenario", "scenario", required=True),
+                 Option("--out", "out", required=True),
+                 Option("--no-reach-check", "no_reach_check"),
+                 Option("--seed", "seed"),
+                 Option("--keep-running", "keep_running")),
+    ),
+    Service(
+        "human_input", Role.PARTICIPANT, "participant: scripted, replay or live VR bridge",
+        script="hrc-human-input", module="hrc_human_input",
+        options=(Option("--record", "record"), Option("--replay", "replay")),
+        needs=("a headset's browser that reaches the bridge, for the scenario's input = vr",),
+    ),
+    Service(
+        "logger", Role.OBSERVER, "observer: rerun recording, log.txt, events.jsonl",
+        script="hrc-logger", module="hrc_logger",
+        options=(Option("--out", "out", required=True),
+                 Option("--viewer", "viewer"), Option("--web", "web")),
+        needs=("a display, for --viewer",),
+        stop_timeout_s=20,  # it closes the .rrd and flushes its files on SIGTERM
+    ),
+)
+
+
+def names() -> tuple[str, ...]:
+    """Every service, the clock master first (the start order)."""
+    return tuple(s.name for s in SERVICES)
+
+
+def service(name: str) -> Service:
+    for s in SERVICES:
+        if s.name == name:
+            return s
+    raise KeyError(f"no service {name!r} (the services are {', '.join(names())})")
+
+
+def with_role(role: Role) -> tuple[str, ...]:
+    return tuple(s.name for s in SERVICES if s.role is role)
+
+
+def _one_clock_master() -> str:
+    masters = with_role(Role.CLOCK_MASTER)
+    if len(masters) != 1:
+        raise ValueError(f"the table needs exactly one clock master, has {masters}")
+    return masters[0]
+
+
+CLOCK_MASTER = _one_clock_master()
+PARTICIPANTS = with_role(Role.PARTICIPANT)  # their acks close the barrier
+OBSERVERS = with_role(Role.OBSERVER)
+
+
+def _role_options(role: Role) -> tuple[Option, ...]:
+    """What every service of a role is given, before its own options.
+
+    Star topology: the clock master's session is a Zenoh router and every other service a client
+    of it, so a route between any two services exists as soon as both have announced themselves
+    (peer-to-peer links would form later, by gossip, and could miss the first messages).
+    """
+    common = (Option("--session", "session"), Option("--zenoh-lowlatency", "lowlatency"))
+    router = Option("--connect", "connect")
+    if role is Role.CLOCK_MASTER:
+        return (*common, Option("--zenoh-mode", value="router"),
+                Option("--listen", "listen", required=True), router,
+                Option("--participants", value=",".join(PARTICIPANTS)),
+                Option("--observers", value=",".join(OBSERVERS)))
+    return (*common, Option("--zenoh-mode", value="client"),
+            Option("--connect", "bus", required=True), router,
+            Option("--clock-master", value=CLOCK_MASTER))
+
+
+def argv(svc: Service, settings: Settings) -> list[str]:
+    """The arguments of ``svc`` (without the program) in a deployment with ``settings``."""
+    return [token for opt in (*_role_options(svc.role), *svc.options)
+            for token in opt.argv(settings, svc.name)]

@@ -1,0 +1,107 @@
+"""The service table (hrc.services) against what it describes: the installed programs, the
+services' own command-line parsers, and the processes ``hrc run`` starts.
+
+Here, not in python/tests, because it imports the services and runs the C++ one. The deploy files
+are checked against the table in deploy/tests/test_deploy_files.py.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from hrc import services
+from hrc.cli import runner
+from hrc.cli.runner import TrialOptions
+from hrc.paths import build_dir, project_root
+from hrc.services import Role, Settings
+
+THESIS = project_root() / "scenarios" / "thesis.toml"
+PYTHON = [s for s in services.SERVICES if s.module is not None]
+CPP = [s for s in services.SERVICES if s.binary is not None]
+
+
+def _trial_argv(name: str, **opts: object) -> list[str]:
+    options = TrialOptions(scenario=THESIS, **opts)  # type: ignore[arg-type]
+    return runner.service_argv(name, options, "s1", 7471, Path("/tmp/trial"),
+                               Path("/tmp/hrc-s1.sock"), True)
+
+
+def test_one_clock_master_listed_first_and_unique_names() -> None:
+    assert [s.role for s in services.SERVICES].count(Role.CLOCK_MASTER) == 1
+    assert services.SERVICES[0].name == services.CLOCK_MASTER
+    assert len(set(services.names())) == len(services.SERVICES)
+    assert set(services.PARTICIPANTS) | set(services.OBSERVERS) | {services.CLOCK_MASTER} == \
+        set(services.names())
+
+
+@pytest.mark.parametrize("svc", PYTHON, ids=lambda s: s.name)
+def test_python_service_script_and_module_start_the_same_main(svc: services.Service) -> None:
+    scripts = {e.name: e.value for e in importlib.metadata.entry_points(group="console_scripts")}
+    assert scripts.get(svc.script) == f"{svc.module}.main:main"
+    assert importlib.util.find_spec(f"{svc.module}.__main__") is not None
+
+
+@pytest.mark.parametrize("svc", CPP, ids=lambda s: s.name)
+def test_cpp_service_script_is_its_binary(svc: services.Service) -> None:
+    assert svc.binary is not None and Path(svc.binary).name == svc.script
+
+
+@pytest.mark.parametrize("svc", PYTHON, ids=lambda s: s.name)
+def test_hrc_run_command_lines_parse_in_the_python_services(svc: services.Service) -> None:
+    """Every option the table gives (all of them set) is one the service knows."""
+    argv = _trial_argv(svc.name, seed=3, ticks=100, validated=True, viewer=True, web=True,
+                       record=Path("/tmp/r.jsonl"), replay=Path("/tmp/p.jsonl"),
+                       connect=["tcp/10.0.0.1:7447"])
+    assert argv[:3] == [sys.executable, "-m", svc.module]
+    args = importlib.import_module(f"{svc.module}.main").parse_args(argv[3:])
+    assert args.session == "s1" and args.zenoh_lowlatency
+    if svc.role is Role.CLOCK_MASTER:
+        assert args.participants.split(",") == list(services.PARTICIPANTS)
+        assert args.observers.split(",") == list(services.OBSERVERS)
+        assert args.listen == ["tcp/127.0.0.1:7471", "unixsock-stream//tmp/hrc-s1.sock"]
+        assert args.connect == ["tcp/10.0.0.1:7447"]
+    else:
+        assert args.clock_master == services.CLOCK_MASTER
+        assert args.connect == ["unixsock-stream//tmp/hrc-s1.sock", "tcp/10.0.0.1:7447"]
+
+
+@pytest.mark.parametrize("svc", CPP, ids=lambda s: s.name)
+def test_hrc_run_command_lines_parse_in_the_cpp_services(svc: services.Service) -> None:
+    argv = _trial_argv(svc.name, connect=["tcp/10.0.0.1:7447"])
+    assert svc.binary is not None and argv[0] == str(build_dir() / svc.binary)
+    if not Path(argv[0]).exists():
+        pytest.fail(f"{argv[0]} is missing: build it with scripts/setup.sh")
+    assert "--clock-master" in argv
+    # Unknown options are usage errors (exit 2) before --help is looked at.
+    proc = subprocess.run([*argv, "--help"], capture_output=True, text=True, timeout=30)
+    assert proc.returncode == 0, proc.stderr
+
+
+def test_hrc_run_starts_every_service_of_the_table_with_the_table_arguments() -> None:
+    opts = TrialOptions(scenario=THESIS, seed=3)
+    settings = runner.trial_settings(opts, "s1", 7471, Path("/tmp/trial"), None, False)
+    for svc in services.SERVICES:
+        argv = runner.service_argv(svc.name, opts, "s1", 7471, Path("/tmp/trial"), None, False)
+        assert argv == runner.program(svc) + services.argv(svc, settings)
+
+
+def test_options_left_out_when_unset_and_required_ones_enforced() -> None:
+    logger = services.service("logger")
+    assert "--viewer" not in services.argv(logger, Settings(bus="b", out="o"))
+    assert "--viewer" in services.argv(logger, Settings(bus="b", out="o", viewer=True))
+    with pytest.raises(ValueError, match="--out"):
+        services.argv(logger, Settings(bus="b"))
+    with pytest.raises(ValueError, match="no setting"):
+        services.Option("--x", "no_such_setting")
+
+
+def test_unknown_service_is_named() -> None:
+    with pytest.raises(KeyError, match="nope"):
+        services.service("nope")
