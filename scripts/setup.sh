@@ -6,7 +6,7 @@
 # Steps (each one is skipped when its outputs are already up to date):
 #   1. apt packages (only when one is missing; sudo only when not root)
 #   2. toolchains: cargo/rustc for the Rust crate, go for process-compose (optional)
-#   3. wire contract: proto/hrc/v1/hrc.proto -> python/hrc/wire/hrc_pb2.py{,i}
+#   3. wire contract: proto/hrc/v2/hrc.proto -> python/hrc/wire/hrc_pb2.py{,i}
 #   4. .venv with the pinned Python dependencies and the editable project packages
 #   5. C++ build (CMake, which also builds the Rust crate with cargo) in build/ik_cpp
 #   6. process-compose, built from the Go module proxy into tools/bin/
@@ -223,7 +223,7 @@ done_step
 
 # --- 3. wire contract for Python -------------------------------------------
 step "wire contract (protoc -> python/hrc/wire)"
-PROTO="proto/hrc/v1/hrc.proto"
+PROTO="proto/hrc/v2/hrc.proto"
 PB_PY="python/hrc/wire/hrc_pb2.py"
 PB_PYI="python/hrc/wire/hrc_pb2.pyi"
 [ -f "$PROTO" ] || die "$PROTO is missing"
@@ -236,7 +236,7 @@ esac
 if [ -f "$PB_PY" ] && [ -f "$PB_PYI" ] && [ "$PB_PY" -nt "$PROTO" ] && [ "$PB_PYI" -nt "$PROTO" ]; then
   done_step "up to date"
 else
-  run_logged protoc protoc -I proto/hrc/v1 --python_out=python/hrc/wire --pyi_out=python/hrc/wire "$PROTO"
+  run_logged protoc protoc -I proto/hrc/v2 --python_out=python/hrc/wire --pyi_out=python/hrc/wire "$PROTO"
   done_step "generated with protoc $protoc_v"
 fi
 

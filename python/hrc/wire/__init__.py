@@ -1,4 +1,4 @@
-"""The wire contract, compiled from proto/hrc/v1/hrc.proto by the build (never edited by hand).
+"""The wire contract, compiled from proto/hrc/v2/hrc.proto by the build (never edited by hand).
 
 Use ``from hrc.wire import pb`` and then ``pb.ClockTick()`` etc.
 """
@@ -7,7 +7,7 @@ try:
     from hrc.wire import hrc_pb2 as pb
 except ImportError as exc:  # pragma: no cover - only without a build
     raise ImportError(
-        "hrc.wire.hrc_pb2 is missing: run scripts/setup.sh (it compiles proto/hrc/v1/hrc.proto)"
+        "hrc.wire.hrc_pb2 is missing: run scripts/setup.sh (it compiles proto/hrc/v2/hrc.proto)"
     ) from exc
 
 __all__ = ["pb"]

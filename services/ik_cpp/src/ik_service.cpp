@@ -25,17 +25,17 @@ std::string fmt_point(const Eigen::Vector3d& p) {
   return "(" + fmt(p.x()) + ", " + fmt(p.y()) + ", " + fmt(p.z()) + ")";
 }
 
-Eigen::Vector3d vec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+Eigen::Vector3d vec(const v2::Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
-v1::MotionStatus to_wire(kin::MotionStatus s) {
+v2::MotionStatus to_wire(kin::MotionStatus s) {
   switch (s) {
-    case kin::MotionStatus::Idle: return v1::MOTION_STATUS_IDLE;
-    case kin::MotionStatus::Moving: return v1::MOTION_STATUS_MOVING;
-    case kin::MotionStatus::Reached: return v1::MOTION_STATUS_REACHED;
-    case kin::MotionStatus::Holding: return v1::MOTION_STATUS_HOLDING;
-    case kin::MotionStatus::Unreachable: return v1::MOTION_STATUS_UNREACHABLE;
+    case kin::MotionStatus::Idle: return v2::MOTION_STATUS_IDLE;
+    case kin::MotionStatus::Moving: return v2::MOTION_STATUS_MOVING;
+    case kin::MotionStatus::Reached: return v2::MOTION_STATUS_REACHED;
+    case kin::MotionStatus::Holding: return v2::MOTION_STATUS_HOLDING;
+    case kin::MotionStatus::Unreachable: return v2::MOTION_STATUS_UNREACHABLE;
   }
-  return v1::MOTION_STATUS_UNSPECIFIED;
+  return v2::MOTION_STATUS_UNSPECIFIED;
 }
 
 double micros_since(std::chrono::steady_clock::time_point t0) {
@@ -46,10 +46,10 @@ double micros_since(std::chrono::steady_clock::time_point t0) {
 
 // ---------------------------------------------------------------- scenario -> robots
 
-std::vector<RobotSpec> robots_from_scenario(const v1::Scenario& scenario) {
+std::vector<RobotSpec> robots_from_scenario(const v2::Scenario& scenario) {
   std::vector<RobotSpec> out;  // no robots is allowed: the service then only keeps the clock
   std::set<std::string> seen;
-  for (const v1::RobotConfig& r : scenario.robots()) {
+  for (const v2::RobotConfig& r : scenario.robots()) {
     const std::string who = "robot '" + r.id() + "'";
     try {
       check_name("robot id", r.id());  // it becomes a key segment
@@ -80,7 +80,7 @@ std::vector<RobotSpec> robots_from_scenario(const v1::Scenario& scenario) {
   return out;
 }
 
-double tick_dt(const v1::Scenario& scenario) {
+double tick_dt(const v2::Scenario& scenario) {
   const double hz = scenario.info().tick_hz();
   if (!(hz > 0) || !std::isfinite(hz)) {
     throw std::invalid_argument("scenario info.tick_hz must be > 0, got " + fmt(hz));
@@ -121,7 +121,7 @@ int IkEngine::index_of(const std::string& robot) const {
   return it != ids_.end() && *it == robot ? static_cast<int>(it - ids_.begin()) : -1;
 }
 
-std::string IkEngine::apply(const std::string& robot, const v1::RobotCommand& c) {
+std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c) {
   const int i = index_of(robot);
   if (i < 0) {
     std::string known;
@@ -136,7 +136,7 @@ std::string IkEngine::apply(const std::string& robot, const v1::RobotCommand& c)
   }
   if (c.max_speed() < 0) return "max_speed is negative";
   switch (c.kind()) {
-    case v1::RobotCommand::KIND_MOVE: {
+    case v2::RobotCommand::KIND_MOVE: {
       if (c.approach_height() < 0 || c.depart_height() < 0) return "approach/depart height is negative";
       kin::MoveCommand m;
       m.target = vec(c.target());
@@ -148,7 +148,7 @@ std::string IkEngine::apply(const std::string& robot, const v1::RobotCommand& c)
       arm.motion->move(m);
       break;
     }
-    case v1::RobotCommand::KIND_HOLD:
+    case v2::RobotCommand::KIND_HOLD:
       arm.motion->hold();
       break;
     default:
@@ -166,7 +166,7 @@ const kin::MotionState& IkEngine::state(std::size_t index) const { return arms_.
 const kin::RobotModel& IkEngine::model(std::size_t index) const { return *arms_.at(index).model; }
 uint64_t IkEngine::command_id(std::size_t index) const { return arms_.at(index).command_id; }
 
-void IkEngine::fill_state(std::size_t index, v1::RobotState& out) const {
+void IkEngine::fill_state(std::size_t index, v2::RobotState& out) const {
   const Arm& arm = arms_.at(index);
   const kin::MotionState& s = arm.motion->state();
   const auto& names = arm.model->jointNames();
@@ -181,7 +181,7 @@ void IkEngine::fill_state(std::size_t index, v1::RobotState& out) const {
   for (int i = 0; i < n; ++i) q->Set(i, s.q[i]);
   const Eigen::Vector3d p = s.tcp.translation();
   const Eigen::Quaterniond r = Eigen::Quaterniond(s.tcp.linear()).normalized();
-  v1::Pose* tcp = out.mutable_tcp();
+  v2::Pose* tcp = out.mutable_tcp();
   tcp->mutable_position()->set_x(p.x());
   tcp->mutable_position()->set_y(p.y());
   tcp->mutable_position()->set_z(p.z());
@@ -195,11 +195,11 @@ void IkEngine::fill_state(std::size_t index, v1::RobotState& out) const {
   if (out.detail() != s.detail) out.set_detail(s.detail);
 }
 
-v1::ReachReply IkEngine::reach(const v1::ReachRequest& request) {
-  v1::ReachReply reply;
+v2::ReachReply IkEngine::reach(const v2::ReachRequest& request) {
+  v2::ReachReply reply;
   const std::lock_guard<std::mutex> lock(reach_mutex_);
-  for (const v1::ReachItem& item : request.items()) {
-    v1::ReachResult* r = reply.add_results();
+  for (const v2::ReachItem& item : request.items()) {
+    v2::ReachResult* r = reply.add_results();
     r->set_id(item.id());
     const int i = index_of(item.robot());
     if (i < 0) {
@@ -265,19 +265,19 @@ IkService::IkService(Bus& bus, LockstepParticipant& participant, IkEngine& engin
     states_.emplace_back();
     last_sent_.emplace_back();
   }
-  participant.input<v1::RobotCommand>(
+  participant.input<v2::RobotCommand>(
       bus_.keys().robot_commands(),
-      [this](const std::string& key, const v1::RobotCommand& c) { on_command(key, c); });
-  participant.on_tick([this](const v1::ClockTick& t) { step(t); });
-  bus_.queryable<v1::ReachRequest, v1::ReachReply>(bus_.keys().robot_reach(), [this](const v1::ReachRequest& req) {
-    v1::ReachReply reply = engine_.reach(req);
+      [this](const std::string& key, const v2::RobotCommand& c) { on_command(key, c); });
+  participant.on_tick([this](const v2::ClockTick& t) { step(t); });
+  bus_.queryable<v2::ReachRequest, v2::ReachReply>(bus_.keys().robot_reach(), [this](const v2::ReachRequest& req) {
+    v2::ReachReply reply = engine_.reach(req);
     reply.mutable_header()->set_session(bus_.keys().session());
     reply.mutable_header()->set_sender(bus_.sender());
     return reply;
   });
 }
 
-std::string IkService::validate_command(const std::string& key, const v1::RobotCommand& c) {
+std::string IkService::validate_command(const std::string& key, const v2::RobotCommand& c) {
   const std::string robot = Keys::robot_of(key);
   if (!c.robot().empty() && c.robot() != robot) {
     return "robot field '" + c.robot() + "' does not match the key's robot '" + robot + "'";
@@ -285,7 +285,7 @@ std::string IkService::validate_command(const std::string& key, const v1::RobotC
   return {};
 }
 
-void IkService::on_command(const std::string& key, const v1::RobotCommand& command) {
+void IkService::on_command(const std::string& key, const v2::RobotCommand& command) {
   const auto t0 = std::chrono::steady_clock::now();
   std::string problem = validate_command(key, command);
   if (problem.empty()) problem = engine_.apply(Keys::robot_of(key), command);
@@ -306,7 +306,7 @@ void IkService::on_command(const std::string& key, const v1::RobotCommand& comma
   }
 }
 
-void IkService::step(const v1::ClockTick& tick) {
+void IkService::step(const v2::ClockTick& tick) {
   if (!dt_warned_ && tick.dt() > 0 && std::abs(tick.dt() - engine_.dt()) > 1e-9 * engine_.dt()) {
     dt_warned_ = true;
     log::warning("the clock's dt " + fmt(tick.dt()) + " s differs from the scenario's " + fmt(engine_.dt()) +
@@ -326,7 +326,7 @@ void IkService::publish_states(uint64_t tick, double sim_time) {
   const auto keyframe_every = static_cast<uint64_t>(std::max(1.0, std::round(1.0 / engine_.dt())));
   const bool keyframe = tick % keyframe_every == 0;
   for (std::size_t i = 0; i < states_.size(); ++i) {
-    v1::RobotState& state = states_[i];
+    v2::RobotState& state = states_[i];
     engine_.fill_state(i, state);
     state.clear_header();
     std::string body = state.SerializeAsString();
@@ -338,12 +338,12 @@ void IkService::publish_states(uint64_t tick, double sim_time) {
 
 uint64_t IkService::run_standalone(double hz, const std::function<bool()>& keep_going) {
   if (!(hz > 0) || !std::isfinite(hz)) throw std::invalid_argument("standalone rate must be > 0 Hz");
-  bus_.subscribe<v1::RunEnd>(bus_.keys().run_end(), [this](const std::string&, const v1::RunEnd&) { run_ended_ = true; });
+  bus_.subscribe<v2::RunEnd>(bus_.keys().run_end(), [this](const std::string&, const v2::RunEnd&) { run_ended_ = true; });
   bus_.serve_stats();
   bus_.declare_token();
   using clock = std::chrono::steady_clock;
   const auto period = std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(1.0 / hz));
-  v1::ClockTick tick;  // synthesized, reused: only header.tick / sim_time / dt change
+  v2::ClockTick tick;  // synthesized, reused: only header.tick / sim_time / dt change
   tick.set_dt(1.0 / hz);
   uint64_t k = 0;
   auto next = clock::now();

@@ -35,8 +35,8 @@ bool Inbox::subscribed_locked(const std::string& key) {
   return hit;
 }
 
-std::vector<v1::PublishedMark> Inbox::missing_locked(const std::vector<v1::PublishedMark>& wanted) const {
-  std::vector<v1::PublishedMark> out;
+std::vector<v2::PublishedMark> Inbox::missing_locked(const std::vector<v2::PublishedMark>& wanted) const {
+  std::vector<v2::PublishedMark> out;
   for (const auto& m : wanted) {
     const auto it = received_.find({m.key(), m.sender()});
     const uint64_t got = it == received_.end() ? 0 : it->second;
@@ -45,18 +45,18 @@ std::vector<v1::PublishedMark> Inbox::missing_locked(const std::vector<v1::Publi
   return out;
 }
 
-std::vector<v1::PublishedMark> Inbox::missing(const std::vector<v1::PublishedMark>& marks) {
+std::vector<v2::PublishedMark> Inbox::missing(const std::vector<v2::PublishedMark>& marks) {
   const std::lock_guard<std::mutex> lock(mutex_);
-  std::vector<v1::PublishedMark> wanted;
+  std::vector<v2::PublishedMark> wanted;
   for (const auto& m : marks) {
     if (subscribed_locked(m.key())) wanted.push_back(m);
   }
   return missing_locked(wanted);
 }
 
-std::vector<v1::PublishedMark> Inbox::wait_for(const std::vector<v1::PublishedMark>& marks, double timeout_s) {
+std::vector<v2::PublishedMark> Inbox::wait_for(const std::vector<v2::PublishedMark>& marks, double timeout_s) {
   std::unique_lock<std::mutex> lock(mutex_);
-  std::vector<v1::PublishedMark> wanted;
+  std::vector<v2::PublishedMark> wanted;
   for (const auto& m : marks) {
     if (subscribed_locked(m.key())) wanted.push_back(m);
   }

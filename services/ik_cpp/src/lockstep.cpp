@@ -9,11 +9,11 @@
 namespace hrc {
 namespace {
 
-std::vector<v1::PublishedMark> marks_of(const v1::ClockTick& tick) {
+std::vector<v2::PublishedMark> marks_of(const v2::ClockTick& tick) {
   return {tick.published().begin(), tick.published().end()};
 }
 
-std::string describe(const std::vector<v1::PublishedMark>& marks) {
+std::string describe(const std::vector<v2::PublishedMark>& marks) {
   std::string out;
   for (const auto& m : marks) {
     if (!out.empty()) out += ", ";
@@ -33,15 +33,15 @@ void LockstepParticipant::start() {
     // Acks close the barrier: no batching delay, never dropped.
     ack_pub_ = &bus_.publisher(keys.clock_ack(name()), PublisherOptions{true, true});
   }
-  bus_.subscribe<v1::ClockTick>(keys.clock(), [this](const std::string&, const v1::ClockTick& t) { on_clock(t); });
-  bus_.subscribe<v1::RunEnd>(keys.run_end(), [this](const std::string&, const v1::RunEnd& e) { on_run_end(e); });
+  bus_.subscribe<v2::ClockTick>(keys.clock(), [this](const std::string&, const v2::ClockTick& t) { on_clock(t); });
+  bus_.subscribe<v2::RunEnd>(keys.run_end(), [this](const std::string&, const v2::RunEnd& e) { on_run_end(e); });
   bus_.watch_liveliness([this](const std::string& service, bool alive) { on_liveliness(service, alive); });
   bus_.serve_stats();
   // Last: the token means "ready, nothing will be missed".
   bus_.declare_token();
 }
 
-void LockstepParticipant::on_clock(const v1::ClockTick& tick) {
+void LockstepParticipant::on_clock(const v2::ClockTick& tick) {
   {
     std::unique_lock<std::mutex> lock(mutex_);
     // Fast path: nothing queued or in progress and every input of the tick is here, so compute
@@ -66,7 +66,7 @@ void LockstepParticipant::on_clock(const v1::ClockTick& tick) {
   if (queued) cond_.notify_all();  // only then has run() something to do: don't wake it idly
 }
 
-void LockstepParticipant::on_run_end(const v1::RunEnd& end) {
+void LockstepParticipant::on_run_end(const v2::RunEnd& end) {
   Outcome o;
   o.ok = end.ok();
   o.reason = end.reason();
@@ -112,7 +112,7 @@ void LockstepParticipant::stop(const std::string& reason) {
   finish(std::move(o));
 }
 
-std::optional<v1::ClockTick> LockstepParticipant::last_tick() const {
+std::optional<v2::ClockTick> LockstepParticipant::last_tick() const {
   const std::lock_guard<std::mutex> lock(mutex_);
   return last_tick_;
 }
@@ -141,7 +141,7 @@ Outcome LockstepParticipant::run(double timeout_s) {
       cond_.wait(lock, [this] { return !busy_; });
       return *end_;
     }
-    v1::ClockTick tick = std::move(ticks_.front());
+    v2::ClockTick tick = std::move(ticks_.front());
     ticks_.pop_front();
     busy_ = true;
     lock.unlock();
@@ -151,11 +151,11 @@ Outcome LockstepParticipant::run(double timeout_s) {
   }
 }
 
-void LockstepParticipant::process(const v1::ClockTick& tick) {
+void LockstepParticipant::process(const v2::ClockTick& tick) {
   const auto t0 = std::chrono::steady_clock::now();
   const uint64_t k = tick.header().tick();
   try {
-    if (tick.mode() == v1::CLOCK_MODE_LOCKSTEP) {
+    if (tick.mode() == v2::CLOCK_MODE_LOCKSTEP) {
       const auto missing = inbox_.wait_for(marks_of(tick), options_.input_timeout_s);
       if (!missing.empty()) {
         const std::string what = describe(missing);
@@ -174,7 +174,7 @@ void LockstepParticipant::process(const v1::ClockTick& tick) {
     bus_.stats().tick(k);
     if (step_) step_(tick);
     if (ack_pub_ != nullptr) {
-      v1::TickAck ack;
+      v2::TickAck ack;
       ack.set_participant(name());
       const auto us = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0);
       ack.set_compute_us(static_cast<uint32_t>(std::min<int64_t>(us.count(), UINT32_MAX)));

@@ -56,13 +56,13 @@ struct Options {
 
 // The scenario from the orchestrator's queryable; it may still be starting, so ask until it
 // answers (like the Python services' Bus.get_one) or `timeout_s` passes.
-std::optional<hrc::v1::Scenario> fetch_scenario(const hrc::Bus& bus, double timeout_s, const std::atomic<bool>& stop) {
+std::optional<hrc::v2::Scenario> fetch_scenario(const hrc::Bus& bus, double timeout_s, const std::atomic<bool>& stop) {
   using clock = std::chrono::steady_clock;
   const auto deadline = clock::now() + std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(timeout_s));
   while (!stop) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - clock::now());
     const auto wait = std::clamp(left, std::chrono::milliseconds(50), std::chrono::milliseconds(1000));
-    auto replies = bus.get<hrc::v1::Scenario>(bus.keys().scenario(), nullptr, wait);
+    auto replies = bus.get<hrc::v2::Scenario>(bus.keys().scenario(), nullptr, wait);
     if (!replies.empty()) return std::move(replies.front());
     if (clock::now() >= deadline) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(200));

@@ -45,9 +45,9 @@ uint64_t InputStats::last_tick() const {
   return last_tick_;
 }
 
-v1::ServiceStats InputStats::to_proto(const std::string& service) const {
+v2::ServiceStats InputStats::to_proto(const std::string& service) const {
   const std::lock_guard<std::mutex> lock(mutex_);
-  v1::ServiceStats msg;
+  v2::ServiceStats msg;
   msg.set_service(service);
   for (const auto& s : subscribed_) msg.add_subscribed(s);
   for (const auto& [k, v] : decode_errors_) (*msg.mutable_decode_errors())[k] = v;
@@ -60,7 +60,7 @@ v1::ServiceStats InputStats::to_proto(const std::string& service) const {
 
 TypedPublisher::TypedPublisher(const Bus& bus, Publisher publisher) : bus_(bus), publisher_(std::move(publisher)) {}
 
-void TypedPublisher::stamp(v1::Header& h, uint64_t tick, double sim_time, uint64_t seq) const {
+void TypedPublisher::stamp(v2::Header& h, uint64_t tick, double sim_time, uint64_t seq) const {
   h.set_session(bus_.keys().session());
   h.set_tick(tick);
   h.set_sim_time(sim_time);
@@ -129,8 +129,8 @@ TypedPublisher& Bus::publisher(const std::string& key, PublisherOptions options)
 }
 
 namespace {
-v1::PublishedMark make_mark(const std::string& key, const std::string& sender, uint64_t seq) {
-  v1::PublishedMark m;
+v2::PublishedMark make_mark(const std::string& key, const std::string& sender, uint64_t seq) {
+  v2::PublishedMark m;
   m.set_key(key);
   m.set_sender(sender);
   m.set_seq(seq);
@@ -138,9 +138,9 @@ v1::PublishedMark make_mark(const std::string& key, const std::string& sender, u
 }
 }  // namespace
 
-std::vector<v1::PublishedMark> Bus::published_marks() const {
+std::vector<v2::PublishedMark> Bus::published_marks() const {
   const std::lock_guard<std::mutex> lock(mutex_);
-  std::vector<v1::PublishedMark> marks;
+  std::vector<v2::PublishedMark> marks;
   for (const auto& [key, pub] : publishers_) {
     const uint64_t seq = pub->seq();
     if (seq > 0) marks.push_back(make_mark(key, sender_, seq));
@@ -148,9 +148,9 @@ std::vector<v1::PublishedMark> Bus::published_marks() const {
   return marks;
 }
 
-std::vector<v1::PublishedMark> Bus::new_marks(const std::string& exclude) {
+std::vector<v2::PublishedMark> Bus::new_marks(const std::string& exclude) {
   const std::lock_guard<std::mutex> lock(mutex_);
-  std::vector<v1::PublishedMark> marks;
+  std::vector<v2::PublishedMark> marks;
   for (const auto& [key, pub] : publishers_) {
     const uint64_t seq = pub->seq();
     uint64_t& reported = reported_[key];
@@ -195,8 +195,8 @@ void Bus::watch_liveliness(std::function<void(const std::string& service, bool a
 void Bus::serve_stats() {
   const std::string key = keys_.stats(sender_);
   auto on_query = [this](const QueryView&) -> QueryReply {
-    v1::ServiceStats msg = stats_.to_proto(sender_);
-    v1::Header& h = *msg.mutable_header();
+    v2::ServiceStats msg = stats_.to_proto(sender_);
+    v2::Header& h = *msg.mutable_header();
     h.set_session(keys_.session());
     h.set_sender(sender_);
     h.set_tick(msg.last_tick());

@@ -13,19 +13,19 @@
 
 namespace {
 
-using hrc::v1::RobotCommand;
-using hrc::v1::RobotState;
+using hrc::v2::RobotCommand;
+using hrc::v2::RobotState;
 
 const std::string kArm5 = std::string(HRC_ROBOTS_DIR) + "/arm5.urdf";
 constexpr double kDt = 1.0 / 240.0;
 
 // The two robots of scenarios/minimal.toml.
-hrc::v1::Scenario minimal_scenario() {
-  hrc::v1::Scenario s;
+hrc::v2::Scenario minimal_scenario() {
+  hrc::v2::Scenario s;
   s.mutable_info()->set_name("unit");
   s.mutable_info()->set_tick_hz(240);
   auto add = [&](const std::string& id, double x, double hx) {
-    hrc::v1::RobotConfig* r = s.add_robots();
+    hrc::v2::RobotConfig* r = s.add_robots();
     r->set_id(id);
     r->set_urdf_path(kArm5);
     r->mutable_base()->mutable_xyz()->set_x(x);
@@ -73,7 +73,7 @@ class Engine : public ::testing::Test {
       engine.fill_state(0, st);
       vmax = std::max(vmax, (tcp_of(st) - prev).norm() / kDt);
       prev = tcp_of(st);
-      if (st.status() != hrc::v1::MOTION_STATUS_MOVING) break;
+      if (st.status() != hrc::v2::MOTION_STATUS_MOVING) break;
     }
     if (max_speed != nullptr) *max_speed = vmax;
     return k;
@@ -108,7 +108,7 @@ TEST(IkScenario, ReadsRobotsAndRejectsBadOnes) {
   bad = minimal_scenario();
   bad.mutable_info()->set_tick_hz(0);
   EXPECT_THROW(hrc::tick_dt(bad), std::invalid_argument);
-  EXPECT_TRUE(hrc::robots_from_scenario(hrc::v1::Scenario{}).empty());  // allowed: nothing to move
+  EXPECT_TRUE(hrc::robots_from_scenario(hrc::v2::Scenario{}).empty());  // allowed: nothing to move
 }
 
 TEST(IkScenario, UnloadableUrdfOrUnreachableHomeNameTheRobot) {
@@ -137,7 +137,7 @@ TEST_F(Engine, StartsIdleAtHomeToolDownInSortedOrder) {
   RobotState st;
   engine.fill_state(0, st);
   EXPECT_EQ(st.robot(), "r1");
-  EXPECT_EQ(st.status(), hrc::v1::MOTION_STATUS_IDLE);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_IDLE);
   EXPECT_EQ(st.command_id(), 0u);
   EXPECT_LT((tcp_of(st) - Eigen::Vector3d(0.35, 0.30, 0.35)).norm(), 1e-4);
   const auto& q = st.tcp().orientation();
@@ -160,12 +160,12 @@ TEST_F(Engine, MoveReachesTheTargetAtTheCappedSpeedAndEchoesTheId) {
   EXPECT_EQ(engine.apply("r1", move(0.20, 0.25, 0.25, 7, 30, 5.0)), "");
   RobotState st;
   engine.fill_state(0, st);
-  EXPECT_EQ(st.status(), hrc::v1::MOTION_STATUS_MOVING);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_MOVING);
   EXPECT_EQ(st.command_id(), 7u);
   double vmax = 0;
   const int ticks = run_r1(2000, &vmax);
   engine.fill_state(0, st);
-  EXPECT_EQ(st.status(), hrc::v1::MOTION_STATUS_REACHED) << st.detail();
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED) << st.detail();
   EXPECT_EQ(st.command_id(), 7u);
   EXPECT_LT((tcp_of(st) - Eigen::Vector3d(0.20, 0.25, 0.25)).norm(), 0.005);
   EXPECT_LE(vmax, 0.5 * 1.02);
@@ -173,7 +173,7 @@ TEST_F(Engine, MoveReachesTheTargetAtTheCappedSpeedAndEchoesTheId) {
   EXPECT_GT(ticks, 10);
   // r2 was not commanded: still idle
   engine.fill_state(1, st);
-  EXPECT_EQ(st.status(), hrc::v1::MOTION_STATUS_IDLE);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_IDLE);
 }
 
 TEST_F(Engine, CommandSpeedBelowTheCapIsHonoured) {
@@ -184,7 +184,7 @@ TEST_F(Engine, CommandSpeedBelowTheCapIsHonoured) {
   EXPECT_GT(vmax, 0.08);
   RobotState st;
   engine.fill_state(0, st);
-  EXPECT_EQ(st.status(), hrc::v1::MOTION_STATUS_REACHED);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED);
   EXPECT_NEAR(st.tcp_speed(), 0.0, 1e-3);  // the last tick ends the ramp-down
   engine.step();
   engine.fill_state(0, st);
@@ -223,7 +223,7 @@ TEST_F(Engine, BadCommandsChangeNothing) {
   run_r1(2000);
   RobotState st;
   engine.fill_state(0, st);
-  EXPECT_EQ(st.status(), hrc::v1::MOTION_STATUS_REACHED);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED);
   EXPECT_EQ(st.command_id(), 3u);
 }
 
@@ -245,7 +245,7 @@ TEST_F(Engine, HoldStopsSmoothlyAndReportsHolding) {
   }
   RobotState st;
   engine.fill_state(0, st);
-  EXPECT_EQ(st.status(), hrc::v1::MOTION_STATUS_HOLDING);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_HOLDING);
   EXPECT_EQ(st.command_id(), 2u);
   EXPECT_NEAR(st.tcp_speed(), 0.0, 1e-9);
 }
@@ -260,7 +260,7 @@ TEST_F(Engine, UnreachableTargetIsReportedAndNothingBecomesNaN) {
     ASSERT_TRUE(tcp_of(st).allFinite());
     ASSERT_TRUE(std::isfinite(st.tcp_speed()));
   }
-  EXPECT_EQ(st.status(), hrc::v1::MOTION_STATUS_UNREACHABLE);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_UNREACHABLE);
   EXPECT_EQ(st.command_id(), 11u);
   EXPECT_NE(st.detail().find("unreachable"), std::string::npos) << st.detail();
   EXPECT_LT((tcp_of(st) - Eigen::Vector3d(0.35, 0.30, 0.35)).norm(), 1e-3);  // stayed home
@@ -268,7 +268,7 @@ TEST_F(Engine, UnreachableTargetIsReportedAndNothingBecomesNaN) {
   ASSERT_EQ(engine.apply("r1", move(0.30, 0.30, 0.30, 12)), "");
   run_r1(2000);
   engine.fill_state(0, st);
-  EXPECT_EQ(st.status(), hrc::v1::MOTION_STATUS_REACHED);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED);
   EXPECT_EQ(st.detail(), "");
 }
 
@@ -282,7 +282,7 @@ TEST_F(Engine, FillStateReusesTheMessage) {
 }
 
 TEST_F(Engine, ReachAnswersEveryItem) {
-  hrc::v1::ReachRequest req;
+  hrc::v2::ReachRequest req;
   auto add = [&](const std::string& id, const std::string& robot, double x, double y, double z) {
     auto* it = req.add_items();
     it->set_id(id);
@@ -371,7 +371,7 @@ TEST(IkService, PublishesStatesOnChangeWithKeyframesAndCountsBadCommands) {
   // once per simulated second. r2 stands still: its first state and the keyframe (receivers
   // hold the last state).
   const uint64_t keyframe = static_cast<uint64_t>(std::lround(1.0 / kDt));
-  hrc::v1::ClockTick tick;
+  hrc::v2::ClockTick tick;
   tick.set_dt(kDt);
   for (uint64_t k = 0; k <= keyframe; ++k) {
     tick.mutable_header()->set_tick(k);
@@ -393,7 +393,7 @@ TEST(IkService, PublishesStatesOnChangeWithKeyframesAndCountsBadCommands) {
         r1_ticks.push_back(s.header().tick());
       } else {
         r2_ticks.push_back(s.header().tick());
-        EXPECT_EQ(s.status(), hrc::v1::MOTION_STATUS_IDLE);
+        EXPECT_EQ(s.status(), hrc::v2::MOTION_STATUS_IDLE);
       }
     }
     return r2_ticks.size() >= 2 && !r1_ticks.empty() && r1_ticks.back() == keyframe;
@@ -407,8 +407,8 @@ TEST(IkService, PublishesStatesOnChangeWithKeyframesAndCountsBadCommands) {
   // Moving: ticks 0, 1, 2, ... without a gap, until it reached the target.
   const std::size_t last_change = r1.size() - 2;  // the one before the keyframe
   for (std::size_t i = 0; i <= last_change; ++i) EXPECT_EQ(r1_ticks[i], i);
-  EXPECT_EQ(r1[0].status(), hrc::v1::MOTION_STATUS_MOVING);
-  EXPECT_EQ(r1[last_change].status(), hrc::v1::MOTION_STATUS_REACHED);
+  EXPECT_EQ(r1[0].status(), hrc::v2::MOTION_STATUS_MOVING);
+  EXPECT_EQ(r1[last_change].status(), hrc::v2::MOTION_STATUS_REACHED);
   EXPECT_LT(r1_ticks[last_change], keyframe - 1);  // then it stood still and sent nothing
   EXPECT_EQ(service.compute_times().count(), keyframe + 1);
   EXPECT_EQ(service.step_times().count(), keyframe + 1);
@@ -421,16 +421,16 @@ TEST(IkService, ServesReachQueries) {
   hrc::LockstepParticipant participant(bus);
   hrc::IkService service(bus, participant, engine);
   hrc::Bus asker(peers.b, "ikq", "orchestrator");
-  hrc::v1::ReachRequest req;
+  hrc::v2::ReachRequest req;
   auto* it = req.add_items();
   it->set_id("home");
   it->set_robot("r2");
   it->mutable_target()->set_x(-0.35);
   it->mutable_target()->set_y(0.30);
   it->mutable_target()->set_z(0.35);
-  std::vector<hrc::v1::ReachReply> replies;
+  std::vector<hrc::v2::ReachReply> replies;
   ASSERT_TRUE(hrc::test::wait_until([&] {
-    replies = asker.get<hrc::v1::ReachReply>(asker.keys().robot_reach(), &req, std::chrono::milliseconds(500));
+    replies = asker.get<hrc::v2::ReachReply>(asker.keys().robot_reach(), &req, std::chrono::milliseconds(500));
     return !replies.empty();
   }));
   ASSERT_EQ(replies.front().results_size(), 1);

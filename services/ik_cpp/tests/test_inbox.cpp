@@ -22,8 +22,8 @@ std::string with_header(M msg, const std::string& sender, uint64_t seq, uint64_t
   return msg.SerializeAsString();
 }
 
-hrc::v1::PublishedMark mark(const std::string& key, const std::string& sender, uint64_t seq) {
-  hrc::v1::PublishedMark m;
+hrc::v2::PublishedMark mark(const std::string& key, const std::string& sender, uint64_t seq) {
+  hrc::v2::PublishedMark m;
   m.set_key(key);
   m.set_sender(sender);
   m.set_seq(seq);
@@ -35,10 +35,10 @@ TEST(Inbox, DeliversInDeterministicOrderUpToTheTick) {
   hrc::Inbox inbox(bus);
   std::vector<std::string> order;
   const auto& k = bus.keys();
-  inbox.add<hrc::v1::HumanState>(k.human_state(), [&](const std::string& key, const hrc::v1::HumanState& m) {
+  inbox.add<hrc::v2::HumanState>(k.human_state(), [&](const std::string& key, const hrc::v2::HumanState& m) {
     order.push_back(key + "|" + m.header().sender() + "#" + std::to_string(m.header().seq()));
   });
-  inbox.add<hrc::v1::RobotCommand>(k.robot_commands(), [&](const std::string& key, const hrc::v1::RobotCommand& m) {
+  inbox.add<hrc::v2::RobotCommand>(k.robot_commands(), [&](const std::string& key, const hrc::v2::RobotCommand& m) {
     order.push_back(key + "|" + m.header().sender() + "#" + std::to_string(m.header().seq()));
   });
   auto& human = bus.publisher(k.human_state());
@@ -46,14 +46,14 @@ TEST(Inbox, DeliversInDeterministicOrderUpToTheTick) {
   auto& r2 = bus.publisher(k.robot_command("r2"));
   ASSERT_TRUE(wait_until([&] { return human.has_subscribers() && r1.has_subscribers() && r2.has_subscribers(); }));
   // Arrival order deliberately scrambled.
-  r2.put_raw(with_header(hrc::v1::RobotCommand{}, "orchestrator", 1, 0));
-  human.put_raw(with_header(hrc::v1::HumanState{}, "human_input", 2, 1));
-  r1.put_raw(with_header(hrc::v1::RobotCommand{}, "orchestrator", 1, 0));
-  human.put_raw(with_header(hrc::v1::HumanState{}, "human_input", 1, 0));
-  human.put_raw(with_header(hrc::v1::HumanState{}, "physics", 1, 2));       // the master's, tick 2
-  human.put_raw(with_header(hrc::v1::HumanState{}, "human_input", 3, 2));   // tick 2: not yet
+  r2.put_raw(with_header(hrc::v2::RobotCommand{}, "orchestrator", 1, 0));
+  human.put_raw(with_header(hrc::v2::HumanState{}, "human_input", 2, 1));
+  r1.put_raw(with_header(hrc::v2::RobotCommand{}, "orchestrator", 1, 0));
+  human.put_raw(with_header(hrc::v2::HumanState{}, "human_input", 1, 0));
+  human.put_raw(with_header(hrc::v2::HumanState{}, "physics", 1, 2));       // the master's, tick 2
+  human.put_raw(with_header(hrc::v2::HumanState{}, "human_input", 3, 2));   // tick 2: not yet
 
-  const std::vector<hrc::v1::PublishedMark> marks = {
+  const std::vector<hrc::v2::PublishedMark> marks = {
       mark(k.human_state(), "human_input", 3), mark(k.robot_command("r1"), "orchestrator", 1),
       mark(k.robot_command("r2"), "orchestrator", 1), mark(k.human_state(), "physics", 1),
       mark(k.world_objects(), "physics", 99)};  // not subscribed: ignored
@@ -74,7 +74,7 @@ TEST(Inbox, DeliversInDeterministicOrderUpToTheTick) {
 TEST(Inbox, WaitForReportsWhatNeverArrived) {
   hrc::Bus bus(hrc::BusConfig{}, "inbox", "ik_cpp");
   hrc::Inbox inbox(bus);
-  inbox.add<hrc::v1::HumanState>(bus.keys().human_state(), [](const std::string&, const hrc::v1::HumanState&) {});
+  inbox.add<hrc::v2::HumanState>(bus.keys().human_state(), [](const std::string&, const hrc::v2::HumanState&) {});
   const auto missing = inbox.wait_for({mark(bus.keys().human_state(), "human_input", 1)}, 0.05);
   ASSERT_EQ(missing.size(), 1u);
   EXPECT_EQ(missing[0].sender(), "human_input");

@@ -19,7 +19,7 @@ using hrc::test::wait_until;
 class FakePhysics {
  public:
   explicit FakePhysics(const hrc::BusConfig& cfg, const std::string& session) : bus(cfg, session, "physics") {
-    bus.subscribe<hrc::v1::TickAck>(bus.keys().clock_acks(), [this](const std::string&, const hrc::v1::TickAck& a) {
+    bus.subscribe<hrc::v2::TickAck>(bus.keys().clock_acks(), [this](const std::string&, const hrc::v2::TickAck& a) {
       const std::lock_guard<std::mutex> lock(mutex);
       acks.push_back(a);
     });
@@ -38,16 +38,16 @@ class FakePhysics {
     const std::lock_guard<std::mutex> lock(mutex);
     return acks.size();
   }
-  void tick(uint64_t k, std::vector<hrc::v1::PublishedMark> marks = {}) {
-    hrc::v1::ClockTick t;
-    t.set_mode(hrc::v1::CLOCK_MODE_LOCKSTEP);
+  void tick(uint64_t k, std::vector<hrc::v2::PublishedMark> marks = {}) {
+    hrc::v2::ClockTick t;
+    t.set_mode(hrc::v2::CLOCK_MODE_LOCKSTEP);
     t.set_dt(0.01);
     t.add_participants("ik_cpp");
     for (auto& m : marks) *t.add_published() = m;
     bus.publisher(bus.keys().clock(), hrc::PublisherOptions{true, true}).put(t, k, 0.01 * static_cast<double>(k));
   }
   void end(bool ok, const std::string& reason) {
-    hrc::v1::RunEnd e;
+    hrc::v2::RunEnd e;
     e.set_ok(ok);
     e.set_reason(reason);
     bus.publisher(bus.keys().run_end()).put(e, 0, 0.0);
@@ -55,7 +55,7 @@ class FakePhysics {
 
   hrc::Bus bus;
   std::mutex mutex;
-  std::vector<hrc::v1::TickAck> acks;
+  std::vector<hrc::v2::TickAck> acks;
   std::map<std::string, bool> alive_services;
 };
 
@@ -77,9 +77,9 @@ class Lockstep : public ::testing::Test {
 TEST_F(Lockstep, TicksAreSteppedAndAckedThenRunEndOkReturnsZero) {
   hrc::LockstepParticipant p(*bus);
   std::vector<uint64_t> stepped;
-  p.on_tick([&](const hrc::v1::ClockTick& t) {
+  p.on_tick([&](const hrc::v2::ClockTick& t) {
     stepped.push_back(t.header().tick());
-    hrc::v1::RobotState s;
+    hrc::v2::RobotState s;
     s.set_robot("r1");
     bus->publisher(bus->keys().robot_state("r1")).put(s, t.header().tick(), t.header().sim_time());
   });
@@ -142,11 +142,11 @@ TEST_F(Lockstep, StepWaitsForInputsTheClockSaysWerePublished) {
   hrc::LockstepParticipant p(*bus);
   std::vector<std::string> log;
   std::mutex m;
-  p.input<hrc::v1::RobotCommand>(bus->keys().robot_commands(), [&](const std::string&, const hrc::v1::RobotCommand& c) {
+  p.input<hrc::v2::RobotCommand>(bus->keys().robot_commands(), [&](const std::string&, const hrc::v2::RobotCommand& c) {
     const std::lock_guard<std::mutex> lock(m);
     log.push_back("command " + std::to_string(c.command_id()));
   });
-  p.on_tick([&](const hrc::v1::ClockTick& t) {
+  p.on_tick([&](const hrc::v2::ClockTick& t) {
     const std::lock_guard<std::mutex> lock(m);
     log.push_back("step " + std::to_string(t.header().tick()));
   });
@@ -155,7 +155,7 @@ TEST_F(Lockstep, StepWaitsForInputsTheClockSaysWerePublished) {
   auto result = std::async(std::launch::async, [&] { return p.run(); });
   // The clock says the orchestrator published command #1, but it is slower than the clock.
   const std::string key = bus->keys().robot_command("r1");
-  hrc::v1::PublishedMark mk;
+  hrc::v2::PublishedMark mk;
   mk.set_key(key);
   mk.set_sender("orchestrator");
   mk.set_seq(1);
@@ -165,7 +165,7 @@ TEST_F(Lockstep, StepWaitsForInputsTheClockSaysWerePublished) {
     const std::lock_guard<std::mutex> lock(m);
     EXPECT_TRUE(log.empty()) << "stepped before its input arrived";
   }
-  hrc::v1::RobotCommand c;
+  hrc::v2::RobotCommand c;
   c.set_command_id(77);
   c.mutable_header()->set_session("ls");
   c.mutable_header()->set_sender("orchestrator");

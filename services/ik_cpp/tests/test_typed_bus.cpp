@@ -15,7 +15,7 @@ using hrc::test::wait_until;
 
 struct Received {
   std::mutex mutex;
-  std::vector<std::pair<std::string, hrc::v1::HumanState>> msgs;
+  std::vector<std::pair<std::string, hrc::v2::HumanState>> msgs;
   std::size_t size() {
     const std::lock_guard<std::mutex> lock(mutex);
     return msgs.size();
@@ -42,7 +42,7 @@ TEST(HeaderSeq, PerKeyStartingAtOneWithSessionTickTimeSender) {
   auto& p1 = bus.publisher(bus.keys().robot_state("r1"));
   auto& p2 = bus.publisher(bus.keys().robot_state("r2"));
   EXPECT_EQ(&p1, &bus.publisher(bus.keys().robot_state("r1")));  // one publisher per key
-  hrc::v1::RobotState s;
+  hrc::v2::RobotState s;
   EXPECT_EQ(p1.put(s, 7, 0.07), 1u);
   EXPECT_EQ(s.header().session(), "seqs");
   EXPECT_EQ(s.header().tick(), 7u);
@@ -54,7 +54,7 @@ TEST(HeaderSeq, PerKeyStartingAtOneWithSessionTickTimeSender) {
   EXPECT_EQ(p2.put(s, 8, 0.08), 1u);  // another key counts on its own
   EXPECT_EQ(bus.publisher(bus.keys().robot_state("r1")).put(s, 9, 0.09), 3u);
   // Header-less types are published without a seq.
-  hrc::v1::ReachRequest req;
+  hrc::v2::ReachRequest req;
   EXPECT_EQ(bus.publisher(bus.keys().bench("reach")).put(req), 0u);
 
   const auto marks = bus.published_marks();
@@ -82,7 +82,7 @@ TEST(HeaderSeq, PerKeyStartingAtOneWithSessionTickTimeSender) {
 TEST_F(TwoPeers, TypedRoundTripCarriesSenderAttachmentAndHeader) {
   Received got;
   std::atomic<int> attachments_ok{0};
-  b->subscribe<hrc::v1::HumanState>(b->keys().human_state(), [&](const std::string& k, const hrc::v1::HumanState& m) {
+  b->subscribe<hrc::v2::HumanState>(b->keys().human_state(), [&](const std::string& k, const hrc::v2::HumanState& m) {
     const std::lock_guard<std::mutex> lock(got.mutex);
     got.msgs.emplace_back(k, m);
   });
@@ -93,7 +93,7 @@ TEST_F(TwoPeers, TypedRoundTripCarriesSenderAttachmentAndHeader) {
   auto& pub = a->publisher(a->keys().human_state());
   ASSERT_TRUE(wait_until([&] { return pub.has_subscribers(); }));
   for (int i = 1; i <= 3; ++i) {
-    hrc::v1::HumanState h;
+    hrc::v2::HumanState h;
     h.mutable_head()->mutable_position()->set_x(0.5 * i);
     h.set_left_grip(0.25);
     h.set_source("scripted");
@@ -117,7 +117,7 @@ TEST_F(TwoPeers, TypedRoundTripCarriesSenderAttachmentAndHeader) {
 TEST_F(TwoPeers, GarbageIsCountedPerKeyAndNeverDelivered) {
   Received got;
   const std::string key = b->keys().human_state();
-  b->subscribe<hrc::v1::HumanState>(key, [&](const std::string& k, const hrc::v1::HumanState& m) {
+  b->subscribe<hrc::v2::HumanState>(key, [&](const std::string& k, const hrc::v2::HumanState& m) {
     const std::lock_guard<std::mutex> lock(got.mutex);
     got.msgs.emplace_back(k, m);
   });
@@ -127,11 +127,11 @@ TEST_F(TwoPeers, GarbageIsCountedPerKeyAndNeverDelivered) {
   pub.put_raw(std::string(8, '\xff'));
   pub.put_raw(std::string("\x0a\x05\x0a", 3));  // truncated length-delimited header
   // Decodes, but belongs to another session: malformed too.
-  hrc::v1::HumanState foreign;
+  hrc::v2::HumanState foreign;
   foreign.mutable_header()->set_session("other");
   pub.put_raw(foreign.SerializeAsString());
   // Then a good one, proving the subscriber keeps working.
-  hrc::v1::HumanState good;
+  hrc::v2::HumanState good;
   good.set_source("vr");
   pub.put(good, 1, 0.01);
   ASSERT_TRUE(wait_until([&] { return got.size() == 1; }));
@@ -144,13 +144,13 @@ TEST_F(TwoPeers, GarbageIsCountedPerKeyAndNeverDelivered) {
 TEST_F(TwoPeers, HandlerExceptionsStayInsideTheService) {
   std::atomic<int> calls{0};
   const std::string key = b->keys().task_events();
-  b->subscribe<hrc::v1::TaskEvent>(key, [&](const std::string&, const hrc::v1::TaskEvent&) {
+  b->subscribe<hrc::v2::TaskEvent>(key, [&](const std::string&, const hrc::v2::TaskEvent&) {
     ++calls;
     throw std::runtime_error("handler bug");
   });
   auto& pub = a->publisher(key);
   ASSERT_TRUE(wait_until([&] { return pub.has_subscribers(); }));
-  hrc::v1::TaskEvent e;
+  hrc::v2::TaskEvent e;
   pub.put(e, 1, 0.0);
   pub.put(e, 2, 0.0);
   ASSERT_TRUE(wait_until([&] { return calls == 2; }));
@@ -177,14 +177,14 @@ TEST_F(TwoPeers, LivelinessTokensAppearAndDisappear) {
 }
 
 TEST_F(TwoPeers, StatsQueryableAndTypedQueryable) {
-  b->subscribe<hrc::v1::HumanState>(b->keys().human_state(), [](const std::string&, const hrc::v1::HumanState&) {});
+  b->subscribe<hrc::v2::HumanState>(b->keys().human_state(), [](const std::string&, const hrc::v2::HumanState&) {});
   b->stats().count_error("hrc/t1/human/state");
   b->stats().tick(41);
   b->stats().tick(42);
   b->serve_stats();
-  b->queryable<hrc::v1::ReachRequest, hrc::v1::ReachReply>(
-      b->keys().robot_reach(), [](const hrc::v1::ReachRequest& req) {
-        hrc::v1::ReachReply rep;
+  b->queryable<hrc::v2::ReachRequest, hrc::v2::ReachReply>(
+      b->keys().robot_reach(), [](const hrc::v2::ReachRequest& req) {
+        hrc::v2::ReachReply rep;
         for (const auto& item : req.items()) {
           auto* r = rep.add_results();
           r->set_id(item.id());
@@ -192,9 +192,9 @@ TEST_F(TwoPeers, StatsQueryableAndTypedQueryable) {
         }
         return rep;
       });
-  std::vector<hrc::v1::ServiceStats> stats;
+  std::vector<hrc::v2::ServiceStats> stats;
   ASSERT_TRUE(wait_until([&] {
-    stats = a->get<hrc::v1::ServiceStats>(a->keys().stats("beta"), nullptr, std::chrono::milliseconds(500));
+    stats = a->get<hrc::v2::ServiceStats>(a->keys().stats("beta"), nullptr, std::chrono::milliseconds(500));
     return !stats.empty();
   }));
   EXPECT_EQ(stats[0].service(), "beta");
@@ -204,11 +204,11 @@ TEST_F(TwoPeers, StatsQueryableAndTypedQueryable) {
   EXPECT_EQ(stats[0].ticks_seen(), 2u);
   EXPECT_EQ(stats[0].last_tick(), 42u);
 
-  hrc::v1::ReachRequest req;
+  hrc::v2::ReachRequest req;
   auto* item = req.add_items();
   item->set_id("p1");
   item->mutable_target()->set_z(0.3);
-  const auto replies = a->get<hrc::v1::ReachReply>(a->keys().robot_reach(), &req);
+  const auto replies = a->get<hrc::v2::ReachReply>(a->keys().robot_reach(), &req);
   ASSERT_EQ(replies.size(), 1u);
   ASSERT_EQ(replies[0].results_size(), 1);
   EXPECT_EQ(replies[0].results(0).id(), "p1");

@@ -36,7 +36,7 @@ const char* kUsage =
     "the attachment.\n"
     "\n"
     "echo: republishes every payload received on --in unchanged on --out (express, congestion\n"
-    "  control block). With --type TYPE (a message of hrc.v1, e.g. HumanState) the payload is\n"
+    "  control block). With --type TYPE (a message of hrc.v2, e.g. HumanState) the payload is\n"
     "  decoded as TYPE and re-encoded before it is published; a payload that does not decode is\n"
     "  counted and logged to stderr, not echoed. Stops after --count N echoes (exit 0), after\n"
     "  --timeout-s S without reaching the count (exit 1), or on SIGINT/SIGTERM (exit 0).\n"
@@ -89,13 +89,13 @@ class Done {
 };
 
 const google::protobuf::Message* prototype_of(const std::string& type) {
-  const auto* desc = google::protobuf::DescriptorPool::generated_pool()->FindMessageTypeByName("hrc.v1." + type);
-  if (desc == nullptr) throw UsageError("unknown message type '" + type + "' (a message of hrc/v1/hrc.proto, e.g. HumanState)");
+  const auto* desc = google::protobuf::DescriptorPool::generated_pool()->FindMessageTypeByName("hrc.v2." + type);
+  if (desc == nullptr) throw UsageError("unknown message type '" + type + "' (a message of hrc/v2/hrc.proto, e.g. HumanState)");
   return google::protobuf::MessageFactory::generated_factory()->GetPrototype(desc);
 }
 
-hrc::v1::RobotState probe_state(uint64_t i, uint64_t n) {
-  hrc::v1::RobotState s;
+hrc::v2::RobotState probe_state(uint64_t i, uint64_t n) {
+  hrc::v2::RobotState s;
   s.set_robot("probe_robot");
   for (int j = 0; j < 6; ++j) {
     s.add_joint_names("joint_" + std::to_string(j + 1));
@@ -111,7 +111,7 @@ hrc::v1::RobotState probe_state(uint64_t i, uint64_t n) {
   q->set_z(0.6);
   q->set_w(0.8);
   s.set_tcp_speed(0.0625 * static_cast<double>(i));
-  s.set_status(hrc::v1::MOTION_STATUS_MOVING);
+  s.set_status(hrc::v2::MOTION_STATUS_MOVING);
   s.set_command_id(1000 + i);
   s.set_detail("probe message " + std::to_string(i) + " of " + std::to_string(n));
   return s;
@@ -194,7 +194,7 @@ int publish(hrc::Bus& bus, const hrc::cli::Args& args, hrc::SignalWatcher& signa
   }
   int64_t sent = 0;
   for (int64_t i = 1; i <= count && !stop; ++i) {
-    hrc::v1::RobotState s = probe_state(static_cast<uint64_t>(i), static_cast<uint64_t>(count));
+    hrc::v2::RobotState s = probe_state(static_cast<uint64_t>(i), static_cast<uint64_t>(count));
     pub.put(s, static_cast<uint64_t>(i), 0.5 * static_cast<double>(i));
     ++sent;
     if (interval_ms > 0 && i < count) std::this_thread::sleep_for(std::chrono::milliseconds(interval_ms));

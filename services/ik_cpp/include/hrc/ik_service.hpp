@@ -40,9 +40,9 @@ struct RobotSpec {
 
 /// The robots of `scenario` (possibly none). Throws std::invalid_argument naming the robot and the
 /// bad field (bad id, duplicate id, empty urdf_path, non-finite base/home, max_tcp_speed <= 0).
-std::vector<RobotSpec> robots_from_scenario(const v1::Scenario& scenario);
+std::vector<RobotSpec> robots_from_scenario(const v2::Scenario& scenario);
 /// Seconds per tick of `scenario` (1 / info.tick_hz). Throws std::invalid_argument if tick_hz <= 0.
-double tick_dt(const v1::Scenario& scenario);
+double tick_dt(const v2::Scenario& scenario);
 
 class IkEngine {
  public:
@@ -65,19 +65,19 @@ class IkEngine {
   /// wrong (unknown robot, NaN/inf numbers in any kind, negative heights/speed, unknown kind); a
   /// refused command changes nothing. An unreachable target is applied (the arm reports
   /// UNREACHABLE). The one place a command's content is checked.
-  std::string apply(const std::string& robot, const v1::RobotCommand& command);
+  std::string apply(const std::string& robot, const v2::RobotCommand& command);
   /// Advances every arm by one tick.
   void step();
   /// Writes arm `index`'s state (everything but the header) into `out`; reuses out's storage,
   /// so a caller that keeps its RobotState does not allocate per tick.
-  void fill_state(std::size_t index, v1::RobotState& out) const;
+  void fill_state(std::size_t index, v2::RobotState& out) const;
   const kin::MotionState& state(std::size_t index) const;
   const kin::RobotModel& model(std::size_t index) const;
   uint64_t command_id(std::size_t index) const;
 
   /// One result per item (reachable tool-down with the item's yaw, position error, detail).
   /// Thread-safe with respect to step(): it uses solvers of its own.
-  v1::ReachReply reach(const v1::ReachRequest& request);
+  v2::ReachReply reach(const v2::ReachRequest& request);
 
  private:
   struct Arm {
@@ -127,9 +127,9 @@ class IkService {
 
   /// A command delivered by the inbox: validated, applied, or counted as malformed and logged with
   /// key and sender (the arm keeps what it was doing).
-  void on_command(const std::string& key, const v1::RobotCommand& command);
+  void on_command(const std::string& key, const v2::RobotCommand& command);
   /// Tick k: advance every arm one step, publish RobotState per robot in sorted id order.
-  void step(const v1::ClockTick& tick);
+  void step(const v2::ClockTick& tick);
   /// Steps at `hz` by its own timer (no clock master): each step first takes every command that
   /// has arrived. Runs until keep_going() is false or run/end arrives. Declares alive/<name>.
   /// Returns the number of steps.
@@ -137,7 +137,7 @@ class IkService {
 
   /// Rejects commands whose robot field disagrees with the key (the content is the engine's to
   /// check, in IkEngine::apply).
-  static std::string validate_command(const std::string& key, const v1::RobotCommand& command);
+  static std::string validate_command(const std::string& key, const v2::RobotCommand& command);
 
   uint64_t commands_received() const { return commands_received_; }
   uint64_t commands_rejected() const { return commands_rejected_; }
@@ -160,7 +160,7 @@ class IkService {
   IkEngine& engine_;
   // Touched only from the tick processing (one tick at a time): no lock needed.
   std::vector<TypedPublisher*> state_pubs_;  // per engine index
-  std::vector<v1::RobotState> states_;       // reused every tick
+  std::vector<v2::RobotState> states_;       // reused every tick
   std::vector<std::string> last_sent_;       // per engine index: last published state, header-less
   uint64_t commands_received_ = 0;
   uint64_t commands_rejected_ = 0;

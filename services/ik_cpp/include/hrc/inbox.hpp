@@ -41,16 +41,16 @@ class Inbox {
     bus_.subscribe<M>(
         key_expr,
         [this, index](const std::string& key, const M& msg) {
-          const v1::Header& h = msg.header();
+          const v2::Header& h = msg.header();
           push(Pending{index, key, h.sender(), h.seq(), h.tick(), std::make_shared<const M>(msg)});
         },
         std::move(validate));
   }
 
   /// The marks on keys we subscribe to whose messages have not all arrived yet.
-  std::vector<v1::PublishedMark> missing(const std::vector<v1::PublishedMark>& marks);
+  std::vector<v2::PublishedMark> missing(const std::vector<v2::PublishedMark>& marks);
   /// Waits until every mark (on our keys) is satisfied; returns what is still missing at timeout.
-  std::vector<v1::PublishedMark> wait_for(const std::vector<v1::PublishedMark>& marks, double timeout_s);
+  std::vector<v2::PublishedMark> wait_for(const std::vector<v2::PublishedMark>& marks, double timeout_s);
   /// Hands every message of ticks < upto_tick to its handler (plus the messages of `master` of
   /// tick upto_tick when master is not empty), in deterministic order. Returns the count.
   std::size_t deliver(uint64_t upto_tick, const std::string& master = "");
@@ -72,7 +72,7 @@ class Inbox {
 
   void push(Pending p);
   bool subscribed_locked(const std::string& key);
-  std::vector<v1::PublishedMark> missing_locked(const std::vector<v1::PublishedMark>& wanted) const;
+  std::vector<v2::PublishedMark> missing_locked(const std::vector<v2::PublishedMark>& wanted) const;
 
   Bus& bus_;
   mutable std::mutex mutex_;

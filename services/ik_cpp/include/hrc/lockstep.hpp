@@ -25,7 +25,7 @@ namespace hrc {
 struct Outcome {
   bool ok = false;
   std::string reason;
-  std::optional<v1::RunEnd> run_end;  // set when the run ended by run/end
+  std::optional<v2::RunEnd> run_end;  // set when the run ended by run/end
   bool stopped = false;               // set when stop() ended it (e.g. a signal)
   int exit_code() const { return ok ? 0 : 1; }
 };
@@ -42,7 +42,7 @@ struct LockstepOptions {
 
 class LockstepParticipant {
  public:
-  using Step = std::function<void(const v1::ClockTick&)>;
+  using Step = std::function<void(const v2::ClockTick&)>;
 
   explicit LockstepParticipant(Bus& bus, LockstepOptions options = {});
   /// Closes the bus: its subscriptions call into this object (and its Inbox), so none may
@@ -70,15 +70,15 @@ class LockstepParticipant {
   Inbox& inbox() { return inbox_; }
   const std::string& name() const { return bus_.sender(); }
   /// Last tick processed (empty before the first).
-  std::optional<v1::ClockTick> last_tick() const;
+  std::optional<v2::ClockTick> last_tick() const;
 
  private:
-  void on_clock(const v1::ClockTick& tick);
-  void on_run_end(const v1::RunEnd& end);
+  void on_clock(const v2::ClockTick& tick);
+  void on_run_end(const v2::RunEnd& end);
   void on_liveliness(const std::string& service, bool alive);
   void finish(Outcome outcome);
   /// Computes one tick; called with busy_ set by exactly one thread at a time.
-  void process(const v1::ClockTick& tick);
+  void process(const v2::ClockTick& tick);
 
   Bus& bus_;
   LockstepOptions options_;
@@ -88,12 +88,12 @@ class LockstepParticipant {
 
   mutable std::mutex mutex_;
   std::condition_variable cond_;
-  std::deque<v1::ClockTick> ticks_;
+  std::deque<v2::ClockTick> ticks_;
   bool running_ = false;
   bool busy_ = false;  // a tick is being computed (on run()'s thread or inline on a zenoh thread)
   bool physics_seen_ = false;
   std::optional<Outcome> end_;
-  std::optional<v1::ClockTick> last_tick_;
+  std::optional<v2::ClockTick> last_tick_;
 };
 
 }  // namespace hrc

@@ -40,7 +40,7 @@ class InputStats {
   void tick(uint64_t k);
   uint64_t ticks_seen() const;
   uint64_t last_tick() const;
-  v1::ServiceStats to_proto(const std::string& service) const;
+  v2::ServiceStats to_proto(const std::string& service) const;
 
  private:
   mutable std::mutex mutex_;
@@ -78,7 +78,7 @@ class TypedPublisher {
   bool has_subscribers() const { return publisher_.has_subscribers(); }
 
  private:
-  void stamp(v1::Header& h, uint64_t tick, double sim_time, uint64_t seq) const;
+  void stamp(v2::Header& h, uint64_t tick, double sim_time, uint64_t seq) const;
   void put_bytes_locked(const std::string& bytes);
 
   const Bus& bus_;
@@ -114,10 +114,10 @@ class Bus {
   /// The publisher for `key` (created on first use with `options`; later calls return it).
   TypedPublisher& publisher(const std::string& key, PublisherOptions options = {});
   /// The last seq of every key this service has published on (for TickAck.published).
-  std::vector<v1::PublishedMark> published_marks() const;
+  std::vector<v2::PublishedMark> published_marks() const;
   /// The marks that moved since the previous call, keys other than `exclude` (tick-protocol
   /// messages list only these; receivers keep the highest seq per key and sender).
-  std::vector<v1::PublishedMark> new_marks(const std::string& exclude = "");
+  std::vector<v2::PublishedMark> new_marks(const std::string& exclude = "");
 
   /// Calls handler(key, msg) on a zenoh thread for each well-formed message on `key_expr`.
   template <class M>
