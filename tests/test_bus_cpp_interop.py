@@ -23,7 +23,7 @@ def probe() -> str:
 
 
 def _human(i: int, session: str) -> pb.HumanState:
-    m = pb.HumanState(source="interop", left_grip=i / 10, right_grip=1 - i / 10)
+    m = pb.HumanState(source=pb.INPUT_SOURCE_VR, left_grip=i / 10, right_grip=1 - i / 10)
     m.head.position.z = 1.6 + i
     m.left_hand.position.x = -0.25 * i
     m.right_hand.orientation.w = 0.5

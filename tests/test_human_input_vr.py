@@ -66,7 +66,7 @@ def rig(*extra: str, tick_hz: float = 60.0) -> Iterator[Rig]:
     session = f"hi{uuid.uuid4().hex[:8]}"
     r = Rig(session, free_port(), free_port())
     scen = sc.to_proto(sc.load(ROOT / "scenarios" / "minimal.toml"))
-    scen.participant.input = "vr"
+    scen.participant.input = pb.INPUT_SOURCE_VR
     scen.info.tick_hz = tick_hz
     with Bus(BusConfig(session=session, listen=[f"tcp/127.0.0.1:{r.port}"]), "physics") as bus:
         scen.header.session = session
@@ -149,7 +149,7 @@ def test_websocket_client_streams_a_reach_onto_the_bus() -> None:
         last = got[-1]
         assert last[:3] == pytest.approx(goal) and last[3] == 1.0
         with r.lock:
-            assert all(s.source == "vr" for s in r.states)
+            assert all(s.source == pb.INPUT_SOURCE_VR for s in r.states)
         # the malformed frame never reached the bus
         assert all(abs(y) < 1.0 for _x, y, _z, _g in got)
 

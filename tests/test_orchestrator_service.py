@@ -109,7 +109,7 @@ def test_orchestrator_runs_minimal_over_the_bus(tmp_path: Path) -> None:
         world = FakeWorld(scenario)
         events: list[pb.TaskEvent] = []
         cues: list[pb.Cue] = []
-        final: list[pb.Metrics] = []
+        final: list[pb.MetricsReport] = []
         clock = ClockMaster(master, ClockSettings(tick_hz=served.info.tick_hz, ticks=20_000,
                                                   participants=["ik_cpp", "orchestrator"],
                                                   observers=[], barrier_timeout_s=20))
@@ -117,7 +117,7 @@ def test_orchestrator_runs_minimal_over_the_bus(tmp_path: Path) -> None:
         master.subscribe(master.keys.task_events(), pb.TaskEvent, lambda _k, m: events.append(m))
         master.subscribe(master.keys.task_indicators(), pb.Indicators,
                          lambda _k, m: cues.extend(m.cues))
-        master.subscribe(master.keys.task_metrics(), pb.Metrics,
+        master.subscribe(master.keys.task_metrics(), pb.MetricsReport,
                          lambda _k, m: final.append(m) if m.final else None)
         objects_pub = master.publisher(master.keys.world_objects())
         contacts_pub = master.publisher(master.keys.world_contacts())
@@ -154,4 +154,5 @@ def test_orchestrator_runs_minimal_over_the_bus(tmp_path: Path) -> None:
     assert data["run"]["ticks"] == end.ticks
     assert data["task"]["completion_s"] > 0
     assert data["parts"]["S1"]["placed_s"] >= data["parts"]["H1"]["placed_s"]
-    assert final and final[-1].task_completion_s == pytest.approx(data["task"]["completion_s"])
+    assert final and final[-1].metrics.task.completion_s == pytest.approx(
+        data["task"]["completion_s"])

@@ -179,7 +179,7 @@ def human_state(left=AWAY, right=AWAY, left_grip=0.0, right_grip=0.0,
     return pb.HumanState(left_hand=pose_to_pb(Pose(left, rot)),
                          right_hand=pose_to_pb(Pose(right, rot)),
                          head=pose_to_pb(Pose((0.0, -0.7, 0.5))), left_grip=left_grip,
-                         right_grip=right_grip, source="replay")
+                         right_grip=right_grip, source=pb.INPUT_SOURCE_REPLAY)
 
 
 def robot_state(robot: str, q: list[float]) -> pb.RobotState:

@@ -1,4 +1,8 @@
-"""A readable summary of a trial's metrics.json, printed by ``hrc run``."""
+"""A readable summary of a trial's metrics.json, printed by ``hrc run``.
+
+metrics.json is read back into `pb.Metrics` (`hrc.metrics.from_dict`), so the summary names the
+schema's fields and cannot drift from it.
+"""
 
 from __future__ import annotations
 
@@ -6,55 +10,63 @@ import json
 from pathlib import Path
 from typing import Any
 
+from google.protobuf.message import Message
 
-def _f(v: Any, unit: str = "", digits: int = 2) -> str:
-    if isinstance(v, (int, float)):
-        return f"{v:.{digits}f}{unit}"
-    return "-"
+from hrc import metrics as metrics_schema
+from hrc.wire import pb
+from hrc.wire.jsonmap import enum_text, message_to_dict
 
 
-def format_summary(m: dict[str, Any]) -> list[str]:
-    lines = [f"scenario {m.get('scenario', '?')}, participant {m.get('participant', '?')}, "
-             f"seed {m.get('seed', '?')}, conditions {json.dumps(m.get('conditions', {}))}"]
-    task = m.get("task")
-    if task:
-        lines.append(f"task completion     {_f(task.get('completion_s'), ' s')}")
-    human = m.get("human")
-    if human:
-        lines.append(f"human               done {_f(human.get('completion_s'), ' s')}, "
-                     f"idle {_f(human.get('idle_s'), ' s')}")
-    for rid, r in sorted((m.get("robots") or {}).items()):
-        lines.append(f"robot {rid:<13} done {_f(r.get('completion_s'), ' s')}, "
-                     f"idle {_f(r.get('idle_s'), ' s')}, TCP avg {_f(r.get('avg_tcp_speed_mps'), ' m/s', 3)}"
-                     f" max {_f(r.get('max_tcp_speed_mps'), ' m/s', 3)}")
-    col = m.get("collisions")
-    if col:
-        lines.append(f"collisions          human-robot {col.get('human_robot_count', 0)} "
-                     f"(delay {_f(col.get('total_delay_s'), ' s')}), "
-                     f"robot-robot near {col.get('near_count', 0)}")
-    run = m.get("run", {})
-    lines.append(f"run                 {run.get('mode', '?')}, {run.get('ticks', '?')} ticks, "
-                 f"{_f(run.get('wall_s'), ' s wall')}, {_f(run.get('realtime_factor'), 'x realtime', 1)}")
-    lag = m.get("logger")
-    if lag:
+def _f(v: float | None, unit: str = "", digits: int = 2) -> str:
+    return "-" if v is None else f"{v:.{digits}f}{unit}"
+
+
+def _opt(msg: Message, name: str) -> float | None:
+    """An optional field's value, None when unset."""
+    value: float = getattr(msg, name)
+    return value if msg.HasField(name) else None
+
+
+def format_summary(m: pb.Metrics, logger: dict[str, Any] | None = None) -> list[str]:
+    lines = [f"scenario {m.scenario}, participant {m.participant}, seed {m.seed}, "
+             f"conditions {json.dumps(message_to_dict(m.conditions))}",
+             f"task completion     {_f(_opt(m.task, 'completion_s'), ' s')}",
+             f"human               done {_f(_opt(m.human, 'completion_s'), ' s')}, "
+             f"idle {_f(m.human.idle_s, ' s')}"]
+    for rid in sorted(m.robots):
+        r = m.robots[rid]
+        lines.append(f"robot {rid:<13} done {_f(_opt(r, 'completion_s'), ' s')}, "
+                     f"idle {_f(r.idle_s, ' s')}, TCP avg {_f(r.avg_tcp_speed_mps, ' m/s', 3)}"
+                     f" max {_f(r.max_tcp_speed_mps, ' m/s', 3)}")
+    col = m.collisions
+    lines.append(f"collisions          human-robot {col.human_robot_count} "
+                 f"(delay {_f(col.total_delay_s, ' s')}), robot-robot near {col.near_count}")
+    run = m.run
+    mode = enum_text(pb.ClockMode.DESCRIPTOR, run.mode) or "?"
+    lines.append(f"run                 {mode}, {run.ticks if m.HasField('run') else '?'} ticks, "
+                 f"{_f(_opt(run, 'wall_s'), ' s wall')}, "
+                 f"{_f(_opt(run, 'realtime_factor'), 'x realtime', 1)}")
+    if logger:
         # The logger only gets CPU time nobody else wants (SCHED_IDLE) and catches up at the end.
-        lines.append(f"logger lag          mean {_f(lag.get('lag_mean_ticks'), ' ticks', 1)}, "
-                     f"max {lag.get('lag_max_ticks', '-')} ticks (it yields the CPU, then catches up)")
+        lines.append(f"logger lag          mean {_f(logger.get('lag_mean_ticks'), ' ticks', 1)}, "
+                     f"max {logger.get('lag_max_ticks', '-')} ticks (it yields the CPU, then "
+                     "catches up)")
     return lines
 
 
 def print_summary(trial_dir: Path, result: Any) -> None:
     path = trial_dir / "metrics.json"
     try:
-        m = json.loads(path.read_text())
-    except (OSError, json.JSONDecodeError) as exc:
+        m = metrics_schema.from_dict(json.loads(path.read_text()))
+    except (OSError, ValueError) as exc:  # JSONDecodeError is a ValueError
         print(f"trial finished but {path} is unreadable: {exc}")
         return
+    logger: dict[str, Any] | None = None
     stats = trial_dir / "logger_stats.json"  # written by the logger, which measures its own lag
-    if stats.exists() and "logger" not in m:
+    if stats.exists():
         try:
-            m["logger"] = json.loads(stats.read_text())
+            logger = json.loads(stats.read_text())
         except (OSError, json.JSONDecodeError):
             pass
-    print("\n".join(format_summary(m)))
+    print("\n".join(format_summary(m, logger)))
     print(f"files: {trial_dir}")

@@ -8,7 +8,13 @@ The format is documented in docs/scenario.md.
 """
 
 from hrc.scenario.conventions import APPROACH_HEIGHT_M
-from hrc.scenario.convert import from_proto, to_proto
+from hrc.scenario.convert import (
+    from_proto,
+    scripted_params_from_proto,
+    scripted_params_to_proto,
+    to_proto,
+)
+from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
 from hrc.scenario.errors import Problem, ScenarioError
 from hrc.scenario.loader import DEFAULT_REACH, load, loads, validate
 from hrc.scenario.models import (
@@ -22,6 +28,7 @@ from hrc.scenario.models import (
     Robot,
     Scenario,
     ScenarioInfo,
+    ScriptedParams,
     Workspace,
 )
 from hrc.scenario.paths import find_project_root, resolve_path
@@ -34,9 +41,10 @@ from hrc.scenario.reach import (
 )
 
 __all__ = [
-    "APPROACH_HEIGHT_M", "DEFAULT_REACH", "HUMAN", "Box", "Conditions", "Part", "Participant",
-    "Placement", "PoseYaw", "Problem", "PybulletReachChecker", "ReachChecker", "ReachItem",
-    "ReachResult", "Robot", "Scenario", "ScenarioError", "ScenarioInfo", "Workspace",
-    "find_project_root", "from_proto", "load", "loads", "reach_items", "resolve_path",
-    "to_proto", "validate",
+    "APPROACH_HEIGHT_M", "DEFAULT_REACH", "HUMAN", "Box", "Conditions", "InputSource", "Part",
+    "Participant", "Placement", "PoseYaw", "Problem", "PybulletReachChecker", "ReachChecker",
+    "ReachItem", "ReachResult", "Robot", "RobotRole", "SafetyPolicy", "Scenario", "ScenarioError",
+    "ScenarioInfo", "ScriptedParams", "Workspace", "find_project_root", "from_proto", "load",
+    "loads", "reach_items", "resolve_path", "scripted_params_from_proto",
+    "scripted_params_to_proto", "to_proto", "validate",
 ]

@@ -14,7 +14,8 @@ from typing import Any
 
 from hrc.scenario.errors import Problem
 from hrc.scenario.graph import Edge, find_cycles
-from hrc.scenario.models import HUMAN, ROLES
+from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
+from hrc.scenario.models import HUMAN
 from hrc.scenario.paths import resolve_path
 
 
@@ -35,10 +36,9 @@ def _names(items: Iterable[str]) -> str:
 def check_references(raw: dict[str, Any]) -> list[Problem]:
     problems: list[Problem] = []
     raw_robots = raw.get("robots") if isinstance(raw.get("robots"), dict) else {}
-    roles: dict[str, str | None] = {}
+    roles: dict[str, RobotRole | None] = {}
     for rid, rrobot in raw_robots.items():
-        role = rrobot.get("role") if isinstance(rrobot, dict) else None
-        roles[rid] = role if role in ROLES else None
+        roles[rid] = RobotRole.parse(rrobot.get("role")) if isinstance(rrobot, dict) else None
         if rid == HUMAN:
             problems.append(Problem("robots.human", "'human' is reserved for the participant; "
                                     "give the robot another id"))
@@ -70,11 +70,11 @@ def check_references(raw: dict[str, Any]) -> list[Problem]:
         # start: required for human and transport parts, none for screws (they come from the feeder)
         owner_role = roles.get(owner) if owner is not None else None
         has_start = "start" in rpart
-        if owner == HUMAN or owner_role == "transport":
+        if owner == HUMAN or owner_role == RobotRole.TRANSPORT:
             if not has_start:
                 problems.append(Problem(f"{key}.start", f"missing required key: a part owned by "
                                         f"{owner} needs a start pose"))
-        elif owner_role == "screwing" and has_start:
+        elif owner_role == RobotRole.SCREWING and has_start:
             problems.append(Problem(f"{key}.start", f"a part of screwing robot {owner} has no "
                                     "start pose (it comes from the robot's feeder); remove it"))
 
@@ -186,12 +186,12 @@ def check_robots(raw: dict[str, Any]) -> list[Problem]:
     problems: list[Problem] = []
     for rid, robot in _table(raw.get("robots")).items():
         robot = _table(robot)
-        role = robot.get("role")
+        role = RobotRole.parse(robot.get("role"))
         key = f"robots.{rid}"
-        if role == "screwing" and "feeder" not in robot:
+        if role == RobotRole.SCREWING and "feeder" not in robot:
             problems.append(Problem(f"{key}.feeder", "missing required key: a screwing robot "
                                     "takes its screws from a feeder position"))
-        if role == "transport":
+        if role == RobotRole.TRANSPORT:
             for name in ("feeder", "screw_time_s"):
                 if name in robot:
                     problems.append(Problem(f"{key}.{name}", f"only screwing robots have {name}; "
@@ -211,8 +211,9 @@ def check_workspace(raw: dict[str, Any]) -> list[Problem]:
         if bad:
             problems.append(Problem(f"workspace.envelope[{i}]", "min must be below max on every "
                                     f"axis ({', '.join(bad)})"))
-    policy = _table(raw.get("conditions")).get("safety_policy")
-    if policy == "retreat_button" and "workspace" in raw and "continue_button" not in workspace:
+    policy = SafetyPolicy.parse(_table(raw.get("conditions")).get("safety_policy"))
+    if (policy == SafetyPolicy.RETREAT_BUTTON and "workspace" in raw
+            and "continue_button" not in workspace):
         problems.append(Problem("workspace.continue_button", "missing required key: "
                                 "safety_policy = 'retreat_button' needs a continue button"))
     return problems
@@ -233,7 +234,7 @@ def check_files(raw: dict[str, Any], folder: Path | None, root: Path | None) -> 
         if isinstance(urdf, str) and urdf and resolve_path(urdf, folder, root) is None:
             problems.append(Problem(f"robots.{rid}.urdf", missing(urdf)))
     participant = _table(raw.get("participant"))
-    if participant.get("input") == "replay":
+    if InputSource.parse(participant.get("input")) == InputSource.REPLAY:
         replay = participant.get("replay_file")
         if replay is None:
             problems.append(Problem("participant.replay_file", "missing required key: "

@@ -2,14 +2,16 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
+from typing import TypeVar
 
 from pydantic import ValidationError
 
 from hrc.geometry import pose_yaw_to_pb, vec3_from_pb, vec3_to_pb
+from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy, WireEnum
 from hrc.scenario.errors import Problem, ScenarioError
 from hrc.scenario.models import (
-    SCRIPTED_PARAMS,
     Box,
     Conditions,
     Part,
@@ -19,9 +21,13 @@ from hrc.scenario.models import (
     Robot,
     Scenario,
     ScenarioInfo,
+    ScriptedParams,
     Workspace,
 )
 from hrc.wire import pb
+
+T = TypeVar("T")
+E = TypeVar("E", bound=WireEnum)
 
 
 def to_proto(scenario: Scenario) -> pb.Scenario:
@@ -34,22 +40,22 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
     part = scenario.participant
     pc = msg.participant
     pc.name = part.name
-    pc.input = part.input
+    pc.input = part.input.to_proto()
     if part.replay_file is not None:
         resolved = scenario.resolve(part.replay_file)
         pc.replay_file = str(resolved) if resolved else part.replay_file
-    for name, value in part.scripted_params().items():
-        pc.params[name] = value
+    pc.scripted.CopyFrom(scripted_params_to_proto(part.scripted_params()))
     pc.provoke_times_s.extend(part.provoke_times_s)
     pc.provoke_probability = part.provoke_probability
 
     msg.conditions.CopyFrom(pb.Conditions(anticipation=scenario.conditions.anticipation,
-                                          safety_policy=scenario.conditions.safety_policy))
+                                          safety_policy=scenario.conditions.safety_policy
+                                          .to_proto()))
 
     for rid, robot in scenario.robots.items():
         rc = msg.robots.add()
         rc.id = rid
-        rc.role = robot.role
+        rc.role = robot.role.to_proto()
         urdf = scenario.resolve(robot.urdf)
         rc.urdf_path = str(urdf) if urdf else robot.urdf
         rc.base.CopyFrom(pose_yaw_to_pb(robot.base.xyz, robot.base.yaw))
@@ -92,39 +98,70 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
     return msg
 
 
+def scripted_params_to_proto(params: ScriptedParams) -> pb.ScriptedParams:
+    """Every parameter set (the defaults applied)."""
+    return pb.ScriptedParams(**params.model_dump())
+
+
+def scripted_params_from_proto(msg: pb.ScriptedParams, source: str = "<wire scenario>"
+                               ) -> ScriptedParams:
+    """The parameters a message sets, the model's defaults for the others; ScenarioError naming
+    the key (participant.<name>) for a value out of its range."""
+    return _validated(lambda: ScriptedParams(**_set_fields(msg)), source)
+
+
 def from_proto(msg: pb.Scenario) -> Scenario:
     """The typed scenario back from the wire (paths are the absolute ones the sender resolved).
     Raises ScenarioError when a field is out of range (e.g. a message from a broken sender)."""
+    source = msg.source_path or "<wire scenario>"
+    return _validated(lambda: _from_proto(msg, source), source)
+
+
+def _validated(build: Callable[[], T], source: str) -> T:
     try:
-        return _from_proto(msg)
+        return build()
     except ValidationError as exc:
-        problems = [Problem(".".join(str(x) for x in err["loc"]) or "scenario",
-                            err["msg"].removeprefix("Value error, "))
+        problems = [Problem(_wire_key(err["loc"]), err["msg"].removeprefix("Value error, "))
                     for err in exc.errors(include_url=False)]
-        raise ScenarioError(problems, msg.source_path or "<wire scenario>") from exc
+        raise ScenarioError(problems, source) from exc
 
 
-def _from_proto(msg: pb.Scenario) -> Scenario:
+def _member(enum: type[E], number: int, key: str, source: str, default: E | None = None) -> E:
+    try:
+        return enum.from_proto(number, default)
+    except ValueError as exc:  # unset, or a value this build does not know
+        raise ScenarioError([Problem(key, str(exc))], source) from exc
+
+
+def _wire_key(loc: tuple[int | str, ...]) -> str:
+    key = ".".join(str(x) for x in loc) or "scenario"
+    return f"participant.{key}" if loc and loc[0] in ScriptedParams.model_fields else key
+
+
+def _set_fields(msg: pb.ScriptedParams) -> dict[str, float | bool]:
+    return {field.name: getattr(msg, field.name) for field, _ in msg.ListFields()}
+
+
+def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
     pc = msg.participant
-    params: dict[str, float | bool] = {k: v for k, v in pc.params.items() if k in SCRIPTED_PARAMS}
-    if "left_handed" in params:  # the wire carries numbers only
-        params["left_handed"] = bool(params["left_handed"])
     provoke: float | list[float] = (list(pc.provoke_times_s) if pc.provoke_times_s
                                     else pc.provoke_probability)
     participant = Participant(
-        name=pc.name, input=pc.input, replay_file=pc.replay_file or None,
-        provoke_collisions=provoke, **params,
+        name=pc.name, input=_member(InputSource, pc.input, "participant.input", source),
+        replay_file=pc.replay_file or None,
+        provoke_collisions=provoke, **_set_fields(pc.scripted),
     )
 
     robots: dict[str, Robot] = {}
     for rc in msg.robots:
+        role = _member(RobotRole, rc.role, f"robots.{rc.id}.role", source)
         robots[rc.id] = Robot(
-            role=rc.role, urdf=rc.urdf_path, base=_pose_back(rc.base),
+            role=role, urdf=rc.urdf_path, base=_pose_back(rc.base),
             max_tcp_speed=rc.max_tcp_speed, home=_vec_back(rc.home),
             intermediate=_vec_back(rc.intermediate), retreat=_vec_back(rc.retreat),
             color=rc.color or None,
             feeder=_vec_back(rc.feeder) if rc.HasField("feeder") else None,
-            screw_time_s=rc.screw_time_s if rc.role == "screwing" else None,
+            screw_time_s=rc.screw_time_s if role == RobotRole.SCREWING else None,
             near_margin=rc.near_margin,
         )
 
@@ -145,7 +182,10 @@ def _from_proto(msg: pb.Scenario) -> Scenario:
         scenario=ScenarioInfo(name=msg.info.name, tick_hz=msg.info.tick_hz, seed=msg.info.seed),
         participant=participant,
         conditions=Conditions(anticipation=msg.conditions.anticipation,
-                              safety_policy=msg.conditions.safety_policy or "retreat"),
+                              safety_policy=_member(
+                                  SafetyPolicy, msg.conditions.safety_policy,
+                                  "conditions.safety_policy", source,
+                                  Conditions().safety_policy)),
         robots=robots,
         parts=parts,
         sequence=sequence,

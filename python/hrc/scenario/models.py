@@ -11,18 +11,16 @@ from __future__ import annotations
 import math
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
 
+from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
 from hrc.scenario.paths import resolve_path
 
 # ---------------------------------------------------------------- constants and conventions
 
 HUMAN = "human"
-ROLES = ("transport", "screwing")
-INPUTS = ("scripted", "replay", "vr")
-SAFETY_POLICIES = ("retreat", "retreat_button", "stop_colliding")
 
 DEFAULT_TICK_HZ = 240.0
 MAX_TICK_HZ = 2000.0
@@ -31,7 +29,7 @@ DEFAULT_NEAR_MARGIN = 0.05  # m, inflated-volume margin for robot-robot near col
 DEFAULT_SCREW_TIME_S = 1.0
 DEFAULT_TOLERANCE_M = 0.02
 DEFAULT_TOLERANCE_DEG = 20.0
-DEFAULT_ROLE_COLORS = {"transport": "yellow", "screwing": "green"}
+DEFAULT_ROLE_COLORS = {RobotRole.TRANSPORT: "yellow", RobotRole.SCREWING: "green"}
 
 # Names the view and the VR clients know; anything else must be written as #rrggbb.
 COLOR_NAMES = frozenset(
@@ -56,6 +54,10 @@ Num = Annotated[float, Field(allow_inf_nan=False)]
 Vec3 = Annotated[list[Num], Field(min_length=3, max_length=3)]
 Id = Annotated[str, Field(pattern=ID_PATTERN)]
 Name = Annotated[str, Field(pattern=NAME_PATTERN)]
+# The file writes an enum's string; strict mode alone would take only the member itself.
+InputChoice = Annotated[InputSource, Field(strict=False)]
+PolicyChoice = Annotated[SafetyPolicy, Field(strict=False)]
+RoleChoice = Annotated[RobotRole, Field(strict=False)]
 
 
 def check_color(value: str) -> str:
@@ -82,13 +84,10 @@ class ScenarioInfo(_Strict):
     seed: Annotated[int, Field(ge=0, lt=2**64)] = 1
 
 
-class Participant(_Strict):
-    """Who drives the human side, and the scripted participant's parameters (SPEC §5)."""
+class ScriptedParams(_Strict):
+    """The scripted participant's parameters: defaults and ranges (the one place they are
+    defined; meanings in docs/scenario.md). They travel as `pb.ScriptedParams`."""
 
-    name: Name
-    input: Literal["scripted", "replay", "vr"] = "scripted"
-    replay_file: str | None = None
-    # Scripted-participant parameters; ignored by the replay and vr sources.
     reaction_time_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.4
     peak_hand_speed: Annotated[float, Field(gt=0.0, le=5.0, allow_inf_nan=False)] = 1.0
     caution: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.5
@@ -101,6 +100,15 @@ class Participant(_Strict):
     grip_open_s: Annotated[float, Field(ge=0.01, le=2.0, allow_inf_nan=False)] = 0.10
     max_hold_back_s: Annotated[float, Field(ge=0.0, le=600.0, allow_inf_nan=False)] = 10.0
     left_handed: bool = False
+
+
+class Participant(ScriptedParams):
+    """Who drives the human side, and (inherited, same table) the scripted participant's
+    parameters, which the replay and vr sources ignore."""
+
+    name: Name
+    input: InputChoice = InputSource.SCRIPTED
+    replay_file: str | None = None
     # false | true | probability in [0, 1] | list of task times in seconds; normalised to a
     # probability (float) or a non-empty list of times (see docs/scenario.md).
     provoke_collisions: float | list[float] = 0.0
@@ -136,27 +144,19 @@ class Participant(_Strict):
     def provoke_probability(self) -> float:
         return 0.0 if isinstance(self.provoke_collisions, list) else float(self.provoke_collisions)
 
-    def scripted_params(self) -> dict[str, float]:
-        """The numeric scripted-participant parameters, as `ParticipantConfig.params` carries them."""
-        return {name: float(getattr(self, name)) for name in SCRIPTED_PARAMS}
-
-
-SCRIPTED_PARAMS = (
-    "reaction_time_s", "peak_hand_speed", "caution", "fitts_a_s", "fitts_b_s", "pick_dwell_s",
-    "place_dwell_s", "place_error_m", "grip_close_s", "grip_open_s", "max_hold_back_s",
-    "left_handed",
-)
+    def scripted_params(self) -> ScriptedParams:
+        return ScriptedParams(**{name: getattr(self, name) for name in ScriptedParams.model_fields})
 
 
 class Conditions(_Strict):
     anticipation: bool = True
-    safety_policy: Literal["retreat", "retreat_button", "stop_colliding"] = "retreat"
+    safety_policy: PolicyChoice = SafetyPolicy.RETREAT
 
 
 class Robot(_Strict):
     """One arm. Its id is the key under [robots] (available as `.id` once loaded)."""
 
-    role: Literal["transport", "screwing"]
+    role: RoleChoice
     urdf: Annotated[str, Field(min_length=1)]
     base: PoseYaw
     max_tcp_speed: Annotated[float, Field(gt=0.0, le=MAX_TCP_SPEED, allow_inf_nan=False)]
@@ -187,7 +187,7 @@ class Robot(_Strict):
     def screw_time_or_default(self) -> float:
         if self.screw_time_s is not None:
             return self.screw_time_s
-        return DEFAULT_SCREW_TIME_S if self.role == "screwing" else 0.0
+        return DEFAULT_SCREW_TIME_S if self.role == RobotRole.SCREWING else 0.0
 
 
 class Part(_Strict):
@@ -298,9 +298,8 @@ class Scenario(_Strict):
         """Parts owned by an agent, in file order."""
         return [part for part in self.parts if part.owner == owner]
 
-    def robots_by_role(self, role: str) -> dict[str, Robot]:
-        if role not in ROLES:
-            raise ValueError(f"unknown role {role!r}; roles are {', '.join(ROLES)}")
+    def robots_by_role(self, role: RobotRole | str) -> dict[str, Robot]:
+        role = RobotRole(role)  # ValueError for a string that is not a role
         return {rid: robot for rid, robot in self.robots.items() if robot.role == role}
 
     def dependents(self, part_id: str) -> list[str]:

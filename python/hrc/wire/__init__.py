@@ -1,6 +1,7 @@
 """The wire contract, compiled from proto/hrc/v2/hrc.proto by the build (never edited by hand).
 
-Use ``from hrc.wire import pb`` and then ``pb.ClockTick()`` etc.
+Use ``from hrc.wire import pb`` and then ``pb.ClockTick()`` etc.; `hrc.wire.jsonmap` gives the
+JSON form of any message.
 """
 
 try:

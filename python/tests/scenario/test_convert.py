@@ -20,17 +20,21 @@ def thesis(arm_root: Path):
 def test_every_field_is_filled(thesis, arm_root: Path) -> None:
     msg = to_proto(thesis)
     assert msg.info.name == "thesis-board" and msg.info.tick_hz == 240 and msg.info.seed == 1
-    assert msg.participant.name == "P01" and msg.participant.input == "scripted"
-    assert msg.participant.params["caution"] == 0.5
-    assert set(msg.participant.params) >= {"reaction_time_s", "peak_hand_speed", "caution"}
-    assert msg.conditions.anticipation and msg.conditions.safety_policy == "retreat"
+    assert msg.participant.name == "P01" and msg.participant.input == pb.INPUT_SOURCE_SCRIPTED
+    assert msg.participant.scripted.caution == 0.5
+    # every parameter is set, defaults applied
+    assert {f.name for f, _ in msg.participant.scripted.ListFields()} == set(
+        pb.ScriptedParams.DESCRIPTOR.fields_by_name)
+    assert msg.conditions.anticipation
+    assert msg.conditions.safety_policy == pb.SAFETY_POLICY_RETREAT
     assert [r.id for r in msg.robots] == ["r1", "r2"]
     r1, r2 = msg.robots
     for r in (r1, r2):
         assert Path(r.urdf_path).is_absolute() and Path(r.urdf_path).is_file()
         assert r.near_margin == pytest.approx(0.05)  # default
-    assert r1.role == "transport" and r1.color == "yellow" and not r1.HasField("feeder")
-    assert r2.role == "screwing" and r2.HasField("feeder") and r2.screw_time_s == 1.0
+    assert r1.role == pb.ROBOT_ROLE_TRANSPORT and r1.color == "yellow"
+    assert not r1.HasField("feeder")
+    assert r2.role == pb.ROBOT_ROLE_SCREWING and r2.HasField("feeder") and r2.screw_time_s == 1.0
     assert r1.base.yaw_deg == 180 and r1.base.xyz.x == pytest.approx(0.45)
     assert len(msg.parts) == 18
     s1 = next(p for p in msg.parts if p.id == "S1")
@@ -51,7 +55,8 @@ def test_defaults_reach_the_wire(minimal_raw, write_scenario, arm_root) -> None:
     del minimal_raw["conditions"]
     msg = to_proto(load(write_scenario(minimal_raw), project_root=arm_root, reach_checker=None))
     assert msg.robots[0].color == "yellow" and msg.robots[1].screw_time_s == 1.0
-    assert msg.conditions.anticipation and msg.conditions.safety_policy == "retreat"
+    assert msg.conditions.anticipation
+    assert msg.conditions.safety_policy == pb.SAFETY_POLICY_RETREAT
     assert msg.place_tolerance_m == pytest.approx(0.02)
     assert msg.participant.provoke_probability == 0.0 and not msg.participant.provoke_times_s
 
@@ -87,3 +92,16 @@ def test_from_proto_rejects_out_of_range_fields(thesis) -> None:
     with pytest.raises(ScenarioError) as info:
         from_proto(msg)
     assert "max_tcp_speed" in str(info.value)
+
+
+def test_from_proto_names_the_key_of_an_unset_enum_or_parameter(thesis) -> None:
+    msg = to_proto(thesis)
+    msg.robots[1].role = pb.ROBOT_ROLE_UNSPECIFIED
+    with pytest.raises(ScenarioError) as info:
+        from_proto(msg)
+    assert [p.key for p in info.value.problems] == ["robots.r2.role"]
+    msg = to_proto(thesis)
+    msg.participant.scripted.fitts_b_s = -1.0
+    with pytest.raises(ScenarioError) as info:
+        from_proto(msg)
+    assert [p.key for p in info.value.problems] == ["participant.fitts_b_s"]

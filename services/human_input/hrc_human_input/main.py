@@ -16,6 +16,7 @@ from pathlib import Path
 
 from hrc.bus import Bus, LockstepParticipant, add_bus_arguments, bus_config_from_args
 from hrc.logsetup import setup_logging
+from hrc.scenario import InputSource, ScenarioError
 from hrc.wire import pb
 
 from hrc_human_input import facts as facts_mod
@@ -37,7 +38,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="hrc-human-input", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     add_bus_arguments(p)
-    p.add_argument("--input", choices=["scripted", "replay", "vr"], default=None,
+    p.add_argument("--input", choices=[s.value for s in InputSource], default=None,
                    help="input source (default: the scenario's [participant] input)")
     p.add_argument("--replay", default=None, metavar="FILE",
                    help="replay this recording whatever the scenario's input says")
@@ -88,12 +89,17 @@ def main(argv: list[str] | None = None) -> int:
         except TimeoutError as exc:
             log.error("no scenario: %s", exc)
             return 1
-        facts = facts_mod.from_proto(scenario)
-        source_name = "replay" if args.replay else (args.input or facts.input)
+        try:
+            facts = facts_mod.from_proto(scenario)
+        except ScenarioError as exc:
+            log.error("scenario rejected:\n%s", exc)
+            return EXIT_BAD_INPUT
+        source_kind = (InputSource.REPLAY if args.replay
+                       else InputSource(args.input) if args.input else facts.input)
         keys = bus.keys
         participant = LockstepParticipant(bus)
         source: Source
-        if source_name == "replay":
+        if source_kind == InputSource.REPLAY:
             if recording is None:
                 if not facts.replay_file:
                     log.error("input = replay but the scenario names no replay_file "
@@ -103,7 +109,7 @@ def main(argv: list[str] | None = None) -> int:
                 if recording is None:
                     return EXIT_BAD_INPUT
             source = ReplaySource(Replayer(recording))
-        elif source_name == "vr":
+        elif source_kind == InputSource.VR:
             bridge = VrBridge(args.vr_host, args.vr_port, args.vr_token,
                               hello={"session": keys.session, "scenario": facts.name,
                                      "participant": facts.participant,

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from hrc.geometry import Pose, interpolate_pose, lerp, normalized, pose_from_pb, pose_to_pb
+from hrc.scenario import InputSource
 from hrc.wire import pb
 
 POSE_NAMES = ("head", "left", "right")
@@ -56,10 +57,10 @@ class Sample:
         """The same sample stamped with another time."""
         return Sample(t, self.head, self.left, self.right, self.left_grip, self.right_grip)
 
-    def to_proto(self, source: str) -> pb.HumanState:
+    def to_proto(self, source: InputSource) -> pb.HumanState:
         return pb.HumanState(head=pose_to_pb(self.head), left_hand=pose_to_pb(self.left),
                              right_hand=pose_to_pb(self.right), left_grip=self.left_grip,
-                             right_grip=self.right_grip, source=source)
+                             right_grip=self.right_grip, source=source.to_proto())
 
     @staticmethod
     def from_proto(msg: pb.HumanState) -> "Sample":

@@ -28,6 +28,7 @@ from enum import Enum
 import numpy as np
 
 from hrc.geometry import Pose, Vec3, add, distance, look_quat, rotate_z_rad, slerp, yaw_quat_rad
+from hrc.scenario import SafetyPolicy
 from hrc.scenario.conventions import CONTINUE_BUTTON_CUE, GRIP_CLOSED
 from hrc.wire import pb
 
@@ -77,16 +78,16 @@ class ScriptedParticipant:
     def __init__(self, facts: ScenarioFacts, seed: int | None = None) -> None:
         self.facts = facts
         p = facts.params
-        self.motor = MotorParams(reaction_time_s=p["reaction_time_s"],
-                                 peak_hand_speed=p["peak_hand_speed"], fitts_a_s=p["fitts_a_s"],
-                                 fitts_b_s=p["fitts_b_s"], grip_close_s=p["grip_close_s"],
-                                 grip_open_s=p["grip_open_s"])
-        self.caution = p["caution"]
-        self.pick_dwell = p["pick_dwell_s"]
-        self.place_dwell = p["place_dwell_s"]
-        self.place_error = p["place_error_m"]
-        self.max_hold = p["max_hold_back_s"]
-        self.active = "left" if p["left_handed"] >= 0.5 else "right"
+        self.motor = MotorParams(reaction_time_s=p.reaction_time_s,
+                                 peak_hand_speed=p.peak_hand_speed, fitts_a_s=p.fitts_a_s,
+                                 fitts_b_s=p.fitts_b_s, grip_close_s=p.grip_close_s,
+                                 grip_open_s=p.grip_open_s)
+        self.caution = p.caution
+        self.pick_dwell = p.pick_dwell_s
+        self.place_dwell = p.place_dwell_s
+        self.place_error = p.place_error_m
+        self.max_hold = p.max_hold_back_s
+        self.active = "left" if p.left_handed else "right"
         self.free = "right" if self.active == "left" else "left"
         # Independent streams, so e.g. provoking collisions does not change reaction times.
         ss = np.random.SeedSequence([facts.seed if seed is None else seed, 0x485549])
@@ -255,7 +256,7 @@ class ScriptedParticipant:
             elif e.kind == pb.TASK_EVENT_KIND_CONTINUED:
                 self._collision_over(t, "robots continue")
             elif (e.kind == pb.TASK_EVENT_KIND_COLLISION_END
-                  and self.facts.safety_policy == "stop_colliding"):
+                  and self.facts.safety_policy == SafetyPolicy.STOP_COLLIDING):
                 self._collision_over(t, "collision ended")
         if view.hand_robot_contacts:  # felt before the orchestrator announces it
             collision_begins = True
@@ -518,7 +519,7 @@ class ScriptedParticipant:
 
     def _maybe_press_button(self, t: float, view: TaskView) -> None:
         button = self.facts.continue_button
-        if button is None or self.facts.safety_policy != "retreat_button":
+        if button is None or self.facts.safety_policy != SafetyPolicy.RETREAT_BUTTON:
             return
         if not view.cue_on(CONTINUE_BUTTON_CUE) and t - self.collision_since < 2.0:
             return

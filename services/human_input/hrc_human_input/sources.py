@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Protocol
 
 from hrc.geometry import Pose, look_quat
+from hrc.scenario import InputSource
 
 from hrc_human_input.replay import Replayer
 from hrc_human_input.sample import Sample
@@ -20,13 +21,13 @@ def rest_sample(t: float = 0.0) -> Sample:
 
 
 class Source(Protocol):
-    name: str
+    name: InputSource
 
     def sample(self, t: float) -> Sample: ...
 
 
 class ScriptedSource:
-    name = "scripted"
+    name = InputSource.SCRIPTED
 
     def __init__(self, participant: ScriptedParticipant, view: TaskView) -> None:
         self.participant = participant
@@ -37,7 +38,7 @@ class ScriptedSource:
 
 
 class ReplaySource:
-    name = "replay"
+    name = InputSource.REPLAY
 
     def __init__(self, replayer: Replayer) -> None:
         self.replayer = replayer
@@ -50,7 +51,7 @@ class VrSource:
     """The latest sample the bridge accepted, stamped with the tick's time (the rest pose until
     a client sends one; the last one when the client goes away)."""
 
-    name = "vr"
+    name = InputSource.VR
 
     def __init__(self, bridge: VrBridge) -> None:
         self.bridge = bridge

@@ -25,16 +25,16 @@ def _loaded(name: str) -> bytes:
     return sc.to_proto(sc.load(ROOT / "scenarios" / f"{name}.toml")).SerializeToString()
 
 
-def scenario_pb(name: str, **params: float) -> pb.Scenario:
+def scenario_pb(name: str, **params: float | bool) -> pb.Scenario:
     msg = pb.Scenario.FromString(_loaded(name))
     for k, v in params.items():
-        msg.participant.params[k] = v
+        setattr(msg.participant.scripted, k, v)
     return msg
 
 
 def make_world(name: str = "minimal", *, anticipation: bool = True, seed: int | None = None,
                provoke_times: list[float] | None = None, provoke_probability: float = 0.0,
-               **params: float) -> MiniWorld:
+               **params: float | bool) -> MiniWorld:
     msg = scenario_pb(name, **params)
     msg.conditions.anticipation = anticipation
     if seed is not None:
@@ -267,16 +267,24 @@ def test_missed_release_is_grabbed_again() -> None:
     assert set(w.placed_at) >= set(w.facts.human_sequence)
 
 
-def test_unknown_and_out_of_range_parameters_are_tolerated() -> None:
-    msg = scenario_pb("minimal")
-    msg.participant.params["future_knob"] = 3.0
-    msg.participant.params["caution"] = 7.0
-    facts = facts_mod.from_proto(msg)
-    assert facts.params["caution"] == 1.0 and "future_knob" not in facts.params
+def test_parameters_come_from_the_scenario_model() -> None:
+    msg = scenario_pb("minimal", caution=0.9)
+    assert facts_mod.from_proto(msg).params.caution == 0.9
+    msg.participant.scripted.ClearField("caution")  # unset: the model's default
+    assert facts_mod.from_proto(msg).params.caution == sc.ScriptedParams().caution
+    msg.participant.ClearField("scripted")
+    assert facts_mod.from_proto(msg).params == sc.ScriptedParams()
+
+
+def test_out_of_range_parameters_are_refused_naming_the_key() -> None:
+    msg = scenario_pb("minimal", caution=7.0)
+    with pytest.raises(sc.ScenarioError) as err:
+        facts_mod.from_proto(msg)
+    assert [p.key for p in err.value.problems] == ["participant.caution"]
 
 
 def test_left_handed_participant_uses_the_left_hand() -> None:
-    w = make_world(left_handed=1.0)
+    w = make_world(left_handed=True)
     assert w.run(max_s=60.0)
     assert w.released and all(True for _ in w.released)
     right = hand_positions(w, "right")

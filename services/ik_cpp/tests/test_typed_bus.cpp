@@ -96,7 +96,7 @@ TEST_F(TwoPeers, TypedRoundTripCarriesSenderAttachmentAndHeader) {
     hrc::v2::HumanState h;
     h.mutable_head()->mutable_position()->set_x(0.5 * i);
     h.set_left_grip(0.25);
-    h.set_source("scripted");
+    h.set_source(hrc::v2::INPUT_SOURCE_SCRIPTED);
     pub.put(h, static_cast<uint64_t>(10 + i), 0.01 * (10 + i));
   }
   ASSERT_TRUE(wait_until([&] { return got.size() == 3 && attachments_ok == 3; }));
@@ -109,7 +109,7 @@ TEST_F(TwoPeers, TypedRoundTripCarriesSenderAttachmentAndHeader) {
     EXPECT_EQ(m.header().seq(), static_cast<uint64_t>(i));
     EXPECT_EQ(m.header().tick(), static_cast<uint64_t>(10 + i));
     EXPECT_DOUBLE_EQ(m.head().position().x(), 0.5 * i);
-    EXPECT_EQ(m.source(), "scripted");
+    EXPECT_EQ(m.source(), hrc::v2::INPUT_SOURCE_SCRIPTED);
   }
   EXPECT_EQ(b->stats().total_decode_errors(), 0u);
 }
@@ -132,13 +132,13 @@ TEST_F(TwoPeers, GarbageIsCountedPerKeyAndNeverDelivered) {
   pub.put_raw(foreign.SerializeAsString());
   // Then a good one, proving the subscriber keeps working.
   hrc::v2::HumanState good;
-  good.set_source("vr");
+  good.set_source(hrc::v2::INPUT_SOURCE_VR);
   pub.put(good, 1, 0.01);
   ASSERT_TRUE(wait_until([&] { return got.size() == 1; }));
   EXPECT_EQ(b->stats().decode_errors(key), 3u);
   EXPECT_EQ(b->stats().total_decode_errors(), 3u);
   const std::lock_guard<std::mutex> lock(got.mutex);
-  EXPECT_EQ(got.msgs[0].second.source(), "vr");
+  EXPECT_EQ(got.msgs[0].second.source(), hrc::v2::INPUT_SOURCE_VR);
 }
 
 TEST_F(TwoPeers, HandlerExceptionsStayInsideTheService) {

@@ -138,7 +138,7 @@ def main(argv: list[str] | None = None) -> int:
         # Subscription order is the hand-over order within a tick (Inbox): task first.
         obs.input(keys.task_events(), pb.TaskEvent, guarded(recorder.on_event))
         obs.input(keys.task_indicators(), pb.Indicators, guarded(recorder.on_indicators))
-        obs.input(keys.task_metrics(), pb.Metrics, guarded(recorder.on_metrics))
+        obs.input(keys.task_metrics(), pb.MetricsReport, guarded(recorder.on_metrics))
         obs.input(keys.world_objects(), pb.WorldObjects, guarded(recorder.on_world_objects))
         obs.input(keys.world_contacts(), pb.WorldContacts, guarded(recorder.on_world_contacts))
         obs.input(keys.robot_states(), pb.RobotState, guarded(recorder.on_robot_state))

@@ -35,7 +35,7 @@ class TrialRecorder:
         self.view = view
         self.kinds: Counter[str] = Counter()
         self.cue_changes = 0
-        self.last_metrics: pb.Metrics | None = None
+        self.last_metrics: pb.MetricsReport | None = None
         self.final_metrics_written = False
         self.task_finished = False
         self.last_task_time = 0.0
@@ -61,7 +61,7 @@ class TrialRecorder:
         if self.view is not None:
             self.view.indicators(ind)
 
-    def on_metrics(self, _key: str, m: pb.Metrics) -> None:
+    def on_metrics(self, _key: str, m: pb.MetricsReport) -> None:
         self.last_metrics = m
         if m.final:
             self.events.write(metrics_record(m))

@@ -1,15 +1,16 @@
 """events.jsonl records: one flat JSON object per task event, cue change and metrics message.
 
-Our own flat mapping (not MessageToDict) so every record of a type has the same keys, defaults
-included, and numbers that are NaN/inf become null (JSON has no NaN):
+Every record of a type has the same keys, defaults included, and numbers that are NaN/inf
+become null (JSON has no NaN):
 
 - ``{"type": "event", "tick", "sim_time", "seq", "kind": "COLLISION", "task_time", "agent",
-  "part", "robot", "hand", "value", "text", "numbers": {...}, "wall_time"}``
+  "part", "robot", "hand", "text", "payload": {...}, "wall_time"}``; ``payload`` holds the
+  fields of the kind's typed payload (e.g. ``{"number": 1, "delay_s": 2.5}`` for CONTINUED),
+  ``{}`` for kinds without one
 - ``{"type": "cue", "tick", "sim_time", "seq", "kind": "TARGET", "id", "on", "part", "robot",
   "color", "position": [x, y, z], "text", "flashing"}`` (one per cue of an Indicators message)
-- ``{"type": "metrics", "tick", "sim_time", "final", ...}`` with the metrics in the shape of
-  metrics.json (SPEC §4: scenario, participant, conditions, seed, task, human, robots,
-  collisions, parts, run)
+- ``{"type": "metrics", "tick", "sim_time", "seq", "final", ...}`` then the metrics exactly as
+  metrics.json has them (`hrc.metrics.to_dict`; fields in docs/metrics.md)
 - ``{"type": "run_end", "tick", "sim_time", "ok", "reason", "failed_participant", "ticks",
   "wall_s", "realtime_factor"}`` (last line of a run that ended normally or with an error)
 """
@@ -19,7 +20,9 @@ from __future__ import annotations
 import math
 from typing import Any
 
+from hrc import metrics as metrics_schema
 from hrc.wire import pb
+from hrc.wire.jsonmap import message_to_dict
 
 from hrc_logger.textlog import kind_name
 
@@ -40,6 +43,11 @@ def _head(msg: Any, type_: str) -> dict[str, Any]:
     return {"type": type_, "tick": int(h.tick), "sim_time": num(h.sim_time), "seq": int(h.seq)}
 
 
+def payload_dict(ev: pb.TaskEvent) -> dict[str, Any]:
+    which = ev.WhichOneof("payload")
+    return message_to_dict(getattr(ev, which)) if which else {}
+
+
 def event_record(ev: pb.TaskEvent) -> dict[str, Any]:
     r = _head(ev, "event")
     r.update({
@@ -49,9 +57,8 @@ def event_record(ev: pb.TaskEvent) -> dict[str, Any]:
         "part": ev.part,
         "robot": ev.robot,
         "hand": ev.hand,
-        "value": num(ev.value),
         "text": ev.text,
-        "numbers": {k: num(v) for k, v in sorted(ev.numbers.items())},
+        "payload": payload_dict(ev),
         "wall_time": ev.wall_time,
     })
     return r
@@ -76,37 +83,10 @@ def cue_records(ind: pb.Indicators) -> list[dict[str, Any]]:
     return out
 
 
-def metrics_body(m: pb.Metrics) -> dict[str, Any]:
-    """The metrics in the shape of metrics.json (SPEC §4)."""
-    collisions = [{"t_s": num(c.t_s), "robot": c.robot, "hand": c.hand, "delay_s": num(c.delay_s)}
-                  for c in m.human_robot]
-    near = [{"t_s": num(n.t_s)} for n in m.near]
-    return {
-        "scenario": m.scenario,
-        "participant": m.participant,
-        "conditions": {"anticipation": m.conditions.anticipation,
-                       "safety_policy": m.conditions.safety_policy},
-        "seed": int(m.seed),
-        "task": {"completion_s": num(m.task_completion_s)},
-        "human": {"completion_s": num(m.human_completion_s), "idle_s": num(m.human_idle_s)},
-        "robots": {rid: {"completion_s": num(r.completion_s), "idle_s": num(r.idle_s),
-                         "avg_tcp_speed_mps": num(r.avg_tcp_speed_mps),
-                         "max_tcp_speed_mps": num(r.max_tcp_speed_mps)}
-                   for rid, r in sorted(m.robots.items())},
-        "collisions": {"human_robot": collisions, "human_robot_count": len(collisions),
-                       "total_delay_s": num(m.total_delay_s), "near": near,
-                       "near_count": len(near)},
-        "parts": {pid: {"grabbed_s": num(p.grabbed_s), "placed_s": num(p.placed_s)}
-                  for pid, p in sorted(m.parts.items())},
-        "run": {"mode": m.run.mode, "ticks": int(m.run.ticks), "wall_s": num(m.run.wall_s),
-                "realtime_factor": num(m.run.realtime_factor)},
-    }
-
-
-def metrics_record(m: pb.Metrics) -> dict[str, Any]:
-    r = _head(m, "metrics")
-    r["final"] = m.final
-    r.update(metrics_body(m))
+def metrics_record(report: pb.MetricsReport) -> dict[str, Any]:
+    r = _head(report, "metrics")
+    r["final"] = report.final
+    r.update(metrics_schema.to_dict(report.metrics))
     return r
 
 

@@ -51,20 +51,13 @@ def wall_clock(iso: str) -> str:
         return iso
 
 
-def _mps(v: float | None) -> str:
-    return f"{v:.3f}" if v is not None and math.isfinite(v) else "?"
-
-
-def _number(ev: pb.TaskEvent, *names: str) -> float | None:
-    for n in names:
-        if n in ev.numbers:
-            return float(ev.numbers[n])
-    return None
+def _mps(v: float) -> str:
+    return f"{v:.3f}" if math.isfinite(v) else "?"
 
 
 @dataclass
 class LogCounters:
-    """What the text log counts itself (used when an event does not carry the number)."""
+    """What the text log counts itself (used when an event carries no payload)."""
 
     collisions: int = 0
     near_collisions: int = 0
@@ -75,49 +68,48 @@ def _task_started(ev: pb.TaskEvent, c: LogCounters) -> str:
 
 
 def _near(ev: pb.TaskEvent, c: LogCounters) -> str:
-    n = _number(ev, "n", "number", "count")
-    return f"{secs(ev.task_time)} sec : Near-collision {int(n) if n is not None else c.near_collisions} between the robots."
+    n = ev.near_collision.number if ev.HasField("near_collision") else c.near_collisions
+    return f"{secs(ev.task_time)} sec : Near-collision {n} between the robots."
 
 
 def _collision(ev: pb.TaskEvent, c: LogCounters) -> str:
-    n = _number(ev, "n", "number", "count")
+    n = ev.collision.number if ev.HasField("collision") else c.collisions
     hand = f"{ev.hand} hand" if ev.hand else "hand"
-    return (f"{secs(ev.task_time)} sec : Collision {int(n) if n is not None else c.collisions} "
+    return (f"{secs(ev.task_time)} sec : Collision {n} "
             f"occurred between {ev.robot or '?'} and {hand}.")
 
 
 def _continued(ev: pb.TaskEvent, c: LogCounters) -> str:
-    n = _number(ev, "n", "number", "collision")
-    delay = _number(ev, "delay_s")
-    delay = ev.value if delay is None else delay
+    if ev.HasField("continued"):
+        n, delay = ev.continued.number, secs(ev.continued.delay_s)
+    else:
+        n, delay = c.collisions, "?"
     return (f"{secs(ev.task_time)} sec : Continuing after robot-hand collision "
-            f"{int(n) if n is not None else c.collisions}. Delayed {secs(delay)} sec.")
+            f"{n}. Delayed {delay} sec.")
 
 
 def _robot_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
     robot = ev.robot or ev.agent or "robot"
     line = f"{secs(ev.task_time)} sec : {robot} - task FINISHED."
-    vmax = _number(ev, "max_tcp_speed_mps", "max_speed_mps", "max_speed")
-    vavg = _number(ev, "avg_tcp_speed_mps", "avg_speed_mps", "avg_speed")
-    idle = _number(ev, "idle_s", "waited_s")
-    if vmax is not None or vavg is not None:
-        line += f" Max speed reached : {_mps(vmax)} m/s, average speed : {_mps(vavg)} m/s."
-    if idle is not None:
-        line += f" Waited human for {secs(idle)} sec."
+    if ev.HasField("robot_finished"):
+        f = ev.robot_finished
+        line += (f" Max speed reached : {_mps(f.max_tcp_speed_mps)} m/s, average speed : "
+                 f"{_mps(f.avg_tcp_speed_mps)} m/s. Waited human for {secs(f.idle_s)} sec.")
     return line
 
 
 def _human_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
     line = f"{secs(ev.task_time)} sec : Human - task FINISHED."
-    idle = _number(ev, "idle_s")
-    if idle is not None:
-        line += f" Idle (hands outside the workspace) for {secs(idle)} sec."
+    if ev.HasField("human_finished"):
+        line += (f" Idle (hands outside the workspace) for {secs(ev.human_finished.idle_s)} "
+                 "sec.")
     return line
 
 
 def _task_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
-    n = _number(ev, "collisions", "human_robot_count", "total_collisions")
-    return f"{secs(ev.task_time)} sec : TASK FINISHED. {int(n) if n is not None else c.collisions} total collisions."
+    n = (ev.task_finished.human_robot_collisions if ev.HasField("task_finished")
+         else c.collisions)
+    return f"{secs(ev.task_time)} sec : TASK FINISHED. {n} total collisions."
 
 
 def _unreachable(ev: pb.TaskEvent, c: LogCounters) -> str:

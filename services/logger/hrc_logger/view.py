@@ -261,7 +261,7 @@ class View:
             [self.button], radii=[0.015], colors=[(120, 120, 120)], labels=["continue button"]),
             static=True)
         for r in scenario.robots:
-            if r.role == "screwing":
+            if r.role == pb.ROBOT_ROLE_SCREWING:
                 self._log(f"world/workspace/feeder_{part(r.id)}", rr.Points3D(
                     [vec3_from_pb(r.feeder)], radii=[0.02], colors=[rgb(r.color)],
                     labels=[f"{r.id} feeder"]),

@@ -131,13 +131,10 @@ class SyntheticTrial:
         return pb.HumanState(head=pb.Pose(position=vec3_to_pb((0.0, -0.6, 0.5)), orientation=pb.Quat(w=1.0)),
                              left_hand=pb.Pose(position=vec3_to_pb(left + [0, 0, 0.03]), orientation=pb.Quat(w=1.0)),
                              right_hand=pb.Pose(position=vec3_to_pb(right), orientation=pb.Quat(w=1.0)),
-                             left_grip=grip, right_grip=0.0, source="scripted")
+                             left_grip=grip, right_grip=0.0, source=pb.INPUT_SOURCE_SCRIPTED)
 
     def _event(self, k: int, kind: int, **kw: object) -> pb.TaskEvent:
-        numbers = kw.pop("numbers", {})
         ev = pb.TaskEvent(kind=kind, task_time=self.task_time(k), **kw)  # type: ignore[arg-type]
-        for name, v in numbers.items():  # type: ignore[attr-defined]
-            ev.numbers[name] = v
         name = pb.TaskEventKind.Name(kind).removeprefix("TASK_EVENT_KIND_")
         self.expected.event_kinds[name] += 1
         if kind == pb.TASK_EVENT_KIND_COLLISION:
@@ -165,7 +162,8 @@ class SyntheticTrial:
             out.append(self._event(k, K.TASK_EVENT_KIND_COLLISION, robot="r1", hand="left",
                                    text=f"{self.task_time(k):.2f} sec : Collision 1 occurred between r1 and left hand."))
         if k == 300:
-            out.append(self._event(k, K.TASK_EVENT_KIND_CONTINUED, value=50 * self.dt))
+            out.append(self._event(k, K.TASK_EVENT_KIND_CONTINUED,
+                                   continued=pb.Continued(number=1, delay_s=50 * self.dt)))
         if k == 400:
             out.append(self._event(k, K.TASK_EVENT_KIND_NEAR_COLLISION, robot="r2"))
         if k == 420:
@@ -173,17 +171,23 @@ class SyntheticTrial:
         if k == 450:
             out.append(self._event(k, K.TASK_EVENT_KIND_COLLISION, robot="r2", hand="right"))
         if k == 480:
-            out.append(self._event(k, K.TASK_EVENT_KIND_CONTINUED, value=30 * self.dt))
+            out.append(self._event(k, K.TASK_EVENT_KIND_CONTINUED,
+                                   continued=pb.Continued(number=2, delay_s=30 * self.dt)))
         if k == 500:
-            out.append(self._event(k, K.TASK_EVENT_KIND_ROBOT_FINISHED, agent="r1", robot="r1", numbers={
-                "max_tcp_speed_mps": 0.5, "avg_tcp_speed_mps": 0.21, "idle_s": 0.4}))
+            out.append(self._event(k, K.TASK_EVENT_KIND_ROBOT_FINISHED, agent="r1", robot="r1",
+                                   robot_finished=pb.RobotFinished(
+                                       max_tcp_speed_mps=0.5, avg_tcp_speed_mps=0.21, idle_s=0.4)))
         if k == 520:
-            out.append(self._event(k, K.TASK_EVENT_KIND_ROBOT_FINISHED, agent="r2", robot="r2", numbers={
-                "max_tcp_speed_mps": 0.45, "avg_tcp_speed_mps": 0.19, "idle_s": 0.25}))
+            out.append(self._event(k, K.TASK_EVENT_KIND_ROBOT_FINISHED, agent="r2", robot="r2",
+                                   robot_finished=pb.RobotFinished(max_tcp_speed_mps=0.45,
+                                                                   avg_tcp_speed_mps=0.19,
+                                                                   idle_s=0.25)))
         if k == 540:
-            out.append(self._event(k, K.TASK_EVENT_KIND_HUMAN_FINISHED, agent="human", numbers={"idle_s": 0.1}))
+            out.append(self._event(k, K.TASK_EVENT_KIND_HUMAN_FINISHED, agent="human",
+                                   human_finished=pb.HumanFinished(idle_s=0.1)))
         if k == last:
-            out.append(self._event(k, K.TASK_EVENT_KIND_TASK_FINISHED, numbers={"collisions": 2}))
+            out.append(self._event(k, K.TASK_EVENT_KIND_TASK_FINISHED,
+                                   task_finished=pb.TaskFinished(human_robot_collisions=2)))
         return out
 
     def cues(self, k: int) -> list[pb.Cue]:
@@ -212,23 +216,27 @@ class SyntheticTrial:
             out.append(self._cue(f"target:{self.screw}", C.CUE_KIND_TARGET, False, part=self.screw, robot="r2"))
         return out
 
-    def metrics(self) -> pb.Metrics:
-        m = pb.Metrics(final=True, scenario=self.sc.info.name, participant=self.sc.participant.name,
-                       seed=self.sc.info.seed, task_completion_s=self.task_time(self.n - 1),
-                       human_completion_s=self.task_time(540), human_idle_s=0.1,
-                       total_delay_s=80 * self.dt)
+    def metrics(self) -> pb.MetricsReport:
+        m = pb.Metrics(scenario=self.sc.info.name, participant=self.sc.participant.name,
+                       seed=self.sc.info.seed)
         m.conditions.CopyFrom(self.sc.conditions)
-        m.human_robot.add(t_s=self.task_time(250), robot="r1", hand="left", delay_s=50 * self.dt)
-        m.human_robot.add(t_s=self.task_time(450), robot="r2", hand="right", delay_s=30 * self.dt)
-        m.near.add(t_s=self.task_time(400))
+        m.task.CopyFrom(pb.TaskMetrics(started=True, finished=True,
+                                       completion_s=self.task_time(self.n - 1)))
+        m.human.CopyFrom(pb.HumanMetrics(completion_s=self.task_time(540), idle_s=0.1))
+        col = m.collisions
+        col.human_robot.add(t_s=self.task_time(250), robot="r1", hand="left", delay_s=50 * self.dt)
+        col.human_robot.add(t_s=self.task_time(450), robot="r2", hand="right", delay_s=30 * self.dt)
+        col.human_robot_count, col.total_delay_s = 2, 80 * self.dt
+        col.near.add(t_s=self.task_time(400))
+        col.near_count = 1
         m.robots["r1"].CopyFrom(pb.RobotMetrics(completion_s=self.task_time(500), idle_s=0.4,
                                                 avg_tcp_speed_mps=0.21, max_tcp_speed_mps=0.5))
         m.robots["r2"].CopyFrom(pb.RobotMetrics(completion_s=self.task_time(520), idle_s=0.25,
                                                 avg_tcp_speed_mps=0.19, max_tcp_speed_mps=0.45))
         for pid in self.parts:
-            m.parts[pid].CopyFrom(pb.PartMetrics(grabbed_s=-1, placed_s=-1))
-        m.run.CopyFrom(pb.RunMetrics(mode="lockstep", ticks=self.n))
-        return m
+            m.parts[pid].SetInParent()  # never grabbed: times unset
+        m.run.CopyFrom(pb.RunMetrics(mode=pb.CLOCK_MODE_LOCKSTEP, ticks=self.n, ok=True))
+        return pb.MetricsReport(final=True, metrics=m)
 
     # ------------------------------------------------------------------ the trial
     def world(self, k: int) -> list[Outgoing]:

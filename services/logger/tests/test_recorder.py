@@ -14,7 +14,7 @@ from synthetic import SyntheticTrial
 from hrc import scenario as sc
 from hrc.paths import project_root
 from hrc.wire import pb
-from hrc_logger.records import event_record, metrics_body
+from hrc_logger.records import event_record, metrics_record
 from hrc_logger.rrd import summarize
 
 
@@ -95,15 +95,25 @@ def test_rate_limit_keeps_the_view_cheap(trial_dir: tuple[Path, SyntheticTrial])
 
 
 def test_record_mapping_is_flat_and_json_safe() -> None:
-    ev = pb.TaskEvent(kind=pb.TASK_EVENT_KIND_CONTINUED, task_time=float("nan"), value=1.5)
+    ev = pb.TaskEvent(kind=pb.TASK_EVENT_KIND_CONTINUED, task_time=float("nan"),
+                      continued=pb.Continued(number=2, delay_s=1.5))
     ev.header.tick, ev.header.sim_time, ev.header.seq = 7, 7 / 240, 3
     r = event_record(ev)
-    assert r["kind"] == "CONTINUED" and r["task_time"] is None and r["value"] == 1.5
+    assert r["kind"] == "CONTINUED" and r["task_time"] is None
+    assert r["payload"] == {"number": 2, "delay_s": 1.5}
     assert (r["tick"], r["seq"], r["type"]) == (7, 3, "event")
     json.dumps(r, allow_nan=False)
-    m = pb.Metrics(final=True)
-    m.human_robot.add(t_s=1.0, robot="r1", hand="left", delay_s=2.0)
-    m.near.add(t_s=3.0)
-    body = metrics_body(m)
-    assert body["collisions"]["human_robot_count"] == 1 and body["collisions"]["near_count"] == 1
-    assert math.isclose(body["collisions"]["human_robot"][0]["delay_s"], 2.0)
+    assert event_record(pb.TaskEvent(kind=pb.TASK_EVENT_KIND_PART_PLACED))["payload"] == {}
+    report = pb.MetricsReport(final=True)
+    col = report.metrics.collisions
+    col.human_robot.add(t_s=1.0, robot="r1", hand="left", delay_s=2.0)
+    col.human_robot_count = 1
+    col.near.add(t_s=float("inf"))
+    report.header.tick = 9
+    rec = metrics_record(report)
+    assert (rec["type"], rec["tick"], rec["final"]) == ("metrics", 9, True)
+    assert rec["collisions"]["human_robot_count"] == 1 and rec["collisions"]["near"] == [
+        {"t_s": None}]
+    assert math.isclose(rec["collisions"]["human_robot"][0]["delay_s"], 2.0)
+    assert rec["run"] is None and rec["task"] is None  # not set by the sender
+    json.dumps(rec, allow_nan=False)

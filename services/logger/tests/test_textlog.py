@@ -11,11 +11,7 @@ K = pb.TaskEventKind
 
 
 def ev(kind: int, t: float = 12.345, **kw: object) -> pb.TaskEvent:
-    numbers = kw.pop("numbers", {})
-    e = pb.TaskEvent(kind=kind, task_time=t, **kw)  # type: ignore[arg-type]
-    for k, v in numbers.items():  # type: ignore[attr-defined]
-        e.numbers[k] = v
-    return e
+    return pb.TaskEvent(kind=kind, task_time=t, **kw)  # type: ignore[arg-type]
 
 
 def test_task_started_uses_the_wall_time_of_the_event() -> None:
@@ -29,7 +25,8 @@ def test_collisions_and_near_collisions_are_numbered_in_order() -> None:
     log = ThesisLog()
     assert log.line_for(ev(K.TASK_EVENT_KIND_COLLISION, robot="r1", hand="left")) == \
         "12.35 sec : Collision 1 occurred between r1 and left hand."
-    assert log.line_for(ev(K.TASK_EVENT_KIND_CONTINUED, t=15.0, value=2.5)) == \
+    assert log.line_for(ev(K.TASK_EVENT_KIND_CONTINUED, t=15.0,
+                           continued=pb.Continued(number=1, delay_s=2.5))) == \
         "15.00 sec : Continuing after robot-hand collision 1. Delayed 2.50 sec."
     assert log.line_for(ev(K.TASK_EVENT_KIND_NEAR_COLLISION, t=16.0)) == \
         "16.00 sec : Near-collision 1 between the robots."
@@ -39,16 +36,24 @@ def test_collisions_and_near_collisions_are_numbered_in_order() -> None:
         "21.00 sec : Near-collision 2 between the robots."
     # the event's own number wins over the count
     assert log.line_for(ev(K.TASK_EVENT_KIND_COLLISION, t=22.0, robot="r1", hand="left",
-                           numbers={"n": 7})).startswith("22.00 sec : Collision 7 ")
+                           collision=pb.CollisionNumber(number=7))).startswith(
+        "22.00 sec : Collision 7 ")
+    assert log.line_for(ev(K.TASK_EVENT_KIND_NEAR_COLLISION, t=23.0,
+                           near_collision=pb.NearCollision(number=9))).startswith(
+        "23.00 sec : Near-collision 9 ")
+    assert log.line_for(ev(K.TASK_EVENT_KIND_CONTINUED, t=24.0)) == \
+        "24.00 sec : Continuing after robot-hand collision 3. Delayed ? sec."
 
 
 def test_robot_and_human_finish_carry_speeds_and_waiting_time() -> None:
     log = ThesisLog()
-    line = log.line_for(ev(K.TASK_EVENT_KIND_ROBOT_FINISHED, t=61.0, robot="r1", numbers={
-        "max_tcp_speed_mps": 0.5, "avg_tcp_speed_mps": 0.2314, "idle_s": 4.2}))
+    line = log.line_for(ev(K.TASK_EVENT_KIND_ROBOT_FINISHED, t=61.0, robot="r1",
+                           robot_finished=pb.RobotFinished(max_tcp_speed_mps=0.5,
+                                                           avg_tcp_speed_mps=0.2314, idle_s=4.2)))
     assert line == ("61.00 sec : r1 - task FINISHED. Max speed reached : 0.500 m/s, "
                     "average speed : 0.231 m/s. Waited human for 4.20 sec.")
-    assert log.line_for(ev(K.TASK_EVENT_KIND_HUMAN_FINISHED, t=70.25, numbers={"idle_s": 2.1})) == \
+    assert log.line_for(ev(K.TASK_EVENT_KIND_HUMAN_FINISHED, t=70.25,
+                           human_finished=pb.HumanFinished(idle_s=2.1))) == \
         "70.25 sec : Human - task FINISHED. Idle (hands outside the workspace) for 2.10 sec."
     assert log.line_for(ev(K.TASK_EVENT_KIND_HUMAN_FINISHED, t=70.25)) == "70.25 sec : Human - task FINISHED."
 
@@ -57,7 +62,8 @@ def test_task_finished_counts_collisions_when_the_event_does_not() -> None:
     log = ThesisLog()
     log.line_for(ev(K.TASK_EVENT_KIND_COLLISION, robot="r1", hand="left"))
     assert log.line_for(ev(K.TASK_EVENT_KIND_TASK_FINISHED, t=75.4)) == "75.40 sec : TASK FINISHED. 1 total collisions."
-    assert log.line_for(ev(K.TASK_EVENT_KIND_TASK_FINISHED, t=75.4, numbers={"collisions": 3})) == \
+    assert log.line_for(ev(K.TASK_EVENT_KIND_TASK_FINISHED, t=75.4,
+                           task_finished=pb.TaskFinished(human_robot_collisions=3))) == \
         "75.40 sec : TASK FINISHED. 3 total collisions."
 
 

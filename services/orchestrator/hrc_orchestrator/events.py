@@ -2,10 +2,13 @@
 
 Every line starts with the task time: ``"12.345 sec : ..."``. The wall-clock date of the start is
 carried only in ``TaskEvent.wall_time`` (never in ``text``), so the text of every event is a pure
-function of the scenario and the inputs.
+function of the scenario and the inputs. The figures of a kind travel in its typed payload
+(``TaskEvent.payload``, named after the kind).
 """
 
 from __future__ import annotations
+
+from google.protobuf.message import Message
 
 from hrc.scenario.conventions import WAITING_TEXT
 from hrc.wire import pb
@@ -22,12 +25,13 @@ def line(t: float, body: str) -> str:
 
 
 def make(kind: int, t: float, body: str, *, agent: str = "", part: str = "", robot: str = "",
-         hand: str = "", value: float = 0.0, numbers: dict[str, float] | None = None,
-         wall_time: str = "") -> pb.TaskEvent:
+         hand: str = "", payload: Message | None = None, wall_time: str = "") -> pb.TaskEvent:
     ev = pb.TaskEvent(kind=kind, task_time=t, agent=agent, part=part, robot=robot, hand=hand,
-                      value=value, text=line(t, body), wall_time=wall_time)
-    for name in sorted(numbers or {}):
-        ev.numbers[name] = float((numbers or {})[name])
+                      text=line(t, body), wall_time=wall_time)
+    if payload is not None:
+        # The payload field is named after the kind (ROBOT_FINISHED -> robot_finished).
+        name = K.Name(kind).removeprefix("TASK_EVENT_KIND_").lower()
+        getattr(ev, name).CopyFrom(payload)
     return ev
 
 
@@ -47,8 +51,8 @@ def part_released(t: float, part: str, hand: str, distance_m: float, angle_deg: 
                   why: str) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_PART_RELEASED, t,
                 f"human released {part} off target ({why}): {distance_m * 100:.1f} cm, "
-                f"{angle_deg:.1f} deg.", agent="human", part=part, hand=hand, value=distance_m,
-                numbers={"distance_m": distance_m, "angle_deg": angle_deg})
+                f"{angle_deg:.1f} deg.", agent="human", part=part, hand=hand,
+                payload=pb.PartReleased(distance_m=distance_m, angle_deg=angle_deg))
 
 
 def part_placed(t: float, agent: str, part: str, hand: str = "") -> pb.TaskEvent:
@@ -71,7 +75,7 @@ def robot_waiting(t: float, robot: str, part: str, waits_for: list[str]) -> pb.T
 def robot_wait_over(t: float, robot: str, part: str, waited_s: float) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_ROBOT_WAIT_OVER, t,
                 f"{robot} - wait over for {part} after {fmt_t(waited_s)} sec.",
-                agent=robot, robot=robot, part=part, value=waited_s)
+                agent=robot, robot=robot, part=part, payload=pb.RobotWaitOver(waited_s=waited_s))
 
 
 def robot_finished(t: float, robot: str, max_speed: float, avg_speed: float,
@@ -79,9 +83,9 @@ def robot_finished(t: float, robot: str, max_speed: float, avg_speed: float,
     return make(K.TASK_EVENT_KIND_ROBOT_FINISHED, t,
                 f"{robot} - task FINISHED. Max speed reached: {max_speed:.3f} m/s, average "
                 f"speed: {avg_speed:.3f} m/s. Waited human for {fmt_t(idle_s)} sec.",
-                agent=robot, robot=robot, value=t,
-                numbers={"max_tcp_speed_mps": max_speed, "avg_tcp_speed_mps": avg_speed,
-                         "idle_s": idle_s})
+                agent=robot, robot=robot,
+                payload=pb.RobotFinished(max_tcp_speed_mps=max_speed, avg_tcp_speed_mps=avg_speed,
+                                         idle_s=idle_s))
 
 
 def robot_unreachable(t: float, robot: str, detail: str) -> pb.TaskEvent:
@@ -93,7 +97,7 @@ def robot_unreachable(t: float, robot: str, detail: str) -> pb.TaskEvent:
 def human_finished(t: float, idle_s: float) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_HUMAN_FINISHED, t,
                 f"Human - task FINISHED. Idle (hands outside the workspace) {fmt_t(idle_s)} sec.",
-                agent="human", value=t, numbers={"idle_s": idle_s})
+                agent="human", payload=pb.HumanFinished(idle_s=idle_s))
 
 
 def human_idle(t: float, begin: bool) -> pb.TaskEvent:
@@ -106,26 +110,26 @@ def human_idle(t: float, begin: bool) -> pb.TaskEvent:
 
 def task_finished(t: float, collisions: int, near: int) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_TASK_FINISHED, t, f"TASK FINISHED. {collisions} total collisions.",
-                value=t, numbers={"human_robot_collisions": collisions, "near_collisions": near})
+                payload=pb.TaskFinished(human_robot_collisions=collisions, near_collisions=near))
 
 
 def collision(t: float, n: int, robot: str, hand: str, link: str) -> pb.TaskEvent:
     where = f" ({link})" if link else ""
     return make(K.TASK_EVENT_KIND_COLLISION, t,
                 f"Collision {n} occurred between {robot}{where} and {hand} hand.",
-                agent="human", robot=robot, hand=hand, value=float(n), numbers={"collision": n})
+                agent="human", robot=robot, hand=hand, payload=pb.CollisionNumber(number=n))
 
 
 def collision_end(t: float, n: int, robot: str, hand: str) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_COLLISION_END, t,
                 f"Collision {n}: the hand left {robot}.", agent="human", robot=robot, hand=hand,
-                value=float(n))
+                payload=pb.CollisionNumber(number=n))
 
 
 def retreat_reached(t: float, robot: str, n: int) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_RETREAT_REACHED, t,
                 f"{robot} reached its retreat pose (collision {n}).", agent=robot, robot=robot,
-                value=float(n))
+                payload=pb.CollisionNumber(number=n))
 
 
 def robot_halted(t: float, robot: str, why: str) -> pb.TaskEvent:
@@ -141,17 +145,19 @@ def button_pressed(t: float, hand: str) -> pb.TaskEvent:
 def continued(t: float, n: int, delay_s: float, robot: str = "") -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_CONTINUED, t,
                 f"Continuing after robot-hand collision {n}. Delayed {fmt_t(delay_s)} sec.",
-                robot=robot, value=delay_s, numbers={"collision": n, "delay_s": delay_s})
+                robot=robot, payload=pb.Continued(number=n, delay_s=delay_s))
 
 
 def near_collision(t: float, n: int, a: str, b: str, halted: str, d_a: float,
                    d_b: float) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_NEAR_COLLISION, t,
                 f"Near-collision {n} between the robots ({a}, {b}); {halted} halts.",
-                robot=halted, value=float(n),
-                numbers={"near_collision": n, f"distance_{a}_m": d_a, f"distance_{b}_m": d_b})
+                robot=halted,
+                payload=pb.NearCollision(number=n, robot_a=a, distance_a_m=d_a, robot_b=b,
+                                         distance_b_m=d_b))
 
 
 def near_collision_end(t: float, n: int, halted: str) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_NEAR_COLLISION_END, t,
-                f"Near-collision {n} over; {halted} continues.", robot=halted, value=float(n))
+                f"Near-collision {n} over; {halted} continues.", robot=halted,
+                payload=pb.CollisionNumber(number=n))

@@ -142,23 +142,23 @@ class Service:
             self.cues_pub.put(pb.Indicators(cues=out.cues), k, t)
         if self.task.running and self.metrics_every_s > 0 and self.task.now() >= self._next_metrics:
             self._next_metrics += self.metrics_every_s
-            self.metrics_pub.put(metrics.to_proto(metrics.build(self.task, self.seed), False), k, t)
+            self.metrics_pub.put(metrics.report(metrics.build(self.task, self.seed), False), k, t)
         if out.stop and not self._stop_sent:
             self._stop_sent = True
-            self.metrics_pub.put(metrics.to_proto(metrics.build(self.task, self.seed), True), k, t)
+            self.metrics_pub.put(metrics.report(metrics.build(self.task, self.seed), True), k, t)
             if not self.keep_running:
                 self.control_pub.put(pb.RunControl(command=pb.RunControl.COMMAND_STOP,
                                                    reason=out.stop), k, t)
 
     # ------------------------------------------------------------------ the end
     def finish(self, run_end: pb.RunEnd | None, out_dir: Path | None, reason: str = "") -> None:
-        data = metrics.build(self.task, self.seed, run_end)
-        if run_end is None:  # the run broke off without run/end: say so, keep the task numbers
-            data["run"] = {"mode": "unknown", "ticks": self.task.tick, "wall_s": None,
-                           "realtime_factor": None, "ok": False, "end_reason": reason}
+        # The run broke off without run/end: say so, keep the task numbers.
+        run = (metrics.run_metrics(run_end) if run_end is not None
+               else metrics.broken_off_run(self.task.tick, reason))
+        data = metrics.build(self.task, self.seed, run)
         if run_end is not None:
             try:  # best effort: the run is over, observers may already be leaving
-                self.metrics_pub.put(metrics.to_proto(data, True), run_end.ticks,
+                self.metrics_pub.put(metrics.report(data, True), run_end.ticks,
                                      run_end.sim_time)
             except Exception as exc:  # noqa: BLE001 - never lose metrics.json over this
                 log.warning("could not publish the final metrics: %s", exc)
@@ -194,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
         service.keep_running = args.keep_running
         service.part.start()
         log.info("serving scenario %r (seed %d, policy %s, anticipation %s)", spb.info.name,
-                 spb.info.seed, spb.conditions.safety_policy, spb.conditions.anticipation)
+                 spb.info.seed, scenario.conditions.safety_policy, spb.conditions.anticipation)
         outcome = service.part.run()
         service.finish(outcome.run_end, Path(args.out) if args.out else None, outcome.reason)
         if not outcome.ok:

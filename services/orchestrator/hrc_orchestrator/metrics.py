@@ -1,101 +1,84 @@
-"""The numbers of a trial (SPEC §4), as the metrics.json dict and as `pb.Metrics`.
+"""The numbers of a trial as `pb.Metrics`, the one schema of metrics.json (docs/metrics.md).
 
-The dict is the one source; the message is built from it. Times are task times in seconds;
-a time that never happened is null in JSON and -1 in the message.
+The orchestrator fills the message; metrics.json, the published reports and every other form
+are produced from it by `hrc.metrics.to_dict`. Times are task times in seconds, rounded to the
+microsecond; a time that never happened stays unset (null in JSON).
 """
 
 from __future__ import annotations
 
-from typing import Any
+from google.protobuf.message import Message
 
 from hrc.wire import pb
-from hrc_orchestrator.metrics_file import run_section
 from hrc_orchestrator.task import Task
 
-NEVER = -1.0
+
+def _r(x: float) -> float:
+    return round(x, 6)
 
 
-def _r(x: float | None) -> float | None:
-    return None if x is None else round(x, 6)
+def _set_time(msg: Message, name: str, x: float | None) -> None:
+    if x is not None:
+        setattr(msg, name, _r(x))
 
 
-def build(task: Task, seed: int, run_end: pb.RunEnd | None = None) -> dict[str, Any]:
+def build(task: Task, seed: int, run: pb.RunMetrics | None = None) -> pb.Metrics:
+    """The metrics of the task as it stands; `run` once the run has ended."""
     s = task.scenario
     t_end = task.completion_s if task.completion_s is not None else task.now()
-    robots: dict[str, Any] = {}
-    for rid, agent in task.agents.items():
-        robots[rid] = {
-            "completion_s": _r(agent.completion_s),
-            "idle_s": _r(agent.idle.value(t_end)),
-            "avg_tcp_speed_mps": _r(agent.avg_speed),
-            "max_tcp_speed_mps": _r(agent.speed_max),
-        }
-    human_robot = [{"t_s": _r(rec.t_s), "robot": rec.robot, "hand": rec.hand,
-                    "delay_s": _r(rec.delay_s)} for rec in task.safety.records]
+    m = pb.Metrics(scenario=s.scenario.name, participant=s.participant.name, seed=int(seed))
+    m.conditions.anticipation = s.conditions.anticipation
+    m.conditions.safety_policy = s.conditions.safety_policy.to_proto()
+
+    m.task.SetInParent()
+    m.task.started = task.started
+    m.task.finished = task.finished
+    _set_time(m.task, "completion_s", task.completion_s)
+
     human_end = task.human.completion_s if task.human.completion_s is not None else t_end
-    data: dict[str, Any] = {
-        "scenario": s.scenario.name,
-        "participant": s.participant.name,
-        "conditions": {"anticipation": s.conditions.anticipation,
-                       "safety_policy": s.conditions.safety_policy},
-        "seed": int(seed),
-        "task": {
-            "started": task.started,
-            "finished": task.finished,
-            "completion_s": _r(task.completion_s),
-        },
-        "human": {
-            "completion_s": _r(task.human.completion_s),
-            "idle_s": _r(task.human.idle.value(human_end)),
-        },
-        "robots": robots,
-        "collisions": {
-            "human_robot": human_robot,
-            "human_robot_count": len(human_robot),
-            "total_delay_s": _r(task.safety.total_delay),
-            "near": [{"t_s": _r(t)} for t in task.safety.near_times],
-            "near_count": len(task.safety.near_times),
-        },
-        "parts": {
-            p.id: {"grabbed_s": _r(task.board.grabbed_s.get(p.id)),
-                   "placed_s": _r(task.board.placed_s.get(p.id))}
-            for p in s.parts
-        },
-    }
-    if run_end is not None:
-        data["run"] = run_section(run_end)
-    return data
+    m.human.SetInParent()
+    _set_time(m.human, "completion_s", task.human.completion_s)
+    m.human.idle_s = _r(task.human.idle.value(human_end))
 
+    for rid, agent in task.agents.items():
+        r = m.robots[rid]
+        _set_time(r, "completion_s", agent.completion_s)
+        r.idle_s = _r(agent.idle.value(t_end))
+        r.avg_tcp_speed_mps = _r(agent.avg_speed)
+        r.max_tcp_speed_mps = _r(agent.speed_max)
 
-def _t(x: float | None) -> float:
-    return NEVER if x is None else float(x)
+    col = m.collisions
+    col.SetInParent()
+    for rec in task.safety.records:
+        c = col.human_robot.add(t_s=_r(rec.t_s), robot=rec.robot, hand=rec.hand)
+        _set_time(c, "delay_s", rec.delay_s)
+    col.human_robot_count = len(task.safety.records)
+    col.total_delay_s = _r(task.safety.total_delay)
+    for t in task.safety.near_times:
+        col.near.add(t_s=_r(t))
+    col.near_count = len(task.safety.near_times)
 
-
-def to_proto(data: dict[str, Any], final: bool) -> pb.Metrics:
-    m = pb.Metrics(final=final, scenario=data["scenario"], participant=data["participant"],
-                   seed=data["seed"])
-    m.conditions.anticipation = data["conditions"]["anticipation"]
-    m.conditions.safety_policy = data["conditions"]["safety_policy"]
-    m.task_completion_s = _t(data["task"]["completion_s"])
-    m.human_completion_s = _t(data["human"]["completion_s"])
-    m.human_idle_s = _t(data["human"]["idle_s"])
-    for rid, r in data["robots"].items():
-        m.robots[rid].CopyFrom(pb.RobotMetrics(
-            completion_s=_t(r["completion_s"]), idle_s=_t(r["idle_s"]),
-            avg_tcp_speed_mps=_t(r["avg_tcp_speed_mps"]),
-            max_tcp_speed_mps=_t(r["max_tcp_speed_mps"])))
-    col = data["collisions"]
-    for rec in col["human_robot"]:
-        m.human_robot.add(t_s=_t(rec["t_s"]), robot=rec["robot"], hand=rec["hand"],
-                          delay_s=_t(rec["delay_s"]))
-    m.total_delay_s = _t(col["total_delay_s"])
-    for near in col["near"]:
-        m.near.add(t_s=_t(near["t_s"]))
-    for pid, p in data["parts"].items():
-        m.parts[pid].CopyFrom(pb.PartMetrics(grabbed_s=_t(p["grabbed_s"]),
-                                             placed_s=_t(p["placed_s"])))
-    run = data.get("run")
-    if run:
-        m.run.CopyFrom(pb.RunMetrics(mode=run["mode"], ticks=run["ticks"], wall_s=run["wall_s"],
-                                     realtime_factor=run["realtime_factor"]))
+    for p in s.parts:
+        part = m.parts[p.id]
+        _set_time(part, "grabbed_s", task.board.grabbed_s.get(p.id))
+        _set_time(part, "placed_s", task.board.placed_s.get(p.id))
+    if run is not None:
+        m.run.CopyFrom(run)
     return m
+
+
+def run_metrics(end: pb.RunEnd) -> pb.RunMetrics:
+    """The run section from physics's run/end."""
+    return pb.RunMetrics(mode=end.mode, ticks=end.ticks, wall_s=_r(end.wall_s),
+                         realtime_factor=_r(end.realtime_factor), ok=end.ok,
+                         end_reason=end.reason, deadline_misses=dict(end.deadline_misses))
+
+
+def broken_off_run(ticks: int, reason: str) -> pb.RunMetrics:
+    """The run section when the run broke off without run/end: mode and wall time unknown."""
+    return pb.RunMetrics(ticks=ticks, ok=False, end_reason=reason)
+
+
+def report(metrics: pb.Metrics, final: bool) -> pb.MetricsReport:
+    """What goes on task/metrics (the header is stamped by the publisher)."""
+    return pb.MetricsReport(final=final, metrics=metrics)

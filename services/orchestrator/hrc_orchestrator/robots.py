@@ -78,7 +78,7 @@ class RobotAgent:
     def __init__(self, robot: sc.Robot, sequence: list[str], board: Board) -> None:
         self.cfg = robot
         self.id = robot.id
-        self.screwing = robot.role == "screwing"
+        self.screwing = robot.role == sc.RobotRole.SCREWING
         self.sequence = list(sequence)
         self.board = board
         self.index = 0

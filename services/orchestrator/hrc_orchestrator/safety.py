@@ -20,13 +20,11 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from hrc.geometry import distance, vec3
+from hrc.scenario import SafetyPolicy
 from hrc.wire import pb
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
 from hrc_orchestrator.robots import HOLD, Motion, RobotAgent
-
-POLICIES = ("retreat", "retreat_button", "stop_colliding")
-
 
 @dataclass
 class CollisionRecord:
@@ -49,10 +47,8 @@ class RetreatState:
 
 
 class Safety:
-    def __init__(self, policy: str, agents: dict[str, RobotAgent], board: Board) -> None:
-        if policy not in POLICIES:
-            raise ValueError(f"unknown safety_policy {policy!r}; use one of {', '.join(POLICIES)}")
-        self.policy = policy
+    def __init__(self, policy: SafetyPolicy, agents: dict[str, RobotAgent], board: Board) -> None:
+        self.policy = SafetyPolicy(policy)  # ValueError for a string that is not a policy
         self.agents = agents
         self.board = board
         # Insertion-ordered dicts used as sets: iteration order never depends on hashing.
@@ -74,7 +70,7 @@ class Safety:
     @property
     def button_wanted(self) -> bool:
         """The continue button flashes: a retreat_button collision that was not yet confirmed."""
-        return (self.policy == "retreat_button" and self.retreating is not None
+        return (self.policy == SafetyPolicy.RETREAT_BUTTON and self.retreating is not None
                 and not self.retreating.pressed)
 
     def override(self, robot: str) -> Motion | None:
@@ -108,7 +104,7 @@ class Safety:
         self._hand_touch[key] = None
         if not running:
             return
-        if self.policy == "stop_colliding":
+        if self.policy == SafetyPolicy.STOP_COLLIDING:
             if robot not in self.halted:
                 rec = self._new_record(t, robot, hand, c.link)
                 self.halted[robot] = rec
@@ -196,7 +192,7 @@ class Safety:
             if not state.arrived[rid] and agent.reached(state.retreat[rid]):
                 state.arrived[rid] = True
                 self.board.emit(ev.retreat_reached(t, rid, state.record.n))
-        if all(state.arrived.values()) and (self.policy == "retreat" or state.pressed):
+        if all(state.arrived.values()) and (self.policy == SafetyPolicy.RETREAT or state.pressed):
             self.retreating = None
             self._resume(state.record, t, "")
 

@@ -28,8 +28,8 @@ def load(name: str, **overrides: object) -> sc.Scenario:
     s = sc.load(ROOT / "scenarios" / name, reach_checker=None)
     for table, values in overrides.items():
         model = getattr(s, table)
-        for key, value in dict(values).items():  # type: ignore[call-overload]
-            setattr(model, key, value)
+        # validated like the file's values (strings become enum members)
+        setattr(s, table, type(model).model_validate({**model.model_dump(), **values}))
     return s
 
 
@@ -230,5 +230,5 @@ class Sim:
 
 
 def idle_seconds(events: list[pb.TaskEvent], robot: str) -> float:
-    return math.fsum(e.value for e in events
+    return math.fsum(e.robot_wait_over.waited_s for e in events
                      if e.kind == K.TASK_EVENT_KIND_ROBOT_WAIT_OVER and e.robot == robot)

@@ -138,4 +138,4 @@ def test_human_idle_is_time_with_no_hand_in_any_envelope_box() -> None:
     assert len(sim.kinds(K.TASK_EVENT_KIND_HUMAN_IDLE_BEGIN)) == 2
     assert len(sim.kinds(K.TASK_EVENT_KIND_HUMAN_IDLE_END)) == 1
     finished = sim.kinds(K.TASK_EVENT_KIND_HUMAN_FINISHED)[0]
-    assert finished.numbers["idle_s"] == pytest.approx(expected)
+    assert finished.human_finished.idle_s == pytest.approx(expected)

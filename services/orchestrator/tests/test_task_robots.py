@@ -62,8 +62,8 @@ def test_transport_robot_phases_commands_and_world_commands() -> None:
     assert (rel[0].pose.position.x, rel[0].pose.position.y, rel[0].pose.position.z) == tuple(
         part.target.xyz)
     fin = [e for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_FINISHED) if e.robot == "r1"][0]
-    assert fin.numbers["max_tcp_speed_mps"] == pytest.approx(0.5)
-    assert 0 < fin.numbers["avg_tcp_speed_mps"] <= 0.5
+    assert fin.robot_finished.max_tcp_speed_mps == pytest.approx(0.5)
+    assert 0 < fin.robot_finished.avg_tcp_speed_mps <= 0.5
     assert "task FINISHED" in fin.text
 
 
@@ -109,7 +109,7 @@ def test_dependency_wait_accrues_idle_time_and_shows_waiting_cue() -> None:
     t_done = sim.t
     over = sim.kinds(K.TASK_EVENT_KIND_ROBOT_WAIT_OVER)
     assert len(over) == 1 and over[0].robot == "r2"
-    assert over[0].value == pytest.approx(t_done - t_wait)
+    assert over[0].robot_wait_over.waited_s == pytest.approx(t_done - t_wait)
     assert t_done - t_wait > 3.0
     assert "waiting:r2" not in sim.cues
     sim.run_to_end()
@@ -117,7 +117,7 @@ def test_dependency_wait_accrues_idle_time_and_shows_waiting_cue() -> None:
     assert idle_seconds(sim.events, "r2") == pytest.approx(t_done - t_wait)
     assert sim.task.agents["r1"].idle.total == 0.0
     fin = next(e for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_FINISHED) if e.robot == "r2")
-    assert fin.numbers["idle_s"] == pytest.approx(t_done - t_wait)
+    assert fin.robot_finished.idle_s == pytest.approx(t_done - t_wait)
 
 
 def test_robot_waits_only_at_the_intermediate_pose_holding_its_part() -> None:

@@ -53,7 +53,8 @@ def test_retreat_both_robots_retreat_then_resume_their_targets() -> None:
     assert sorted(e.robot for e in reached) == ["r1", "r2"]
     cont = sim.kinds(K.TASK_EVENT_KIND_CONTINUED)[0]
     assert cont.task_time >= max(e.task_time for e in reached)
-    assert cont.value == pytest.approx(cont.task_time - t_col) and cont.value > 0
+    delay = cont.continued.delay_s
+    assert delay == pytest.approx(cont.task_time - t_col) and delay > 0
     sim.step()
     for rid, goal in goals.items():  # the interrupted targets, or the phase they moved on to
         agent = sim.task.agents[rid]
@@ -65,8 +66,8 @@ def test_retreat_both_robots_retreat_then_resume_their_targets() -> None:
     sim.contact(HR, False, "left", "r2", "link2")
     sim.run_to_end()
     rec = sim.task.safety.records
-    assert len(rec) == 1 and rec[0].delay_s == pytest.approx(cont.value)
-    assert sim.task.safety.total_delay == pytest.approx(cont.value)
+    assert len(rec) == 1 and rec[0].delay_s == pytest.approx(cont.continued.delay_s)
+    assert sim.task.safety.total_delay == pytest.approx(cont.continued.delay_s)
     assert sim.kinds(K.TASK_EVENT_KIND_TASK_FINISHED)[0].text.endswith(
         "TASK FINISHED. 1 total collisions.")
 
@@ -99,7 +100,7 @@ def test_retreat_button_waits_for_the_button() -> None:
     sim.step()
     assert sim.has(K.TASK_EVENT_KIND_BUTTON_PRESSED, hand="right")
     cont = sim.kinds(K.TASK_EVENT_KIND_CONTINUED)
-    assert len(cont) == 1 and cont[0].value > 11.9
+    assert len(cont) == 1 and cont[0].continued.delay_s > 11.9
     assert "continue_button" not in sim.cues
     sim.step()
     assert {target(last_cmd(sim, r)) for r in ("r1", "r2")} != {
@@ -141,10 +142,10 @@ def test_stop_colliding_only_the_touched_robot_holds() -> None:
     sim.step()
     assert sim.has(K.TASK_EVENT_KIND_COLLISION_END, robot="r1")
     cont = sim.kinds(K.TASK_EVENT_KIND_CONTINUED)
-    assert len(cont) == 1 and cont[0].value == pytest.approx(sim.t - t_col)
+    assert len(cont) == 1 and cont[0].continued.delay_s == pytest.approx(sim.t - t_col)
     assert last_cmd(sim, "r1").kind == pb.RobotCommand.KIND_MOVE
     sim.run_to_end()
-    assert sim.task.safety.records[0].delay_s == pytest.approx(cont[0].value)
+    assert sim.task.safety.records[0].delay_s == pytest.approx(cont[0].continued.delay_s)
 
 
 def test_no_new_grab_during_a_collision_but_the_held_part_can_be_placed() -> None:
@@ -219,7 +220,7 @@ def test_near_collision_tie_halts_r2() -> None:
     sim.step()
     near = sim.kinds(K.TASK_EVENT_KIND_NEAR_COLLISION)
     assert len(near) == 1 and near[0].robot == "r2"
-    assert near[0].numbers["distance_r1_m"] == near[0].numbers["distance_r2_m"] == 0.0
+    assert near[0].near_collision.distance_a_m == near[0].near_collision.distance_b_m == 0.0
     assert last_cmd(sim, "r2").kind == pb.RobotCommand.KIND_HOLD
 
 

@@ -8,6 +8,7 @@ import json
 import pytest
 from orch_fakes import K, FakeHuman, Sim, load
 
+from hrc import metrics as metrics_schema
 from hrc.wire import pb
 from hrc_orchestrator import metrics
 
@@ -48,7 +49,8 @@ def test_thesis_cross_waits_accrue_robot_idle_time_with_a_slow_participant() -> 
     waits = sim.kinds(K.TASK_EVENT_KIND_ROBOT_WAITING)
     assert {e.robot for e in waits} == {"r1", "r2"}  # both wait on the participant
     for rid, agent in sim.task.agents.items():
-        over = [e.value for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_WAIT_OVER) if e.robot == rid]
+        over = [e.robot_wait_over.waited_s for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_WAIT_OVER)
+                if e.robot == rid]
         assert agent.idle.total == pytest.approx(sum(over)) and agent.idle.total > 0
 
 
@@ -122,8 +124,9 @@ def test_metrics_have_every_field_and_match_the_events() -> None:
     sim.run_to_end()
     end = pb.RunEnd(ok=True, reason="stopped: task finished", ticks=sim.k, sim_time=sim.k * sim.dt,
                     wall_s=2.0, mode=pb.CLOCK_MODE_LOCKSTEP, realtime_factor=sim.k * sim.dt / 2)
-    data = metrics.build(sim.task, 7, end)
-    json.dumps(data)  # serialisable
+    msg = metrics.build(sim.task, 7, metrics.run_metrics(end))
+    data = metrics_schema.to_dict(msg)
+    json.dumps(data, allow_nan=False)  # serialisable
     for path in METRIC_FIELDS:
         dig(data, path)
     assert data["seed"] == 7 and data["run"]["mode"] == "lockstep"
@@ -143,21 +146,33 @@ def test_metrics_have_every_field_and_match_the_events() -> None:
     assert set(data["parts"]) == {p.id for p in sim.scenario.parts}
     for pid, p in data["parts"].items():
         assert 0 <= p["grabbed_s"] <= p["placed_s"], pid
-    msg = metrics.to_proto(data, final=True)
-    assert msg.final and msg.seed == 7 and msg.run.ticks == sim.k
-    assert msg.parts["H1"].placed_s == pytest.approx(data["parts"]["H1"]["placed_s"])
-    assert msg.human_robot[0].robot == "r2" and len(msg.near) == 1
-    assert msg.robots["r1"].max_tcp_speed_mps == pytest.approx(0.5)
+    assert msg.seed == 7 and msg.run.ticks == sim.k and msg.run.ok
+    assert data["run"]["end_reason"] == "stopped: task finished"
+    assert data["task"]["started"] is True and data["task"]["finished"] is True
+    report = metrics.report(msg, final=True)
+    assert report.final and report.metrics.collisions.human_robot[0].robot == "r2"
 
 
-def test_metrics_of_an_unfinished_task_say_never_with_null_and_minus_one() -> None:
+def test_metrics_of_an_unfinished_task_leave_never_unset() -> None:
     sim = Sim(load("minimal.toml"), human=None)
     for _ in range(10):
         sim.step()
-    data = metrics.build(sim.task, 1)
-    assert data["task"]["completion_s"] is None and data["parts"]["H1"]["grabbed_s"] is None
-    msg = metrics.to_proto(data, final=False)
-    assert msg.task_completion_s == -1.0 and msg.parts["RA1"].placed_s == -1.0
+    msg = metrics.build(sim.task, 1)
+    assert not msg.task.HasField("completion_s") and not msg.parts["RA1"].HasField("placed_s")
+    assert not msg.HasField("run")
+    data = metrics_schema.to_dict(msg)
+    assert data["task"] == {"started": False, "finished": False, "completion_s": None}
+    assert data["parts"]["H1"]["grabbed_s"] is None and data["run"] is None
+
+
+def test_a_run_that_broke_off_says_what_is_unknown() -> None:
+    sim = Sim(load("minimal.toml"), human=None)
+    sim.step()
+    data = metrics_schema.to_dict(metrics.build(sim.task, 1, metrics.broken_off_run(
+        sim.task.tick, "terminated by SIGTERM")))
+    assert data["run"] == {"mode": None, "ticks": sim.task.tick, "wall_s": None,
+                           "realtime_factor": None, "ok": False,
+                           "end_reason": "terminated by SIGTERM", "deadline_misses": {}}
 
 
 def _trace(policy: str) -> tuple[list[bytes], list[bytes], dict]:
@@ -179,7 +194,7 @@ def _trace(policy: str) -> tuple[list[bytes], list[bytes], dict]:
     events = [e.SerializeToString(deterministic=True) for e in sim.events]
     events += [c.SerializeToString(deterministic=True) for c in sim.commands]
     events += [w.SerializeToString(deterministic=True) for w in sim.world]
-    return events, cues, metrics.build(sim.task, 1)
+    return events, cues, metrics_schema.to_dict(metrics.build(sim.task, 1))
 
 
 @pytest.mark.parametrize("policy", ["retreat", "retreat_button", "stop_colliding"])
