@@ -58,79 +58,8 @@ def run_trial(hrc: str, scenario: Path, out: Path) -> subprocess.CompletedProces
 
 def normalised(folder: Path) -> dict[str, Any]:
     """A trial folder's three outputs with the wall-clock parts removed."""
-    events = [json.loads(line) for line in (folder / "events.jsonl").read_text().splitlines()]
+    events = [strip_wall(json.loads(line))
+              for line in (folder / "events.jsonl").read_text().splitlines()]
     log_lines = (folder / "log.txt").read_text().splitlines()[1:]  # line 0: the date
-    metrics = json.loads((folder / "metrics.json").read_text())
-    if any("numbers" in r for r in events):  # written before the typed contract (hrc.v2)
-        events = [_v2_record(r, metrics) for r in events]
-    return {"events.jsonl": [strip_wall(r) for r in events], "log.txt": log_lines,
-            "metrics.json": strip_wall(metrics)}
-
-
-# ---------------------------------------------------------------- the hrc.v2 renames
-# events.jsonl of hrc.v1 carried an event's figures in "value" and "numbers" (an untyped map);
-# hrc.v2 carries them in a typed "payload" named after the kind. Its metrics records now have
-# every field of metrics.json (task.started/finished, run.ok/end_reason/deadline_misses) and
-# `run: null` before the run has ended (v1 wrote zeros there).
-
-_NUMBER_IN_VALUE = {"COLLISION_END", "RETREAT_REACHED", "NEAR_COLLISION_END"}
-_VALUE_IS_TASK_TIME = {"ROBOT_FINISHED", "HUMAN_FINISHED", "TASK_FINISHED"}
-
-
-def _v1_payload(kind: str, value: float, numbers: dict[str, float]) -> dict[str, Any]:
-    n = dict(numbers)
-    payload = _take(kind, value, n)
-    assert not n, f"{kind}: {n} not in the payload"
-    return payload
-
-
-def _take(kind: str, value: float, n: dict[str, float]) -> dict[str, Any]:
-    if kind == "PART_RELEASED":
-        assert value == n["distance_m"]
-        return {"distance_m": n.pop("distance_m"), "angle_deg": n.pop("angle_deg")}
-    if kind == "ROBOT_WAIT_OVER":
-        return {"waited_s": value}
-    if kind == "ROBOT_FINISHED":
-        return {k: n.pop(k) for k in ("max_tcp_speed_mps", "avg_tcp_speed_mps", "idle_s")}
-    if kind == "HUMAN_FINISHED":
-        return {"idle_s": n.pop("idle_s")}
-    if kind == "TASK_FINISHED":
-        return {k: int(n.pop(k)) for k in ("human_robot_collisions", "near_collisions")}
-    if kind == "COLLISION":
-        assert value == n["collision"]
-        return {"number": int(n.pop("collision"))}
-    if kind in _NUMBER_IN_VALUE:
-        return {"number": int(value)}
-    if kind == "CONTINUED":
-        assert value == n["delay_s"]
-        return {"number": int(n.pop("collision")), "delay_s": n.pop("delay_s")}
-    if kind == "NEAR_COLLISION":
-        assert value == n["near_collision"]
-        number = int(n.pop("near_collision"))
-        (a, d_a), (b, d_b) = sorted(n.items())
-        n.clear()
-        return {"number": number, "robot_a": a.removeprefix("distance_").removesuffix("_m"),
-                "distance_a_m": d_a, "robot_b": b.removeprefix("distance_").removesuffix("_m"),
-                "distance_b_m": d_b}
-    assert value == 0.0, kind
-    return {}
-
-
-def _v2_record(rec: dict[str, Any], metrics: dict[str, Any]) -> dict[str, Any]:
-    rec = dict(rec)
-    if rec["type"] == "event":
-        value, numbers = rec.pop("value"), rec.pop("numbers")
-        payload = _v1_payload(rec["kind"], value, numbers)
-        if rec["kind"] in _VALUE_IS_TASK_TIME:
-            assert value == rec["task_time"]
-        rec["payload"] = payload
-    elif rec["type"] == "metrics":
-        rec["task"] = {"started": metrics["task"]["started"],
-                       "finished": metrics["task"]["finished"], **rec["task"]}
-        if rec["run"] == {"mode": "", "ticks": 0, "wall_s": 0.0, "realtime_factor": 0.0}:
-            rec["run"] = None
-        else:
-            rec["run"] = {**rec["run"], "ok": metrics["run"]["ok"],
-                          "end_reason": metrics["run"]["end_reason"],
-                          "deadline_misses": metrics["run"]["deadline_misses"]}
-    return rec
+    metrics = strip_wall(json.loads((folder / "metrics.json").read_text()))
+    return {"events.jsonl": events, "log.txt": log_lines, "metrics.json": metrics}
