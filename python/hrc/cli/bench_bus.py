@@ -51,7 +51,7 @@ def measure_rtt(echo_argv: list[str], session: str, port: int, n: int, what: str
                                 text=True)
         try:
             _wait_ready(proc, what)
-            msg = pb.HumanState(source="bench", left_grip=0.5, right_grip=0.25)
+            msg = pb.HumanState(source=pb.INPUT_SOURCE_SCRIPTED, left_grip=0.5, right_grip=0.25)
             msg.header.session = session
             msg.left_hand.position.x = 0.1
             payload = msg.SerializeToString()
