@@ -107,7 +107,7 @@ def scripted_params_from_proto(msg: pb.ScriptedParams, source: str = "<wire scen
                                ) -> ScriptedParams:
     """The parameters a message sets, the model's defaults for the others; ScenarioError naming
     the key (participant.<name>) for a value out of its range."""
-    return _validated(lambda: ScriptedParams(**_set_fields(msg)), source)
+    return _validated(lambda: ScriptedParams.model_validate(_set_fields(msg)), source)
 
 
 def from_proto(msg: pb.Scenario) -> Scenario:
@@ -146,11 +146,11 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
     pc = msg.participant
     provoke: float | list[float] = (list(pc.provoke_times_s) if pc.provoke_times_s
                                     else pc.provoke_probability)
-    participant = Participant(
-        name=pc.name, input=_member(InputSource, pc.input, "participant.input", source),
-        replay_file=pc.replay_file or None,
-        provoke_collisions=provoke, **_set_fields(pc.scripted),
-    )
+    participant = Participant.model_validate({
+        "name": pc.name, "input": _member(InputSource, pc.input, "participant.input", source),
+        "replay_file": pc.replay_file or None, "provoke_collisions": provoke,
+        **_set_fields(pc.scripted),
+    })
 
     robots: dict[str, Robot] = {}
     for rc in msg.robots:

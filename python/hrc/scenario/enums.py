@@ -10,7 +10,7 @@ Services compare these members (or the `pb` values), never the strings.
 from __future__ import annotations
 
 from enum import StrEnum
-from typing import Self
+from typing import Self, cast
 
 from google.protobuf.descriptor import EnumDescriptor
 
@@ -22,6 +22,7 @@ class WireEnum(StrEnum):
     """Base of the scenario enums (no members of its own)."""
 
     def to_proto(self) -> int:
+        """The wire value (the subclasses narrow the type to their `pb` enum)."""
         return enum_number(_DESCRIPTORS[type(self)], self.value)
 
     @classmethod
@@ -51,10 +52,16 @@ class SafetyPolicy(WireEnum):
     RETREAT_BUTTON = "retreat_button"
     STOP_COLLIDING = "stop_colliding"
 
+    def to_proto(self) -> pb.SafetyPolicy:
+        return cast(pb.SafetyPolicy, super().to_proto())
+
 
 class RobotRole(WireEnum):
     TRANSPORT = "transport"
     SCREWING = "screwing"
+
+    def to_proto(self) -> pb.RobotRole:
+        return cast(pb.RobotRole, super().to_proto())
 
 
 class InputSource(WireEnum):
@@ -63,6 +70,9 @@ class InputSource(WireEnum):
     SCRIPTED = "scripted"
     REPLAY = "replay"
     VR = "vr"
+
+    def to_proto(self) -> pb.InputSource:
+        return cast(pb.InputSource, super().to_proto())
 
 
 _DESCRIPTORS: dict[type[WireEnum], EnumDescriptor] = {

@@ -29,7 +29,7 @@ _FLOATS = (FieldDescriptor.TYPE_DOUBLE, FieldDescriptor.TYPE_FLOAT)
 
 
 def _enum_prefix(enum: EnumDescriptor) -> str:
-    zero = enum.values_by_number[0].name  # e.g. SAFETY_POLICY_UNSPECIFIED
+    zero = str(enum.values_by_number[0].name)  # e.g. SAFETY_POLICY_UNSPECIFIED
     return zero.removesuffix("UNSPECIFIED")
 
 
@@ -40,7 +40,7 @@ def enum_text(enum: EnumDescriptor, number: int) -> str | None:
     value = enum.values_by_number.get(number)
     if value is None:
         raise ValueError(f"{enum.name} has no value {number}")
-    return value.name.removeprefix(_enum_prefix(enum)).lower()
+    return str(value.name).removeprefix(_enum_prefix(enum)).lower()
 
 
 def enum_number(enum: EnumDescriptor, text: str) -> int:
