@@ -3,8 +3,8 @@
 lockstep: publish tick k, wait for every participant's ack of k (the barrier), apply, step, k + 1.
 realtime: the same, paced by the wall clock; the barrier's deadline is the next tick's start and a
 late participant's miss is counted (its last outputs stay in force).
-A participant that loses liveliness, or misses the lockstep barrier timeout, ends the run with an
-error naming it.
+A participant that loses liveliness, misses the lockstep barrier timeout, or asks for an abort
+(its step failed), ends the run with an error naming it (``RunEnd.failed_participant``).
 """
 
 from __future__ import annotations
@@ -84,6 +84,7 @@ class ClockMaster:
         self._alive: set[str] = set()
         self._lost: list[str] = []
         self._stop: tuple[bool, str] | None = None
+        self._aborted_by = ""  # the sender of the abort that ends the run
         self.misses: Counter[str] = Counter()
         self.compute_us: dict[str, int] = {}
         self._compute_total: Counter[str] = Counter()
@@ -143,6 +144,8 @@ class ClockMaster:
                 ok = ctl.command != pb.RunControl.COMMAND_ABORT
                 who = ctl.header.sender
                 self._stop = (ok, f"{'stopped' if ok else 'aborted'} by {who}: {ctl.reason}")
+                if not ok:
+                    self._aborted_by = who
             self._cond.notify_all()
 
     def _on_liveliness(self, service: str, alive: bool) -> None:
@@ -387,6 +390,8 @@ class ClockMaster:
                 with self._cond:
                     self._inline = True
                 ok, reason = self._run_lockstep()
+            if not ok:
+                failed = self._aborted_by  # a service that failed asked for the abort
         except RunFailed as exc:
             ok, reason, failed = False, exc.reason, exc.participant
             log.error("run failed: %s", reason)

@@ -1,7 +1,14 @@
-"""The participant side of the tick protocol (docs/ARCHITECTURE.md).
+"""The two roles that follow the clock (docs/ARCHITECTURE.md, "Roles").
 
-On clock tick k: wait until every message the clock says was published before k has arrived,
-hand those inputs to the service (Inbox), run the service's step for k, publish the ack.
+Both share one loop (:class:`ClockFollower`): on clock tick k, wait until every message the clock
+says was published before k has arrived, hand those inputs to the service (Inbox), run the
+service's step for k. A :class:`LockstepParticipant` then acks k (it is part of the barrier); an
+:class:`hrc.bus.observer.Observer` never acks.
+
+A step (or an input handler) that raises ends the run at once: the follower publishes a
+``run/control`` ABORT naming the tick and the error, the clock master ends the run with
+``RunEnd.failed_participant`` = this service, and :meth:`ClockFollower.run` returns a failed
+outcome (exit code 1).
 """
 
 from __future__ import annotations
@@ -15,16 +22,20 @@ from typing import Callable
 
 from google.protobuf.message import Message
 
-from hrc.bus.bus import Bus, Validator
+from hrc.bus.bus import Bus, Publisher, Validator
 from hrc.bus.inbox import Handler, Inbox
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
 
+# After an abort, how long run() waits for the clock master's run/end before returning: the
+# service then leaves after the clock master has ended the run, so the end names the abort.
+ABORT_WAIT_S = 2.0
+
 
 @dataclass
 class Outcome:
-    """How a participant's run ended."""
+    """How a service's run ended."""
 
     ok: bool
     reason: str
@@ -52,82 +63,103 @@ def watch_clock_master(bus: Bus, on_lost: Callable[[Outcome], None]) -> None:
     bus.watch_liveliness(on_change)
 
 
-class LockstepParticipant:
-    """Takes part in the clock barrier (``ack=True``) or just follows it (observers).
+def describe_marks(marks: list[pb.PublishedMark]) -> str:
+    return ", ".join(f"{m.key}#{m.seq} from {m.sender}" for m in marks)
+
+
+class ClockFollower:
+    """The loop shared by participants and observers; use one of the two subclasses.
 
     Register inputs with :meth:`input` and the step with :meth:`on_tick` before :meth:`start`.
-    Inputs and steps run on the thread that calls :meth:`run`, never on Zenoh's threads.
+    Inputs and steps run one tick at a time, on the thread that calls :meth:`run` (or, for a
+    participant, inline on the Zenoh thread that delivered the clock), never concurrently.
     """
 
-    def __init__(self, bus: Bus, *, ack: bool = True, input_timeout_s: float = 10.0) -> None:
+    # A tick may be computed on the Zenoh thread that delivered it (saves a thread hand-off).
+    inline = False
+
+    def __init__(self, bus: Bus, *, input_timeout_s: float = 10.0) -> None:
         self.bus = bus
         self.name = bus.sender
-        self.ack = ack
         self.input_timeout_s = input_timeout_s
         self.inbox = Inbox(bus)
         self._step: Callable[[pb.ClockTick], None] | None = None
         self._cond = threading.Condition(threading.Lock())
-        self._ticks: deque[pb.ClockTick] = deque()
+        self._ticks: deque[tuple[pb.ClockTick, float]] = deque()  # (tick, perf_counter at arrival)
         self._busy = False  # a tick is being computed (one at a time, whichever thread)
+        self._running = False
+        self._latest_seen = -1  # the newest clock tick received
+        self._end: Outcome | None = None
+        self._aborted = False  # our own step failed and we asked the clock master to abort
+        self._master_done = False  # run/end came, or the clock master is gone
+        self._control_pub: Publisher[pb.RunControl] | None = None
+        self.last_tick: pb.ClockTick | None = None
         # where a tick's time goes (reported at the end): hand-off, waiting for inputs, compute
         self._ticks_done = 0
         self._lag_s = self._wait_s = self._compute_s = 0.0
-        self._last_clock_rx = 0.0
-        self._running = False
-        self._end: Outcome | None = None
-        self.last_tick: pb.ClockTick | None = None
-        self._ack_pub = None
 
+    # ------------------------------------------------------------------ setup
     def input(self, key: str, msg_type: type[Message], handler: Handler,
               validate: Validator | None = None) -> None:
+        """``handler(key, msg)`` for each message on ``key``, before the step of its tick."""
         self.inbox.add(key, msg_type, handler, validate)
 
     def on_tick(self, step: Callable[[pb.ClockTick], None]) -> None:
         self._step = step
 
+    def _declare_publishers(self) -> None:
+        """The role's own publishers (before the token)."""
+
     def start(self) -> None:
         """Subscribes to the clock and run end, serves stats, then announces readiness."""
         keys = self.bus.keys
-        if self.ack:
-            self._ack_pub = self.bus.publisher(keys.clock_ack(self.name), express=True)
+        self._declare_publishers()
+        self._control_pub = self.bus.publisher(keys.run_control())
         self.bus.subscribe(keys.clock(), pb.ClockTick, self._on_clock)
         self.bus.subscribe(keys.run_end(), pb.RunEnd, self._on_run_end)
-        watch_clock_master(self.bus, self._finish)
+        watch_clock_master(self.bus, self._on_master_lost)
         self.bus.serve_stats()
         self.bus.declare_token()
 
     # ------------------------------------------------------------------ zenoh threads
-    def report(self) -> str:
-        n = max(1, self._ticks_done)
-        return (f"{self._ticks_done} ticks; mean us per tick: hand-off {self._lag_s / n * 1e6:.0f}, "
-                f"input wait {self._wait_s / n * 1e6:.0f}, compute {self._compute_s / n * 1e6:.0f}")
-
     def _on_clock(self, _key: str, tick: pb.ClockTick) -> None:
-        self._last_clock_rx = time.perf_counter()
-        # Fast path: when nothing is queued and every input of the tick is here, compute it right
-        # on this thread (saves a thread hand-off per tick); otherwise the run() thread waits.
+        arrived = time.perf_counter()
         with self._cond:
-            inline = (not self._ticks and not self._busy and self._end is None
+            if tick.header.tick > self._latest_seen:
+                self._latest_seen = tick.header.tick
+            # Fast path: when nothing is queued and every input of the tick is here, compute it
+            # right on this thread; otherwise the run() thread does (and waits for the inputs).
+            inline = (self.inline and not self._ticks and not self._busy and self._end is None
                       and self._running and not self.inbox.missing(list(tick.published)))
             if not inline:
-                self._ticks.append(tick)
+                self._ticks.append((tick, arrived))
                 self._cond.notify_all()
                 return
             self._busy = True
-        self._process_claimed(tick, inputs_ready=True)
+        self._process_claimed(tick, arrived, inputs_ready=True)
 
-    def _process_claimed(self, tick: pb.ClockTick, inputs_ready: bool = False) -> None:
+    def _process_claimed(self, tick: pb.ClockTick, arrived: float,
+                         inputs_ready: bool = False) -> None:
         """Computes a tick this thread claimed (``_busy`` set) and releases the claim."""
         try:
-            self._process(tick, inputs_ready)
+            self._process(tick, arrived, inputs_ready)
         finally:
             with self._cond:
                 self._busy = False
-                if self._ticks:  # only a queued tick concerns the run() thread; don't wake it idly
+                if self._ticks or self._end is not None:  # else run() has nothing to do
                     self._cond.notify_all()
 
     def _on_run_end(self, _key: str, end: pb.RunEnd) -> None:
+        with self._cond:
+            self._master_done = True
+            if self._end is not None and self._end.run_end is None:
+                self._end.run_end = end  # e.g. after our abort: the end the clock master gave
         self._finish(Outcome(end.ok, end.reason, end))
+
+    def _on_master_lost(self, outcome: Outcome) -> None:
+        with self._cond:
+            self._master_done = True
+        self._finish(outcome)
 
     def _finish(self, outcome: Outcome) -> None:
         with self._cond:
@@ -136,49 +168,128 @@ class LockstepParticipant:
             self._cond.notify_all()
 
     def stop(self, reason: str = "stopped") -> None:
+        """Ends the run (first outcome wins); safe from any thread or a signal handler."""
         self._finish(Outcome(False, reason))
 
-    # ------------------------------------------------------------------ main thread
+    # ------------------------------------------------------------------ run() thread
+    def _work_off_queue(self) -> bool:
+        """After the end: compute the ticks still queued (observers) or drop them."""
+        return False
+
     def run(self, timeout: float | None = None) -> Outcome:
         """Processes ticks until the run ends (or ``timeout`` seconds pass without one)."""
         with self._cond:
             self._running = True
         while True:
             with self._cond:
-                ok = self._cond.wait_for(
+                ready = self._cond.wait_for(
                     lambda: (self._ticks and not self._busy) or self._end is not None, timeout)
-                if self._end is not None:
-                    log.info("%s", self.report())
-                    return self._end
-                if not ok:
-                    return Outcome(False, f"no clock tick within {timeout:g} s")
-                tick = self._ticks.popleft()
+                if self._end is not None and not (self._ticks and self._work_off_queue()):
+                    # An inline tick may still be under way: let it end before the bus goes.
+                    self._cond.wait_for(lambda: not self._busy, self.input_timeout_s)
+                    break
+                if not ready:
+                    self._end = Outcome(False, f"no clock tick within {timeout:g} s")
+                    break
+                tick, arrived = self._ticks.popleft()
                 self._busy = True
-            self._process_claimed(tick)
+            self._process_claimed(tick, arrived)
+        if self._aborted:
+            with self._cond:
+                self._cond.wait_for(lambda: self._master_done, ABORT_WAIT_S)
+        self._wind_up()
+        log.info("%s", self.report())
+        end = self._end
+        assert end is not None
+        return end
 
-    def _process(self, tick: pb.ClockTick, inputs_ready: bool = False) -> None:
+    def _wind_up(self) -> None:
+        """The role's last work after the end (observers: the late messages)."""
+
+    def report(self) -> str:
+        n = max(1, self._ticks_done)
+        return (f"{self._ticks_done} ticks; mean us per tick: "
+                f"hand-off {self._lag_s / n * 1e6:.0f}, input wait {self._wait_s / n * 1e6:.0f}, "
+                f"compute {self._compute_s / n * 1e6:.0f}")
+
+    # ------------------------------------------------------------------ one tick
+    def _input_wait_s(self) -> float:
+        return self.input_timeout_s
+
+    def _inputs_missing(self, k: int, missing: list[pb.PublishedMark]) -> bool:
+        """Inputs of tick k never arrived: returns whether to compute the tick anyway."""
+        raise NotImplementedError
+
+    def _tick_ready(self, tick: pb.ClockTick, arrived: float) -> None:
+        """All inputs of the tick are here (observers measure their lag)."""
+
+    def _after_step(self, tick: pb.ClockTick, t0: float) -> None:
+        """The step of the tick ran (participants ack); ``t0``: when its inputs were all here."""
+
+    def _process(self, tick: pb.ClockTick, arrived: float, inputs_ready: bool = False) -> None:
         """``inputs_ready``: the caller has just checked that nothing the tick lists is missing."""
         k = tick.header.tick
         tw = time.perf_counter()
-        self._lag_s += tw - self._last_clock_rx
+        self._lag_s += tw - arrived
         if tick.mode == pb.CLOCK_MODE_LOCKSTEP and not inputs_ready:
-            missing = self.inbox.wait_for(list(tick.published), self.input_timeout_s)
-            if missing:
-                names = ", ".join(f"{m.key}#{m.seq} from {m.sender}" for m in missing)
-                log.error("tick %d: inputs never arrived: %s", k, names)
-                self._finish(Outcome(False, f"tick {k}: inputs never arrived: {names}"))
+            missing = self.inbox.wait_for(list(tick.published), self._input_wait_s())
+            if missing and not self._inputs_missing(k, missing):
                 return
-        t0 = time.perf_counter()  # compute time, not time spent waiting for inputs
+        # TickAck.compute_us starts here: every input of tick k is at hand.
+        t0 = time.perf_counter()
         self._wait_s += t0 - tw
         self._ticks_done += 1
-        self.inbox.deliver(k, master=self.bus.config.clock_master)
-        self.last_tick = tick
-        self.bus.stats.tick(k)
-        if self._step is not None:
-            self._step(tick)
-        if self._ack_pub is not None:
-            ack = pb.TickAck(participant=self.name,
-                             compute_us=int((time.perf_counter() - t0) * 1e6))
-            ack.published.extend(self.bus.new_marks(exclude=self._ack_pub.key))
-            self._ack_pub.put(ack, k, tick.header.sim_time)
+        self._tick_ready(tick, arrived)
+        try:
+            self.inbox.deliver(k, master=self.bus.config.clock_master)
+            self.last_tick = tick
+            self.bus.stats.tick(k)
+            if self._step is not None:
+                self._step(tick)
+            self._after_step(tick, t0)
+        except Exception as exc:  # noqa: BLE001 - any failure of the service ends the run
+            self._abort(tick, exc)
         self._compute_s += time.perf_counter() - t0
+
+    def _abort(self, tick: pb.ClockTick, exc: Exception) -> None:
+        """The service failed in tick k: ask the clock master to end the run, naming us."""
+        k = tick.header.tick
+        reason = f"tick {k} failed: {type(exc).__name__}: {exc}"
+        log.error("%s", reason, exc_info=exc)
+        with self._cond:
+            first = self._end is None and not self._aborted
+            self._aborted = True
+        if first and self._control_pub is not None:
+            try:
+                self._control_pub.put(pb.RunControl(command=pb.RunControl.COMMAND_ABORT,
+                                                    reason=reason), k, tick.header.sim_time)
+            except Exception:  # noqa: BLE001 - the bus itself may be what failed
+                log.exception("could not ask the clock master to abort")
+        self._finish(Outcome(False, reason))
+
+
+class LockstepParticipant(ClockFollower):
+    """A member of the clock barrier: acks every tick after its step's outputs."""
+
+    inline = True
+
+    def __init__(self, bus: Bus, *, input_timeout_s: float = 10.0) -> None:
+        super().__init__(bus, input_timeout_s=input_timeout_s)
+        self._ack_pub: Publisher[pb.TickAck] | None = None
+
+    def _declare_publishers(self) -> None:
+        self._ack_pub = self.bus.publisher(self.bus.keys.clock_ack(self.name), express=True)
+
+    def _inputs_missing(self, k: int, missing: list[pb.PublishedMark]) -> bool:
+        names = describe_marks(missing)
+        log.error("tick %d: inputs never arrived: %s", k, names)
+        self._finish(Outcome(False, f"tick {k}: inputs never arrived: {names}"))
+        return False
+
+    def _after_step(self, tick: pb.ClockTick, t0: float) -> None:
+        ack_pub = self._ack_pub
+        assert ack_pub is not None, "start() declares the ack publisher"
+        # TickAck.compute_us ends here, before the ack is built and published.
+        ack = pb.TickAck(participant=self.name, compute_us=int((time.perf_counter() - t0) * 1e6))
+        ack.published.extend(self.bus.new_marks(exclude=ack_pub.key))
+        ack_pub.put(ack, tick.header.tick, tick.header.sim_time)

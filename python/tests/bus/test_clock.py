@@ -5,7 +5,10 @@ from __future__ import annotations
 import threading
 import time
 
-from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings, LockstepParticipant
+import pytest
+
+from hrc.bus import (Bus, BusConfig, ClockFollower, ClockMaster, ClockSettings,
+                     LockstepParticipant, Observer, Outcome)
 from hrc.wire import pb
 
 from .conftest import free_port, wait_until
@@ -31,7 +34,7 @@ def _run_participants(s: Session, steps: dict[str, list[int]],
     for name, bus in s.buses.items():
         if only is not None and name not in only:
             continue
-        p = LockstepParticipant(bus, ack=(name != "logger"))
+        p: ClockFollower = Observer(bus) if name == "logger" else LockstepParticipant(bus)
         seen = steps.setdefault(name, [])
         p.on_tick(lambda t, seen=seen: seen.append(t.header.tick))
         p.start()
@@ -200,3 +203,55 @@ def test_a_participant_follows_the_clock_master_its_config_names(session_id: str
     finally:
         bus.close()
         master.close()
+
+
+@pytest.mark.parametrize("failing", ["human_input", "logger"])
+def test_a_service_whose_step_raises_ends_the_run_at_once_naming_it(session_id: str,
+                                                                    failing: str) -> None:
+    # human_input: a participant computing on the inline path (it has no inputs to wait for);
+    # logger: an observer, computing on its run() thread.
+    names = ["ik_cpp", "orchestrator", "human_input", "logger"]
+    s = Session(session_id, ClockSettings(ticks=0, barrier_timeout_s=10.0), names)
+    try:
+        raised_at: list[float] = []
+        outcomes: dict[str, Outcome] = {}
+        returned_at: dict[str, float] = {}
+        threads = []
+        for name, bus in s.buses.items():
+            p: ClockFollower = Observer(bus) if name == "logger" else LockstepParticipant(bus)
+            if name == failing:
+                def step(tick: pb.ClockTick) -> None:
+                    if tick.header.tick == 50:
+                        raised_at.append(time.monotonic())
+                        raise ValueError("bad value in tick 50")
+                p.on_tick(step)
+            p.start()
+
+            def follow(p: ClockFollower = p, n: str = name) -> None:
+                outcomes[n] = p.run(30)
+                returned_at[n] = time.monotonic()
+
+            th = threading.Thread(target=follow)
+            th.start()
+            threads.append(th)
+        s.clock.start()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)  # lingers while they leave
+        for th in threads:
+            th.join(10)
+        assert raised_at, "the step never raised"
+        # The run has ended for everybody when the last service's run() has returned.
+        took = max(returned_at.values()) - raised_at[0]
+        print(f"{failing}: every service's run ended {took * 1e3:.1f} ms after its step raised",
+              {n: round((t - raised_at[0]) * 1e3, 1) for n, t in returned_at.items()})
+        assert not end.ok and end.failed_participant == failing, end
+        assert f"aborted by {failing}: tick 50 failed: ValueError: bad value in tick 50" \
+            in end.reason, end.reason
+        assert took < 2.0
+        failed = outcomes[failing]
+        assert not failed.ok and failed.exit_code == 1
+        assert "tick 50 failed: ValueError" in failed.reason
+        assert failed.run_end is not None and failed.run_end.failed_participant == failing
+        for n in names:
+            assert not outcomes[n].ok, n  # everybody learns the run failed
+    finally:
+        s.close()

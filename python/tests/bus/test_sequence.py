@@ -6,7 +6,7 @@ import logging
 
 import pytest
 
-from hrc_logger.sequence import SeqChecker
+from hrc.bus.sequence import SeqChecker
 
 
 def test_consecutive_numbers_are_fine() -> None:

@@ -1,0 +1,121 @@
+"""The observer role: follows the session's clock without taking part in the barrier, and loses
+nothing (the logger is one).
+
+The loop is the participants' (:class:`hrc.bus.lockstep.ClockFollower`) without the ack, and
+without the inline path: Zenoh callbacks only decode and queue, so a slow observer never stalls
+the bus threads; the run() thread works through the ticks in order. On top of it the observer
+checks every message's sequence number (a gap is a lost message), measures its lag behind the
+clock, keeps going when a tick's inputs never arrive (it logs what did arrive), and at the run's
+end works off the queued ticks, then waits for the session to go quiet and hands over whatever
+is left (the last outputs of the final tick are listed by no clock tick).
+
+Lag: for each tick processed, the newest clock tick already received minus the tick being
+processed (ticks), and the wall time since that tick arrived.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+from google.protobuf.message import Message
+
+from hrc.bus.bus import Bus, Validator
+from hrc.bus.inbox import Handler
+from hrc.bus.lockstep import ClockFollower, Outcome, describe_marks
+from hrc.bus.sequence import SeqChecker
+from hrc.wire import pb
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class LagStats:
+    ticks: int = 0
+    sum_ticks: int = 0
+    max_ticks: int = 0
+    sum_wall_s: float = 0.0
+    max_wall_s: float = 0.0
+
+    def add(self, lag_ticks: int, wall_s: float) -> None:
+        self.ticks += 1
+        self.sum_ticks += lag_ticks
+        self.max_ticks = max(self.max_ticks, lag_ticks)
+        self.sum_wall_s += wall_s
+        self.max_wall_s = max(self.max_wall_s, wall_s)
+
+    @property
+    def mean_ticks(self) -> float:
+        return self.sum_ticks / self.ticks if self.ticks else 0.0
+
+    @property
+    def mean_wall_s(self) -> float:
+        return self.sum_wall_s / self.ticks if self.ticks else 0.0
+
+
+class Observer(ClockFollower):
+    """Subscribes, declares ``alive/<name>``, never acks; the clock master waits for its token
+    at the start and ends the run if it disappears, but never waits for it during the run."""
+
+    inline = False
+
+    def __init__(self, bus: Bus, *, input_timeout_s: float = 10.0, quiet_s: float = 0.3,
+                 drain_max_s: float = 3.0) -> None:
+        super().__init__(bus, input_timeout_s=input_timeout_s)
+        self.seq = SeqChecker()
+        self.lag = LagStats()
+        self.quiet_s = quiet_s
+        self.drain_max_s = drain_max_s
+        self.missing_inputs = 0
+        self._hurry = False  # stop waiting for inputs (stopped, or the run failed)
+
+    def input(self, key: str, msg_type: type[Message], handler: Handler,
+              validate: Validator | None = None) -> None:
+        """``handler(key, msg)`` on the run thread, in tick order, after the sequence check."""
+
+        def checked(k: str, msg: Message) -> None:
+            h = msg.header  # type: ignore[attr-defined]
+            self.seq.check(k, h.sender, h.seq)
+            handler(k, msg)
+
+        super().input(key, msg_type, checked, validate)
+
+    def _on_clock(self, key: str, tick: pb.ClockTick) -> None:
+        self.seq.check(key, tick.header.sender, tick.header.seq)
+        super()._on_clock(key, tick)
+
+    def _finish(self, outcome: Outcome) -> None:
+        # Any failed end (a stop, a lost clock master, run/end not ok): don't wait for inputs.
+        if not outcome.ok:
+            self._hurry = True
+        super()._finish(outcome)
+
+    def _work_off_queue(self) -> bool:
+        return not self._aborted
+
+    def _input_wait_s(self) -> float:
+        return 0.0 if self._hurry else self.input_timeout_s
+
+    def _inputs_missing(self, k: int, missing: list[pb.PublishedMark]) -> bool:
+        # Reliable delivery makes this a real loss; keep recording what did arrive.
+        self.missing_inputs += len(missing)
+        log.error("tick %d: inputs never arrived: %s", k, describe_marks(missing))
+        return True
+
+    def _tick_ready(self, tick: pb.ClockTick, arrived: float) -> None:
+        with self._cond:
+            latest = self._latest_seen
+        self.lag.add(latest - tick.header.tick, time.perf_counter() - arrived)
+
+    def _wind_up(self) -> None:
+        """Hands over everything still arriving until the session is quiet for ``quiet_s``."""
+        deadline = time.monotonic() + (0.5 if self._hurry else self.drain_max_s)
+        quiet_since = time.monotonic()
+        while True:
+            if self.inbox.deliver(2**62) > 0:
+                quiet_since = time.monotonic()
+            now = time.monotonic()
+            if now - quiet_since >= self.quiet_s or now >= deadline:
+                return
+            time.sleep(0.05)

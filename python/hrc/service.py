@@ -1,0 +1,195 @@
+"""One shape for every Python service: options, logging, the bus session, the role, the exit code.
+
+A service is a subclass of :class:`Service` (or :class:`ClockMasterService`) with a few hooks;
+its ``main`` is ``return run_service(TheService, argv)``. :func:`run_service`:
+
+1. parses the bus options, ``--input-timeout`` (participants and observers), the service's own
+   options (:meth:`Service.add_arguments`) and ``--log-level``, and sets up logging;
+2. constructs the service from its options: checks and local files, before joining the bus;
+3. opens the bus session; :meth:`Service.open` fetches what the service needs from the bus,
+   builds its state and declares its publishers;
+4. creates the role (docs/ARCHITECTURE.md, "Roles"): a :class:`ClockMaster`, a
+   :class:`LockstepParticipant` or an :class:`Observer`; :meth:`Service.register_inputs` adds
+   the inputs; the role subscribes and declares the liveliness token (ready);
+5. runs the role until the run ends (the step of each tick: :meth:`Service.step`, or the clock
+   master's :meth:`ClockMasterService.publish_world` and :meth:`ClockMasterService.step_world`);
+6. :meth:`Service.finish` writes what the service writes at the end; the exit code is 0 when the
+   run ended ok, 1 when it failed, or a :class:`ServiceExit`'s code when the service refused to
+   run (2: bad input or options, 1: something it needs never came).
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import logging
+import signal
+import sys
+from types import FrameType
+from typing import ClassVar, Protocol
+
+from google.protobuf.message import Message
+
+from hrc import services
+from hrc.bus import (Bus, ClockFollower, ClockMaster, ClockSettings, LockstepParticipant,
+                     Observer, Outcome, add_bus_arguments, bus_config_from_args)
+from hrc.bus.bus import Validator
+from hrc.bus.inbox import Handler
+from hrc.logsetup import setup_logging
+from hrc.services import Role
+from hrc.wire import pb
+
+log = logging.getLogger(__name__)
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_BAD_INPUT = 2
+
+
+class ServiceExit(Exception):
+    """The service refuses to run: the message is logged (and, for bad input, printed on
+    stderr), the process exits with ``code``."""
+
+    def __init__(self, message: str, code: int = EXIT_FAILED) -> None:
+        super().__init__(message)
+        self.code = code
+
+
+class Inputs(Protocol):
+    """What :meth:`Service.register_inputs` gets: the role's input registration."""
+
+    def input(self, key: str, msg_type: type[Message], handler: Handler,
+              validate: Validator | None = None) -> None: ...
+
+
+class Service:
+    """The hooks of a service; :func:`run_service` calls them in order. Override what you need."""
+
+    # Its name in the service table (hrc.services), which gives its role and its command's name;
+    # also its bus name: alive/<name>, clock/ack/<name>, the log prefix.
+    name: ClassVar[str]
+    description: ClassVar[str] = ""  # --help text; default: the docstring of the class's module
+    # The observer role, for an observer's finish (its lag and sequence counters); set by
+    # run_service.
+    observer: Observer | None = None
+
+    @classmethod
+    def entry(cls) -> services.Service:
+        """The service's line in the service table."""
+        return services.service(cls.name)
+
+    @classmethod
+    def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
+        """The service's own command-line options."""
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        """Checks the options and reads local files, before joining the bus (ServiceExit)."""
+        self.args = args
+
+    def open(self, bus: Bus, stack: contextlib.ExitStack) -> None:
+        """The session is open: fetch what the service needs, build its state, declare its
+        publishers. What must be released at the end goes on ``stack`` (closed before the bus)."""
+        self.bus = bus
+
+    def register_inputs(self, inputs: Inputs) -> None:
+        """Registers the inputs (each is handed over before the step of its tick, in the order
+        registered)."""
+
+    def step(self, tick: pb.ClockTick) -> None:
+        """The work of one tick (participants and observers): publish the tick's outputs."""
+
+    def finish(self, outcome: Outcome) -> int | None:
+        """The run is over (the bus is still open): write what the service writes at the end.
+        Returns the exit code, or None for the outcome's (0 ok, 1 failed)."""
+        return None
+
+
+class ClockMasterService(Service):
+    """The clock master's hooks: its clock settings, and the two halves of its tick."""
+
+    def clock_settings(self) -> ClockSettings:
+        raise NotImplementedError
+
+    def publish_world(self, tick: int, sim_time: float) -> None:
+        """The world state of ``tick``, published before clock tick ``tick``."""
+
+    def step_world(self, tick: int, sim_time: float) -> None:
+        """After the barrier of ``tick``: its inputs are applied; advance to ``tick + 1``."""
+
+
+def fetch_scenario(bus: Bus, timeout: float) -> pb.Scenario:
+    """The scenario from the orchestrator's queryable (it may still be starting)."""
+    try:
+        return bus.get_one(bus.keys.scenario(), pb.Scenario, timeout=timeout)
+    except TimeoutError as exc:
+        raise ServiceExit(f"no scenario: {exc} (is the orchestrator running in session "
+                          f"{bus.keys.session!r}?)") from exc
+
+
+def parse_args(cls: type[Service], argv: list[str] | None = None) -> argparse.Namespace:
+    description = cls.description or sys.modules[cls.__module__].__doc__ or ""
+    p = argparse.ArgumentParser(prog=cls.entry().script, description=description,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    add_bus_arguments(p)
+    if cls.entry().role is not Role.CLOCK_MASTER:
+        p.add_argument("--input-timeout", type=float, default=10.0, metavar="S",
+                       help="lockstep: seconds to wait for the inputs a clock tick lists "
+                            "(default 10)")
+    cls.add_arguments(p)
+    p.add_argument("--log-level", default=None, help="DEBUG, INFO (default; env HRC_LOG_LEVEL), "
+                                                     "WARNING or ERROR")
+    return p.parse_args(argv)
+
+
+def _stop_on_signals(role: ClockFollower) -> None:
+    """SIGTERM / SIGINT end an observer's run cleanly: it still writes its files."""
+
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
+        role.stop(f"terminated by {signal.Signals(signum).name}")
+
+    signal.signal(signal.SIGTERM, on_signal)
+    signal.signal(signal.SIGINT, on_signal)
+
+
+def _run_role(service: Service, bus: Bus) -> Outcome:
+    kind = service.entry().role
+    if (kind is Role.CLOCK_MASTER) != isinstance(service, ClockMasterService):
+        raise TypeError(f"{service.name}: the table says {kind.value}; a clock master "
+                        "is a ClockMasterService and nothing else is")
+    if isinstance(service, ClockMasterService):
+        clock = ClockMaster(bus, service.clock_settings())
+        service.register_inputs(clock)
+        clock.start()
+        end = clock.run(service.publish_world, service.step_world)
+        return Outcome(end.ok, end.reason, end)
+    timeout = service.args.input_timeout
+    role: ClockFollower
+    if kind is Role.OBSERVER:
+        role = service.observer = Observer(bus, input_timeout_s=timeout)
+        _stop_on_signals(role)
+    else:
+        role = LockstepParticipant(bus, input_timeout_s=timeout)
+    service.register_inputs(role)
+    role.on_tick(service.step)
+    role.start()
+    return role.run()
+
+
+def run_service(cls: type[Service], argv: list[str] | None = None) -> int:
+    """Runs the service ``cls`` as a process would; returns its exit code."""
+    args = parse_args(cls, argv)
+    setup_logging(cls.name, args.log_level)
+    try:
+        service = cls(args)
+        with Bus(bus_config_from_args(args), cls.name) as bus, contextlib.ExitStack() as stack:
+            service.open(bus, stack)
+            outcome = _run_role(service, bus)
+            code = service.finish(outcome)
+    except ServiceExit as exc:
+        log.error("%s", exc)
+        if exc.code == EXIT_BAD_INPUT:  # also when logging goes elsewhere: the user must act
+            print(f"{cls.entry().script}: {exc}", file=sys.stderr)
+        return exc.code
+    if not outcome.ok:
+        log.error("run ended with an error: %s", outcome.reason)
+    return outcome.exit_code if code is None else code

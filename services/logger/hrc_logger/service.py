@@ -1,0 +1,172 @@
+"""The logger service (``hrc-logger``): observes the session, never acks.
+
+Writes into the trial folder (``--out``): ``log.txt`` (thesis style), ``events.jsonl``,
+``recording.rrd`` (always) and ``logger_stats.json`` (lag behind the clock, sequence gaps);
+``--viewer`` also streams to a spawned native rerun viewer, ``--web`` serves the web viewer.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+from google.protobuf.message import Message
+
+from hrc.bus import Bus, Observer, Outcome
+from hrc.bus.inbox import Handler
+from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit
+from hrc.wire import pb
+
+from hrc_logger.files import write_json_atomic
+from hrc_logger.recorder import TrialRecorder
+from hrc_logger.view import View, ViewSettings, open_recording
+
+log = logging.getLogger("hrc_logger")
+
+RRD_FILE = "recording.rrd"
+STATS_FILE = "logger_stats.json"
+
+
+def fetch_scenario(bus: Bus, timeout: float) -> pb.Scenario | None:
+    try:
+        return bus.get_one(bus.keys.scenario(), pb.Scenario, timeout=timeout)
+    except TimeoutError as exc:
+        log.warning("no scenario (%s): the view will lack robots' URDFs, targets and workspace",
+                    exc)
+        return None
+
+
+def stats_dict(obs: Observer, rec: TrialRecorder, view: View, bus: Bus,
+               handler_errors: int) -> dict[str, Any]:
+    return {
+        "lag_mean_ticks": round(obs.lag.mean_ticks, 3),
+        "lag_max_ticks": obs.lag.max_ticks,
+        "lag_mean_ms": round(obs.lag.mean_wall_s * 1e3, 3),
+        "lag_max_ms": round(obs.lag.max_wall_s * 1e3, 3),
+        "ticks": obs.lag.ticks,
+        "messages": obs.seq.messages,
+        "seq_gaps": obs.seq.gaps,
+        "lost_messages": obs.seq.lost,
+        "missing_inputs": obs.missing_inputs,
+        "decode_errors": sum(bus.stats.decode_errors.values()),
+        "handler_errors": handler_errors,
+        "events": sum(rec.kinds.values()),
+        "cue_changes": rec.cue_changes,
+        "rerun_logs": view.logged,
+    }
+
+
+def lower_priority(sched: str, nice: int) -> None:
+    if sched == "idle" and hasattr(os, "SCHED_IDLE"):
+        try:
+            os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
+            return
+        except OSError as exc:
+            log.warning("SCHED_IDLE refused (%s); using nice %d instead", exc, nice)
+            sched = "nice"
+    if sched in ("idle", "nice") and nice:
+        os.nice(nice)
+
+
+class LoggerService(Service):
+    """Hands every message of the session to the trial recorder, tick by tick."""
+
+    name = "logger"
+
+    @classmethod
+    def add_arguments(cls, p: argparse.ArgumentParser) -> None:
+        p.add_argument("--out", required=True, help="trial folder (created if missing)")
+        p.add_argument("--sched", choices=["idle", "nice", "normal"], default="idle",
+                       help="CPU priority of this observer: idle (Linux SCHED_IDLE: only CPU time "
+                            "nobody else wants; the default), nice (--nice added), normal")
+        p.add_argument("--nice", type=int, default=10,
+                       help="niceness added with --sched nice (default 10)")
+        p.add_argument("--viewer", action="store_true",
+                       help="also stream to a spawned native rerun viewer")
+        p.add_argument("--viewer-port", type=int, default=9876,
+                       help="port of the spawned viewer (default 9876)")
+        p.add_argument("--web", action="store_true",
+                       help="also serve the rerun web viewer on http://127.0.0.1:WEB_PORT")
+        p.add_argument("--web-port", type=int, default=9090, help="web viewer port (default 9090)")
+        p.add_argument("--grpc-port", type=int, default=9877,
+                       help="gRPC port the web viewer reads the data from (default 9877)")
+        p.add_argument("--view-hz", type=float, default=30.0,
+                       help="robot/hand/object updates per simulated second in the view "
+                            "(default 30)")
+        p.add_argument("--scenario-timeout", type=float, default=30.0,
+                       help="seconds to wait for the orchestrator's scenario (default 30; without "
+                            "it the view shows TCPs, hands and objects but no URDF robots, "
+                            "targets or workspace)")
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        super().__init__(args)
+        if not args.view_hz > 0:
+            raise ServiceExit(f"--view-hz must be > 0, got {args.view_hz}", EXIT_BAD_INPUT)
+        # An observer must never slow the co-simulation down: the barrier's participants get the
+        # CPU first. Its lag behind the clock is measured and reported instead. Set before any
+        # thread starts (zenoh's, rerun's): on Linux the policy is per thread and new threads
+        # inherit it.
+        lower_priority(args.sched, args.nice)
+        self.out = Path(args.out)
+        self.out.mkdir(parents=True, exist_ok=True)
+        self.handler_errors = 0
+        self._first = True
+
+    def open(self, bus: Bus, stack: contextlib.ExitStack) -> None:
+        super().open(bus, stack)
+        args = self.args
+        self.scenario = fetch_scenario(bus, args.scenario_timeout)
+        rec = open_recording(self.out / RRD_FILE, bus.keys.session, viewer=args.viewer,
+                             web=args.web, viewer_port=args.viewer_port, web_port=args.web_port,
+                             grpc_port=args.grpc_port)
+        self.view = View(rec, ViewSettings(view_hz=args.view_hz))
+        self.view.setup(self.scenario)
+        self.recorder = TrialRecorder(self.out, self.view)
+        log.info("observing session %s; writing %s", bus.keys.session, self.out)
+
+    def _guarded(self, handler: Handler) -> Handler:
+        # A failing view update must not cost the text logs anything: log, count, go on.
+        def call(key: str, msg: Message) -> None:
+            try:
+                handler(key, msg)
+            except Exception:
+                self.handler_errors += 1
+                log.exception("handling a message on %s failed", key)
+        return call
+
+    def register_inputs(self, inputs: Inputs) -> None:
+        keys, rec, g = self.bus.keys, self.recorder, self._guarded
+        # Registration order is the hand-over order within a tick (Inbox): task first.
+        inputs.input(keys.task_events(), pb.TaskEvent, g(rec.on_event))
+        inputs.input(keys.task_indicators(), pb.Indicators, g(rec.on_indicators))
+        inputs.input(keys.task_metrics(), pb.MetricsReport, g(rec.on_metrics))
+        inputs.input(keys.world_objects(), pb.WorldObjects, g(rec.on_world_objects))
+        inputs.input(keys.world_contacts(), pb.WorldContacts, g(rec.on_world_contacts))
+        inputs.input(keys.robot_states(), pb.RobotState, g(rec.on_robot_state))
+        inputs.input(keys.human_state(), pb.HumanState, g(rec.on_human_state))
+
+    def step(self, tick: pb.ClockTick) -> None:
+        if self._first and self.scenario is None and tick.dt > 0:
+            self.view.set_tick_hz(1.0 / tick.dt)
+        self._first = False
+        self._guarded(lambda _k, t: self.recorder.on_tick(t))(self.bus.keys.clock(), tick)
+
+    def finish(self, outcome: Outcome) -> int | None:
+        self.recorder.finish(outcome.run_end, outcome.reason)
+        obs = self.observer
+        assert obs is not None, "run_service sets the observer"
+        stats = stats_dict(obs, self.recorder, self.view, self.bus, self.handler_errors)
+        write_json_atomic(self.out / STATS_FILE, stats)
+        log.info("logger summary: %d ticks, %d messages, lag mean %.1f / max %d ticks "
+                 "(%.1f / %.1f ms), %d sequence gap(s), %d event(s), %d cue change(s)",
+                 stats["ticks"], stats["messages"], stats["lag_mean_ticks"],
+                 stats["lag_max_ticks"], stats["lag_mean_ms"], stats["lag_max_ms"],
+                 stats["seq_gaps"], stats["events"], stats["cue_changes"])
+        if stats["seq_gaps"]:
+            log.error("%d sequence gap(s), %d message(s) lost", stats["seq_gaps"],
+                      stats["lost_messages"])
+        return None
