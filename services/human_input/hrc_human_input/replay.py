@@ -151,8 +151,11 @@ class Recorder:
 
     def close(self) -> None:
         if self._file is not None:
-            self._file.close()
-            self._file = None
+            file, self._file = self._file, None
+            try:
+                file.close()
+            except OSError as exc:  # a write already failed (and ended the run): say, go on
+                log.warning("closing the recording %s: %s", self.path, exc)
 
     def __enter__(self) -> "Recorder":
         return self

@@ -1,11 +1,16 @@
-"""The three input sources behind one interface: ``sample(t)`` -> the participant at sim time t."""
+"""The three input sources behind one interface: ``sample(t)`` -> the participant at sim time t;
+``register_inputs`` subscribes to what the source perceives of the task (the scripted
+participant only); ``summary()`` is its end-of-run log line."""
 
 from __future__ import annotations
 
 from typing import Protocol
 
+from hrc.bus import Keys
 from hrc.geometry import Pose, look_quat
 from hrc.scenario import InputSource
+from hrc.service import Inputs
+from hrc.wire import pb
 
 from hrc_human_input.replay import Replayer
 from hrc_human_input.sample import Sample
@@ -25,6 +30,10 @@ class Source(Protocol):
 
     def sample(self, t: float) -> Sample: ...
 
+    def register_inputs(self, inputs: Inputs, keys: Keys) -> None: ...
+
+    def summary(self) -> str | None: ...
+
 
 class ScriptedSource:
     name = InputSource.SCRIPTED
@@ -36,6 +45,19 @@ class ScriptedSource:
     def sample(self, t: float) -> Sample:
         return self.participant.step(t, self.view)
 
+    def register_inputs(self, inputs: Inputs, keys: Keys) -> None:
+        view = self.view
+        inputs.input(keys.world_objects(), pb.WorldObjects, lambda _k, m: view.on_objects(m))
+        inputs.input(keys.world_contacts(), pb.WorldContacts, lambda _k, m: view.on_contacts(m))
+        inputs.input(keys.robot_states(), pb.RobotState, lambda _k, m: view.on_robot_state(m))
+        inputs.input(keys.task_indicators(), pb.Indicators, lambda _k, m: view.on_indicators(m))
+        inputs.input(keys.task_events(), pb.TaskEvent, lambda _k, m: view.on_task_event(m))
+
+    def summary(self) -> str | None:
+        sp = self.participant
+        return (f"scripted participant: phase {sp.phase.value}, {len(sp.reaches())} reaches, "
+                f"{len(sp.hold_backs)} hold-backs")
+
 
 class ReplaySource:
     name = InputSource.REPLAY
@@ -45,6 +67,12 @@ class ReplaySource:
 
     def sample(self, t: float) -> Sample:
         return self.replayer.sample_at(t)
+
+    def register_inputs(self, inputs: Inputs, keys: Keys) -> None:
+        pass  # a recording perceives nothing
+
+    def summary(self) -> str | None:
+        return None
 
 
 class VrSource:
@@ -59,3 +87,11 @@ class VrSource:
     def sample(self, t: float) -> Sample:
         latest = self.bridge.latest()
         return rest_sample(t) if latest is None else latest.at(t)
+
+    def register_inputs(self, inputs: Inputs, keys: Keys) -> None:
+        pass  # the person in the headset sees the view, not the bus
+
+    def summary(self) -> str | None:
+        st = self.bridge.stats
+        return (f"VR bridge: {st.clients} clients, {st.accepted} samples accepted, "
+                f"{st.rejected} rejected")

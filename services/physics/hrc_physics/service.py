@@ -1,17 +1,30 @@
-"""The physics service's tick work: take the participants' outputs, publish the world, step."""
+"""The physics service (``hrc-physics``): the pybullet world and the clock.
+
+Fetches the scenario from the orchestrator, builds the world and is the clock master of the tick
+protocol: takes the participants' outputs, publishes the world, steps.
+"""
 
 from __future__ import annotations
 
+import argparse
+import contextlib
 import logging
 import math
 
 from hrc import scenario as sc
-from hrc.bus import Bus, ClockMaster
+from hrc.bus import Bus, ClockSettings, Outcome
+from hrc.service import EXIT_BAD_INPUT, ClockMasterService, Inputs, ServiceExit, fetch_scenario
+from hrc.services import OBSERVERS, PARTICIPANTS
 from hrc.validate import check_pose
 from hrc.wire import pb
+from hrc_physics.robots import RobotModelError
 from hrc_physics.world import CommandRejected, World, WorldSettings
 
 log = logging.getLogger(__name__)
+
+
+def _names(text: str) -> list[str]:
+    return [n for n in text.split(",") if n]
 
 
 def _human_ok(msg: pb.HumanState) -> str | None:
@@ -32,29 +45,68 @@ def _robot_ok(msg: pb.RobotState) -> str | None:
     return None
 
 
-class PhysicsService:
-    """Holds the world and feeds it the latest inputs of each participant.
+class PhysicsService(ClockMasterService):
+    """Holds the world and feeds it the latest inputs of each participant."""
 
-    Use as a context manager (the world owns a pybullet client)."""
+    name = "physics"
 
-    def __init__(self, bus: Bus, scenario: pb.Scenario, tick_hz: float,
-                 solver_iterations: int = WorldSettings.solver_iterations) -> None:
-        self.bus = bus
-        self.scenario = scenario
-        typed = sc.from_proto(scenario)  # raises ScenarioError naming the bad field
-        self.world = World(typed, WorldSettings(dt=1.0 / tick_hz,
-                                                solver_iterations=solver_iterations))
+    @classmethod
+    def add_arguments(cls, p: argparse.ArgumentParser) -> None:
+        p.add_argument("--clock", choices=["lockstep", "realtime"], default="lockstep",
+                       help="co-simulation mode (default lockstep)")
+        p.add_argument("--ticks", type=int, default=0,
+                       help="stop after N ticks (0: when told to stop)")
+        p.add_argument("--tick-hz", type=float, default=0.0,
+                       help="override the scenario's tick_hz (0: use the scenario's)")
+        p.add_argument("--participants", default=",".join(PARTICIPANTS),
+                       help="comma-separated services whose acks close the barrier "
+                            "(default: the service table's, %(default)s)")
+        p.add_argument("--observers", default=",".join(OBSERVERS),
+                       help="comma-separated services that must be present but never ack "
+                            "(default: the service table's, %(default)s)")
+        p.add_argument("--barrier-timeout", type=float, default=10.0,
+                       help="lockstep: seconds a participant may take for one tick (default 10)")
+        p.add_argument("--start-timeout", type=float, default=60.0,
+                       help="seconds to wait for the scenario and every service (default 60)")
+        p.add_argument("--solver-iterations", type=int, default=WorldSettings.solver_iterations,
+                       help="pybullet solver iterations per step (default %(default)s)")
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        super().__init__(args)
+        if args.ticks < 0:
+            raise ServiceExit(f"--ticks must be >= 0, got {args.ticks}", EXIT_BAD_INPUT)
+        if args.solver_iterations < 1:
+            raise ServiceExit(f"--solver-iterations must be >= 1, got {args.solver_iterations}",
+                              EXIT_BAD_INPUT)
         self.pending_commands: list[pb.WorldCommand] = []
+
+    def open(self, bus: Bus, stack: contextlib.ExitStack) -> None:
+        super().open(bus, stack)
+        args = self.args
+        self.scenario = fetch_scenario(bus, args.start_timeout)
+        tick_hz = args.tick_hz or self.scenario.info.tick_hz or 240.0
+        try:
+            self.settings = ClockSettings(mode=args.clock, tick_hz=tick_hz, ticks=args.ticks,
+                                          participants=_names(args.participants),
+                                          observers=_names(args.observers),
+                                          barrier_timeout_s=args.barrier_timeout,
+                                          start_timeout_s=args.start_timeout)
+        except ValueError as exc:
+            raise ServiceExit(str(exc), EXIT_BAD_INPUT) from exc
+        try:
+            typed = sc.from_proto(self.scenario)  # raises ScenarioError naming the bad field
+            self.world = World(typed, WorldSettings(dt=1.0 / tick_hz,
+                                                    solver_iterations=args.solver_iterations))
+        except (sc.ScenarioError, RobotModelError) as exc:
+            raise ServiceExit(f"cannot build the world: {exc}") from exc
+        stack.callback(self.close)
         keys = bus.keys
         self._commands_key = keys.world_commands()
         self._objects_pub = bus.publisher(keys.world_objects())
         self._contacts_pub = bus.publisher(keys.world_contacts())
-
-    def __enter__(self) -> "PhysicsService":
-        return self
-
-    def __exit__(self, *_exc: object) -> None:
-        self.close()
+        log.info("scenario %r, %s at %g Hz, %d objects, waiting for %s", self.scenario.info.name,
+                 args.clock, tick_hz, len(self.world.objects),
+                 ", ".join(self.settings.participants + self.settings.observers))
 
     def close(self) -> None:
         if self.world.rejected:
@@ -62,11 +114,14 @@ class PhysicsService:
                      ", ".join(f"{k}: {v}" for k, v in sorted(self.world.rejected.items())))
         self.world.close()
 
-    def register_inputs(self, clock: ClockMaster) -> None:
+    def clock_settings(self) -> ClockSettings:
+        return self.settings
+
+    def register_inputs(self, inputs: Inputs) -> None:
         keys = self.bus.keys
-        clock.input(keys.robot_states(), pb.RobotState, self._on_robot_state, validate=_robot_ok)
-        clock.input(keys.human_state(), pb.HumanState, self._on_human, validate=_human_ok)
-        clock.input(keys.world_commands(), pb.WorldCommands, self._on_world_commands)
+        inputs.input(keys.robot_states(), pb.RobotState, self._on_robot_state, validate=_robot_ok)
+        inputs.input(keys.human_state(), pb.HumanState, self._on_human, validate=_human_ok)
+        inputs.input(keys.world_commands(), pb.WorldCommands, self._on_world_commands)
 
     def _on_robot_state(self, key: str, msg: pb.RobotState) -> None:
         robot = msg.robot or self.bus.keys.robot_of(key)
@@ -97,10 +152,17 @@ class PhysicsService:
                 log.debug("tick %d: contact %s %s %s-%s %s", tick, pb.ContactKind.Name(c.kind),
                           "begins" if c.begin else "ends", c.a, c.b, c.link)
 
-    def step(self, tick: int, sim_time: float) -> None:
+    def step_world(self, tick: int, sim_time: float) -> None:
         """Applies the outputs of ``tick`` and advances the world to ``tick + 1``."""
         problems = self.world.step(self.pending_commands)
         self.pending_commands.clear()
         for problem in problems:
             n = self.bus.stats.count_error(self._commands_key)
             log.warning("tick %d: world command #%d rejected: %s", tick, n, problem)
+
+    def finish(self, outcome: Outcome) -> int | None:
+        end = outcome.run_end
+        if end is not None:
+            log.info("run ended after %d ticks (%.2f s wall, %.1fx realtime): %s", end.ticks,
+                     end.wall_s, end.realtime_factor, end.reason)
+        return None

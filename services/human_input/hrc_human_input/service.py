@@ -1,0 +1,143 @@
+"""The human-input service (``hrc-human-input``).
+
+Publishes the participant (head, hands, grips) as ``pb.HumanState`` on ``human/state`` every
+tick, from the scenario's source (scripted | replay | vr) or the one given on the command line;
+optionally records what it published in the replay format.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import logging
+import os
+from pathlib import Path
+
+from hrc.bus import Bus, Outcome
+from hrc.scenario import InputSource, ScenarioError
+from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit, fetch_scenario
+from hrc.wire import pb
+
+from hrc_human_input import facts as facts_mod
+from hrc_human_input.replay import Recorder, Recording, ReplayError, Replayer, load_recording
+from hrc_human_input.sample import Sample
+from hrc_human_input.scripted import ScriptedParticipant
+from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource
+from hrc_human_input.task_view import TaskView
+from hrc_human_input.vr_bridge import (DEFAULT_HOST, DEFAULT_PORT, BridgeConfigError, VrBridge,
+                                       check_bind)
+
+log = logging.getLogger("hrc_human_input")
+
+
+def _load(path: str) -> Recording:
+    try:
+        rec = load_recording(path)
+    except ReplayError as exc:
+        raise ServiceExit(str(exc), EXIT_BAD_INPUT) from exc
+    log.info("replay file %s: %d samples, %.3f s", path, len(rec.samples), rec.samples[-1].t)
+    return rec
+
+
+class HumanInputService(Service):
+    """Samples the source at each tick's time and publishes the participant on change."""
+
+    name = "human_input"
+
+    @classmethod
+    def add_arguments(cls, p: argparse.ArgumentParser) -> None:
+        p.add_argument("--input", choices=[s.value for s in InputSource], default=None,
+                       help="input source (default: the scenario's [participant] input)")
+        p.add_argument("--replay", default=None, metavar="FILE",
+                       help="replay this recording whatever the scenario's input says")
+        p.add_argument("--record", default=None, metavar="FILE",
+                       help="record what the source relayed to FILE (replay format, JSONL)")
+        p.add_argument("--vr-host", default=os.environ.get("HRC_VR_HOST", DEFAULT_HOST),
+                       help="address the VR bridge binds (default 127.0.0.1; anything else needs "
+                            "a token)")
+        p.add_argument("--vr-port", type=int,
+                       default=int(os.environ.get("HRC_VR_PORT", DEFAULT_PORT)),
+                       help=f"port of the VR bridge and its page (default {DEFAULT_PORT}; 0 = any)")
+        p.add_argument("--vr-token", default=os.environ.get("HRC_VR_TOKEN") or None,
+                       help="token VR clients must present (env HRC_VR_TOKEN)")
+        p.add_argument("--start-timeout", type=float, default=60.0,
+                       help="seconds to wait for the scenario (default 60)")
+
+    def __init__(self, args: argparse.Namespace) -> None:
+        """Refuses unsafe or broken input before joining the run."""
+        super().__init__(args)
+        try:
+            check_bind(args.vr_host, args.vr_token)
+        except BridgeConfigError as exc:
+            raise ServiceExit(str(exc), EXIT_BAD_INPUT) from exc
+        self.recording: Recording | None = _load(args.replay) if args.replay else None
+        self.recorder: Recorder | None = None
+        self._last_sent: Sample | None = None
+
+    def open(self, bus: Bus, stack: contextlib.ExitStack) -> None:
+        super().open(bus, stack)
+        args = self.args
+        keys = bus.keys
+        try:
+            facts = facts_mod.from_proto(fetch_scenario(bus, args.start_timeout))
+        except ScenarioError as exc:
+            raise ServiceExit(f"scenario rejected:\n{exc}", EXIT_BAD_INPUT) from exc
+        self.source = self._source(facts, keys.session, stack)
+        if args.record:
+            self.recorder = stack.enter_context(Recorder(Path(args.record), {
+                "source": self.source.name, "scenario": facts.name,
+                "participant": facts.participant, "seed": facts.seed, "tick_hz": facts.tick_hz,
+                "session": keys.session, "anticipation": facts.anticipation}))
+        self.publisher = bus.publisher(keys.human_state())
+        self.keyframe_every = max(1, round(facts.tick_hz))  # once per simulated second
+        log.info("participant %r ready (input %s%s)", facts.participant, self.source.name,
+                 f", recording to {args.record}" if args.record else "")
+
+    def _source(self, facts: facts_mod.ScenarioFacts, session: str,
+                stack: contextlib.ExitStack) -> Source:
+        args = self.args
+        kind = (InputSource.REPLAY if args.replay
+                else InputSource(args.input) if args.input else facts.input)
+        if kind == InputSource.REPLAY:
+            if self.recording is None:
+                if not facts.replay_file:
+                    raise ServiceExit("input = replay but the scenario names no replay_file "
+                                      "(and no --replay FILE was given)", EXIT_BAD_INPUT)
+                self.recording = _load(facts.replay_file)
+            return ReplaySource(Replayer(self.recording))
+        if kind == InputSource.VR:
+            bridge = VrBridge(args.vr_host, args.vr_port, args.vr_token,
+                              hello={"session": session, "scenario": facts.name,
+                                     "participant": facts.participant, "tick_hz": facts.tick_hz})
+            try:
+                bridge.start()
+            except BridgeConfigError as exc:
+                raise ServiceExit(str(exc), EXIT_BAD_INPUT) from exc
+            stack.callback(bridge.stop)
+            return VrSource(bridge)
+        return ScriptedSource(ScriptedParticipant(facts), TaskView(facts))
+
+    def register_inputs(self, inputs: Inputs) -> None:
+        self.source.register_inputs(inputs, self.bus.keys)
+
+    def step(self, tick: pb.ClockTick) -> None:
+        k, t = tick.header.tick, tick.header.sim_time
+        sample = self.source.sample(t)
+        if sample.t != t:
+            sample = sample.at(t)
+        # On change, plus a keyframe for late joiners: a participant at rest costs the
+        # receivers nothing (they hold the last state).
+        last = self._last_sent
+        if last is None or not sample.same_as(last) or k % self.keyframe_every == 0:
+            self.publisher.put(sample.to_proto(self.source.name), k, t)
+            self._last_sent = sample
+        if self.recorder is not None:
+            self.recorder.write(sample)
+
+    def finish(self, outcome: Outcome) -> int | None:
+        summary = self.source.summary()
+        if summary:
+            log.info("%s", summary)
+        if self.recorder is not None:
+            log.info("recorded %d samples to %s", self.recorder.count, self.args.record)
+        return None
