@@ -33,6 +33,7 @@ void LockstepParticipant::start() {
     // Acks close the barrier: no batching delay, never dropped.
     ack_pub_ = &bus_.publisher(keys.clock_ack(name()), PublisherOptions{true, true});
   }
+  control_pub_ = &bus_.publisher(keys.run_control());
   bus_.subscribe<v2::ClockTick>(keys.clock(), [this](const std::string&, const v2::ClockTick& t) { on_clock(t); });
   bus_.subscribe<v2::RunEnd>(keys.run_end(), [this](const std::string&, const v2::RunEnd& e) { on_run_end(e); });
   bus_.watch_liveliness([this](const std::string& service, bool alive) { on_liveliness(service, alive); });
@@ -67,6 +68,12 @@ void LockstepParticipant::on_clock(const v2::ClockTick& tick) {
 }
 
 void LockstepParticipant::on_run_end(const v2::RunEnd& end) {
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    master_done_ = true;
+    // e.g. after our abort: keep our reason, add the end the clock master gave
+    if (end_.has_value() && !end_->run_end.has_value()) end_->run_end = end;
+  }
   Outcome o;
   o.ok = end.ok();
   o.reason = end.reason();
@@ -86,6 +93,7 @@ void LockstepParticipant::on_liveliness(const std::string& service, bool alive) 
       physics_seen_ = true;
     } else if (physics_seen_) {
       lost = true;
+      master_done_ = true;
     }
   }
   if (lost) {
@@ -139,6 +147,10 @@ Outcome LockstepParticipant::run(double timeout_s) {
       running_ = false;
       // Wait for an inline tick to finish before the caller tears the bus down.
       cond_.wait(lock, [this] { return !busy_; });
+      if (aborted_) {
+        // Leave after the clock master has ended the run, so its end names our abort.
+        cond_.wait_for(lock, std::chrono::duration<double>(kAbortWaitS), [this] { return master_done_; });
+      }
       return *end_;
     }
     v2::ClockTick tick = std::move(ticks_.front());
@@ -152,7 +164,6 @@ Outcome LockstepParticipant::run(double timeout_s) {
 }
 
 void LockstepParticipant::process(const v2::ClockTick& tick) {
-  const auto t0 = std::chrono::steady_clock::now();
   const uint64_t k = tick.header().tick();
   try {
     if (tick.mode() == v2::CLOCK_MODE_LOCKSTEP) {
@@ -166,6 +177,8 @@ void LockstepParticipant::process(const v2::ClockTick& tick) {
         return;
       }
     }
+    // TickAck.compute_us starts here: every input of tick k is at hand.
+    const auto t0 = std::chrono::steady_clock::now();
     inbox_.deliver(k, options_.clock_master);
     {
       const std::lock_guard<std::mutex> lock(mutex_);
@@ -176,17 +189,42 @@ void LockstepParticipant::process(const v2::ClockTick& tick) {
     if (ack_pub_ != nullptr) {
       v2::TickAck ack;
       ack.set_participant(name());
+      // ... and ends here, before the ack is built and published.
       const auto us = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0);
       ack.set_compute_us(static_cast<uint32_t>(std::min<int64_t>(us.count(), UINT32_MAX)));
       for (auto& m : bus_.new_marks(ack_pub_->key())) *ack.add_published() = std::move(m);
       ack_pub_->put(ack, k, tick.header().sim_time());
     }
   } catch (const std::exception& e) {
-    log::error("tick " + std::to_string(k) + " failed: " + e.what());
-    Outcome o;
-    o.reason = "tick " + std::to_string(k) + " failed: " + e.what();
-    finish(std::move(o));
+    abort(tick, e.what());
+  } catch (...) {
+    abort(tick, "unknown exception");
   }
+}
+
+void LockstepParticipant::abort(const v2::ClockTick& tick, const std::string& error) {
+  const uint64_t k = tick.header().tick();
+  const std::string reason = "tick " + std::to_string(k) + " failed: " + error;
+  log::error(reason);
+  bool first = false;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    first = !end_.has_value() && !aborted_;
+    aborted_ = true;
+  }
+  if (first && control_pub_ != nullptr) {
+    try {
+      v2::RunControl ctl;
+      ctl.set_command(v2::RunControl::COMMAND_ABORT);
+      ctl.set_reason(reason);
+      control_pub_->put(ctl, k, tick.header().sim_time());
+    } catch (const std::exception& e) {  // the bus itself may be what failed
+      log::error(std::string("could not ask the clock master to abort: ") + e.what());
+    }
+  }
+  Outcome o;
+  o.reason = reason;
+  finish(std::move(o));
 }
 
 }  // namespace hrc

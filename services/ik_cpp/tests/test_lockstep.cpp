@@ -3,8 +3,10 @@
 
 #include <atomic>
 #include <future>
+#include <iostream>
 #include <map>
 #include <mutex>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
@@ -22,6 +24,15 @@ class FakePhysics {
     bus.subscribe<hrc::v2::TickAck>(bus.keys().clock_acks(), [this](const std::string&, const hrc::v2::TickAck& a) {
       const std::lock_guard<std::mutex> lock(mutex);
       acks.push_back(a);
+    });
+    // Like the clock master: an abort ends the run at once, naming its sender.
+    bus.subscribe<hrc::v2::RunControl>(bus.keys().run_control(), [this](const std::string&, const hrc::v2::RunControl& c) {
+      if (c.command() != hrc::v2::RunControl::COMMAND_ABORT) return;
+      {
+        const std::lock_guard<std::mutex> lock(mutex);
+        aborts.push_back(c);
+      }
+      end(false, "aborted by " + c.header().sender() + ": " + c.reason(), c.header().sender());
     });
     bus.watch_liveliness([this](const std::string& s, bool alive) {
       const std::lock_guard<std::mutex> lock(mutex);
@@ -46,16 +57,18 @@ class FakePhysics {
     for (auto& m : marks) *t.add_published() = m;
     bus.publisher(bus.keys().clock(), hrc::PublisherOptions{true, true}).put(t, k, 0.01 * static_cast<double>(k));
   }
-  void end(bool ok, const std::string& reason) {
+  void end(bool ok, const std::string& reason, const std::string& failed = "") {
     hrc::v2::RunEnd e;
     e.set_ok(ok);
     e.set_reason(reason);
+    e.set_failed_participant(failed);
     bus.publisher(bus.keys().run_end()).put(e, 0, 0.0);
   }
 
   hrc::Bus bus;
   std::mutex mutex;
   std::vector<hrc::v2::TickAck> acks;
+  std::vector<hrc::v2::RunControl> aborts;
   std::map<std::string, bool> alive_services;
 };
 
@@ -177,6 +190,38 @@ TEST_F(Lockstep, StepWaitsForInputsTheClockSaysWerePublished) {
   EXPECT_TRUE(result.get().ok);
   const std::lock_guard<std::mutex> lock(m);
   EXPECT_EQ(log, (std::vector<std::string>{"command 77", "step 1"}));
+}
+
+TEST_F(Lockstep, AStepThatThrowsAbortsTheRunAtOnceNamingTheParticipant) {
+  hrc::LockstepParticipant p(*bus);
+  std::chrono::steady_clock::time_point thrown_at;
+  p.on_tick([&](const hrc::v2::ClockTick& t) {
+    if (t.header().tick() == 3) {
+      thrown_at = std::chrono::steady_clock::now();
+      throw std::runtime_error("bad value in tick 3");
+    }
+  });
+  p.start();
+  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  auto result = std::async(std::launch::async, [&] { return p.run(); });
+  for (uint64_t k = 1; k <= 3; ++k) physics->tick(k);
+  ASSERT_EQ(result.wait_for(std::chrono::seconds(2)), std::future_status::ready);
+  const hrc::Outcome o = result.get();
+  const double took_ms =
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - thrown_at).count();
+  std::cout << "run() returned " << took_ms << " ms after the step threw\n";
+  EXPECT_LT(took_ms, 2000.0);
+  EXPECT_FALSE(o.ok);
+  EXPECT_EQ(o.exit_code(), 1);
+  EXPECT_EQ(o.reason, "tick 3 failed: bad value in tick 3");
+  ASSERT_TRUE(o.run_end.has_value()) << "run() returned before the clock master ended the run";
+  EXPECT_EQ(o.run_end->failed_participant(), "ik_cpp");
+  const std::lock_guard<std::mutex> lock(physics->mutex);
+  ASSERT_EQ(physics->aborts.size(), 1U);
+  EXPECT_EQ(physics->aborts[0].header().sender(), "ik_cpp");
+  EXPECT_EQ(physics->aborts[0].header().tick(), 3U);
+  EXPECT_EQ(physics->aborts[0].reason(), "tick 3 failed: bad value in tick 3");
+  EXPECT_EQ(physics->acks.size(), 2U) << "the failed tick must not be acked";
 }
 
 TEST_F(Lockstep, NoTickWithinTheTimeoutIsAnError) {

@@ -6,6 +6,9 @@
 // TickAck on clock/ack/<name> (header.tick = k, compute_us, published marks). run() returns when
 // run/end arrives (ok -> exit code 0, else 1), when the clock master's liveliness token
 // alive/physics disappears after having been seen, or when stop() is called.
+// A step (or input handler) that throws ends the run at once: the participant publishes a
+// run/control ABORT naming the tick and the error, waits (at most kAbortWaitS) for the clock
+// master's run/end, which names this participant, and run() returns a failed outcome.
 #pragma once
 
 #include <condition_variable>
@@ -25,10 +28,13 @@ namespace hrc {
 struct Outcome {
   bool ok = false;
   std::string reason;
-  std::optional<v2::RunEnd> run_end;  // set when the run ended by run/end
+  std::optional<v2::RunEnd> run_end;  // the clock master's run/end, when it came
   bool stopped = false;               // set when stop() ended it (e.g. a signal)
   int exit_code() const { return ok ? 0 : 1; }
 };
+
+/// After an abort, how long run() waits for the clock master's run/end before returning.
+inline constexpr double kAbortWaitS = 2.0;
 
 struct LockstepOptions {
   bool ack = true;                     // false: observer (follows the clock, never acks)
@@ -79,12 +85,15 @@ class LockstepParticipant {
   void finish(Outcome outcome);
   /// Computes one tick; called with busy_ set by exactly one thread at a time.
   void process(const v2::ClockTick& tick);
+  /// The tick failed: asks the clock master to abort the run, naming the error.
+  void abort(const v2::ClockTick& tick, const std::string& error);
 
   Bus& bus_;
   LockstepOptions options_;
   Inbox inbox_;
   Step step_;
   TypedPublisher* ack_pub_ = nullptr;
+  TypedPublisher* control_pub_ = nullptr;
 
   mutable std::mutex mutex_;
   std::condition_variable cond_;
@@ -92,6 +101,8 @@ class LockstepParticipant {
   bool running_ = false;
   bool busy_ = false;  // a tick is being computed (on run()'s thread or inline on a zenoh thread)
   bool physics_seen_ = false;
+  bool aborted_ = false;      // our own tick failed and we asked the clock master to abort
+  bool master_done_ = false;  // run/end came, or the clock master is gone
   std::optional<Outcome> end_;
   std::optional<v2::ClockTick> last_tick_;
 };
