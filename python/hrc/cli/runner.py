@@ -244,6 +244,10 @@ class _EndWatcher:
         self.end = end
         self._event.set()
 
+    def failed_end(self, wait_s: float) -> bool:
+        """A run/end with ok = false came (waiting up to ``wait_s`` for one)."""
+        return self._event.wait(wait_s) and self.end is not None and not self.end.ok
+
     def close(self) -> None:
         self.bus.close()
 
@@ -278,9 +282,10 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             dead = [n for n, rc in status.items() if rc is not None and rc != 0 and n != master]
             if status[master] is not None:
                 break
-            if dead:
+            if dead and not (watcher is not None and watcher.failed_end(1.0)):
                 # A clean exit (0) is not a failure by itself: the clock master notices the lost
                 # liveliness and ends the run naming the service, if the run was still going.
+                # After a failed run/end, services exit 1 on their own: its end names the cause.
                 failed = dead[0]
                 failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
                 break
