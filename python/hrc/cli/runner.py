@@ -282,10 +282,11 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             dead = [n for n, rc in status.items() if rc is not None and rc != 0 and n != master]
             if status[master] is not None:
                 break
-            if dead and not (watcher is not None and watcher.failed_end(1.0)):
+            # After a failed run/end the services exit 1 on their own: the end names the cause.
+            if dead and not (watcher is not None and all((status[n] or 0) > 0 for n in dead)
+                             and watcher.failed_end(1.0)):
                 # A clean exit (0) is not a failure by itself: the clock master notices the lost
                 # liveliness and ends the run naming the service, if the run was still going.
-                # After a failed run/end, services exit 1 on their own: its end names the cause.
                 failed = dead[0]
                 failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
                 break
