@@ -20,6 +20,7 @@ from hrc import services
 from hrc.cli import runner
 from hrc.cli.runner import TrialOptions
 from hrc.paths import build_dir, project_root
+from hrc.service import parse_args
 from hrc.services import Role, Settings
 
 THESIS = project_root() / "scenarios" / "thesis.toml"
@@ -60,7 +61,9 @@ def test_hrc_run_command_lines_parse_in_the_python_services(svc: services.Servic
                        record=Path("/tmp/r.jsonl"), replay=Path("/tmp/p.jsonl"),
                        connect=["tcp/10.0.0.1:7447"])
     assert argv[:3] == [sys.executable, "-m", svc.module]
-    args = importlib.import_module(f"{svc.module}.main").parse_args(argv[3:])
+    service_cls = importlib.import_module(f"{svc.module}.main").SERVICE
+    assert service_cls.name == svc.name
+    args = parse_args(service_cls, argv[3:])
     assert args.session == "s1" and args.zenoh_lowlatency
     if svc.role is Role.CLOCK_MASTER:
         assert args.participants.split(",") == list(services.PARTICIPANTS)
