@@ -213,7 +213,8 @@ if [ "$DO_CPP" = 1 ]; then
       && rustup component add rustfmt clippy >"$LOG_DIR/rustup-components.log" 2>&1; then
       say "  added rustup components rustfmt, clippy"
     else
-      warn "cargo fmt / cargo clippy missing (Debian: ${lint_pkgs[*]:-rustfmt-web rust-web-clippy}); scripts/lint.sh will fail"
+      warn "cargo fmt / cargo clippy missing (Debian: ${lint_pkgs[*]:-rustfmt-web rust-web-clippy});" \
+        "scripts/lint.sh will fail"
     fi
   fi
 fi
