@@ -1,11 +1,14 @@
 # Thin wrapper over the scripts (they are the source of truth; see README.md).
-.PHONY: setup test run pc clean-build
+.PHONY: setup test lint run pc clean-build
 
 setup:
 	./scripts/setup.sh
 
 test:
 	./scripts/test-all.sh
+
+lint:
+	./scripts/lint.sh
 
 run:
 	./scripts/run-default.sh

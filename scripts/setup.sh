@@ -5,7 +5,8 @@
 #
 # Steps (each one is skipped when its outputs are already up to date):
 #   1. apt packages (only when one is missing; sudo only when not root)
-#   2. toolchains: cargo/rustc for the Rust crate, go for process-compose (optional)
+#   2. toolchains: cargo/rustc (+ rustfmt, clippy) for the Rust crate, go for process-compose
+#      (optional)
 #   3. wire contract: proto/hrc/v2/hrc.proto -> python/hrc/wire/hrc_pb2.py{,i}
 #   4. .venv with the pinned Python dependencies and the editable project packages
 #   5. C++ build (CMake, which also builds the Rust crate with cargo) in build/ik_cpp
@@ -53,6 +54,7 @@ APT_PACKAGES=(
   python3 python3-venv python3-dev
   git ca-certificates
   chromium  # headless, for the VR page test (services/human_input serves a WebXR page)
+  clang-format clang-tidy  # scripts/lint.sh (C++ format and naming)
 )
 
 # --help prints the comment block at the top of this file.
@@ -195,6 +197,26 @@ if [ "$DO_CPP" = 1 ]; then
   version_ge "$rustc_v" "$MIN_RUSTC" \
     || die "rustc $rustc_v is too old: services/ik_cpp/zenoh_ffi needs rustc >= $MIN_RUSTC (zenoh 1.10.2 and its locked crates). Update Rust and re-run."
   say "  rustc $rustc_v"
+  # scripts/lint.sh runs `cargo fmt` and `cargo clippy`: Debian packages them apart from rustc.
+  if ! cargo fmt --version >/dev/null 2>&1 || ! cargo clippy --version >/dev/null 2>&1; then
+    if dpkg -s rustc-web >/dev/null 2>&1 && [ "$(command -v cargo)" = /usr/bin/cargo ]; then
+      lint_pkgs=(rustfmt-web rust-web-clippy)
+    elif dpkg -s rustc >/dev/null 2>&1 && [ "$(command -v cargo)" = /usr/bin/cargo ]; then
+      lint_pkgs=(rustfmt rust-clippy)
+    else
+      lint_pkgs=()
+    fi
+    if [ "${#lint_pkgs[@]}" -gt 0 ] && [ "$DO_APT" = 1 ]; then
+      say "  installing ${lint_pkgs[*]} (cargo fmt / cargo clippy, for scripts/lint.sh)"
+      apt_install "${lint_pkgs[@]}"
+    elif command -v rustup >/dev/null \
+      && rustup component add rustfmt clippy >"$LOG_DIR/rustup-components.log" 2>&1; then
+      say "  added rustup components rustfmt, clippy"
+    else
+      warn "cargo fmt / cargo clippy missing (Debian: ${lint_pkgs[*]:-rustfmt-web rust-web-clippy});" \
+        "scripts/lint.sh will fail"
+    fi
+  fi
 fi
 
 GO_OK=0
@@ -325,8 +347,10 @@ if [ "$DO_CPP" = 1 ]; then
   export CARGO_BUILD_JOBS="$JOBS"
   export CMAKE_BUILD_PARALLEL_LEVEL="$JOBS"
   mkdir -p "$CARGO_TARGET_DIR"
-  if [ ! -f build/ik_cpp/CMakeCache.txt ]; then
-    run_logged cmake-configure cmake -S services/ik_cpp -B build/ik_cpp -DCMAKE_BUILD_TYPE=Release
+  # compile_commands.json: what clang-tidy (scripts/lint.sh) compiles each file with.
+  if [ ! -f build/ik_cpp/CMakeCache.txt ] || [ ! -f build/ik_cpp/compile_commands.json ]; then
+    run_logged cmake-configure cmake -S services/ik_cpp -B build/ik_cpp -DCMAKE_BUILD_TYPE=Release \
+      -DCMAKE_EXPORT_COMPILE_COMMANDS=ON
   fi
   # Incremental: a no-op when nothing changed (cmake re-configures by itself
   # when a CMakeLists.txt changed, cargo checks its own fingerprints).

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
-# Set up everything (scripts/setup.sh) and run all tests: the C++ tests with
-# ctest, then the Python tests with pytest (configuration in pytest.ini).
+# Set up everything (scripts/setup.sh) and run all tests: the linters and
+# formatters in check mode (scripts/lint.sh), the C++ tests with ctest, then the
+# Python tests with pytest (configuration in pytest.ini).
 #
 #   scripts/test-all.sh [PYTEST_ARGS...]
 #
-# Both runners always run; the script exits non-zero when setup fails, when
-# either runner fails, or when a runner ran no test at all (ctest without
-# tests, pytest exit code 5). It ends with each runner's closing line.
+# Lint and both runners always run; the script exits non-zero when setup fails,
+# when lint finds anything, when either runner fails, or when a runner ran no
+# test at all (ctest without tests, pytest exit code 5). It ends with the
+# closing line of lint and of each runner.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -22,6 +24,12 @@ fi
 mkdir -p "$LOG_DIR"
 
 failed=()
+
+# --- linters and formatters (check mode) ---------------------------------------
+echo "[test-all] lint"
+lint_rc=0
+"$ROOT/scripts/lint.sh" 2>&1 | tee "$LOG_DIR/lint.log" || lint_rc=$?
+[ "$lint_rc" -eq 0 ] || failed+=("lint (exit $lint_rc: scripts/lint.sh; --fix applies the formatters)")
 
 # --- C++ ---------------------------------------------------------------------
 echo "[test-all] ctest (build/ik_cpp)"
@@ -41,6 +49,7 @@ case "$pytest_rc" in
 esac
 
 # --- summary -----------------------------------------------------------------
+lint_line="$(grep -E '^\[lint\] (clean|FAILED)' "$LOG_DIR/lint.log" | tail -n 1 || true)"
 ctest_line="$(grep -E 'tests passed|No tests were found' "$LOG_DIR/ctest.log" | tail -n 1 || true)"
 pytest_line="$(grep -E '^=+ .*(passed|failed|error|skipped|no tests ran|deselected).* =+$' "$LOG_DIR/pytest.log" | tail -n 1 || true)"
 # count "N <word>" in a runner's closing line (0 when absent)
@@ -53,6 +62,7 @@ p_failed=$(( $(count "$pytest_line" failed) + $(count "$pytest_line" error) ))
 p_skipped="$(count "$pytest_line" skipped)"
 echo
 echo "[test-all] summary"
+echo "  lint  : ${lint_line:-no summary line (exit $lint_rc)}"
 echo "  ctest : ${ctest_line:-no summary line (exit $ctest_rc)}"
 echo "  pytest: ${pytest_line:-no summary line (exit $pytest_rc)}"
 echo "total: $((c_passed + p_passed)) passed, $((c_failed + p_failed)) failed, $p_skipped skipped"

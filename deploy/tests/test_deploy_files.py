@@ -233,7 +233,7 @@ def test_process_compose_one_failing_service_ends_the_session(tmp_path: Path) ->
 # --------------------------------------------------------------------------- scripts and pins
 
 
-@pytest.mark.parametrize("script", ["scripts/setup.sh", "scripts/test-all.sh",
+@pytest.mark.parametrize("script", ["scripts/setup.sh", "scripts/test-all.sh", "scripts/lint.sh",
                                     "scripts/run-default.sh", ".ci/run"])
 def test_scripts_parse_and_are_executable(script: str) -> None:
     path = ROOT / script
