@@ -1,4 +1,5 @@
-"""Same scenario + seed => identical events and metrics (SPEC §1), whatever the machine's load."""
+"""Same scenario + seed => identical events and metrics, whatever the machine's load
+(docs/ARCHITECTURE.md, "Modes")."""
 
 from __future__ import annotations
 

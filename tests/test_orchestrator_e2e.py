@@ -1,4 +1,4 @@
-"""End to end: `hrc run` with all five services on the thesis scenario (SPEC §4 metrics, and
+"""End to end: `hrc run` with all five services on the thesis scenario (docs/metrics.md, and
 each safety policy's behaviour with a scripted participant told to provoke collisions).
 
 The task events are read from the orchestrator's service log, where it writes one parseable line

@@ -1,4 +1,4 @@
-"""A live VR client's reach moves the hand in the physics world (issue 6, SPEC §5).
+"""A live VR client's reach moves the hand in the physics world (issue 6).
 
 Full trial (all five services, real physics) with the participant's input switched to the VR
 bridge; a real WebSocket client streams a reach from outside the workspace envelope into it, and

@@ -1,4 +1,4 @@
-"""The scenario file (SPEC §2): typed models, full validation, conversion to the wire.
+"""The scenario file (docs/scenario.md): typed models, full validation, conversion to the wire.
 
     from hrc.scenario import load, to_proto
     scenario = load("scenarios/thesis.toml")      # raises ScenarioError listing every problem

@@ -1,4 +1,4 @@
-"""Typed models of the scenario file (SPEC §2; every key is documented in docs/scenario.md).
+"""Typed models of the scenario file (every key is documented in docs/scenario.md).
 
 The models check what a single table can check on its own: key names (extra keys are errors),
 types (strict: no silent string-to-number coercion), ranges and finiteness. Everything that
@@ -254,7 +254,7 @@ class Scenario(_Strict):
         return self._project_root
 
     def resolve(self, relative: str) -> Path | None:
-        """A path written in the file, resolved like SPEC §2 says; None if it exists nowhere."""
+        """A path written in the file, resolved as docs/scenario.md says (None: nowhere)."""
         folder = self._source_path.parent if self._source_path else None
         return resolve_path(relative, folder, self._project_root)
 

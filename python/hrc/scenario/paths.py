@@ -1,4 +1,4 @@
-"""Where relative paths in a scenario file point (SPEC §2)."""
+"""Where relative paths in a scenario file point (docs/scenario.md)."""
 
 from __future__ import annotations
 

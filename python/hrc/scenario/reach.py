@@ -25,7 +25,7 @@ from hrc.scenario.conventions import APPROACH_HEIGHT_M
 if TYPE_CHECKING:
     from hrc.scenario.models import Part, Robot
 
-REACH_TOLERANCE_M = 0.005  # a target counts as reached within 5 mm (SPEC §3)
+REACH_TOLERANCE_M = 0.005  # reached within 5 mm (docs/task-semantics.md#robot-motion)
 AXIS_TOLERANCE_DEG = 2.0  # "pointing down" within this angle
 TOOL_LINK = "tool"
 

@@ -1,5 +1,5 @@
 """The scenarios shipped in scenarios/: they load clean, every robot target is reachable, and the
-thesis task has the shape SPEC §2 asks for."""
+thesis task has the shape docs/scenario.md describes."""
 
 from __future__ import annotations
 

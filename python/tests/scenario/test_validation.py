@@ -1,4 +1,5 @@
-"""Each rejection class of SPEC §2: the problem names the offending key or id."""
+"""Each rejection class of docs/scenario.md ("What is checked"): the problem names the offending
+key or id."""
 
 from __future__ import annotations
 

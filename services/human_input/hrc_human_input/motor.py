@@ -55,7 +55,7 @@ def fitts_mt(distance_m: float, width_m: float, a_s: float, b_s: float) -> float
 
 @dataclass(frozen=True)
 class MotorParams:
-    """The scripted participant's motor parameters (scenario [participant] table, SPEC §5)."""
+    """The scripted participant's motor parameters (docs/scenario.md, the [participant] table)."""
 
     reaction_time_s: float = 0.4
     peak_hand_speed: float = 1.0   # m/s, upper bound of a reach's peak speed

@@ -1,4 +1,4 @@
-"""``log.txt``: the thesis-style human-readable log (SPEC §4, thesis §6.3).
+"""``log.txt``: the thesis-style human-readable log (docs/task-semantics.md#outputs).
 
 One line per event, task time in seconds, in the words of the thesis's Unity log, e.g.
 

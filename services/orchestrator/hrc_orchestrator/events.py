@@ -1,4 +1,5 @@
-"""Task events and their thesis-style log lines (chapter 6.3 of the thesis, one line per event).
+"""Task events and their thesis-style log lines (one line per event;
+docs/task-semantics.md#outputs).
 
 Every line starts with the task time: ``"12.345 sec : ..."``. The wall-clock date of the start is
 carried only in ``TaskEvent.wall_time`` (never in ``text``), so the text of every event is a pure

@@ -1,4 +1,5 @@
-"""The participant's side of the task: gating, placement judgement, idle time (SPEC §3).
+"""The participant's side of the task: gating, placement judgement, idle time
+(docs/task-semantics.md#human).
 
 Only the next part of the human sequence is grabbable. While it is held and its `after` parts are
 done, its target cue flashes. A release within the placement tolerance of its target (and with the

@@ -1,4 +1,5 @@
-"""Phase machines of the transport robot (r1) and the screwing robot (r2), SPEC §3.
+"""Phase machines of the transport robot (r1) and the screwing robot (r2): see
+docs/task-semantics.md, "Transport robot" and "Screwing robot".
 
 Per part, transport:  to_pick -> (Attach) to_intermediate -> [waiting] -> to_place -> (Release)
                       returning -> next part ...; no parts left: to_home -> finished.

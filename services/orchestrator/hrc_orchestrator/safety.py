@@ -1,4 +1,5 @@
-"""Human-robot collisions (three policies) and robot-robot near collisions, SPEC §3.
+"""Human-robot collisions (three policies) and robot-robot near collisions: see
+docs/task-semantics.md, "Human-robot collisions" and "Near collisions".
 
 Policies on a hand touching a robot:
 - ``retreat``: every robot goes to its retreat pose keeping what it holds; when all have arrived

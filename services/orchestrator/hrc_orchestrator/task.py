@@ -1,5 +1,5 @@
-"""The task logic of SPEC §3 as a pure state machine: no bus, no I/O, no wall clock (except the
-one start date string, injectable).
+"""The task logic (docs/task-semantics.md) as a pure state machine: no bus, no I/O, no wall
+clock (except the one start date string, injectable).
 
     task = Task(scenario)                       # hrc.scenario.Scenario
     out = task.step(tick, sim_time, inputs)     # per co-simulation tick, inputs of that tick

@@ -1,6 +1,6 @@
 """The static furniture of a scenario, derived from its poses (pure data; no pybullet here).
 
-Conventions (SPEC §2, docs/ARCHITECTURE.md "Task conventions"):
+Conventions (docs/scenario.md, docs/ARCHITECTURE.md "Task conventions"):
 - the board's top surface is z = 0; the board is flush with the table top around it, so parts
   that start in front of the board (the participant's parts) also rest at z = size / 2;
 - each robot whose parts have start poses gets a picking table under them (their footprints plus
