@@ -30,6 +30,16 @@ const char* toString(MotionStatus s) {
   return "?";
 }
 
+const char* toString(MotionKind k) {
+  switch (k) {
+    case MotionKind::None: return "none";
+    case MotionKind::Linear: return "linear";
+    case MotionKind::Joint: return "joint";
+    case MotionKind::Via: return "via";
+  }
+  return "?";
+}
+
 MotionGenerator::MotionGenerator(const RobotModel& model, const Eigen::Isometry3d& world_T_base,
                                  double dt, MotionLimits limits, IkOptions ik_options)
     : model_(model),
@@ -58,7 +68,9 @@ void MotionGenerator::reset(const Eigen::VectorXd& q) {
   seg_t_ = 0.0;
   time_scale_ = 1.0;
   v_cmd_.setZero();
+  meas_speed_ = 0.0;
   state_.status = MotionStatus::Idle;
+  state_.kind = MotionKind::None;
   state_.detail.clear();
   updateTcp(0.0);
   target_ = state_.tcp.translation();
@@ -113,6 +125,18 @@ void MotionGenerator::updateTcp(double dt_for_speed) {
 }
 
 void MotionGenerator::brakeSegment(const ProfileLimits& lim) {
+  if (!segments_.empty() && segments_.front().joint) {
+    // Brake along the joint path itself: the arm never leaves its planned path.
+    std::deque<Segment> out;
+    Cursor c;
+    std::string why;
+    brakePrefix(lim, out, c, why);
+    segments_ = std::move(out);
+    seg_t_ = 0.0;
+    time_scale_ = 1.0;
+    if (segments_.empty()) v_cmd_.setZero();
+    return;
+  }
   const double speed = v_cmd_.norm();
   segments_.clear();
   seg_t_ = 0.0;
@@ -146,8 +170,18 @@ void MotionGenerator::planTo(const std::vector<Eigen::Vector3d>& points, int rot
   Eigen::Vector3d p = state_.tcp.translation();
   Eigen::Quaterniond R(state_.tcp.linear());
   const Eigen::Quaterniond G(goal_R);
-  const double speed = v_cmd_.norm();
-  segments_.clear();
+  double speed = v_cmd_.norm();
+  std::deque<Segment> prefix;
+  if (!segments_.empty() && segments_.front().joint) {
+    // Mid joint move: stop along it first, then the lines start at rest.
+    Cursor c;
+    std::string why;
+    brakePrefix(lim, prefix, c, why);
+    p = c.p;
+    R = c.r;
+    speed = 0.0;
+  }
+  segments_ = std::move(prefix);
   seg_t_ = 0.0;
   time_scale_ = 1.0;
   bool first = true;
@@ -207,9 +241,17 @@ void MotionGenerator::planTo(const std::vector<Eigen::Vector3d>& points, int rot
 }
 
 bool MotionGenerator::checkPath(std::string& why) {
-  Eigen::VectorXd seed = state_.q;
+  return checkSegments(segments_, state_.q, why);
+}
+
+bool MotionGenerator::checkSegments(const std::deque<Segment>& segs, Eigen::VectorXd seed,
+                                    std::string& why) {
   IkResult res;
-  for (const Segment& s : segments_) {
+  for (const Segment& s : segs) {
+    if (s.joint) {  // checked when it was built: continue from where it ends
+      seed = jointAt(s, s.m_start + s.profile.length());
+      continue;
+    }
     const int n = std::max(1, static_cast<int>(std::ceil(s.prof_length / limits_.check_step)));
     for (int k = 1; k <= n; ++k) {
       const double f = static_cast<double>(k) / n;
@@ -233,10 +275,275 @@ bool MotionGenerator::checkPath(std::string& why) {
   return true;
 }
 
+// ---------------------------------------------------------------- planning helpers
+
+void MotionGenerator::fkWorld(const Eigen::VectorXd& q, Eigen::Vector3d& p,
+                              Eigen::Quaterniond& r) const {
+  Eigen::Matrix3d R;
+  Eigen::Vector3d pb;
+  ik_.eval().fk(q.data(), R, pb);
+  p = world_T_base_ * pb;
+  r = Eigen::Quaterniond(world_T_base_.linear() * R);
+}
+
+Eigen::VectorXd MotionGenerator::jointAt(const Segment& s, double m) const {
+  const std::vector<double>& meas = s.measure;
+  const int n = static_cast<int>(meas.size()) - 1;
+  if (n <= 0 || m >= meas.back()) return s.q0 + s.dq;
+  if (m <= 0.0) return s.q0;
+  const auto it = std::upper_bound(meas.begin(), meas.end(), m);
+  const int k = static_cast<int>(it - meas.begin());  // meas[k-1] <= m < meas[k]
+  const double span = meas[k] - meas[k - 1];
+  const double frac = span > 0 ? (m - meas[k - 1]) / span : 1.0;
+  const double f = (k - 1 + frac) / n;
+  return s.q0 + f * s.dq;
+}
+
+bool MotionGenerator::brakePrefix(const ProfileLimits& lim, std::deque<Segment>& out, Cursor& c,
+                                  std::string& why) {
+  c.q = state_.q;
+  c.p = state_.tcp.translation();
+  c.r = Eigen::Quaterniond(state_.tcp.linear());
+  if (segments_.empty()) return true;
+  const Segment& front = segments_.front();
+  if (front.joint) {
+    if (meas_speed_ < 1e-9) return true;
+    double s = 0, vs = 0;
+    front.profile.eval(seg_t_, s, vs);
+    Segment b = front;
+    b.m_start = front.m_start + s;
+    b.limits = lim;
+    b.profile.planBrake(meas_speed_, lim);
+    c.q = jointAt(b, b.m_start + b.profile.length());
+    fkWorld(c.q, c.p, c.r);
+    out.push_back(std::move(b));
+    return true;
+  }
+  const double speed = v_cmd_.norm();
+  if (speed < 1e-9) return true;
+  Segment b;
+  b.p0 = c.p;
+  b.u = v_cmd_ / speed;
+  b.limits = lim;
+  b.profile.planBrake(speed, lim);
+  b.lin_length = b.prof_length = b.profile.length();
+  b.r0 = b.r1 = c.r;
+  Eigen::VectorXd seed = c.q;
+  IkResult res;
+  const int n = std::max(1, static_cast<int>(std::ceil(b.lin_length / limits_.check_step)));
+  for (int k = 1; k <= n; ++k) {
+    const Eigen::Vector3d p = b.p0 + b.u * (b.lin_length * k / n);
+    if (!solvePose(p, b.r0.toRotationMatrix(), seed, res)) {
+      why = "braking leaves the workspace near " + fmtPoint(p);
+      return false;
+    }
+    seed = res.q;
+  }
+  c.q = seed;
+  c.p = b.p0 + b.u * b.lin_length;
+  out.push_back(std::move(b));
+  return true;
+}
+
+bool MotionGenerator::appendLine(std::deque<Segment>& out, Cursor& c, const Eigen::Vector3d& p,
+                                 const Eigen::Quaterniond& r1, const ProfileLimits& lim,
+                                 std::string& why) {
+  const Eigen::Vector3d d = p - c.p;
+  const double L = d.norm();
+  const double prof = std::max(L, limits_.rotation_length * c.r.angularDistance(r1));
+  if (prof < 1e-9) return true;
+  Segment s;
+  s.p0 = c.p;
+  s.u = L > 1e-12 ? Eigen::Vector3d(d / L) : Eigen::Vector3d::UnitZ();
+  s.lin_length = L;
+  s.prof_length = prof;
+  s.r0 = c.r;
+  s.r1 = r1;
+  s.limits = lim;
+  s.profile.plan(prof, 0.0, lim);
+  // The same check as a straight move's; its last solution is where the arm ends up.
+  Eigen::VectorXd seed = c.q;
+  IkResult res;
+  const int n = std::max(1, static_cast<int>(std::ceil(prof / limits_.check_step)));
+  for (int k = 1; k <= n; ++k) {
+    const double f = static_cast<double>(k) / n;
+    const Eigen::Vector3d q_p = s.p0 + s.u * (f * L);
+    if (!solvePose(q_p, s.r0.slerp(f, s.r1).toRotationMatrix(), seed, res)) {
+      why = "line leaves the workspace near " + fmtPoint(q_p) + " (position error " +
+            std::to_string(res.position_error) + " m)";
+      return false;
+    }
+    if ((res.q - seed).cwiseAbs().maxCoeff() > 0.35) {
+      why = "line needs a joint reconfiguration near " + fmtPoint(q_p);
+      return false;
+    }
+    seed = res.q;
+  }
+  out.push_back(std::move(s));
+  c.q = seed;
+  c.p = p;
+  c.r = r1;
+  return true;
+}
+
+bool MotionGenerator::appendJoint(std::deque<Segment>& out, Cursor& c, const Eigen::VectorXd& q1,
+                                  const ProfileLimits& lim, std::string& why) {
+  constexpr double kJointStep = 0.01;     // rad: spacing of the FK samples of the path
+  constexpr double kJointMeasure = 0.02;  // m per rad: a pure joint motion still takes time
+  Segment s;
+  s.joint = true;
+  s.q0 = c.q;
+  s.dq = q1 - c.q;
+  const double span = s.dq.cwiseAbs().maxCoeff();
+  const int n = std::max(8, static_cast<int>(std::ceil(span / kJointStep)));
+  Eigen::Vector3d p_end;
+  Eigen::Quaterniond r_end;
+  fkWorld(q1, p_end, r_end);
+  // The TCP may go no lower than the table clearance, or than an endpoint that is itself lower.
+  const double tcp_floor =
+      std::min({limits_.table_z + limits_.table_clearance, c.p.z(), p_end.z()}) - 1e-6;
+  s.measure.assign(static_cast<std::size_t>(n) + 1, 0.0);
+  Eigen::Vector3d p_prev = c.p;
+  Eigen::Quaterniond r_prev = c.r;
+  for (int k = 1; k <= n; ++k) {
+    const Eigen::VectorXd q = s.q0 + (static_cast<double>(k) / n) * s.dq;
+    Eigen::Vector3d p;
+    Eigen::Quaterniond r;
+    fkWorld(q, p, r);
+    if (p.z() < tcp_floor) {
+      why = "joint path takes the tool down to z " + std::to_string(p.z()) + " m near " +
+            fmtPoint(p) + " (table at z " + std::to_string(limits_.table_z) + " m)";
+      return false;
+    }
+    for (int i = 2; i < model_.dof(); ++i) {
+      Eigen::Vector3d origin, axis;
+      ik_.eval().jointFrame(q.data(), i, origin, axis);
+      const Eigen::Vector3d o = world_T_base_ * origin;
+      if (o.z() < limits_.table_z) {
+        why = "joint path takes joint " + model_.jointNames()[static_cast<std::size_t>(i)] +
+              " below the table near " + fmtPoint(o);
+        return false;
+      }
+    }
+    const double dm = std::max({(p - p_prev).norm(),
+                                limits_.rotation_length * r_prev.angularDistance(r),
+                                kJointMeasure * (s.dq.cwiseAbs().maxCoeff() / n)});
+    s.measure[static_cast<std::size_t>(k)] = s.measure[static_cast<std::size_t>(k) - 1] + dm;
+    p_prev = p;
+    r_prev = r;
+  }
+  s.p0 = c.p;
+  s.lin_length = s.prof_length = s.measure.back();
+  s.u = (p_end - c.p).norm() > 1e-12 ? Eigen::Vector3d((p_end - c.p).normalized())
+                                     : Eigen::Vector3d::UnitZ();
+  s.r0 = c.r;
+  s.r1 = r_end;
+  s.limits = lim;
+  if (s.prof_length < 1e-9) return true;
+  s.profile.plan(s.prof_length, 0.0, lim);
+  out.push_back(std::move(s));
+  c.q = q1;
+  c.p = p_end;
+  c.r = r_end;
+  return true;
+}
+
+bool MotionGenerator::planJoint(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R,
+                                const ProfileLimits& lim, std::deque<Segment>& out,
+                                std::string& why) {
+  out.clear();
+  Cursor c;
+  if (!brakePrefix(lim, out, c, why)) return false;
+  if (cmd.depart_height > 0 &&
+      !appendLine(out, c, c.p + Eigen::Vector3d(0, 0, cmd.depart_height), c.r, lim, why)) {
+    why = "depart: " + why;
+    return false;
+  }
+  const Eigen::Vector3d pre = cmd.target + Eigen::Vector3d(0, 0, cmd.approach_height);
+  const Eigen::Quaterniond G(goal_R);
+  // Candidate configurations at the approach point: the branch nearest the arm first, then the
+  // other branches (elbow flipped, base turned half a turn, the middle of the ranges).
+  std::vector<Eigen::VectorXd> seeds{c.q, model_.midRange()};
+  if (model_.dof() >= 3) {
+    Eigen::VectorXd e = c.q;
+    e[2] = -e[2];
+    seeds.push_back(e);
+    Eigen::VectorXd b = c.q;
+    b[0] += b[0] > 0 ? -M_PI : M_PI;
+    seeds.push_back(model_.clamp(b));
+  }
+  std::vector<Eigen::VectorXd> goals;
+  IkResult res;
+  for (const Eigen::VectorXd& seed : seeds) {
+    if (!solvePose(pre, goal_R, seed, res)) continue;
+    bool seen = false;
+    for (const auto& g : goals) seen = seen || (g - res.q).cwiseAbs().maxCoeff() < 1e-3;
+    if (!seen) goals.push_back(res.q);
+  }
+  if (goals.empty()) {
+    why = "no joint solution at " + fmtPoint(pre);
+    return false;
+  }
+  std::string first_why;
+  for (const Eigen::VectorXd& q1 : goals) {
+    std::deque<Segment> tmp = out;
+    Cursor tc = c;
+    std::string w;
+    bool ok = appendJoint(tmp, tc, q1, lim, w);
+    if (ok && cmd.approach_height > 0) {
+      ok = appendLine(tmp, tc, cmd.target, G, lim, w);
+      if (!ok) w = "approach: " + w;
+    }
+    if (ok) {
+      out = std::move(tmp);
+      return true;
+    }
+    if (first_why.empty()) first_why = w;
+  }
+  why = first_why;
+  return false;
+}
+
+bool MotionGenerator::planVia(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R,
+                              const ProfileLimits& lim, std::deque<Segment>& out,
+                              std::string& why) {
+  out.clear();
+  Cursor c;
+  if (!brakePrefix(lim, out, c, why)) return false;
+  if (cmd.depart_height > 0 &&
+      !appendLine(out, c, c.p + Eigen::Vector3d(0, 0, cmd.depart_height), c.r, lim, why)) {
+    why = "depart: " + why;
+    return false;
+  }
+  const Eigen::Vector3d pre = cmd.target + Eigen::Vector3d(0, 0, cmd.approach_height);
+  const Eigen::Quaterniond G(goal_R);
+  const double z0 = std::max({c.p.z(), pre.z(), limits_.via_height});
+  std::string first_why;
+  for (const double z : {z0, z0 + 0.1}) {
+    std::deque<Segment> tmp = out;
+    Cursor tc = c;
+    std::string w;
+    const bool ok = appendLine(tmp, tc, Eigen::Vector3d(c.p.x(), c.p.y(), z), c.r, lim, w) &&
+                    appendLine(tmp, tc, Eigen::Vector3d(pre.x(), pre.y(), z), G, lim, w) &&
+                    appendLine(tmp, tc, pre, G, lim, w) &&
+                    appendLine(tmp, tc, cmd.target, G, lim, w);
+    if (ok) {
+      out = std::move(tmp);
+      return true;
+    }
+    if (first_why.empty()) first_why = "at height " + std::to_string(z) + " m: " + w;
+  }
+  why = first_why;
+  return false;
+}
+
+// ---------------------------------------------------------------- commands
+
 MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
   if (!cmd.target.allFinite() || !finite(cmd.yaw) || !finite(cmd.approach_height) ||
       !finite(cmd.depart_height) || !finite(cmd.max_speed) || cmd.approach_height < 0 ||
       cmd.depart_height < 0 || cmd.max_speed < 0) {
+    state_.kind = MotionKind::None;
     stopWith(MotionStatus::Unreachable,
              "invalid command: target/yaw must be finite, heights and max_speed >= 0");
     return state_.status;
@@ -250,6 +557,7 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
   IkResult res;
   if (!solvePose(cmd.target, goal_R, state_.q, res) &&
       !solvePose(cmd.target, goal_R, model_.midRange(), res)) {
+    state_.kind = MotionKind::None;
     stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() +
                                             " deg unreachable (position error " +
                                             std::to_string(res.position_error) + " m)");
@@ -267,16 +575,35 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
   std::deque<Segment> old = segments_;
   const double old_t = seg_t_, old_scale = time_scale_;
   planTo(points, rotate, goal_R, lim);
-  std::string why;
-  if (!checkPath(why)) {
+  std::string why_line;
+  MotionKind kind = MotionKind::Linear;
+  if (!checkPath(why_line)) {
+    // The straight line is not feasible: a joint-space transfer, else via points.
     segments_ = std::move(old);
     seg_t_ = old_t;
     time_scale_ = old_scale;
-    stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + ": " + why);
-    return state_.status;
+    std::deque<Segment> alt;
+    std::string why_joint, why_via;
+    if (planJoint(cmd, goal_R, lim, alt, why_joint)) {
+      kind = MotionKind::Joint;
+    } else if (planVia(cmd, goal_R, lim, alt, why_via)) {
+      kind = MotionKind::Via;
+    } else {
+      state_.kind = MotionKind::None;
+      stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() +
+                                              " deg: no feasible move: straight line: " +
+                                              why_line + "; joint move: " + why_joint +
+                                              "; via points: " + why_via);
+      return state_.status;
+    }
+    segments_ = std::move(alt);
+    seg_t_ = 0.0;
+    time_scale_ = 1.0;
+    v_cmd_.setZero();
   }
   target_ = cmd.target;
   final_status_ = MotionStatus::Reached;
+  state_.kind = kind;
   state_.detail.clear();
   if (segments_.empty()) {
     state_.status = MotionStatus::Reached;
@@ -290,6 +617,7 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
 const MotionState& MotionGenerator::step() {
   if (segments_.empty()) {
     v_cmd_.setZero();
+    meas_speed_ = 0.0;
     updateTcp(dt_);
     return state_;
   }
@@ -304,16 +632,22 @@ const MotionState& MotionGenerator::step() {
   for (int attempt = 0; attempt < kTries; ++attempt) {
     t_new = seg_t_ + sigma * dt_;
     seg.profile.eval(t_new, s, vs);
-    const double f = seg.prof_length > 0 ? s / seg.prof_length : 1.0;
-    const Eigen::Vector3d p = seg.p0 + seg.u * (f * seg.lin_length);
-    const Eigen::Matrix3d R = seg.r0.slerp(f, seg.r1).toRotationMatrix();
-    if (!solvePose(p, R, state_.q, ik_res_)) {
-      v_cmd_.setZero();
-      segments_.clear();
-      state_.status = MotionStatus::Unreachable;
-      state_.detail = "waypoint " + fmtPoint(p) + " unreachable during the move; holding";
-      updateTcp(dt_);
-      return state_;
+    if (seg.joint) {
+      // The planned joint path itself: no IK, nothing to re-decide.
+      ik_res_.q = jointAt(seg, seg.m_start + s);
+    } else {
+      const double f = seg.prof_length > 0 ? s / seg.prof_length : 1.0;
+      const Eigen::Vector3d p = seg.p0 + seg.u * (f * seg.lin_length);
+      const Eigen::Matrix3d R = seg.r0.slerp(f, seg.r1).toRotationMatrix();
+      if (!solvePose(p, R, state_.q, ik_res_)) {
+        v_cmd_.setZero();
+        meas_speed_ = 0.0;
+        segments_.clear();
+        state_.status = MotionStatus::Unreachable;
+        state_.detail = "waypoint " + fmtPoint(p) + " unreachable during the move; holding";
+        updateTcp(dt_);
+        return state_;
+      }
     }
     double ratio = 0.0;
     for (int i = 0; i < model_.dof(); ++i)
@@ -335,17 +669,26 @@ const MotionState& MotionGenerator::step() {
   state_.q = ik_res_.q;
   time_scale_ = sigma;
   seg_t_ = t_new;
+  const bool joint = seg.joint;
+  const Eigen::Vector3d p_before = state_.tcp.translation();
   const double lin_speed = seg.prof_length > 0 ? vs * seg.lin_length / seg.prof_length : 0.0;
   v_cmd_ = clipped ? Eigen::Vector3d::Zero() : Eigen::Vector3d(seg.u * (lin_speed * sigma));
+  meas_speed_ = joint && !clipped ? vs * sigma : 0.0;
   if (seg_t_ >= seg.profile.duration()) {
     segments_.pop_front();
     seg_t_ = 0.0;
+    meas_speed_ = 0.0;
     if (segments_.empty()) {
       v_cmd_.setZero();
       state_.status = final_status_;
     }
   }
   updateTcp(dt_);
+  if (joint && !segments_.empty() && segments_.front().joint && meas_speed_ > 0) {
+    v_cmd_ = (state_.tcp.translation() - p_before) / dt_;  // the TCP's velocity along the FK path
+  } else if (joint) {
+    v_cmd_.setZero();
+  }
   if (segments_.empty() && final_status_ == MotionStatus::Reached) {
     const double err = (state_.tcp.translation() - target_).norm();
     if (err > limits_.reach_tolerance) {

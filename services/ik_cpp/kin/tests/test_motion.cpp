@@ -225,3 +225,120 @@ TEST(Motion, JointVelocityLimitsSlowThePath) {
   EXPECT_LE(r.max_joint_ratio, 1.0 + 1e-9);
   EXPECT_LT(r.max_line_dev, 1e-4);
 }
+
+// A straight line from one side of the base to the other passes over the base, where the tool
+// cannot point down: the planner replaces it by a joint-space move that reaches the target.
+TEST(Motion, LineOverTheBaseBecomesAFeasibleJointMove) {
+  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  for (const double cap : {0.5, 0.2}) {
+    MotionLimits lim;
+    lim.max_tcp_speed = cap;
+    MotionGenerator g(m, baseR1(), 1.0 / 240.0, lim);
+    ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
+    const Eigen::Vector3d a = g.state().tcp.translation();
+    const Eigen::Vector3d b(0.65, 0.55, 0.15);
+    ASSERT_EQ(g.move(moveTo(b.x(), b.y(), b.z(), 30)), MotionStatus::Moving) << g.state().detail;
+    EXPECT_EQ(g.state().kind, MotionKind::Joint);
+    double min_z = 1.0;
+    int ticks = 0;
+    for (; ticks < 240 * 20 && g.state().status == MotionStatus::Moving; ++ticks) {
+      const RunStats r = runUntilDone(g, a, b, 1);  // one tick: joint limits checked inside
+      min_z = std::min(min_z, g.state().tcp.translation().z());
+      EXPECT_LE(r.max_speed, cap * 1.02);
+      EXPECT_LE(r.max_joint_ratio, 1.0 + 1e-9);
+    }
+    EXPECT_EQ(g.state().status, MotionStatus::Reached) << g.state().detail;
+    EXPECT_EQ(g.state().kind, MotionKind::Joint);
+    EXPECT_LT((g.state().tcp.translation() - b).norm(), 0.005);
+    EXPECT_GE(min_z, lim.table_z + lim.table_clearance - 1e-6);
+    const Eigen::Matrix3d R = g.state().tcp.linear();
+    EXPECT_NEAR(axisAngle(R.col(2), -Eigen::Vector3d::UnitZ()), 0, 1e-6);
+  }
+}
+
+TEST(Motion, JointMoveKeepsDepartAndApproachVertical) {
+  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  MotionGenerator g(m, baseR1(), 1.0 / 240.0);
+  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.25, 0.55, 0.10), 0.0));
+  const Eigen::Vector3d start = g.state().tcp.translation();
+  MoveCommand c = moveTo(0.65, 0.55, 0.05);
+  c.approach_height = 0.05;
+  c.depart_height = 0.05;
+  ASSERT_EQ(g.move(c), MotionStatus::Moving) << g.state().detail;
+  EXPECT_EQ(g.state().kind, MotionKind::Joint);
+  bool rose_vertically = true, descended_vertically = true, departed = false, above = false;
+  const Eigen::Vector3d pre = c.target + Eigen::Vector3d(0, 0, 0.05);
+  for (int k = 0; k < 240 * 10 && g.state().status == MotionStatus::Moving; ++k) {
+    const Eigen::Vector3d p = g.step().tcp.translation();
+    if (!departed) {
+      rose_vertically &= (p.head<2>() - start.head<2>()).norm() < 1e-5;
+      departed = p.z() >= start.z() + 0.05 - 1e-6;
+    }
+    if (above) descended_vertically &= (p.head<2>() - c.target.head<2>()).norm() < 1e-5;
+    above = above || (p - pre).norm() < 1e-6;
+  }
+  EXPECT_EQ(g.state().status, MotionStatus::Reached) << g.state().detail;
+  EXPECT_TRUE(departed && above);
+  EXPECT_TRUE(rose_vertically);
+  EXPECT_TRUE(descended_vertically);
+}
+
+TEST(Motion, HoldAndRetargetMidJointMoveStaySmooth) {
+  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  MotionLimits lim;
+  const double dt = 1.0 / 240.0;
+  for (const bool retarget : {false, true}) {
+    MotionGenerator g(m, baseR1(), dt, lim);
+    ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
+    ASSERT_EQ(g.move(moveTo(0.65, 0.55, 0.15)), MotionStatus::Moving);
+    Eigen::Vector3d v;
+    RunStats r0 = runUntilDone(g, g.state().tcp.translation(), Eigen::Vector3d(0.65, 0.55, 0.15),
+                               120, &v);
+    ASSERT_EQ(g.state().status, MotionStatus::Moving);
+    ASSERT_GT(g.state().tcp_speed, 0.05);
+    if (retarget) {
+      ASSERT_EQ(g.move(moveTo(0.45, 0.30, 0.30)), MotionStatus::Moving) << g.state().detail;
+    } else {
+      g.hold();
+    }
+    const RunStats r = runUntilDone(g, g.state().tcp.translation(),
+                                    g.state().tcp.translation() + v, 240 * 10, &v);
+    EXPECT_LE(r0.max_joint_ratio, 1.0 + 1e-9);
+    EXPECT_LE(r.max_joint_ratio, 1.0 + 1e-9);
+    EXPECT_LE(r.max_speed, lim.max_tcp_speed * 1.02);
+    // Braking along the joint path: the finite-difference velocity changes smoothly (the FK
+    // path curves, so allow a little more than one tick of acceleration).
+    EXPECT_LE(r.max_dv, lim.max_tcp_accel * dt * 1.5);
+    EXPECT_EQ(g.state().status, retarget ? MotionStatus::Reached : MotionStatus::Holding)
+        << g.state().detail;
+  }
+}
+
+// Every way is blocked (a table above the arm's shoulder, no crossing height in reach): the move
+// is refused before it starts, the arm does not move, and the message names where and why.
+TEST(Motion, MoveInfeasibleInEveryWayIsRefusedBeforeItStarts) {
+  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  MotionLimits lim;
+  lim.table_z = 0.3;
+  lim.via_height = 2.0;
+  MotionGenerator g(m, baseR1(), 1.0 / 240.0, lim);
+  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
+  const Eigen::VectorXd q0 = g.state().q;
+  EXPECT_EQ(g.move(moveTo(0.65, 0.55, 0.15)), MotionStatus::Unreachable);
+  const std::string& d = g.state().detail;
+  EXPECT_NE(d.find("target (0.650, 0.550, 0.150)"), std::string::npos) << d;
+  EXPECT_NE(d.find("straight line: path leaves the workspace near ("), std::string::npos) << d;
+  EXPECT_NE(d.find("joint move: joint path takes joint"), std::string::npos) << d;
+  EXPECT_NE(d.find("via points: at height"), std::string::npos) << d;
+  EXPECT_EQ(g.state().kind, MotionKind::None);
+  for (int k = 0; k < 10; ++k) g.step();
+  EXPECT_EQ(g.state().q, q0);
+}
+
+TEST(Motion, FeasibleLinesStayLinear) {
+  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  MotionGenerator g(m, baseR1(), 1.0 / 240.0);
+  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
+  ASSERT_EQ(g.move(moveTo(-0.05, 0.10, 0.05)), MotionStatus::Moving);
+  EXPECT_EQ(g.state().kind, MotionKind::Linear);
+}

@@ -1,11 +1,17 @@
 #pragma once
-// Cartesian motion generator for one arm, one step per fixed tick dt:
-// straight-line TCP moves with a smooth speed profile (SpeedProfile) capped at the TCP speed limit
-// and slowed when a joint would exceed its velocity limit; tool pointing down with a yaw;
-// optional vertical depart/approach segments; a new command mid-move starts from the current
-// position and velocity (continuing if aligned, otherwise braking along the current direction
-// first), so there is no velocity jump beyond the acceleration limit. Each tick: next waypoint ->
-// IK seeded with the current joints -> joints.
+// Motion generator for one arm, one step per fixed tick dt. A move is planned once, when it is
+// commanded, and then followed tick by tick:
+//  - LINEAR: straight TCP lines (optional vertical depart, main line, optional vertical approach),
+//    kept wherever the line is feasible (IK along it, no branch switch);
+//  - JOINT: vertical depart, a joint-space interpolation to an IK solution of the approach point
+//    (its TCP path checked to stay above the table), vertical approach;
+//  - VIA: vertical depart, up to a safe height, across, down, vertical approach (all lines).
+// Every kind has a smooth speed profile (SpeedProfile) capped at the TCP speed limit (a joint
+// move is time-scaled by the TCP arc length of its FK path) and slowed when a joint would exceed
+// its velocity limit; tool pointing down with a yaw. A new command mid-move starts from the
+// current position and velocity (continuing if aligned, otherwise braking along the current path
+// first), so there is no velocity jump beyond the acceleration limit. A move infeasible in every
+// way is refused before it starts, naming where and why.
 
 #include "hrc/kin/ik.hpp"
 #include "hrc/kin/robot_model.hpp"
@@ -22,6 +28,10 @@ namespace hrc::kin {
 enum class MotionStatus { Idle, Moving, Reached, Holding, Unreachable };
 const char* toString(MotionStatus s);
 
+// How the current (or last) move was planned; None before the first move and for a hold.
+enum class MotionKind { None, Linear, Joint, Via };
+const char* toString(MotionKind k);
+
 struct MotionLimits {
   double max_tcp_speed = 0.5;     // m/s, default for commands with max_speed = 0
   double max_tcp_accel = 2.0;     // m/s^2
@@ -29,6 +39,10 @@ struct MotionLimits {
   double reach_tolerance = 0.005; // m: "reached" radius
   double rotation_length = 0.1;   // m per rad: how much path a pure reorientation counts for
   double check_step = 0.01;       // m: spacing of the reachability check along a new path
+  double table_z = 0.0;           // m, world: the table top; joint and via moves stay above it
+  double table_clearance = 0.02;  // m: TCP clearance over the table on joint moves (unless an
+                                  //   endpoint is lower); elbow and wrist stay above table_z
+  double via_height = 0.25;       // m, world: lowest crossing height of a VIA move
 };
 
 struct MoveCommand {
@@ -44,6 +58,7 @@ struct MotionState {
   Eigen::Isometry3d tcp = Eigen::Isometry3d::Identity();  // world frame
   double tcp_speed = 0.0;            // m/s, from consecutive TCP positions
   MotionStatus status = MotionStatus::Idle;
+  MotionKind kind = MotionKind::None;  // how the current/last move was planned
   std::string detail;                // why a target is unreachable, etc.
 };
 
@@ -81,6 +96,19 @@ class MotionGenerator {
     Eigen::Quaterniond r0, r1;      // orientation at start / end (world)
     SpeedProfile profile;
     ProfileLimits limits;
+    // Joint segment: q(f) = q0 + f dq, f in [0, 1]; measure[k] = path measure (m) at f = k / n
+    // (TCP arc length, or rotation / joint motion where they dominate); the profile runs over
+    // measure from m_start (> 0 when braking inside the segment).
+    bool joint = false;
+    Eigen::VectorXd q0, dq;
+    std::vector<double> measure;
+    double m_start = 0.0;
+  };
+  // Where a plan being built stands: joints, TCP position and orientation (world).
+  struct Cursor {
+    Eigen::VectorXd q;
+    Eigen::Vector3d p;
+    Eigen::Quaterniond r;
   };
 
   void planTo(const std::vector<Eigen::Vector3d>& points, int rotate_segment,
@@ -90,6 +118,22 @@ class MotionGenerator {
                  const Eigen::VectorXd& seed, IkResult& res);
   // IK along the planned segments every check_step: false (and why) if the arm cannot follow.
   bool checkPath(std::string& why);
+  bool checkSegments(const std::deque<Segment>& segs, Eigen::VectorXd seed, std::string& why);
+  // The fallbacks: a plan of the given kind from the current state into `out`, or why not.
+  bool planJoint(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R, const ProfileLimits& lim,
+                 std::deque<Segment>& out, std::string& why);
+  bool planVia(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R, const ProfileLimits& lim,
+               std::deque<Segment>& out, std::string& why);
+  // Stops the current motion along its own path (no-op at rest); the cursor after it.
+  bool brakePrefix(const ProfileLimits& lim, std::deque<Segment>& out, Cursor& c, std::string& why);
+  // A checked straight line from the cursor to p (rotating to r1); advances the cursor.
+  bool appendLine(std::deque<Segment>& out, Cursor& c, const Eigen::Vector3d& p,
+                  const Eigen::Quaterniond& r1, const ProfileLimits& lim, std::string& why);
+  // A checked joint interpolation from the cursor to q1; advances the cursor.
+  bool appendJoint(std::deque<Segment>& out, Cursor& c, const Eigen::VectorXd& q1,
+                   const ProfileLimits& lim, std::string& why);
+  Eigen::VectorXd jointAt(const Segment& s, double m) const;
+  void fkWorld(const Eigen::VectorXd& q, Eigen::Vector3d& p, Eigen::Quaterniond& r) const;
   void updateTcp(double dt_for_speed);
   void stopWith(MotionStatus status, const std::string& detail);
 
@@ -106,6 +150,7 @@ class MotionGenerator {
   Eigen::Vector3d v_cmd_ = Eigen::Vector3d::Zero();  // commanded TCP velocity (world)
   Eigen::Vector3d target_ = Eigen::Vector3d::Zero();
   MotionStatus final_status_ = MotionStatus::Reached;
+  double meas_speed_ = 0.0;   // current speed in the front joint segment's measure units
   IkResult ik_res_;
   Eigen::VectorXd q_prev_;
   Eigen::Vector3d p_prev_;
