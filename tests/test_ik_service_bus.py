@@ -80,7 +80,7 @@ class Session:
     """hrc-ik plus the test's clock master and orchestrator, driven by a script."""
 
     def __init__(self, tmp: Path) -> None:
-        self.scenario = sc.to_proto(sc.load(MINIMAL, reach_checker=None))
+        self.scenario = sc.to_proto(sc.load(MINIMAL, motion_check=False))
         self.robots = {r.id: r for r in self.scenario.robots}
         self.dt = 1.0 / self.scenario.info.tick_hz
         self.session = f"ik{uuid.uuid4().hex[:8]}"
@@ -463,7 +463,7 @@ def test_reach_queryable(tmp_path: Path) -> None:
     """Known-good and known-bad points, an unknown robot; answered before any clock tick."""
     if not ik_binary().exists():
         pytest.fail(f"{ik_binary()} is missing: build services/ik_cpp (see its README)")
-    scenario = sc.to_proto(sc.load(MINIMAL, reach_checker=None))
+    scenario = sc.to_proto(sc.load(MINIMAL, motion_check=False))
     session = f"ikr{uuid.uuid4().hex[:8]}"
     port = free_port()
     ep = f"tcp/127.0.0.1:{port}"
@@ -500,7 +500,7 @@ def test_standalone_timer_mode(tmp_path: Path) -> None:
     command that has arrived before each step, and stops cleanly on SIGTERM."""
     if not ik_binary().exists():
         pytest.fail(f"{ik_binary()} is missing: build services/ik_cpp (see its README)")
-    scenario = sc.to_proto(sc.load(MINIMAL, reach_checker=None))
+    scenario = sc.to_proto(sc.load(MINIMAL, motion_check=False))
     session = f"iks{uuid.uuid4().hex[:8]}"
     ep = f"tcp/127.0.0.1:{free_port()}"
     hz = 1000.0

@@ -82,7 +82,7 @@ class FakeSession:
 def run_synthetic(tmp_path: Path, gap_tick: int | None = None, term_tick: int | None = None) -> tuple[Path, SyntheticTrial, subprocess.CompletedProcess]:
     session = f"lg{uuid.uuid4().hex[:8]}"
     port = free_port()
-    scenario = sc.to_proto(sc.load(THESIS, reach_checker=None))
+    scenario = sc.to_proto(sc.load(THESIS, motion_check=False))
     trial = SyntheticTrial(scenario, n_ticks=600)
     out = tmp_path / "trial"
     fake = FakeSession(session, port, scenario)

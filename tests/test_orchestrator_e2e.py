@@ -137,7 +137,7 @@ def test_thesis_run_writes_every_spec_metric(tmp_path: Path) -> None:
 def retreat_pose(policy_file: Path, robot: str) -> tuple[float, float, float]:
     from hrc import scenario as sc
 
-    return tuple(sc.load(policy_file, reach_checker=None).robots[robot].retreat)  # type: ignore
+    return tuple(sc.load(policy_file, motion_check=False).robots[robot].retreat)  # type: ignore
 
 
 def test_policy_retreat_both_retreat_then_resume(tmp_path: Path) -> None:

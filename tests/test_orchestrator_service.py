@@ -72,7 +72,7 @@ class FakeWorld:
 
 def test_orchestrator_runs_minimal_over_the_bus(tmp_path: Path) -> None:
     scenario_path = ROOT / "scenarios" / "minimal.toml"
-    scenario = sc.load(scenario_path, reach_checker=None)
+    scenario = sc.load(scenario_path, motion_check=False)
     session = f"o{uuid.uuid4().hex[:8]}"
     ep = f"tcp/127.0.0.1:{free_port()}"
     master = Bus(BusConfig(session=session, listen=[ep]), "physics")

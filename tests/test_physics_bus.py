@@ -72,7 +72,7 @@ class PhysicsRun:
                  observers: list[str] = ()) -> None:
         self.session = f"ph{uuid.uuid4().hex[:8]}"
         self.port = free_port()
-        self.scenario_msg = sc.to_proto(sc.load(scenario, reach_checker=None))
+        self.scenario_msg = sc.to_proto(sc.load(scenario, motion_check=False))
         self.log_path = tmp / "physics.log"
         self.record = Record()
         self._log = open(self.log_path, "w")
@@ -194,7 +194,7 @@ class Geometry:
     """The test's own pybullet world: the scenario's arms and a hand box, nothing else."""
 
     def __init__(self, scenario: Path) -> None:
-        scen = sc.load(scenario, reach_checker=None)
+        scen = sc.load(scenario, motion_check=False)
         self.c = p.connect(p.DIRECT)
         self.robots = {}
         for rid, robot in scen.robots.items():

@@ -54,7 +54,7 @@ class Settings:
     scenario: str = ""
     out: str = ""  # the trial folder
     seed: str | None = None
-    no_reach_check: bool = False  # the caller has just checked the scenario's reach
+    no_reach_check: bool = False  # the caller has just run the motion check
     keep_running: bool = False  # the orchestrator does not stop the run at the task's end
     record: str | None = None
     replay: str | None = None

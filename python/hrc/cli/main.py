@@ -18,7 +18,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     from hrc import scenario as sc
 
     try:
-        s = sc.load(args.scenario, reach_checker=None if args.no_reach else sc.DEFAULT_REACH)
+        s = sc.load(args.scenario, motion_check=not args.no_reach)
     except sc.ScenarioError as exc:
         print(str(exc), file=sys.stderr)
         print(f"{len(exc.problems)} problem(s) found", file=sys.stderr)
@@ -164,7 +164,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     v = sub.add_parser("validate", help="check a scenario file and report every problem")
     v.add_argument("scenario")
-    v.add_argument("--no-reach", action="store_true", help="skip the robot reachability check")
+    v.add_argument("--no-reach", action="store_true", help="skip the motion check (every robot move planned by the IK service's code)")
     v.set_defaults(func=_cmd_validate)
 
     from hrc.bus import add_bus_arguments

@@ -184,7 +184,7 @@ def fits_lowlatency(scenario: Path) -> bool:
     from hrc import scenario as sc
 
     try:
-        size = len(sc.to_proto(sc.load(scenario, reach_checker=None)).SerializeToString())
+        size = len(sc.to_proto(sc.load(scenario, motion_check=False)).SerializeToString())
     except (sc.ScenarioError, OSError):
         return False  # the orchestrator reports what is wrong with it
     if size > LOWLATENCY_MAX_SCENARIO_BYTES:

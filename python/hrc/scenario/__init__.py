@@ -16,7 +16,7 @@ from hrc.scenario.convert import (
 )
 from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
 from hrc.scenario.errors import Problem, ScenarioError
-from hrc.scenario.loader import DEFAULT_REACH, load, loads, validate
+from hrc.scenario.loader import load, loads, validate
 from hrc.scenario.models import (
     HUMAN,
     Box,
@@ -32,19 +32,12 @@ from hrc.scenario.models import (
     Workspace,
 )
 from hrc.scenario.paths import find_project_root, resolve_path
-from hrc.scenario.reach import (
-    PybulletReachChecker,
-    ReachChecker,
-    ReachItem,
-    ReachResult,
-    reach_items,
-)
+from hrc.scenario.motion_check import PlannedMove, check_motion, planned_moves
 
 __all__ = [
-    "APPROACH_HEIGHT_M", "DEFAULT_REACH", "HUMAN", "Box", "Conditions", "InputSource", "Part",
-    "Participant", "Placement", "PoseYaw", "Problem", "PybulletReachChecker", "ReachChecker",
-    "ReachItem", "ReachResult", "Robot", "RobotRole", "SafetyPolicy", "Scenario", "ScenarioError",
-    "ScenarioInfo", "ScriptedParams", "Workspace", "find_project_root", "from_proto", "load",
-    "loads", "reach_items", "resolve_path", "scripted_params_from_proto",
+    "APPROACH_HEIGHT_M", "HUMAN", "Box", "Conditions", "InputSource", "Part",
+    "Participant", "Placement", "PlannedMove", "PoseYaw", "Problem", "Robot", "RobotRole", "SafetyPolicy", "Scenario", "ScenarioError",
+    "ScenarioInfo", "ScriptedParams", "Workspace", "check_motion", "find_project_root",
+    "from_proto", "load", "loads", "planned_moves", "resolve_path", "scripted_params_from_proto",
     "scripted_params_to_proto", "to_proto", "validate",
 ]

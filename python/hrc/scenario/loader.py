@@ -6,7 +6,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ValidationError
+from pydantic import ValidationError
 
 from hrc.scenario.checks import (
     check_files,
@@ -16,29 +16,23 @@ from hrc.scenario.checks import (
     part_key,
 )
 from hrc.scenario.errors import Problem, ScenarioError
-from hrc.scenario.models import Part, Robot, Scenario
-from hrc.scenario.paths import find_project_root, resolve_path
-from hrc.scenario.reach import PybulletReachChecker, ReachChecker, reach_items
-
-
-class _Default:
-    """Marker: "use the standard reach checker" (None means: skip the reach check)."""
-
-
-DEFAULT_REACH = _Default()
+from hrc.scenario.models import Scenario
+from hrc.scenario.paths import find_project_root
+from hrc.scenario.motion_check import check_motion
 
 
 def load(
     path: str | Path,
     project_root: Path | None = None,
     *,
-    reach_checker: ReachChecker | None | _Default = DEFAULT_REACH,
+    motion_check: bool = True,
 ) -> Scenario:
     """Parse, build and check a scenario file; raise ScenarioError listing every problem.
 
     Relative paths resolve against the file's folder, then `project_root` (default: $HRC_ROOT,
-    else the nearest folder above the file that holds `scenarios/`). The reach check uses
-    `PybulletReachChecker` unless another checker is given; `reach_checker=None` skips it.
+    else the nearest folder above the file that holds `scenarios/`). The motion check plans every
+    robot move with the IK service's code (`hrc.scenario.motion_check`); `motion_check=False`
+    skips it.
     """
     path = Path(path)
     try:
@@ -52,13 +46,17 @@ def load(
 
     folder = path.resolve().parent
     root = project_root.resolve() if project_root is not None else find_project_root(folder)
-    problems = _check_raw(raw, folder, root, reach_checker)
+    problems = _check_raw(raw, folder, root)
     if problems:
         raise ScenarioError(problems, path)
     scenario = Scenario.model_validate(raw)
     scenario._source_path = path.resolve()
     scenario._source_text = text
     scenario._project_root = root
+    if motion_check:
+        problems = check_motion(scenario)
+        if problems:
+            raise ScenarioError(problems, path)
     return scenario
 
 
@@ -67,43 +65,42 @@ def loads(
     folder: Path | None = None,
     project_root: Path | None = None,
     *,
-    reach_checker: ReachChecker | None = None,
+    motion_check: bool = False,
 ) -> Scenario:
     """Like `load`, from text (tests, tools); relative paths resolve against `folder`, then root.
-    No reach check unless a checker is given."""
+    No motion check unless asked."""
     try:
         raw = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError([Problem("toml", f"not valid TOML: {exc}")]) from exc
-    problems = _check_raw(raw, folder, project_root, reach_checker)
+    problems = _check_raw(raw, folder, project_root)
     if problems:
         raise ScenarioError(problems)
     scenario = Scenario.model_validate(raw)
     scenario._source_text = text
     scenario._project_root = project_root
+    if motion_check:
+        problems = check_motion(scenario)
+        if problems:
+            raise ScenarioError(problems)
     return scenario
 
 
-def validate(
-    scenario: Scenario,
-    reach_checker: ReachChecker | None | _Default = None,
-) -> list[Problem]:
+def validate(scenario: Scenario, motion_check: bool = False) -> list[Problem]:
     """Every problem of an already built scenario (e.g. one changed in code, or received over the
-    bus). `reach_checker=None` (default) skips the reach check; pass `DEFAULT_REACH` or a checker."""
+    bus). The motion check runs only when asked, and only on a scenario without other problems."""
     raw = scenario.model_dump(mode="python", exclude_none=True)
     folder = scenario.source_path.parent if scenario.source_path else None
-    return _check_raw(raw, folder, scenario.project_root, reach_checker)
+    problems = _check_raw(raw, folder, scenario.project_root)
+    if motion_check and not problems:
+        problems = check_motion(scenario)
+    return problems
 
 
 # ---------------------------------------------------------------- internals
 
 
-def _check_raw(
-    raw: dict[str, Any],
-    folder: Path | None,
-    root: Path | None,
-    reach_checker: ReachChecker | None | _Default,
-) -> list[Problem]:
+def _check_raw(raw: dict[str, Any], folder: Path | None, root: Path | None) -> list[Problem]:
     problems: list[Problem] = []
     try:
         Scenario.model_validate(raw)
@@ -114,72 +111,8 @@ def _check_raw(
     problems.extend(check_robots(raw))
     problems.extend(check_workspace(raw))
     problems.extend(check_files(raw, folder, root))
-
-    # The reach check needs typed robots and parts: it takes every one that builds on its own,
-    # so a schema error elsewhere does not hide an unreachable target.
-    robots = _robots(raw)
-    if reach_checker is not None and robots:
-        checker = PybulletReachChecker() if isinstance(reach_checker, _Default) else reach_checker
-        try:
-            problems.extend(_check_reach(robots, _parts(raw), checker, folder, root))
-        finally:
-            if isinstance(reach_checker, _Default):
-                checker.close()  # type: ignore[union-attr]
+    # The motion check needs the whole scenario built: it runs after these pass (load, validate).
     return _dedupe(problems)
-
-
-def _check_reach(
-    robots: dict[str, Robot],
-    parts: list[Part],
-    checker: ReachChecker,
-    folder: Path | None,
-    root: Path | None,
-) -> list[Problem]:
-    problems: list[Problem] = []
-    for rid, robot in robots.items():
-        urdf = resolve_path(robot.urdf, folder, root)
-        if urdf is None:
-            continue  # already reported by check_files
-        items = reach_items(robot, parts)
-        for result in checker.check(robot, urdf, items):
-            if result.reachable:
-                continue
-            item = result.item
-            where = "[" + ", ".join(f"{v:.3f}" for v in item.position) + "]"
-            note = f" ({item.note})" if item.note else ""
-            problems.append(Problem(item.key, f"robot {rid} cannot reach {where}{note} with the "
-                                    f"tool pointing down: {result.detail}"))
-    return problems
-
-
-def _build(model: type[BaseModel], value: Any) -> Any:
-    if value is None:
-        return None
-    try:
-        return model.model_validate(value)
-    except ValidationError:
-        return None  # reported by the schema check
-
-
-def _robots(raw: dict[str, Any]) -> dict[str, Robot]:
-    out: dict[str, Robot] = {}
-    raw_robots = raw.get("robots")
-    if not isinstance(raw_robots, dict):
-        return out
-    for rid, value in raw_robots.items():
-        robot = _build(Robot, value)
-        if robot is not None:
-            robot._id = rid
-            out[rid] = robot
-    return out
-
-
-def _parts(raw: dict[str, Any]) -> list[Part]:
-    raw_parts = raw.get("parts")
-    if not isinstance(raw_parts, list):
-        return []
-    built = [_build(Part, value) for value in raw_parts]
-    return [p for p in built if p is not None]
 
 
 _MESSAGES = {

@@ -148,10 +148,10 @@ def write_scenario(tmp_path: Path) -> Callable[[dict[str, Any]], Path]:
 def problems_of(
     write_scenario: Callable[[dict[str, Any]], Path], arm_root: Path
 ) -> Callable[..., list[Problem]]:
-    """Load data (no reach check unless asked) and return its problems ([] when it loads)."""
+    """Load data (no motion check unless asked) and return its problems ([] when it loads)."""
 
     def run(data: dict[str, Any], **kwargs: Any) -> list[Problem]:
-        kwargs.setdefault("reach_checker", None)
+        kwargs.setdefault("motion_check", False)
         try:
             load(write_scenario(data), project_root=arm_root, **kwargs)
         except ScenarioError as err:

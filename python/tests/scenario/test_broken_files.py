@@ -6,13 +6,13 @@ from pathlib import Path
 
 import pytest
 
-from hrc.scenario import PybulletReachChecker, ScenarioError, load
+from hrc.scenario import ScenarioError, load
 
 DATA = Path(__file__).resolve().parent / "data"
 
 
 def problems(name: str, root: Path, **kwargs) -> dict[str, list[str]]:
-    kwargs.setdefault("reach_checker", None)
+    kwargs.setdefault("motion_check", False)
     with pytest.raises(ScenarioError) as info:
         load(DATA / name, project_root=root, **kwargs)
     out: dict[str, list[str]] = {}
@@ -46,10 +46,10 @@ def test_many_problems_file_reports_each_one(arm_root: Path) -> None:
 
 
 def test_unreachable_file(arm_root: Path) -> None:
-    with PybulletReachChecker() as checker:
-        found = problems("unreachable.toml", arm_root, reach_checker=checker)
-    assert set(found) == {"parts.RA1.target", "robots.r2.feeder"}
-    assert all("cannot reach" in m for ms in found.values() for m in ms)
-    # both the place point and the approach point above it are named
-    assert len(found["parts.RA1.target"]) == 2
-    assert any("0.05 m above" in m for m in found["parts.RA1.target"])
+    found = problems("unreachable.toml", arm_root, motion_check=True)
+    assert set(found) == {"parts.RA1.target", "robots.r2.feeder"}, found
+    messages = [m for ms in found.values() for m in ms]
+    assert all("is not feasible" in m and "unreachable" in m for m in messages), messages
+    # robot, part, from -> to and the target are named
+    assert any(m.startswith("robot r1 RA1: intermediate -> place (target [") for m in messages)
+    assert any(m.startswith("robot r2 S1: home -> feeder (target [") for m in messages), messages

@@ -14,7 +14,7 @@ SCENARIOS = Path(__file__).resolve().parents[3] / "scenarios"
 
 @pytest.fixture
 def thesis(arm_root: Path):
-    return load(SCENARIOS / "thesis.toml", project_root=arm_root, reach_checker=None)
+    return load(SCENARIOS / "thesis.toml", project_root=arm_root, motion_check=False)
 
 
 def test_every_field_is_filled(thesis, arm_root: Path) -> None:
@@ -53,7 +53,7 @@ def test_defaults_reach_the_wire(minimal_raw, write_scenario, arm_root) -> None:
     del minimal_raw["robots"]["r1"]["color"]
     del minimal_raw["robots"]["r2"]["screw_time_s"]
     del minimal_raw["conditions"]
-    msg = to_proto(load(write_scenario(minimal_raw), project_root=arm_root, reach_checker=None))
+    msg = to_proto(load(write_scenario(minimal_raw), project_root=arm_root, motion_check=False))
     assert msg.robots[0].color == "yellow" and msg.robots[1].screw_time_s == 1.0
     assert msg.conditions.anticipation
     assert msg.conditions.safety_policy == pb.SAFETY_POLICY_RETREAT
@@ -80,7 +80,7 @@ def test_round_trip_keeps_provoke_times_and_absent_button(minimal_raw, write_sce
                                                           arm_root) -> None:
     minimal_raw["participant"]["provoke_collisions"] = [4.0, 1.5]
     del minimal_raw["workspace"]["continue_button"]
-    scenario = load(write_scenario(minimal_raw), project_root=arm_root, reach_checker=None)
+    scenario = load(write_scenario(minimal_raw), project_root=arm_root, motion_check=False)
     back = from_proto(to_proto(scenario))
     assert back.participant.provoke_collisions == [1.5, 4.0]
     assert back.workspace.continue_button is None

@@ -14,7 +14,7 @@ REPO = Path(__file__).resolve().parents[3]
 
 @pytest.fixture(scope="module")
 def thesis(arm_root: Path):
-    return load(REPO / "scenarios" / "thesis.toml", project_root=arm_root, reach_checker=None)
+    return load(REPO / "scenarios" / "thesis.toml", project_root=arm_root, motion_check=False)
 
 
 def test_accessors(thesis) -> None:

@@ -1,5 +1,5 @@
-"""The scenarios shipped in scenarios/: they load clean, every robot target is reachable, and the
-thesis task has the shape docs/scenario.md describes."""
+"""The scenarios shipped in scenarios/: they load clean, every robot move passes the motion check,
+and the thesis task has the shape docs/scenario.md describes."""
 
 from __future__ import annotations
 
@@ -7,38 +7,31 @@ from pathlib import Path
 
 import pytest
 
-from hrc.scenario import HUMAN, PybulletReachChecker, Scenario, load, validate
+from hrc.scenario import HUMAN, Scenario, load, validate
 
 REPO = Path(__file__).resolve().parents[3]
 SHIPPED = ["thesis", "minimal", "empty"]
 REAL_ARM = REPO / "robots" / "arm5.urdf"
 
 
-@pytest.fixture(scope="module")
-def checker():
-    with PybulletReachChecker() as c:
-        yield c
-
-
 @pytest.mark.parametrize("name", SHIPPED)
-def test_loads_clean_with_the_stand_in_arm(name: str, arm_root: Path, checker) -> None:
+def test_loads_clean_with_the_stand_in_arm(name: str, arm_root: Path) -> None:
     # project_root = a folder whose robots/arm5.urdf is the test arm (the scenarios name
     # robots/arm5.urdf relative to the project root)
-    scenario = load(REPO / "scenarios" / f"{name}.toml", project_root=arm_root,
-                    reach_checker=checker)
-    assert validate(scenario) == []
+    scenario = load(REPO / "scenarios" / f"{name}.toml", project_root=arm_root)
+    assert validate(scenario, motion_check=True) == []
 
 
 @pytest.mark.skipif(not REAL_ARM.is_file(), reason="robots/arm5.urdf does not exist yet")
 @pytest.mark.parametrize("name", SHIPPED)
-def test_loads_clean_with_the_real_arm(name: str, checker) -> None:
-    scenario = load(REPO / "scenarios" / f"{name}.toml", reach_checker=checker)
+def test_loads_clean_with_the_real_arm(name: str) -> None:
+    scenario = load(REPO / "scenarios" / f"{name}.toml")
     assert scenario.urdf_path("r1") == REAL_ARM.resolve()
 
 
 @pytest.fixture(scope="module")
 def thesis(arm_root: Path) -> Scenario:
-    return load(REPO / "scenarios" / "thesis.toml", project_root=arm_root, reach_checker=None)
+    return load(REPO / "scenarios" / "thesis.toml", project_root=arm_root, motion_check=False)
 
 
 def test_thesis_has_enough_parts_of_each_agent(thesis: Scenario) -> None:
@@ -95,8 +88,8 @@ def test_thesis_layout_follows_the_world_frame(thesis: Scenario) -> None:
 
 
 def test_minimal_and_empty(arm_root: Path) -> None:
-    minimal = load(REPO / "scenarios" / "minimal.toml", project_root=arm_root, reach_checker=None)
+    minimal = load(REPO / "scenarios" / "minimal.toml", project_root=arm_root, motion_check=False)
     assert [len(minimal.sequence_of(a)) for a in minimal.agents] == [1, 1, 1]
-    empty = load(REPO / "scenarios" / "empty.toml", project_root=arm_root, reach_checker=None)
+    empty = load(REPO / "scenarios" / "empty.toml", project_root=arm_root, motion_check=False)
     assert empty.parts == [] and all(empty.sequence_of(a) == [] for a in empty.agents)
     assert set(empty.robots) == {"r1", "r2"} and empty.workspace.envelope

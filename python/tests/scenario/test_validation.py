@@ -132,14 +132,14 @@ def test_bad_toml_is_reported_with_its_line(tmp_path: Path) -> None:
     path = tmp_path / "bad.toml"
     path.write_text("[scenario]\nname = \n", encoding="utf-8")
     with pytest.raises(ScenarioError) as info:
-        load(path, reach_checker=None)
+        load(path, motion_check=False)
     (problem,) = info.value.problems
     assert problem.key == "toml" and "line 2" in problem.message
 
 
 def test_missing_file_is_reported(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError) as info:
-        load(tmp_path / "nope.toml", reach_checker=None)
+        load(tmp_path / "nope.toml", motion_check=False)
     assert info.value.problems[0].key == "file"
 
 
@@ -311,7 +311,7 @@ def test_paths_resolve_against_the_file_folder_first(
     local.write_text((arm_root / "robots" / "arm5.urdf").read_text(), encoding="utf-8")
     (arm_root / "rec.jsonl").write_text("", encoding="utf-8")  # only in the project root
     minimal_raw["participant"].update(input="replay", replay_file="rec.jsonl")
-    scenario = load(write_scenario(minimal_raw), project_root=arm_root, reach_checker=None)
+    scenario = load(write_scenario(minimal_raw), project_root=arm_root, motion_check=False)
     assert scenario.urdf_path("r1") == local.resolve()  # the file's folder wins
     assert scenario.resolve("rec.jsonl") == (arm_root / "rec.jsonl").resolve()  # then the root
 
@@ -324,14 +324,14 @@ def test_project_root_comes_from_hrc_root_or_the_scenarios_folder(
     path = nested / "case.toml"
     path.write_text(to_toml(minimal_raw), encoding="utf-8")
     monkeypatch.delenv("HRC_ROOT", raising=False)
-    scenario = load(path, reach_checker=None)  # walks up to the folder holding scenarios/
+    scenario = load(path, motion_check=False)  # walks up to the folder holding scenarios/
     assert scenario.project_root == arm_root.resolve()
     assert scenario.urdf_path("r2") == (arm_root / "robots" / "arm5.urdf").resolve()
 
     elsewhere = tmp_path / "x.toml"
     elsewhere.write_text(to_toml(minimal_raw), encoding="utf-8")
     monkeypatch.setenv("HRC_ROOT", str(arm_root))
-    assert load(elsewhere, reach_checker=None).project_root == arm_root.resolve()
+    assert load(elsewhere, motion_check=False).project_root == arm_root.resolve()
 
 
 # ---------------------------------------------------------------- all at once, and the error text
@@ -353,7 +353,7 @@ def test_error_text_is_one_line_per_problem(minimal_raw: Data, write_scenario, a
     part(minimal_raw, "H1")["after"] = ["X"]
     path = write_scenario(minimal_raw)
     with pytest.raises(ScenarioError) as info:
-        load(path, project_root=arm_root, reach_checker=None)
+        load(path, project_root=arm_root, motion_check=False)
     lines = str(info.value).splitlines()
     assert len(lines) == 2
     assert lines[0].startswith(f"{path}: scenario.tick_hz: ")
@@ -373,7 +373,7 @@ def test_provoke_collisions_shapes(
 ) -> None:
     minimal_raw["participant"]["provoke_collisions"] = value
     participant = load(write_scenario(minimal_raw), project_root=arm_root,
-                       reach_checker=None).participant
+                       motion_check=False).participant
     assert participant.provoke_times_s == times
     assert participant.provoke_probability == probability
 

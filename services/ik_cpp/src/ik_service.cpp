@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <limits>
+#include <map>
 #include <set>
 #include <stdexcept>
 #include <thread>
@@ -26,6 +27,16 @@ std::string fmt_point(const Eigen::Vector3d& p) {
 }
 
 Eigen::Vector3d vec(const v2::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+v2::MotionKind to_wire(kin::MotionKind k) {
+  switch (k) {
+    case kin::MotionKind::None: return v2::MOTION_KIND_UNSPECIFIED;
+    case kin::MotionKind::Linear: return v2::MOTION_KIND_LINEAR;
+    case kin::MotionKind::Joint: return v2::MOTION_KIND_JOINT;
+    case kin::MotionKind::Via: return v2::MOTION_KIND_VIA;
+  }
+  return v2::MOTION_KIND_UNSPECIFIED;
+}
 
 v2::MotionStatus to_wire(kin::MotionStatus s) {
   switch (s) {
@@ -163,6 +174,7 @@ void IkEngine::step() {
 }
 
 const kin::MotionState& IkEngine::state(std::size_t index) const { return arms_.at(index).motion->state(); }
+void IkEngine::reset(std::size_t index, const Eigen::VectorXd& q) { arms_.at(index).motion->reset(q); }
 const kin::RobotModel& IkEngine::model(std::size_t index) const { return *arms_.at(index).model; }
 uint64_t IkEngine::command_id(std::size_t index) const { return arms_.at(index).command_id; }
 
@@ -191,6 +203,7 @@ void IkEngine::fill_state(std::size_t index, v2::RobotState& out) const {
   tcp->mutable_orientation()->set_w(r.w());
   out.set_tcp_speed(s.tcp_speed);
   out.set_status(to_wire(s.status));
+  out.set_motion_kind(to_wire(s.kind));
   out.set_command_id(arm.command_id);
   if (out.detail() != s.detail) out.set_detail(s.detail);
 }
@@ -223,6 +236,67 @@ v2::ReachReply IkEngine::reach(const v2::ReachRequest& request) {
       r->set_detail("robot '" + item.robot() + "' cannot reach " + fmt_point(target) +
                     " with the tool pointing down (closest " + fmt(err) + " m away)");
     }
+  }
+  return reply;
+}
+
+// ---------------------------------------------------------------- motion check
+
+v2::MotionCheckReply check_moves(const v2::MotionCheckRequest& request, double max_move_s) {
+  IkEngine engine(robots_from_scenario(request.scenario()), tick_dt(request.scenario()));
+  // Per robot: joints at home, after its last move, and after each labelled move.
+  std::vector<Eigen::VectorXd> home, last;
+  std::vector<std::map<std::string, Eigen::VectorXd>> after(engine.size());
+  for (std::size_t i = 0; i < engine.size(); ++i) home.push_back(engine.state(i).q);
+  last = home;
+  v2::MotionCheckReply reply;
+  for (const v2::MoveCheck& move : request.moves()) {
+    v2::MoveCheckResult* r = reply.add_results();
+    r->set_label(move.label());
+    r->set_robot(move.command().robot());
+    const int i = engine.index_of(move.command().robot());
+    if (i < 0) {
+      r->set_detail("unknown robot '" + move.command().robot() + "'");
+      continue;
+    }
+    const auto k = static_cast<std::size_t>(i);
+    if (move.start() == "home") {
+      engine.reset(k, home[k]);
+    } else if (!move.start().empty()) {
+      const auto it = after[k].find(move.start());
+      if (it == after[k].end()) {
+        r->set_detail("start '" + move.start() + "' is no earlier move of " + move.command().robot());
+        continue;
+      }
+      engine.reset(k, it->second);
+    } else {
+      engine.reset(k, last[k]);
+    }
+    const std::string problem = engine.apply(move.command().robot(), move.command());
+    if (!problem.empty()) {
+      r->set_detail("command refused: " + problem);
+      continue;
+    }
+    const auto max_ticks = static_cast<uint64_t>(std::ceil(max_move_s / engine.dt()));
+    uint64_t ticks = 0;
+    double vmax = 0.0;
+    r->set_kind(to_wire(engine.state(k).kind));
+    while (engine.state(k).status == kin::MotionStatus::Moving && ticks < max_ticks) {
+      engine.step();
+      ++ticks;
+      vmax = std::max(vmax, engine.state(k).tcp_speed);
+    }
+    const kin::MotionState& s = engine.state(k);
+    r->set_duration_s(static_cast<double>(ticks) * engine.dt());
+    r->set_max_tcp_speed(vmax);
+    r->set_feasible(s.status == kin::MotionStatus::Reached);
+    if (s.status == kin::MotionStatus::Moving) {
+      r->set_detail("still moving after " + fmt(max_move_s) + " s");
+    } else if (!r->feasible()) {
+      r->set_detail(s.detail.empty() ? std::string(kin::toString(s.status)) : s.detail);
+    }
+    last[k] = s.q;
+    if (!move.label().empty()) after[k][move.label()] = s.q;
   }
   return reply;
 }

@@ -8,6 +8,7 @@
 #include <cstdio>
 #include <exception>
 #include <iostream>
+#include <iterator>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -37,7 +38,31 @@ const char* kUsage =
     "  --start-timeout S    seconds to wait for the scenario queryable (default 60)\n"
     "  --standalone-hz HZ   no clock master: step at HZ by an own timer (dt = 1/HZ) until\n"
     "                       SIGINT/SIGTERM or run/end (for 1 kHz tests and benchmarks)\n"
+    "  --check-moves        no bus: read a MotionCheckRequest (protobuf) on stdin, plan and run\n"
+    "                       each move with the service's motion generators, write the\n"
+    "                       MotionCheckReply on stdout (hrc validate uses it)\n"
     "  --help               this text\n";
+
+// hrc-ik --check-moves: exit 0 with a reply, 1 (message on stderr) for a request that cannot
+// be read or whose robots do not load.
+int check_moves_main() {
+  std::ios::sync_with_stdio(false);
+  const std::string input{std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>()};
+  hrc::v2::MotionCheckRequest request;
+  if (!request.ParseFromString(input)) {
+    std::cerr << "hrc-ik --check-moves: stdin is not a MotionCheckRequest\n";
+    return 1;
+  }
+  try {
+    const hrc::v2::MotionCheckReply reply = hrc::check_moves(request);
+    if (!reply.SerializeToOstream(&std::cout)) return 1;
+    std::cout.flush();
+    return 0;
+  } catch (const std::exception& e) {
+    std::cerr << "hrc-ik --check-moves: " << e.what() << "\n";
+    return 1;
+  }
+}
 
 // Short numbers for log lines ("0.004167", "60", "1000").
 std::string num(double v) {
@@ -78,11 +103,13 @@ int run(const std::vector<std::string>& argv) {
     single.insert(single.end(), {"--name", "--input-timeout", "--start-timeout", "--standalone-hz"});
     auto flags = hrc::cli::bus_bool_flags();
     flags.emplace_back("--help");
+    flags.emplace_back("--check-moves");
     const hrc::cli::Args args(argv, single, hrc::cli::bus_repeatable_flags(), flags);
     if (args.flag("--help")) {
       std::cout << kUsage << "\n" << hrc::cli::bus_usage();
       return 0;
     }
+    if (args.flag("--check-moves")) return check_moves_main();
     opt.name = args.get_or("--name", "ik_cpp");
     try {
       hrc::check_name("service name", opt.name);

@@ -18,8 +18,8 @@ import enum
 from dataclasses import dataclass
 
 from hrc import scenario as sc
-from hrc.geometry import Vec3, add, pose_to_pb, vec3, vec3_from_pb, vec3_to_pb, yaw_pose_deg
-from hrc.scenario.conventions import APPROACH_HEIGHT_M
+from hrc.geometry import Vec3, pose_to_pb, vec3, vec3_from_pb, vec3_to_pb, yaw_pose_deg
+from hrc.scenario.conventions import APPROACH_HEIGHT_M, grasp_point
 from hrc.wire import pb
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
@@ -66,11 +66,6 @@ class Motion:
 
 
 HOLD = Motion(pb.RobotCommand.KIND_HOLD)
-
-
-def grasp_point(centre: Vec3, size: list[float]) -> Vec3:
-    """The TCP for a part whose box centre is `centre`: the centre of its top face."""
-    return add(centre, (0.0, 0.0, size[2] / 2.0))
 
 
 class RobotAgent:

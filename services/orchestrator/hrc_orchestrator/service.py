@@ -74,15 +74,14 @@ class OrchestratorService(Service):
                        help="do not ask the clock to stop when the task finishes "
                             "(fixed-length runs)")
         p.add_argument("--no-reach-check", action="store_true",
-                       help="skip the reach check when loading the scenario")
+                       help="skip the motion check when loading the scenario")
 
     def __init__(self, args: argparse.Namespace) -> None:
         """Loads and checks the scenario before joining the bus."""
         super().__init__(args)
         try:
-            self.scenario = scenario_mod.load(
-                args.scenario,
-                reach_checker=None if args.no_reach_check else scenario_mod.DEFAULT_REACH)
+            self.scenario = scenario_mod.load(args.scenario,
+                                              motion_check=not args.no_reach_check)
         except scenario_mod.ScenarioError as exc:
             raise ServiceExit(f"scenario rejected:\n{exc}", EXIT_BAD_INPUT) from exc
         except OSError as exc:

@@ -23,9 +23,9 @@ K = pb.TaskEventKind
 
 
 def load(name: str, **overrides: object) -> sc.Scenario:
-    """A shipped scenario (no reach check), with top-level tables patched, e.g.
+    """A shipped scenario (no motion check), with top-level tables patched, e.g.
     conditions={"safety_policy": "stop_colliding"}."""
-    s = sc.load(ROOT / "scenarios" / name, reach_checker=None)
+    s = sc.load(ROOT / "scenarios" / name, motion_check=False)
     for table, values in overrides.items():
         model = getattr(s, table)
         # validated like the file's values (strings become enum members)

@@ -42,7 +42,7 @@ def _joints(k: int, dt: float, phase: float) -> list[float]:
 
 
 def measure(n: int) -> dict[str, float]:
-    scenario = sc.load(project_root() / "scenarios" / "thesis.toml", reach_checker=None)
+    scenario = sc.load(project_root() / "scenarios" / "thesis.toml", motion_check=False)
     dt = 1.0 / scenario.scenario.tick_hz
     with World(scenario, WorldSettings(dt=dt)) as world:
         robots = list(world.robots)

@@ -72,6 +72,8 @@ class IkEngine {
   /// so a caller that keeps its RobotState does not allocate per tick.
   void fill_state(std::size_t index, v2::RobotState& out) const;
   const kin::MotionState& state(std::size_t index) const;
+  /// Puts arm `index` at joints `q` at rest (the motion check starts moves from recorded poses).
+  void reset(std::size_t index, const Eigen::VectorXd& q);
   const kin::RobotModel& model(std::size_t index) const;
   uint64_t command_id(std::size_t index) const;
 
@@ -93,6 +95,12 @@ class IkEngine {
   std::vector<std::string> ids_;
   std::mutex reach_mutex_;
 };
+
+/// The motion check (hrc-ik --check-moves): builds an engine for the request's scenario (its
+/// tick), then for each move puts the arm at its start (see MoveCheck.start), applies the command
+/// exactly as the service does and steps until the arm stops moving (at most `max_move_s` of
+/// simulated time). Throws like IkEngine's constructor for a scenario whose robots do not load.
+v2::MotionCheckReply check_moves(const v2::MotionCheckRequest& request, double max_move_s = 120.0);
 
 /// Per-tick durations in a fixed histogram (1 µs bins up to 20 ms): recording never allocates.
 class TickTimes {
