@@ -17,6 +17,18 @@ std::string fmtPoint(const Eigen::Vector3d& p) {
 
 bool finite(double v) { return std::isfinite(v); }
 
+std::string fmtNum(double v, int decimals) {
+  char buf[48];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  return buf;
+}
+
+// Why the closest IK solution is not one: how far the tool is off in position and pointing.
+std::string closest(const IkResult& r) {
+  return "(closest: " + fmtNum(r.position_error * 1000.0, 1) + " mm away, tool axis " +
+         fmtNum(r.angle_error * 180.0 / M_PI, 1) + " deg off)";
+}
+
 }  // namespace
 
 const char* toString(MotionStatus s) {
@@ -258,8 +270,7 @@ bool MotionGenerator::checkSegments(const std::deque<Segment>& segs, Eigen::Vect
       const Eigen::Vector3d p = s.p0 + s.u * (f * s.lin_length);
       const Eigen::Matrix3d R = s.r0.slerp(f, s.r1).toRotationMatrix();
       if (!solvePose(p, R, seed, res)) {
-        why = "path leaves the workspace near " + fmtPoint(p) + " (position error " +
-              std::to_string(res.position_error) + " m)";
+        why = "path leaves the workspace near " + fmtPoint(p) + " " + closest(res);
         return false;
       }
       // A jump between neighbouring samples means the solution switches branch (a joint limit
@@ -369,8 +380,7 @@ bool MotionGenerator::appendLine(std::deque<Segment>& out, Cursor& c, const Eige
     const double f = static_cast<double>(k) / n;
     const Eigen::Vector3d q_p = s.p0 + s.u * (f * L);
     if (!solvePose(q_p, s.r0.slerp(f, s.r1).toRotationMatrix(), seed, res)) {
-      why = "line leaves the workspace near " + fmtPoint(q_p) + " (position error " +
-            std::to_string(res.position_error) + " m)";
+      why = "line leaves the workspace near " + fmtPoint(q_p) + " " + closest(res);
       return false;
     }
     if ((res.q - seed).cwiseAbs().maxCoeff() > 0.35) {
@@ -411,8 +421,8 @@ bool MotionGenerator::appendJoint(std::deque<Segment>& out, Cursor& c, const Eig
     Eigen::Quaterniond r;
     fkWorld(q, p, r);
     if (p.z() < tcp_floor) {
-      why = "joint path takes the tool down to z " + std::to_string(p.z()) + " m near " +
-            fmtPoint(p) + " (table at z " + std::to_string(limits_.table_z) + " m)";
+      why = "joint path takes the tool down to z " + fmtNum(p.z(), 3) + " m near " +
+            fmtPoint(p) + " (table at z " + fmtNum(limits_.table_z, 3) + " m)";
       return false;
     }
     for (int i = 2; i < model_.dof(); ++i) {
@@ -531,7 +541,7 @@ bool MotionGenerator::planVia(const MoveCommand& cmd, const Eigen::Matrix3d& goa
       out = std::move(tmp);
       return true;
     }
-    if (first_why.empty()) first_why = "at height " + std::to_string(z) + " m: " + w;
+    if (first_why.empty()) first_why = "at height " + fmtNum(z, 3) + " m: " + w;
   }
   why = first_why;
   return false;
@@ -552,16 +562,29 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
                                         : limits_.max_tcp_speed;
   const ProfileLimits lim{vmax, limits_.max_tcp_accel, limits_.max_tcp_jerk};
   const Eigen::Matrix3d goal_R = toolDownRotation(cmd.yaw);
-  const auto yawDeg = [&] { return std::to_string(cmd.yaw * 180.0 / M_PI); };
+  const auto yawDeg = [&] { return fmtNum(cmd.yaw * 180.0 / M_PI, 1); };
+
 
   IkResult res;
   if (!solvePose(cmd.target, goal_R, state_.q, res) &&
       !solvePose(cmd.target, goal_R, model_.midRange(), res)) {
     state_.kind = MotionKind::None;
     stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() +
-                                            " deg unreachable (position error " +
-                                            std::to_string(res.position_error) + " m)");
+                                            " deg unreachable " + closest(res));
     return state_.status;
+  }
+  if (cmd.approach_height > 0) {
+    // The vertical approach starts there whatever the kind of move: without it nothing can work.
+    const Eigen::Vector3d pre = cmd.target + Eigen::Vector3d(0, 0, cmd.approach_height);
+    const Eigen::VectorXd seed = res.q;  // the target's solution: the nearest approach branch
+    if (!solvePose(pre, goal_R, seed, res) && !solvePose(pre, goal_R, model_.midRange(), res)) {
+      state_.kind = MotionKind::None;
+      stopWith(MotionStatus::Unreachable,
+               "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() + " deg: approach point " +
+                   fmtPoint(pre) + " (" + fmtNum(cmd.approach_height, 3) +
+                   " m above) unreachable " + closest(res));
+      return state_.status;
+    }
   }
 
   std::vector<Eigen::Vector3d> points;
