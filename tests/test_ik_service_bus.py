@@ -79,8 +79,9 @@ class Record:
 class Session:
     """hrc-ik plus the test's clock master and orchestrator, driven by a script."""
 
-    def __init__(self, tmp: Path) -> None:
-        self.scenario = sc.to_proto(sc.load(MINIMAL, motion_check=False))
+    def __init__(self, tmp: Path, scenario: Path = MINIMAL, max_ticks: int = MAX_TICKS) -> None:
+        self.scenario = sc.to_proto(sc.load(scenario, motion_check=False))
+        self.max_ticks = max_ticks
         self.robots = {r.id: r for r in self.scenario.robots}
         self.dt = 1.0 / self.scenario.info.tick_hz
         self.session = f"ik{uuid.uuid4().hex[:8]}"
@@ -137,8 +138,8 @@ class Session:
             self.error = exc
             self._script = None
             self._request_stop(f"script failed: {exc}")
-        if self._script is not None and self._k > MAX_TICKS:
-            self.error = AssertionError(f"script still running after {MAX_TICKS} ticks")
+        if self._script is not None and self._k > self.max_ticks:
+            self.error = AssertionError(f"script still running after {self.max_ticks} ticks")
             self._request_stop("too long")
 
     def _request_stop(self, reason: str) -> None:
