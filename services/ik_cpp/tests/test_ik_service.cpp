@@ -440,3 +440,51 @@ TEST(IkService, ServesReachQueries) {
 }
 
 }  // namespace
+
+// The check mode: the moves of a request, each started where the request says, with the kind and
+// verdict the engine gives them; the unreachable one names where and why.
+TEST(IkCheck, PlansEachMoveFromItsStartAndReportsKindAndWhy) {
+  hrc::v2::MotionCheckRequest req;
+  *req.mutable_scenario() = minimal_scenario();
+  auto add = [&](const std::string& label, const RobotCommand& c, const std::string& start) {
+    hrc::v2::MoveCheck* m = req.add_moves();
+    m->set_label(label);
+    *m->mutable_command() = c;
+    m->set_start(start);
+  };
+  add("line", move(0.25, 0.55, 0.15, 1), "");          // home -> beside the base: a line
+  add("over the base", move(0.65, 0.55, 0.15, 2), "");  // from there across the base: joint
+  add("far", move(2.0, 2.0, 0.3, 3), "home");
+  add("again", move(0.65, 0.55, 0.15, 4), "line");      // starts where "line" ended
+  add("bad start", move(0.30, 0.30, 0.30, 5), "nowhere");
+  RobotCommand other = move(0.0, 0.0, 0.0, 6);
+  other.set_robot("r9");
+  add("unknown", other, "");
+  const hrc::v2::MotionCheckReply reply = hrc::check_moves(req);
+  ASSERT_EQ(reply.results_size(), 6);
+  const auto& r = reply.results();
+  EXPECT_TRUE(r[0].feasible()) << r[0].detail();
+  EXPECT_EQ(r[0].kind(), hrc::v2::MOTION_KIND_LINEAR);
+  EXPECT_TRUE(r[1].feasible()) << r[1].detail();
+  EXPECT_EQ(r[1].kind(), hrc::v2::MOTION_KIND_JOINT);
+  EXPECT_GT(r[1].duration_s(), 0.0);
+  EXPECT_LE(r[1].max_tcp_speed(), 0.5 * 1.02);
+  EXPECT_FALSE(r[2].feasible());
+  EXPECT_NE(r[2].detail().find("target (2.000, 2.000, 0.300) yaw 0.0 deg unreachable"),
+            std::string::npos) << r[2].detail();
+  EXPECT_TRUE(r[3].feasible());
+  EXPECT_EQ(r[3].kind(), hrc::v2::MOTION_KIND_JOINT);
+  EXPECT_FALSE(r[4].feasible());
+  EXPECT_NE(r[4].detail().find("no earlier move"), std::string::npos);
+  EXPECT_FALSE(r[5].feasible());
+  EXPECT_NE(r[5].detail().find("unknown robot"), std::string::npos);
+}
+
+TEST_F(Engine, StateReportsTheMotionKind) {
+  RobotState st;
+  engine.fill_state(0, st);
+  EXPECT_EQ(st.motion_kind(), hrc::v2::MOTION_KIND_UNSPECIFIED);
+  ASSERT_EQ(engine.apply("r1", move(0.20, 0.25, 0.25, 1)), "");
+  engine.fill_state(0, st);
+  EXPECT_EQ(st.motion_kind(), hrc::v2::MOTION_KIND_LINEAR);
+}
