@@ -63,13 +63,17 @@ def service_outcomes(tmp: Path, path: Path, moves: list[PlannedMove]) -> list[tu
             if move.robot != robot:
                 continue
             c = move.command
-            cid = s.move(robot, (c.target.x, c.target.y, c.target.z), yaw_deg=c.yaw_deg,
-                         approach=c.approach_height, depart=c.depart_height)
+            cid = s.move(
+                robot,
+                (c.target.x, c.target.y, c.target.z),
+                yaw_deg=c.yaw_deg,
+                approach=c.approach_height,
+                depart=c.depart_height,
+            )
             for _ in range(MOVE_TICKS):
                 yield
                 st = s.latest.get(robot)
-                if (st is not None and st.command_id == cid
-                        and st.status != pb.MOTION_STATUS_MOVING):
+                if st is not None and st.command_id == cid and st.status != pb.MOTION_STATUS_MOVING:
                     outcome[i] = (st.status == pb.MOTION_STATUS_REACHED, st.motion_kind)
                     break
             else:
@@ -108,11 +112,13 @@ def test_check_mode_and_running_service_agree(name: str, tmp_path: Path, need_ik
     moves = [m for rid in sorted(scenario.robots) for m in task_moves(scenario, rid)]
     checked = [(r.feasible, r.kind) for r in run_check(sc.to_proto(scenario), moves)]
     served = service_outcomes(tmp_path, path, moves)
-    differ = [(m.label, c, s) for m, c, s in zip(moves, checked, served) if c != s]
+    differ = [(m.label, c, s) for m, c, s in zip(moves, checked, served, strict=True) if c != s]
     assert not differ, differ
     kinds = {pb.MotionKind.Name(k) for _, k in checked}
-    print(f"{name}: {len(moves)} moves, {sum(not f for f, _ in checked)} infeasible, "
-          f"kinds {sorted(kinds)}")
+    print(
+        f"{name}: {len(moves)} moves, {sum(not f for f, _ in checked)} infeasible, "
+        f"kinds {sorted(kinds)}"
+    )
     if name == "board4x4":
         assert not all(f for f, _ in checked)  # r2 cannot approach its feeder from above
     if name == "board4x4-feeder-out":
@@ -121,24 +127,32 @@ def test_check_mode_and_running_service_agree(name: str, tmp_path: Path, need_ik
 
 
 def test_reported_layout_is_rejected_naming_the_move(need_ik: None) -> None:
-    proc = subprocess.run([HRC, "validate", str(BOARD)], capture_output=True, text=True,
-                          timeout=300)
+    proc = subprocess.run(
+        [HRC, "validate", str(BOARD)], capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert "robots.r2.feeder: robot r2 S1: home -> feeder (target [-0.450, 0.250, 0.060]" in (
-        proc.stderr), proc.stderr
+        proc.stderr
+    ), proc.stderr
     assert "approach point (-0.450, 0.250, 0.110) (0.050 m above) unreachable" in proc.stderr
     # --no-reach skips the motion check: the file is otherwise sound
-    skip = subprocess.run([HRC, "validate", str(BOARD), "--no-reach"], capture_output=True,
-                          text=True, timeout=300)
+    skip = subprocess.run(
+        [HRC, "validate", str(BOARD), "--no-reach"], capture_output=True, text=True, timeout=300
+    )
     assert skip.returncode == 0, skip.stderr
 
 
 @pytest.mark.e2e
-def test_reported_layout_with_reachable_feeder_runs_to_the_end(tmp_path: Path,
-                                                               need_ik: None) -> None:
+def test_reported_layout_with_reachable_feeder_runs_to_the_end(
+    tmp_path: Path, need_ik: None
+) -> None:
     path = board_variant(tmp_path)
-    assert subprocess.run([HRC, "validate", str(path)], capture_output=True, text=True,
-                          timeout=300).returncode == 0
+    assert (
+        subprocess.run(
+            [HRC, "validate", str(path)], capture_output=True, text=True, timeout=300
+        ).returncode
+        == 0
+    )
     proc = run_trial(HRC, path, tmp_path / "out")
     assert proc.returncode == 0, proc.stderr[-3000:]
     metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())

@@ -31,13 +31,13 @@ from hrc.scenario.models import (
     ScriptedParams,
     Workspace,
 )
-from hrc.scenario.paths import find_project_root, resolve_path
 from hrc.scenario.motion_check import PlannedMove, check_motion, planned_moves
+from hrc.scenario.paths import find_project_root, resolve_path
 
 __all__ = [
-    "APPROACH_HEIGHT_M", "HUMAN", "Box", "Conditions", "InputSource", "Part",
-    "Participant", "Placement", "PlannedMove", "PoseYaw", "Problem", "Robot", "RobotRole", "SafetyPolicy", "Scenario", "ScenarioError",
-    "ScenarioInfo", "ScriptedParams", "Workspace", "check_motion", "find_project_root",
-    "from_proto", "load", "loads", "planned_moves", "resolve_path", "scripted_params_from_proto",
-    "scripted_params_to_proto", "to_proto", "validate",
+    "APPROACH_HEIGHT_M", "HUMAN", "Box", "Conditions", "InputSource", "Part", "Participant",
+    "Placement", "PlannedMove", "PoseYaw", "Problem", "Robot", "RobotRole", "SafetyPolicy",
+    "Scenario", "ScenarioError", "ScenarioInfo", "ScriptedParams", "Workspace", "check_motion",
+    "find_project_root", "from_proto", "load", "loads", "planned_moves", "resolve_path",
+    "scripted_params_from_proto", "scripted_params_to_proto", "to_proto", "validate",
 ]

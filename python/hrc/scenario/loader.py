@@ -17,8 +17,8 @@ from hrc.scenario.checks import (
 )
 from hrc.scenario.errors import Problem, ScenarioError
 from hrc.scenario.models import Scenario
-from hrc.scenario.paths import find_project_root
 from hrc.scenario.motion_check import check_motion
+from hrc.scenario.paths import find_project_root
 
 
 def load(

@@ -51,11 +51,17 @@ def _v(xyz: Sequence[float]) -> Vec3:
     return (float(xyz[0]), float(xyz[1]), float(xyz[2]))
 
 
-def _command(robot: str, target: Vec3, yaw_deg: float, approach: float = 0.0,
-             depart: float = 0.0) -> pb.RobotCommand:
-    return pb.RobotCommand(robot=robot, kind=pb.RobotCommand.KIND_MOVE,
-                           target=pb.Vec3(x=target[0], y=target[1], z=target[2]),
-                           yaw_deg=yaw_deg, approach_height=approach, depart_height=depart)
+def _command(
+    robot: str, target: Vec3, yaw_deg: float, approach: float = 0.0, depart: float = 0.0
+) -> pb.RobotCommand:
+    return pb.RobotCommand(
+        robot=robot,
+        kind=pb.RobotCommand.KIND_MOVE,
+        target=pb.Vec3(x=target[0], y=target[1], z=target[2]),
+        yaw_deg=yaw_deg,
+        approach_height=approach,
+        depart_height=depart,
+    )
 
 
 def task_moves(scenario: Scenario, rid: str) -> list[PlannedMove]:
@@ -72,23 +78,46 @@ def task_moves(scenario: Scenario, rid: str) -> list[PlannedMove]:
             pick_key = f"robots.{rid}.feeder"
         else:
             assert part.start is not None  # checked by the loader
-            pick, pick_yaw, pick_name = grasp_point(_v(part.start.xyz), part.size), part.start.yaw, "pick"
+            pick, pick_yaw, pick_name = (
+                grasp_point(_v(part.start.xyz), part.size),
+                part.start.yaw,
+                "pick",
+            )
             pick_key = f"parts.{pid}.start"
         place = grasp_point(_v(part.target.xyz), part.size)
         yaw = part.target.yaw
         inter = _v(robot.intermediate)
         moves += [
             PlannedMove(rid, pid, here, pick_name, pick_key, _command(rid, pick, pick_yaw, a)),
-            PlannedMove(rid, pid, pick_name, "intermediate", f"robots.{rid}.intermediate",
-                        _command(rid, inter, yaw, 0.0, a)),
-            PlannedMove(rid, pid, "intermediate", "place", f"parts.{pid}.target",
-                        _command(rid, place, yaw, a)),
-            PlannedMove(rid, pid, "place", "intermediate", f"robots.{rid}.intermediate",
-                        _command(rid, inter, yaw, 0.0, a)),
+            PlannedMove(
+                rid,
+                pid,
+                pick_name,
+                "intermediate",
+                f"robots.{rid}.intermediate",
+                _command(rid, inter, yaw, 0.0, a),
+            ),
+            PlannedMove(
+                rid,
+                pid,
+                "intermediate",
+                "place",
+                f"parts.{pid}.target",
+                _command(rid, place, yaw, a),
+            ),
+            PlannedMove(
+                rid,
+                pid,
+                "place",
+                "intermediate",
+                f"robots.{rid}.intermediate",
+                _command(rid, inter, yaw, 0.0, a),
+            ),
         ]
         here = "intermediate"
-    moves.append(PlannedMove(rid, "", here, "home", f"robots.{rid}.home",
-                             _command(rid, _v(robot.home), 0.0)))
+    moves.append(
+        PlannedMove(rid, "", here, "home", f"robots.{rid}.home", _command(rid, _v(robot.home), 0.0))
+    )
     return moves
 
 
@@ -96,8 +125,10 @@ def planned_moves(scenario: Scenario) -> list[PlannedMove]:
     """Every move every robot can be commanded: the task moves, then (under the retreat policies)
     each one interrupted at its start and at its end: to the retreat pose and back to its target."""
     out: list[PlannedMove] = []
-    retreats = scenario.conditions.safety_policy in (SafetyPolicy.RETREAT,
-                                                     SafetyPolicy.RETREAT_BUTTON)
+    retreats = scenario.conditions.safety_policy in (
+        SafetyPolicy.RETREAT,
+        SafetyPolicy.RETREAT_BUTTON,
+    )
     for rid in sorted(scenario.robots):
         task = task_moves(scenario, rid)
         out += task
@@ -105,12 +136,23 @@ def planned_moves(scenario: Scenario) -> list[PlannedMove]:
             continue
         retreat = _v(scenario.robots[rid].retreat)
         for i, move in enumerate(task):
-            starts = [("home" if i == 0 else task[i - 1].label, move.origin),
-                      (move.label, move.dest)]
+            starts = [
+                ("home" if i == 0 else task[i - 1].label, move.origin),
+                (move.label, move.dest),
+            ]
             for start, where in starts:
                 cmd = move.command
-                out.append(PlannedMove(rid, move.part, where, "retreat", f"robots.{rid}.retreat",
-                                       _command(rid, retreat, cmd.yaw_deg), start))
+                out.append(
+                    PlannedMove(
+                        rid,
+                        move.part,
+                        where,
+                        "retreat",
+                        f"robots.{rid}.retreat",
+                        _command(rid, retreat, cmd.yaw_deg),
+                        start,
+                    )
+                )
                 out.append(PlannedMove(rid, move.part, "retreat", move.dest, move.key, cmd))
     return out
 
@@ -119,8 +161,9 @@ class MotionCheckError(Exception):
     """The check could not run (hrc-ik missing or failing); the message says why."""
 
 
-def run_check(scenario_pb: pb.Scenario, moves: Sequence[PlannedMove],
-              binary: Path | None = None) -> list[pb.MoveCheckResult]:
+def run_check(
+    scenario_pb: pb.Scenario, moves: Sequence[PlannedMove], binary: Path | None = None
+) -> list[pb.MoveCheckResult]:
     """Plans and runs `moves` with ``hrc-ik --check-moves``; one result per move, in order."""
     if binary is None:
         from hrc.paths import ik_binary
@@ -131,15 +174,23 @@ def run_check(scenario_pb: pb.Scenario, moves: Sequence[PlannedMove],
     request = pb.MotionCheckRequest(scenario=scenario_pb)
     for m in moves:
         request.moves.add(label=m.label, command=m.command, start=m.start)
-    proc = subprocess.run([str(binary), "--check-moves"], input=request.SerializeToString(),
-                          capture_output=True, check=False, timeout=600)
+    proc = subprocess.run(
+        [str(binary), "--check-moves"],
+        input=request.SerializeToString(),
+        capture_output=True,
+        check=False,
+        timeout=600,
+    )
     if proc.returncode != 0:
-        raise MotionCheckError(proc.stderr.decode(errors="replace").strip()
-                               or f"hrc-ik --check-moves exited with {proc.returncode}")
+        raise MotionCheckError(
+            proc.stderr.decode(errors="replace").strip()
+            or f"hrc-ik --check-moves exited with {proc.returncode}"
+        )
     reply = pb.MotionCheckReply.FromString(proc.stdout)
     if len(reply.results) != len(moves):
-        raise MotionCheckError(f"hrc-ik --check-moves answered {len(reply.results)} of "
-                               f"{len(moves)} moves")
+        raise MotionCheckError(
+            f"hrc-ik --check-moves answered {len(reply.results)} of {len(moves)} moves"
+        )
     return list(reply.results)
 
 
@@ -153,12 +204,15 @@ def check_motion(scenario: Scenario, binary: Path | None = None) -> list[Problem
     except MotionCheckError as exc:
         return [Problem("robots", f"motion check failed: {exc}")]
     problems: list[Problem] = []
-    for move, result in zip(moves, results):
+    for move, result in zip(moves, results, strict=True):
         if result.feasible:
             continue
         t = move.command.target
         where = f"[{t.x:.3f}, {t.y:.3f}, {t.z:.3f}] yaw {move.command.yaw_deg:g}"
-        problems.append(Problem(move.key, f"robot {move.label} (target {where}) is not "
-                                          f"feasible: {result.detail}"))
+        problems.append(
+            Problem(
+                move.key, f"robot {move.label} (target {where}) is not feasible: {result.detail}"
+            )
+        )
     log.debug("motion check: %d moves, %d infeasible", len(moves), len(problems))
     return problems

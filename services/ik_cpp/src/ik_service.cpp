@@ -174,7 +174,9 @@ void IkEngine::step() {
 }
 
 const kin::MotionState& IkEngine::state(std::size_t index) const { return arms_.at(index).motion->state(); }
-void IkEngine::reset(std::size_t index, const Eigen::VectorXd& q) { arms_.at(index).motion->reset(q); }
+void IkEngine::reset(std::size_t index, const Eigen::VectorXd& q) {
+  arms_.at(index).motion->reset(q);
+}
 const kin::RobotModel& IkEngine::model(std::size_t index) const { return *arms_.at(index).model; }
 uint64_t IkEngine::command_id(std::size_t index) const { return arms_.at(index).command_id; }
 
@@ -265,7 +267,8 @@ v2::MotionCheckReply check_moves(const v2::MotionCheckRequest& request, double m
     } else if (!move.start().empty()) {
       const auto it = after[k].find(move.start());
       if (it == after[k].end()) {
-        r->set_detail("start '" + move.start() + "' is no earlier move of " + move.command().robot());
+        r->set_detail("start '" + move.start() + "' is no earlier move of " +
+                      move.command().robot());
         continue;
       }
       engine.reset(k, it->second);

@@ -28,8 +28,10 @@ const char* kUsage =
     "usage: hrc-ik [--name NAME] [--input-timeout S] [--start-timeout S] [--standalone-hz HZ]\n"
     "              [bus options]\n"
     "\n"
-    "The ik_cpp service: fetches the scenario from hrc/<session>/scenario, moves every robot of it\n"
-    "(one motion generator per arm), takes robot/*/command, publishes robot/<id>/state every tick,\n"
+    "The ik_cpp service: fetches the scenario from hrc/<session>/scenario, moves every robot of "
+    "it\n"
+    "(one motion generator per arm), takes robot/*/command, publishes robot/<id>/state every "
+    "tick,\n"
     "serves robot/reach and stats/<name>, takes part in the lockstep clock (acks on\n"
     "clock/ack/<name>), and declares alive/<name> when ready.\n"
     "\n"
@@ -47,7 +49,8 @@ const char* kUsage =
 // be read or whose robots do not load.
 int check_moves_main() {
   std::ios::sync_with_stdio(false);
-  const std::string input{std::istreambuf_iterator<char>(std::cin), std::istreambuf_iterator<char>()};
+  const std::string input{std::istreambuf_iterator<char>(std::cin),
+                          std::istreambuf_iterator<char>()};
   hrc::v2::MotionCheckRequest request;
   if (!request.ParseFromString(input)) {
     std::cerr << "hrc-ik --check-moves: stdin is not a MotionCheckRequest\n";

@@ -452,10 +452,10 @@ TEST(IkCheck, PlansEachMoveFromItsStartAndReportsKindAndWhy) {
     *m->mutable_command() = c;
     m->set_start(start);
   };
-  add("line", move(0.25, 0.55, 0.15, 1), "");          // home -> beside the base: a line
+  add("line", move(0.25, 0.55, 0.15, 1), "");           // home -> beside the base: a line
   add("over the base", move(0.65, 0.55, 0.15, 2), "");  // from there across the base: joint
   add("far", move(2.0, 2.0, 0.3, 3), "home");
-  add("again", move(0.65, 0.55, 0.15, 4), "line");      // starts where "line" ended
+  add("again", move(0.65, 0.55, 0.15, 4), "line");  // starts where "line" ended
   add("bad start", move(0.30, 0.30, 0.30, 5), "nowhere");
   RobotCommand other = move(0.0, 0.0, 0.0, 6);
   other.set_robot("r9");
@@ -471,7 +471,8 @@ TEST(IkCheck, PlansEachMoveFromItsStartAndReportsKindAndWhy) {
   EXPECT_LE(r[1].max_tcp_speed(), 0.5 * 1.02);
   EXPECT_FALSE(r[2].feasible());
   EXPECT_NE(r[2].detail().find("target (2.000, 2.000, 0.300) yaw 0.0 deg unreachable"),
-            std::string::npos) << r[2].detail();
+            std::string::npos)
+      << r[2].detail();
   EXPECT_TRUE(r[3].feasible());
   EXPECT_EQ(r[3].kind(), hrc::v2::MOTION_KIND_JOINT);
   EXPECT_FALSE(r[4].feasible());

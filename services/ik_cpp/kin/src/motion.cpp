@@ -421,8 +421,8 @@ bool MotionGenerator::appendJoint(std::deque<Segment>& out, Cursor& c, const Eig
     Eigen::Quaterniond r;
     fkWorld(q, p, r);
     if (p.z() < tcp_floor) {
-      why = "joint path takes the tool down to z " + fmtNum(p.z(), 3) + " m near " +
-            fmtPoint(p) + " (table at z " + fmtNum(limits_.table_z, 3) + " m)";
+      why = "joint path takes the tool down to z " + fmtNum(p.z(), 3) + " m near " + fmtPoint(p) +
+            " (table at z " + fmtNum(limits_.table_z, 3) + " m)";
       return false;
     }
     for (int i = 2; i < model_.dof(); ++i) {
@@ -435,9 +435,9 @@ bool MotionGenerator::appendJoint(std::deque<Segment>& out, Cursor& c, const Eig
         return false;
       }
     }
-    const double dm = std::max({(p - p_prev).norm(),
-                                limits_.rotation_length * r_prev.angularDistance(r),
-                                kJointMeasure * (s.dq.cwiseAbs().maxCoeff() / n)});
+    const double dm =
+        std::max({(p - p_prev).norm(), limits_.rotation_length * r_prev.angularDistance(r),
+                  kJointMeasure * (s.dq.cwiseAbs().maxCoeff() / n)});
     s.measure[static_cast<std::size_t>(k)] = s.measure[static_cast<std::size_t>(k) - 1] + dm;
     p_prev = p;
     r_prev = r;
@@ -564,7 +564,6 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
   const Eigen::Matrix3d goal_R = toolDownRotation(cmd.yaw);
   const auto yawDeg = [&] { return fmtNum(cmd.yaw * 180.0 / M_PI, 1); };
 
-
   IkResult res;
   if (!solvePose(cmd.target, goal_R, state_.q, res) &&
       !solvePose(cmd.target, goal_R, model_.midRange(), res)) {
@@ -579,10 +578,10 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
     const Eigen::VectorXd seed = res.q;  // the target's solution: the nearest approach branch
     if (!solvePose(pre, goal_R, seed, res) && !solvePose(pre, goal_R, model_.midRange(), res)) {
       state_.kind = MotionKind::None;
-      stopWith(MotionStatus::Unreachable,
-               "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() + " deg: approach point " +
-                   fmtPoint(pre) + " (" + fmtNum(cmd.approach_height, 3) +
-                   " m above) unreachable " + closest(res));
+      stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() +
+                                              " deg: approach point " + fmtPoint(pre) + " (" +
+                                              fmtNum(cmd.approach_height, 3) +
+                                              " m above) unreachable " + closest(res));
       return state_.status;
     }
   }
@@ -614,8 +613,8 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
     } else {
       state_.kind = MotionKind::None;
       stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() +
-                                              " deg: no feasible move: straight line: " +
-                                              why_line + "; joint move: " + why_joint +
+                                              " deg: no feasible move: straight line: " + why_line +
+                                              "; joint move: " + why_joint +
                                               "; via points: " + why_via);
       return state_.status;
     }

@@ -292,8 +292,8 @@ TEST(Motion, HoldAndRetargetMidJointMoveStaySmooth) {
     ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
     ASSERT_EQ(g.move(moveTo(0.65, 0.55, 0.15)), MotionStatus::Moving);
     Eigen::Vector3d v;
-    RunStats r0 = runUntilDone(g, g.state().tcp.translation(), Eigen::Vector3d(0.65, 0.55, 0.15),
-                               120, &v);
+    RunStats r0 =
+        runUntilDone(g, g.state().tcp.translation(), Eigen::Vector3d(0.65, 0.55, 0.15), 120, &v);
     ASSERT_EQ(g.state().status, MotionStatus::Moving);
     ASSERT_GT(g.state().tcp_speed, 0.05);
     if (retarget) {
@@ -301,8 +301,8 @@ TEST(Motion, HoldAndRetargetMidJointMoveStaySmooth) {
     } else {
       g.hold();
     }
-    const RunStats r = runUntilDone(g, g.state().tcp.translation(),
-                                    g.state().tcp.translation() + v, 240 * 10, &v);
+    const RunStats r =
+        runUntilDone(g, g.state().tcp.translation(), g.state().tcp.translation() + v, 240 * 10, &v);
     EXPECT_LE(r0.max_joint_ratio, 1.0 + 1e-9);
     EXPECT_LE(r.max_joint_ratio, 1.0 + 1e-9);
     EXPECT_LE(r.max_speed, lim.max_tcp_speed * 1.02);

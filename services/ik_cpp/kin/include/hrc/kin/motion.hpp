@@ -150,7 +150,7 @@ class MotionGenerator {
   Eigen::Vector3d v_cmd_ = Eigen::Vector3d::Zero();  // commanded TCP velocity (world)
   Eigen::Vector3d target_ = Eigen::Vector3d::Zero();
   MotionStatus final_status_ = MotionStatus::Reached;
-  double meas_speed_ = 0.0;   // current speed in the front joint segment's measure units
+  double meas_speed_ = 0.0;  // current speed in the front joint segment's measure units
   IkResult ik_res_;
   Eigen::VectorXd q_prev_;
   Eigen::Vector3d p_prev_;
