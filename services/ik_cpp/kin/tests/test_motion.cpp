@@ -342,3 +342,28 @@ TEST(Motion, FeasibleLinesStayLinear) {
   ASSERT_EQ(g.move(moveTo(-0.05, 0.10, 0.05)), MotionStatus::Moving);
   EXPECT_EQ(g.state().kind, MotionKind::Linear);
 }
+
+// Neither the line nor a joint move (a raised table keeps the wrist too high for it) but via
+// points: up to the crossing height, across, down; limits and the speed cap hold throughout.
+TEST(Motion, ViaPointsWhenLineAndJointMoveAreBlocked) {
+  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  MotionLimits lim;
+  lim.table_z = 0.15;
+  MotionGenerator g(m, baseR1(), 1.0 / 240.0, lim);
+  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.491, 0.964, 0.089), 0.0));
+  const Eigen::Vector3d a = g.state().tcp.translation();
+  const Eigen::Vector3d b(0.683, 0.003, 0.194);
+  ASSERT_EQ(g.move(moveTo(b.x(), b.y(), b.z())), MotionStatus::Moving) << g.state().detail;
+  EXPECT_EQ(g.state().kind, MotionKind::Via);
+  double max_z = 0.0;
+  int ticks = 0;
+  for (; ticks < 240 * 20 && g.state().status == MotionStatus::Moving; ++ticks) {
+    const RunStats r = runUntilDone(g, a, b, 1);
+    max_z = std::max(max_z, g.state().tcp.translation().z());
+    EXPECT_LE(r.max_speed, lim.max_tcp_speed * 1.02);
+    EXPECT_LE(r.max_joint_ratio, 1.0 + 1e-9);
+  }
+  EXPECT_EQ(g.state().status, MotionStatus::Reached) << g.state().detail;
+  EXPECT_LT((g.state().tcp.translation() - b).norm(), 0.005);
+  EXPECT_GE(max_z, lim.via_height - 1e-6);
+}
