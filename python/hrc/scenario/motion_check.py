@@ -153,7 +153,8 @@ def planned_moves(scenario: Scenario) -> list[PlannedMove]:
                         start,
                     )
                 )
-                out.append(PlannedMove(rid, move.part, "retreat", move.dest, move.key, cmd))
+            # back from the retreat pose to the interrupted target: the same move from either start
+            out.append(PlannedMove(rid, move.part, "retreat", move.dest, move.key, move.command))
     return out
 
 
