@@ -26,8 +26,6 @@ HRC = str(Path(sys.executable).with_name("hrc"))
 SERVICE_MARKERS = {s.name: s.module or s.script for s in SERVICES}
 
 
-
-
 def strip_fields(obj: Any, fields: set[str]) -> Any:
     """``obj`` without the keys in ``fields`` at any depth (wall-clock fields, which legitimately
     differ between two runs of the same trial)."""
@@ -51,8 +49,10 @@ def wait_until(pred, timeout: float = 10.0, step: float = 0.02) -> bool:
 def ik_bin() -> Path:
     path = ik_binary()
     if not path.exists():
-        pytest.fail(f"{path} is missing: build it with scripts/setup.sh (the tests need the real "
-                    "C++ service)")
+        pytest.fail(
+            f"{path} is missing: build it with scripts/setup.sh (the tests need the real "
+            "C++ service)"
+        )
     return path
 
 
@@ -80,14 +80,33 @@ def _cmdline(pid: int) -> str:
 class Trial:
     """``hrc run`` in the background, with a test-side Zenoh session into its bus."""
 
-    def __init__(self, scenario: str | Path, out: Path, ticks: int = 0, extra: list[str] = ()) -> None:
+    def __init__(
+        self, scenario: str | Path, out: Path, ticks: int = 0, extra: list[str] = ()
+    ) -> None:
         self.session = f"it{uuid.uuid4().hex[:8]}"
         self.port = free_port()
         self.out = out
-        argv = [HRC, "run", str(scenario), "--out", str(out), "--ticks", str(ticks),
-                "--session", self.session, "--port", str(self.port), *extra]
-        self.proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                     stdin=subprocess.DEVNULL, text=True)
+        argv = [
+            HRC,
+            "run",
+            str(scenario),
+            "--out",
+            str(out),
+            "--ticks",
+            str(ticks),
+            "--session",
+            self.session,
+            "--port",
+            str(self.port),
+            *extra,
+        ]
+        self.proc = subprocess.Popen(
+            argv,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            stdin=subprocess.DEVNULL,
+            text=True,
+        )
         self._bus: Bus | None = None
         self.stdout = ""
         self.stderr = ""
@@ -119,12 +138,14 @@ class Trial:
                 return self.stats("orchestrator", timeout=1.0).last_tick >= min_tick
             except TimeoutError:
                 return False
+
         assert wait_until(ticking, timeout, 0.1), "the trial never started ticking"
 
     def stop(self, reason: str = "test done") -> None:
         bus = self.bus()
         bus.publisher(bus.keys.run_control()).put(
-            pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason))
+            pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason)
+        )
 
     def communicate(self, timeout: float = 60.0) -> tuple[int, str, str]:
         try:
@@ -159,8 +180,12 @@ def trial_factory(tmp_path: Path, ik_bin: Path) -> Iterator:
     trials: list[Trial] = []
 
     # --ticks is an exact length: a huge one keeps the trial going until the test stops it
-    def make(scenario: str | Path = ROOT / "scenarios" / "empty.toml", ticks: int = 10**9,
-             extra: list[str] = (), name: str = "trial") -> Trial:
+    def make(
+        scenario: str | Path = ROOT / "scenarios" / "empty.toml",
+        ticks: int = 10**9,
+        extra: list[str] = (),
+        name: str = "trial",
+    ) -> Trial:
         t = Trial(scenario, tmp_path / name, ticks, list(extra))
         trials.append(t)
         return t

@@ -52,14 +52,19 @@ def strip_wall(obj: Any) -> Any:
 
 
 def run_trial(hrc: str, scenario: Path, out: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([hrc, "run", str(scenario), "--out", str(out), "--max-ticks", "60000"],
-                          capture_output=True, text=True, timeout=900)
+    return subprocess.run(
+        [hrc, "run", str(scenario), "--out", str(out), "--max-ticks", "60000"],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
 
 
 def normalised(folder: Path) -> dict[str, Any]:
     """A trial folder's three outputs with the wall-clock parts removed."""
-    events = [strip_wall(json.loads(line))
-              for line in (folder / "events.jsonl").read_text().splitlines()]
+    events = [
+        strip_wall(json.loads(line)) for line in (folder / "events.jsonl").read_text().splitlines()
+    ]
     log_lines = (folder / "log.txt").read_text().splitlines()[1:]  # line 0: the date
     metrics = strip_wall(json.loads((folder / "metrics.json").read_text()))
     return {"events.jsonl": events, "log.txt": log_lines, "metrics.json": metrics}

@@ -16,7 +16,8 @@ from hrc.wire import pb
 
 
 def test_a_participant_whose_step_raises_ends_the_trial_within_2_s_naming_it(
-        trial_factory, tmp_path: Path) -> None:
+    trial_factory, tmp_path: Path
+) -> None:
     fifo = tmp_path / "recording.jsonl"
     os.mkfifo(fifo)
     leave = threading.Event()
@@ -39,9 +40,11 @@ def test_a_participant_whose_step_raises_ends_the_trial_within_2_s_naming_it(
     code, _out, err = trial.communicate(timeout=120)
     exited_at = time.monotonic()
     assert closed_at and ends, err
-    (ended_at, end), = ends
-    print(f"run/end {(ended_at - closed_at[0]) * 1e3:.0f} ms and hrc run's exit "
-          f"{exited_at - closed_at[0]:.2f} s after the recording's reader went away")
+    ((ended_at, end),) = ends
+    print(
+        f"run/end {(ended_at - closed_at[0]) * 1e3:.0f} ms and hrc run's exit "
+        f"{exited_at - closed_at[0]:.2f} s after the recording's reader went away"
+    )
     assert not end.ok and end.failed_participant == "human_input", end
     assert end.reason.startswith("aborted by human_input: tick "), end.reason
     assert "BrokenPipeError" in end.reason

@@ -13,8 +13,12 @@ from .conftest import HRC, ROOT, wait_until
 
 def test_hrc_run_empty_runs_2000_lockstep_ticks_and_writes_metrics(tmp_path, ik_bin) -> None:
     out = tmp_path / "trial"
-    proc = subprocess.run([HRC, "run", str(ROOT / "scenarios" / "empty.toml"), "--out", str(out),
-                           "--ticks", "2000"], capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [HRC, "run", str(ROOT / "scenarios" / "empty.toml"), "--out", str(out), "--ticks", "2000"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     m = json.loads((out / "metrics.json").read_text())
     assert m["run"]["ticks"] == 2000
@@ -45,7 +49,8 @@ def test_the_five_services_are_separate_processes_that_all_take_part(trial_facto
 
 
 def test_an_idle_trial_sends_states_only_as_one_keyframe_per_simulated_second(
-        trial_factory) -> None:
+    trial_factory,
+) -> None:
     # Robots at home and a participant with nothing to do: their states do not change, so per
     # tick only the clock and the acks flow; a keyframe per simulated second keeps late joiners
     # (like this test) informed.
@@ -77,15 +82,29 @@ def test_an_idle_trial_sends_states_only_as_one_keyframe_per_simulated_second(
         inside = [k for k in states["human"] if first < k < last]
         quiet_from = max((k for k in inside if k % 240), default=first)
         assert last - quiet_from > 3 * 240, f"the participant still moved at tick {quiet_from}"
-        assert ([k for k in inside if k > quiet_from] ==
-                [k for k in seconds if k > quiet_from]), inside
+        assert [k for k in inside if k > quiet_from] == [k for k in seconds if k > quiet_from], (
+            inside
+        )
 
 
 def test_realtime_mode_is_paced_by_the_wall_clock(tmp_path, ik_bin) -> None:
     out = tmp_path / "rt"
-    proc = subprocess.run([HRC, "run", str(ROOT / "scenarios" / "empty.toml"), "--out", str(out),
-                           "--ticks", "480", "--mode", "realtime"],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [
+            HRC,
+            "run",
+            str(ROOT / "scenarios" / "empty.toml"),
+            "--out",
+            str(out),
+            "--ticks",
+            "480",
+            "--mode",
+            "realtime",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     run = json.loads((out / "metrics.json").read_text())["run"]
     assert run["mode"] == "realtime" and run["ticks"] == 480
@@ -99,8 +118,9 @@ def test_a_bad_scenario_starts_nothing_and_names_the_problem(tmp_path, ik_bin) -
     assert "tick_hz = -5" in text
     bad.write_text(text)
     out = tmp_path / "never"
-    proc = subprocess.run([HRC, "run", str(bad), "--out", str(out)], capture_output=True,
-                          text=True, timeout=120)
+    proc = subprocess.run(
+        [HRC, "run", str(bad), "--out", str(out)], capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 2
     assert "tick_hz" in proc.stderr
     assert not out.exists()
@@ -108,8 +128,9 @@ def test_a_bad_scenario_starts_nothing_and_names_the_problem(tmp_path, ik_bin) -
 
 def test_bench_bus_prints_the_figures_as_one_json_object(ik_bin) -> None:
     # The shape the issue asks for; the figures themselves are the benchmark's business.
-    proc = subprocess.run([HRC, "bench", "bus", "--json", "--n", "300"], capture_output=True,
-                          text=True, timeout=300)
+    proc = subprocess.run(
+        [HRC, "bench", "bus", "--json", "--n", "300"], capture_output=True, text=True, timeout=300
+    )
     assert proc.returncode == 0, proc.stderr
     result = json.loads(proc.stdout.strip().splitlines()[-1])
     assert sorted(result) == ["lockstep_ticks_per_s", "rtt_us"]

@@ -37,12 +37,32 @@ def test_python_to_cpp_and_back_is_byte_identical(probe: str, session_id: str) -
         back: list[pb.HumanState] = []
         raw_back: list[bytes] = []
         bus.subscribe(bus.keys.bench("pong"), pb.HumanState, lambda _k, m: back.append(m))
-        bus.session.declare_subscriber(bus.keys.bench("pong"),
-                                       lambda s: raw_back.append(s.payload.to_bytes()))
-        proc = subprocess.Popen([probe, "echo", "--session", session_id, "--connect", ep,
-                                 "--in", "bench/ping", "--out", "bench/pong", "--type",
-                                 "HumanState", "--count", "5", "--timeout-s", "30"],
-                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        bus.session.declare_subscriber(
+            bus.keys.bench("pong"), lambda s: raw_back.append(s.payload.to_bytes())
+        )
+        proc = subprocess.Popen(
+            [
+                probe,
+                "echo",
+                "--session",
+                session_id,
+                "--connect",
+                ep,
+                "--in",
+                "bench/ping",
+                "--out",
+                "bench/pong",
+                "--type",
+                "HumanState",
+                "--count",
+                "5",
+                "--timeout-s",
+                "30",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         try:
             assert wait_until(lambda: "bus_probe" in bus.alive_services(0.3), 20)
             pub = bus.publisher(bus.keys.bench("ping"))
@@ -76,9 +96,25 @@ def test_cpp_to_python_delivers_every_field(probe: str, session_id: str) -> None
                 senders.append(sample.attachment.to_bytes() if sample.attachment else b"")
 
         bus.session.declare_subscriber(key, raw)
-        proc = subprocess.run([probe, "publish", "--session", session_id, "--connect", ep,
-                               "--key", "robot/probe_robot/state", "--type", "RobotState",
-                               "--count", "5"], capture_output=True, text=True, timeout=60)
+        proc = subprocess.run(
+            [
+                probe,
+                "publish",
+                "--session",
+                session_id,
+                "--connect",
+                ep,
+                "--key",
+                "robot/probe_robot/state",
+                "--type",
+                "RobotState",
+                "--count",
+                "5",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
         assert proc.returncode == 0, proc.stderr
         assert wait_until(lambda: len(got) == 5, 10)
     assert bus.stats.decode_errors[key] == 0

@@ -28,8 +28,9 @@ def test_garbage_everywhere_is_counted_and_the_run_keeps_ticking(trial_factory) 
     targets = sorted({_concrete(k) for keys in subscribed.values() for k in keys})
     before = trial.stats("orchestrator").last_tick
     for key in targets:
-        bus.session.put(key, GARBAGE, attachment=b"garbler",
-                        congestion_control=zenoh.CongestionControl.BLOCK)
+        bus.session.put(
+            key, GARBAGE, attachment=b"garbler", congestion_control=zenoh.CongestionControl.BLOCK
+        )
 
     def all_counted() -> bool:
         for name, keys in subscribed.items():
@@ -39,7 +40,9 @@ def test_garbage_everywhere_is_counted_and_the_run_keeps_ticking(trial_factory) 
                     return False
         return True
 
-    assert wait_until(all_counted, 20, 0.2), {n: dict(trial.stats(n).decode_errors) for n in SERVICES}
+    assert wait_until(all_counted, 20, 0.2), {
+        n: dict(trial.stats(n).decode_errors) for n in SERVICES
+    }
     time.sleep(0.5)
     assert trial.stats("orchestrator").last_tick > before  # still ticking
     trial.stop()

@@ -22,9 +22,22 @@ def _strip(obj: Any) -> Any:
 
 
 def _run(out: Path, ik_bin: Path) -> tuple[list[dict], dict]:
-    proc = subprocess.run([HRC, "run", str(ROOT / "scenarios" / "thesis.toml"), "--out", str(out),
-                           "--seed", "7", "--max-ticks", "60000"],
-                          capture_output=True, text=True, timeout=900)
+    proc = subprocess.run(
+        [
+            HRC,
+            "run",
+            str(ROOT / "scenarios" / "thesis.toml"),
+            "--out",
+            str(out),
+            "--seed",
+            "7",
+            "--max-ticks",
+            "60000",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert proc.returncode == 0, proc.stderr
     events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
     return _strip(events), _strip(json.loads((out / "metrics.json").read_text()))
@@ -39,5 +52,6 @@ def test_two_runs_of_the_thesis_trial_are_identical(tmp_path: Path, ik_bin: Path
     for i, (a, b) in enumerate(zip(e1, e2)):
         assert a == b, f"event {i} differs"
     assert m1 == m2
-    assert (tmp_path / "a" / "log.txt").read_text().splitlines()[1:] == \
-        (tmp_path / "b" / "log.txt").read_text().splitlines()[1:]  # line 0 holds the date
+    assert (tmp_path / "a" / "log.txt").read_text().splitlines()[1:] == (
+        tmp_path / "b" / "log.txt"
+    ).read_text().splitlines()[1:]  # line 0 holds the date

@@ -17,8 +17,9 @@ pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 
 @pytest.mark.parametrize("name", sorted(GOLDEN_TRIALS))
-def test_a_golden_trial_gives_the_committed_outputs(name: str, tmp_path: Path,
-                                                    ik_bin: Path) -> None:
+def test_a_golden_trial_gives_the_committed_outputs(
+    name: str, tmp_path: Path, ik_bin: Path
+) -> None:
     proc = run_trial(HRC, scenario_file(name, tmp_path), tmp_path / "out")
     assert proc.returncode == 0, proc.stderr[-3000:]
     got, want = normalised(tmp_path / "out"), normalised(GOLDEN_ROOT / name)

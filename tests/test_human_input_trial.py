@@ -27,13 +27,15 @@ WALL_FIELDS = {"wall_time", "wall_s", "realtime_factor", "created"}
 
 
 def trial(scenario: str, out: Path, **kw: Any) -> Path:
-    opts = TrialOptions(scenario=ROOT / "scenarios" / f"{scenario}.toml", out=out,
-                        max_ticks=MAX_TICKS, **kw)
+    opts = TrialOptions(
+        scenario=ROOT / "scenarios" / f"{scenario}.toml", out=out, max_ticks=MAX_TICKS, **kw
+    )
     result = run_trial(opts, out)
     assert result.ok, result.message
     assert result.run_end is not None
     assert result.run_end.reason.startswith("stopped"), (
-        f"the run did not end by the task finishing: {result.run_end.reason}")
+        f"the run did not end by the task finishing: {result.run_end.reason}"
+    )
     return out
 
 
@@ -56,9 +58,11 @@ def test_scripted_participant_completes_the_scenario(scenario: str, tmp_path: Pa
     assert "TASK_FINISHED" in kinds and "HUMAN_FINISHED" in kinds
     metrics = json.loads((d / "metrics.json").read_text())
     assert metrics["human"]["completion_s"] > 0
-    print(f"{scenario}: task {metrics['task']['completion_s']:.2f} s, human "
-          f"{metrics['human']['completion_s']:.2f} s, collisions "
-          f"{metrics['collisions']['human_robot_count']}")
+    print(
+        f"{scenario}: task {metrics['task']['completion_s']:.2f} s, human "
+        f"{metrics['human']['completion_s']:.2f} s, collisions "
+        f"{metrics['collisions']['human_robot_count']}"
+    )
 
 
 def test_record_then_replay_gives_the_same_events_and_metrics(tmp_path: Path) -> None:

@@ -32,7 +32,6 @@ ROOT = project_root()
 pytestmark = pytest.mark.slow
 
 
-
 @dataclass
 class Rig:
     session: str
@@ -44,8 +43,15 @@ class Rig:
 
     def right(self) -> list[tuple[float, float, float, float]]:
         with self.lock:
-            return [(s.right_hand.position.x, s.right_hand.position.y, s.right_hand.position.z,
-                     s.right_grip) for s in self.states]
+            return [
+                (
+                    s.right_hand.position.x,
+                    s.right_hand.position.y,
+                    s.right_hand.position.z,
+                    s.right_grip,
+                )
+                for s in self.states
+            ]
 
     def wait(self, pred, timeout: float = 30.0) -> bool:
         end = time.monotonic() + timeout
@@ -57,8 +63,16 @@ class Rig:
 
 
 def service_cmd(session: str, port: int, *extra: str) -> list[str]:
-    return [sys.executable, "-m", "hrc_human_input", "--session", session, "--connect",
-            f"tcp/127.0.0.1:{port}", *extra]
+    return [
+        sys.executable,
+        "-m",
+        "hrc_human_input",
+        "--session",
+        session,
+        "--connect",
+        f"tcp/127.0.0.1:{port}",
+        *extra,
+    ]
 
 
 @contextmanager
@@ -71,9 +85,17 @@ def rig(*extra: str, tick_hz: float = 60.0) -> Iterator[Rig]:
     with Bus(BusConfig(session=session, listen=[f"tcp/127.0.0.1:{r.port}"]), "physics") as bus:
         scen.header.session = session
         bus.queryable(bus.keys.scenario(), None, lambda _req: scen)
-        clock = ClockMaster(bus, ClockSettings(mode="realtime", tick_hz=tick_hz, ticks=0,
-                                               participants=["human_input"], observers=[],
-                                               start_timeout_s=60.0))
+        clock = ClockMaster(
+            bus,
+            ClockSettings(
+                mode="realtime",
+                tick_hz=tick_hz,
+                ticks=0,
+                participants=["human_input"],
+                observers=[],
+                start_timeout_s=60.0,
+            ),
+        )
 
         def on_state(_k: str, msg: pb.HumanState) -> None:
             with r.lock:
@@ -82,18 +104,24 @@ def rig(*extra: str, tick_hz: float = 60.0) -> Iterator[Rig]:
         clock.input(bus.keys.human_state(), pb.HumanState, on_state)
         clock.start()
         log = open(Path(tempfile.gettempdir()) / f"{session}.log", "wb")
-        r.proc = subprocess.Popen(service_cmd(session, r.port, "--vr-port", str(r.vr_port),
-                                              *extra), stdout=log, stderr=subprocess.STDOUT,
-                                  env=dict(os.environ, PYTHONUNBUFFERED="1"))
+        r.proc = subprocess.Popen(
+            service_cmd(session, r.port, "--vr-port", str(r.vr_port), *extra),
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            env=dict(os.environ, PYTHONUNBUFFERED="1"),
+        )
         ended: list[pb.RunEnd] = []
-        th = threading.Thread(target=lambda: ended.append(
-            clock.run(lambda k, t: None, lambda k, t: None)), daemon=True)
+        th = threading.Thread(
+            target=lambda: ended.append(clock.run(lambda k, t: None, lambda k, t: None)),
+            daemon=True,
+        )
         th.start()
         try:
             yield r
         finally:
             bus.publisher(bus.keys.run_control()).put(
-                pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="test done"))
+                pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="test done")
+            )
             th.join(timeout=20)
             try:
                 rc = r.proc.wait(timeout=20)
@@ -129,11 +157,19 @@ def test_websocket_client_streams_a_reach_onto_the_bus() -> None:
             n = 40
             for i in range(n + 1):
                 tau = i / n
-                s = tau ** 3 * (10 - 15 * tau + 6 * tau ** 2)
+                s = tau**3 * (10 - 15 * tau + 6 * tau**2)
                 p = [a + (b - a) * s for a, b in zip(start, goal)]
-                ws.send(json.dumps({"head": pose([0, -0.7, 0.6]), "left": pose([-0.22, -0.56, 0.1]),
-                                    "right": pose(p), "left_grip": 0.0,
-                                    "right_grip": 1.0 if i == n else 0.0}))
+                ws.send(
+                    json.dumps(
+                        {
+                            "head": pose([0, -0.7, 0.6]),
+                            "left": pose([-0.22, -0.56, 0.1]),
+                            "right": pose(p),
+                            "left_grip": 0.0,
+                            "right_grip": 1.0 if i == n else 0.0,
+                        }
+                    )
+                )
                 if i == n // 2:  # a malformed frame mid-reach gets an error and changes nothing
                     ws.send(json.dumps({"head": pose([0, 0, 0]), "right_grip": "full"}))
                     reply = json.loads(ws.recv(timeout=10))
@@ -155,9 +191,13 @@ def test_websocket_client_streams_a_reach_onto_the_bus() -> None:
 
 
 def test_non_loopback_bind_without_token_is_refused() -> None:
-    proc = subprocess.run(service_cmd("refused", free_port(), "--input", "vr", "--vr-host",
-                                      "0.0.0.0"), capture_output=True, text=True, timeout=60,
-                          env={k: v for k, v in os.environ.items() if k != "HRC_VR_TOKEN"})
+    proc = subprocess.run(
+        service_cmd("refused", free_port(), "--input", "vr", "--vr-host", "0.0.0.0"),
+        capture_output=True,
+        text=True,
+        timeout=60,
+        env={k: v for k, v in os.environ.items() if k != "HRC_VR_TOKEN"},
+    )
     assert proc.returncode == 2
     assert "without a token" in proc.stderr
 
@@ -172,18 +212,34 @@ def test_headless_chromium_page_streams_onto_the_bus() -> None:
     target = (0.05, -0.10, 0.12)
     with rig() as r, tempfile.TemporaryDirectory() as profile:
         wait_bridge(r.vr_port)
-        url = (f"http://127.0.0.1:{r.vr_port}/?demo=1&tx={target[0]}&ty={target[1]}"
-               f"&tz={target[2]}")
+        url = f"http://127.0.0.1:{r.vr_port}/?demo=1&tx={target[0]}&ty={target[1]}&tz={target[2]}"
         browser = subprocess.Popen(
-            [chromium(), "--headless", "--no-sandbox", "--disable-gpu",
-             "--disable-background-networking", "--disable-component-update", "--disable-sync",
-             "--no-first-run", f"--user-data-dir={profile}", "--remote-debugging-port=0", url],
-            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            [
+                chromium(),
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                "--no-first-run",
+                f"--user-data-dir={profile}",
+                "--remote-debugging-port=0",
+                url,
+            ],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         try:
+
             def arrived() -> bool:
                 got = r.right()
-                return bool(got) and got[-1][3] == 1.0 and \
-                    got[-1][:3] == pytest.approx(target, abs=0.012)
+                return (
+                    bool(got)
+                    and got[-1][3] == 1.0
+                    and got[-1][:3] == pytest.approx(target, abs=0.012)
+                )
+
             assert r.wait(arrived, timeout=90), f"last right hand: {r.right()[-1:]}"
         finally:
             browser.terminate()

@@ -51,7 +51,9 @@ def urdf_velocity_limits(path: str) -> dict[str, float]:
     for joint in ET.parse(path).getroot().iter("joint"):
         if joint.get("type") in ("revolute", "prismatic"):
             lim = joint.find("limit")
-            assert lim is not None and lim.get("velocity"), f"{path}: joint {joint.get('name')} has no velocity limit"
+            assert lim is not None and lim.get("velocity"), (
+                f"{path}: joint {joint.get('name')} has no velocity limit"
+            )
             limits[str(joint.get("name"))] = float(lim.get("velocity", "0"))
     return limits
 
@@ -103,9 +105,16 @@ class Session:
         self.part = LockstepParticipant(self.orch)
         self.part.input(self.orch.keys.robot_states(), pb.RobotState, self._on_state)
         self.part.on_tick(self._step)
-        self.clock = ClockMaster(self.clock_bus, ClockSettings(
-            tick_hz=scenario.info.tick_hz, participants=["ik_cpp", "orchestrator"], observers=[],
-            barrier_timeout_s=30.0, start_timeout_s=60.0))
+        self.clock = ClockMaster(
+            self.clock_bus,
+            ClockSettings(
+                tick_hz=scenario.info.tick_hz,
+                participants=["ik_cpp", "orchestrator"],
+                observers=[],
+                barrier_timeout_s=30.0,
+                start_timeout_s=60.0,
+            ),
+        )
         self.clock.start()
         self.part.start()
 
@@ -113,7 +122,10 @@ class Session:
         self._log = open(self.log_path, "w")
         self.proc = subprocess.Popen(
             [str(ik_binary()), "--session", self.session, "--connect", ep, "--start-timeout", "30"],
-            stdout=self._log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+            stdout=self._log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+        )
 
     # ------------------------------------------------------------------ the orchestrator role
     def _on_state(self, key: str, msg: pb.RobotState) -> None:
@@ -143,20 +155,36 @@ class Session:
             self._request_stop("too long")
 
     def _request_stop(self, reason: str) -> None:
-        self._stop_pub.put(pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason), self._k, self._t)
+        self._stop_pub.put(
+            pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason), self._k, self._t
+        )
 
     # ------------------------------------------------------------------ script helpers
     @property
     def tick(self) -> int:
         return self._k
 
-    def send(self, robot: str, kind: int, target: tuple[float, float, float] = (0.0, 0.0, 0.0),
-             yaw_deg: float = 0.0, approach: float = 0.0, depart: float = 0.0,
-             max_speed: float = 0.0) -> int:
+    def send(
+        self,
+        robot: str,
+        kind: int,
+        target: tuple[float, float, float] = (0.0, 0.0, 0.0),
+        yaw_deg: float = 0.0,
+        approach: float = 0.0,
+        depart: float = 0.0,
+        max_speed: float = 0.0,
+    ) -> int:
         cid = self._ids.get(robot, 0) + 1
         self._ids[robot] = cid
-        cmd = pb.RobotCommand(robot=robot, command_id=cid, kind=kind, yaw_deg=yaw_deg,
-                              approach_height=approach, depart_height=depart, max_speed=max_speed)
+        cmd = pb.RobotCommand(
+            robot=robot,
+            command_id=cid,
+            kind=kind,
+            yaw_deg=yaw_deg,
+            approach_height=approach,
+            depart_height=depart,
+            max_speed=max_speed,
+        )
         cmd.target.x, cmd.target.y, cmd.target.z = target
         self.orch.publisher(self.orch.keys.robot_command(robot)).put(cmd, self._k, self._t)
         self.record.sent.append(Sent(robot, cid, self._k, kind, target))
@@ -173,8 +201,10 @@ class Session:
                 return
             yield
         st = self.latest.get(robot)
-        raise AssertionError(f"{robot} command {cid}: no {pb.MotionStatus.Name(status)} within "
-                             f"{max_ticks} ticks; last state: {st}")
+        raise AssertionError(
+            f"{robot} command {cid}: no {pb.MotionStatus.Name(status)} within "
+            f"{max_ticks} ticks; last state: {st}"
+        )
 
     def wait_ticks(self, n: int) -> Script:
         for _ in range(n):
@@ -185,13 +215,18 @@ class Session:
         self._script = script(self)
         result: dict[str, pb.RunEnd] = {}
         clock_thread = threading.Thread(
-            target=lambda: result.setdefault("end", self.clock.run(lambda k, t: None, lambda k, t: None)),
-            daemon=True)
+            target=lambda: result.setdefault(
+                "end", self.clock.run(lambda k, t: None, lambda k, t: None)
+            ),
+            daemon=True,
+        )
         part_thread = threading.Thread(target=self.part.run, daemon=True)
         clock_thread.start()
         part_thread.start()
         clock_thread.join(timeout)
-        assert not clock_thread.is_alive(), f"the run did not end within {timeout} s; {self.log_tail()}"
+        assert not clock_thread.is_alive(), (
+            f"the run did not end within {timeout} s; {self.log_tail()}"
+        )
         part_thread.join(10)
         try:
             self.proc.wait(15)
@@ -201,7 +236,9 @@ class Session:
 
     def log_tail(self) -> str:
         self._log.flush()
-        return "hrc-ik log:\n" + "\n".join(self.log_path.read_text(errors="replace").splitlines()[-20:])
+        return "hrc-ik log:\n" + "\n".join(
+            self.log_path.read_text(errors="replace").splitlines()[-20:]
+        )
 
     def close(self) -> None:
         if self.proc.poll() is None:
@@ -348,10 +385,14 @@ def test_run_completes_and_every_robot_reports_every_change(run: tuple[Session, 
     assert math.dist(vec3_from_pb(s.record.states["r1"][0].tcp.position), home) < 1e-3
 
 
-def test_targets_are_reached_within_5_mm_with_the_command_id_echoed(run: tuple[Session, pb.RunEnd]) -> None:
+def test_targets_are_reached_within_5_mm_with_the_command_id_echoed(
+    run: tuple[Session, pb.RunEnd],
+) -> None:
     s, _ = run
     assert s.error is None, f"{s.error}\n{s.log_tail()}"
-    moves = [c for c in s.record.sent if c.kind == pb.RobotCommand.KIND_MOVE and c.target != UNREACHABLE]
+    moves = [
+        c for c in s.record.sent if c.kind == pb.RobotCommand.KIND_MOVE and c.target != UNREACHABLE
+    ]
     checked = 0
     for c in moves:
         st = s.record.reached.get((c.robot, c.command_id))
@@ -359,7 +400,9 @@ def test_targets_are_reached_within_5_mm_with_the_command_id_echoed(run: tuple[S
             continue  # interrupted (retarget) or held: checked elsewhere
         assert st.command_id == c.command_id
         err = math.dist(vec3_from_pb(st.tcp.position), c.target)
-        assert err <= REACH_TOL, f"{c.robot} #{c.command_id} reached {err * 1000:.2f} mm from {c.target}"
+        assert err <= REACH_TOL, (
+            f"{c.robot} #{c.command_id} reached {err * 1000:.2f} mm from {c.target}"
+        )
         # ... and the tool points down
         q = st.tcp.orientation
         z_down = 1 - 2 * (q.x * q.x + q.y * q.y)  # world z of the tool z axis
@@ -374,7 +417,8 @@ def test_targets_are_reached_within_5_mm_with_the_command_id_echoed(run: tuple[S
 
 
 def test_measured_tcp_speed_never_exceeds_the_limit_by_more_than_2_percent(
-        run: tuple[Session, pb.RunEnd]) -> None:
+    run: tuple[Session, pb.RunEnd],
+) -> None:
     s, _ = run
     for robot, states in s.record.states.items():
         vmax = s.robots[robot].max_tcp_speed
@@ -401,16 +445,20 @@ def test_retarget_mid_move_has_no_joint_jump(run: tuple[Session, pb.RunEnd]) -> 
         for name, qa, qb in zip(b.joint_names, a.joint_positions, b.joint_positions):
             ratio = abs(qb - qa) / (limits[name] * s.dt)
             worst = max(worst, ratio)
-            assert ratio <= 1.0 + 1e-6, (f"tick {b.header.tick}: joint {name} moved {abs(qb - qa):.5f} rad, "
-                                         f"limit {limits[name] * s.dt:.5f}")
+            assert ratio <= 1.0 + 1e-6, (
+                f"tick {b.header.tick}: joint {name} moved {abs(qb - qa):.5f} rad, "
+                f"limit {limits[name] * s.dt:.5f}"
+            )
     # the new target's line points elsewhere: the TCP velocity turns without a step (the motion
     # brakes along the old direction first, at most max_tcp_accel = 2 m/s^2 per tick)
-    for a, b, c in zip(states[k0 - 1:k1], states[k0:k1], states[k0 + 1:k1 + 1]):
+    for a, b, c in zip(states[k0 - 1 : k1], states[k0:k1], states[k0 + 1 : k1 + 1]):
         pa, pb_, pc = (vec3_from_pb(x.tcp.position) for x in (a, b, c))
         v1 = [(y - x) / s.dt for x, y in zip(pa, pb_)]
         v2 = [(y - x) / s.dt for x, y in zip(pb_, pc)]
         dv = math.dist(v1, v2)
-        assert dv <= 2.0 * s.dt * 1.1 + 2e-3, f"tick {c.header.tick}: TCP velocity jumped by {dv:.4f} m/s"
+        assert dv <= 2.0 * s.dt * 1.1 + 2e-3, (
+            f"tick {c.header.tick}: TCP velocity jumped by {dv:.4f} m/s"
+        )
     assert worst > 0.05  # the check saw real motion
 
 
@@ -423,13 +471,17 @@ def test_unreachable_target_is_reported_and_nothing_is_nan(run: tuple[Session, p
     assert st.status == pb.MOTION_STATUS_UNREACHABLE and st.command_id == sent.command_id
     assert "unreachable" in st.detail
     before = vec3_from_pb(states[sent.tick].tcp.position)
-    for later in states[sent.tick + 1:sent.tick + 60]:
+    for later in states[sent.tick + 1 : sent.tick + 60]:
         assert later.status == pb.MOTION_STATUS_UNREACHABLE
         assert math.dist(vec3_from_pb(later.tcp.position), before) < 1e-3  # it held where it was
     for states_of in s.record.states.values():
         for st in states_of:
-            nums = [*st.joint_positions, *vec3_from_pb(st.tcp.position), st.tcp_speed,
-                    *quat_from_pb(st.tcp.orientation)]
+            nums = [
+                *st.joint_positions,
+                *vec3_from_pb(st.tcp.position),
+                st.tcp_speed,
+                *quat_from_pb(st.tcp.orientation),
+            ]
             assert all(math.isfinite(x) for x in nums), st
 
 
@@ -438,7 +490,7 @@ def test_malformed_commands_are_counted_and_ignored(run: tuple[Session, pb.RunEn
     k = s.record.marks["malformed"]
     states = s.record.states["r1"]
     # the arm kept its last good command (REACHED at the retarget's target B)
-    for st in states[k + 1:k + 10]:
+    for st in states[k + 1 : k + 10]:
         assert st.command_id != 900 and st.status == pb.MOTION_STATUS_REACHED
     log = s.log_path.read_text()
     assert "rejected command" in log and "NaN" in log and "unknown robot 'r9'" in log
@@ -468,19 +520,30 @@ def test_reach_queryable(tmp_path: Path) -> None:
     session = f"ikr{uuid.uuid4().hex[:8]}"
     port = free_port()
     ep = f"tcp/127.0.0.1:{port}"
-    with Bus(BusConfig(session=session, listen=[ep]), "orchestrator") as bus, \
-            open(tmp_path / "ik.log", "w") as log:
+    with (
+        Bus(BusConfig(session=session, listen=[ep]), "orchestrator") as bus,
+        open(tmp_path / "ik.log", "w") as log,
+    ):
         bus.queryable(bus.keys.scenario(), None, lambda _req: scenario)
-        proc = subprocess.Popen([str(ik_binary()), "--session", session, "--connect", ep],
-                                stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            [str(ik_binary()), "--session", session, "--connect", ep],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+        )
         try:
-            req = pb.ReachRequest(items=[
-                pb.ReachItem(id="parts.RA1.start", robot="r1", target=pb.Vec3(x=0.66, y=0.30, z=0.06)),
-                pb.ReachItem(id="far", robot="r1", target=pb.Vec3(x=-0.60, y=-0.40, z=0.05)),
-                pb.ReachItem(id="feeder", robot="r2", target=pb.Vec3(x=-0.60, y=0.35, z=0.05),
-                             yaw_deg=90),
-                pb.ReachItem(id="ghost", robot="r9", target=pb.Vec3(z=0.2)),
-            ])
+            req = pb.ReachRequest(
+                items=[
+                    pb.ReachItem(
+                        id="parts.RA1.start", robot="r1", target=pb.Vec3(x=0.66, y=0.30, z=0.06)
+                    ),
+                    pb.ReachItem(id="far", robot="r1", target=pb.Vec3(x=-0.60, y=-0.40, z=0.05)),
+                    pb.ReachItem(
+                        id="feeder", robot="r2", target=pb.Vec3(x=-0.60, y=0.35, z=0.05), yaw_deg=90
+                    ),
+                    pb.ReachItem(id="ghost", robot="r9", target=pb.Vec3(z=0.2)),
+                ]
+            )
             reply = bus.get_one(bus.keys.robot_reach(), pb.ReachReply, req, timeout=30.0)
         finally:
             proc.terminate()
@@ -517,23 +580,36 @@ def test_standalone_timer_mode(tmp_path: Path) -> None:
             return states[-1] if states else None
 
     log_path = tmp_path / "ik.log"
-    with Bus(BusConfig(session=session, listen=[ep]), "orchestrator") as bus, open(log_path, "w") as log:
+    with (
+        Bus(BusConfig(session=session, listen=[ep]), "orchestrator") as bus,
+        open(log_path, "w") as log,
+    ):
         bus.queryable(bus.keys.scenario(), None, lambda _req: scenario)
         bus.subscribe(bus.keys.robot_state("r1"), pb.RobotState, on_state)
-        proc = subprocess.Popen([str(ik_binary()), "--session", session, "--connect", ep,
-                                 "--standalone-hz", str(hz)],
-                                stdout=log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL)
+        proc = subprocess.Popen(
+            [str(ik_binary()), "--session", session, "--connect", ep, "--standalone-hz", str(hz)],
+            stdout=log,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+        )
         try:
             assert wait_until(lambda: "ik_cpp" in bus.alive_services(0.5), 30), log_path.read_text()
             assert wait_until(lambda: latest() is not None, 10)
             target = (0.20, 0.25, 0.25)
-            cmd = pb.RobotCommand(robot="r1", command_id=42, kind=pb.RobotCommand.KIND_MOVE,
-                                  target=pb.Vec3(x=target[0], y=target[1], z=target[2]))
+            cmd = pb.RobotCommand(
+                robot="r1",
+                command_id=42,
+                kind=pb.RobotCommand.KIND_MOVE,
+                target=pb.Vec3(x=target[0], y=target[1], z=target[2]),
+            )
             bus.publisher(bus.keys.robot_command("r1")).put(cmd)
 
             def reached() -> bool:
                 st = latest()
-                return st is not None and st.command_id == 42 and st.status == pb.MOTION_STATUS_REACHED
+                return (
+                    st is not None and st.command_id == 42 and st.status == pb.MOTION_STATUS_REACHED
+                )
+
             assert wait_until(reached, 60), f"last state {latest()}"
         finally:
             proc.terminate()

@@ -34,10 +34,12 @@ def read_with_dataframe_api(rrd: Path):  # noqa: ANN201 - a pyarrow.Table
     DataFusion reader indexed by the tick timeline)."""
     import rerun as rr
 
-    with rr.server.Server(host="127.0.0.1", port=free_port(),
-                          datasets={"trial": [str(rrd)]}) as server:
+    with rr.server.Server(
+        host="127.0.0.1", port=free_port(), datasets={"trial": [str(rrd)]}
+    ) as server:
         client = server.client()  # must outlive the reader's materialisation
         return client.get_dataset("trial").reader(index="tick").to_arrow_table()
+
 
 pytestmark = pytest.mark.slow
 
@@ -51,8 +53,11 @@ class FakeSession:
         endpoint = f"tcp/127.0.0.1:{port}"
         self.buses: dict[str, Bus] = {}
         for role, name in ROLES.items():
-            cfg = (BusConfig(session=session, listen=[endpoint]) if role == "physics"
-                   else BusConfig(session=session, connect=[endpoint]))
+            cfg = (
+                BusConfig(session=session, listen=[endpoint])
+                if role == "physics"
+                else BusConfig(session=session, connect=[endpoint])
+            )
             self.buses[role] = Bus(cfg, name)
         phys = self.buses["physics"]
         self.keys = phys.keys
@@ -72,14 +77,21 @@ class FakeSession:
         return self.buses[o.role].publisher(key)
 
     def marks(self) -> list[pb.PublishedMark]:
-        return [m for b in self.buses.values() for m in b.published_marks() if not m.key.endswith("/clock")]
+        return [
+            m
+            for b in self.buses.values()
+            for m in b.published_marks()
+            if not m.key.endswith("/clock")
+        ]
 
     def close(self) -> None:
         for b in self.buses.values():
             b.close()
 
 
-def run_synthetic(tmp_path: Path, gap_tick: int | None = None, term_tick: int | None = None) -> tuple[Path, SyntheticTrial, subprocess.CompletedProcess]:
+def run_synthetic(
+    tmp_path: Path, gap_tick: int | None = None, term_tick: int | None = None
+) -> tuple[Path, SyntheticTrial, subprocess.CompletedProcess]:
     session = f"lg{uuid.uuid4().hex[:8]}"
     port = free_port()
     scenario = sc.to_proto(sc.load(THESIS, motion_check=False))
@@ -88,13 +100,28 @@ def run_synthetic(tmp_path: Path, gap_tick: int | None = None, term_tick: int | 
     fake = FakeSession(session, port, scenario)
     log_path = tmp_path / "logger.log"
     with open(log_path, "w") as log_file:
-        proc = subprocess.Popen([sys.executable, "-m", "hrc_logger", "--session", session,
-                                 "--connect", f"tcp/127.0.0.1:{port}", "--out", str(out),
-                                 "--scenario-timeout", "30"], stdout=log_file, stderr=subprocess.STDOUT)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "hrc_logger",
+                "--session",
+                session,
+                "--connect",
+                f"tcp/127.0.0.1:{port}",
+                "--out",
+                str(out),
+                "--scenario-timeout",
+                "30",
+            ],
+            stdout=log_file,
+            stderr=subprocess.STDOUT,
+        )
         try:
             phys = fake.buses["physics"]
-            assert wait_until(lambda: "logger" in phys.alive_services(timeout=0.3), timeout=60), \
+            assert wait_until(lambda: "logger" in phys.alive_services(timeout=0.3), timeout=60), (
                 log_path.read_text()
+            )
             stats = phys.get(fake.keys.stats("logger"), pb.ServiceStats, timeout=5)
             assert stats and stats[0].service == "logger"
             assert fake.keys.task_events() in stats[0].subscribed
@@ -105,8 +132,11 @@ def run_synthetic(tmp_path: Path, gap_tick: int | None = None, term_tick: int | 
                     break
                 for o in world:
                     fake.publisher(o).put(o.msg, k, k * dt)
-                tick = pb.ClockTick(mode=pb.CLOCK_MODE_LOCKSTEP, dt=dt,
-                                    participants=["ik_cpp", "orchestrator", "human_input"])
+                tick = pb.ClockTick(
+                    mode=pb.CLOCK_MODE_LOCKSTEP,
+                    dt=dt,
+                    participants=["ik_cpp", "orchestrator", "human_input"],
+                )
                 tick.published.extend(fake.marks())
                 fake.clock.put(tick, k, k * dt)
                 for o in outputs:
@@ -115,9 +145,17 @@ def run_synthetic(tmp_path: Path, gap_tick: int | None = None, term_tick: int | 
                         pub.seq += 1  # a lost message: this seq number never goes out
                     pub.put(o.msg, k, k * dt)
             if term_tick is None:
-                fake.run_end.put(pb.RunEnd(ok=True, reason="stopped by orchestrator: task finished",
-                                           ticks=trial.n, sim_time=trial.n * dt,
-                                           mode=pb.CLOCK_MODE_LOCKSTEP), trial.n, trial.n * dt)
+                fake.run_end.put(
+                    pb.RunEnd(
+                        ok=True,
+                        reason="stopped by orchestrator: task finished",
+                        ticks=trial.n,
+                        sim_time=trial.n * dt,
+                        mode=pb.CLOCK_MODE_LOCKSTEP,
+                    ),
+                    trial.n,
+                    trial.n * dt,
+                )
             rc = proc.wait(timeout=120)
         finally:
             if proc.poll() is None:
@@ -129,7 +167,9 @@ def run_synthetic(tmp_path: Path, gap_tick: int | None = None, term_tick: int | 
 
 
 @pytest.fixture(scope="module")
-def synthetic_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SyntheticTrial, subprocess.CompletedProcess]:
+def synthetic_run(
+    tmp_path_factory: pytest.TempPathFactory,
+) -> tuple[Path, SyntheticTrial, subprocess.CompletedProcess]:
     return run_synthetic(tmp_path_factory.mktemp("logger_bus"))
 
 
@@ -147,8 +187,11 @@ def test_logger_exits_cleanly_and_reports_its_lag(synthetic_run) -> None:
 def test_log_txt_order_and_counts_match_the_metrics(synthetic_run) -> None:
     out, trial, _ = synthetic_run
     lines = (out / "log.txt").read_text().splitlines()
-    metrics = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()
-               if json.loads(l)["type"] == "metrics"]
+    metrics = [
+        json.loads(l)
+        for l in (out / "events.jsonl").read_text().splitlines()
+        if json.loads(l)["type"] == "metrics"
+    ]
     assert len(metrics) == 1 and metrics[0]["final"], "the final metrics (last tick) were drained"
     m = metrics[0]
     assert lines[0].endswith(" - TASK STARTED.")
@@ -157,10 +200,14 @@ def test_log_txt_order_and_counts_match_the_metrics(synthetic_run) -> None:
     finishes = [i for i, l in enumerate(lines) if "task FINISHED" in l]
     robot_finishes = [i for i in finishes if " : r1 " in lines[i] or " : r2 " in lines[i]]
     human = [i for i in finishes if " : Human " in lines[i]]
-    collisions = [i for i, l in enumerate(lines) if " : Collision " in l or " : Near-collision " in l]
+    collisions = [
+        i for i, l in enumerate(lines) if " : Collision " in l or " : Near-collision " in l
+    ]
     assert len(robot_finishes) == 2 and len(human) == 1
     assert max(collisions) < min(robot_finishes) < max(robot_finishes) < human[0] < len(lines) - 1
-    assert lines[-1].endswith(f"TASK FINISHED. {m['collisions']['human_robot_count']} total collisions.")
+    assert lines[-1].endswith(
+        f"TASK FINISHED. {m['collisions']['human_robot_count']} total collisions."
+    )
 
 
 def test_events_jsonl_parses_line_by_line_with_the_same_counts(synthetic_run) -> None:
@@ -183,7 +230,11 @@ def test_recording_opens_with_reruns_reader_and_covers_the_trial(synthetic_run) 
     for rid in ("r1", "r2"):
         for j in ("j1_base_yaw", "j2_shoulder", "j3_elbow", "j4_wrist_pitch", "j5_wrist_roll"):
             e = s[f"/robot_{rid}/joints/{j}"]
-            assert {"Transform3D:translation", "Transform3D:quaternion", "Transform3D:parent_frame"} <= e.components
+            assert {
+                "Transform3D:translation",
+                "Transform3D:quaternion",
+                "Transform3D:parent_frame",
+            } <= e.components
             assert (e.first_tick, e.last_tick) == (0, last), (rid, j)
     for p in trial.sc.parts:
         assert f"/world/targets/{p.id}" in s, p.id
@@ -201,7 +252,9 @@ def test_a_sequence_gap_is_reported_and_counted(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stdout
     stats = json.loads((out / "logger_stats.json").read_text())
     assert stats["seq_gaps"] == 1 and stats["lost_messages"] == 1
-    assert "sequence gap on hrc/" in done.stdout and "/task/events from 'orchestrator'" in done.stdout
+    assert (
+        "sequence gap on hrc/" in done.stdout and "/task/events from 'orchestrator'" in done.stdout
+    )
     assert "ERROR" in done.stdout
 
 
@@ -222,22 +275,27 @@ def test_sigterm_mid_trial_closes_every_file_readable(tmp_path: Path) -> None:
 @pytest.mark.e2e
 def test_full_thesis_trial_logger_outputs(tmp_path: Path) -> None:
     from hrc.paths import ik_binary
+
     if not ik_binary().exists():
         pytest.skip(f"{ik_binary()} is missing (build the C++ IK service)")
     out = tmp_path / "trial"
     t0 = time.monotonic()
-    proc = subprocess.run([HRC, "run", str(THESIS), "--out", str(out)], capture_output=True, text=True,
-                          timeout=1800)
+    proc = subprocess.run(
+        [HRC, "run", str(THESIS), "--out", str(out)], capture_output=True, text=True, timeout=1800
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     metrics = json.loads((out / "metrics.json").read_text())
     lines = (out / "log.txt").read_text().splitlines()
     assert lines[0].endswith(" - TASK STARTED.")
-    assert lines[-1].startswith(f"{metrics['task']['completion_s']:.2f} sec : TASK FINISHED") or \
-        lines[-1].endswith("total collisions."), lines[-1]
+    assert lines[-1].startswith(
+        f"{metrics['task']['completion_s']:.2f} sec : TASK FINISHED"
+    ) or lines[-1].endswith("total collisions."), lines[-1]
     col = metrics["collisions"]
     assert sum(" : Collision " in l for l in lines) == col["human_robot_count"]
     assert sum(" : Near-collision " in l for l in lines) == col["near_count"]
-    assert sum("task FINISHED" in l and " : Human " not in l for l in lines) == len(metrics["robots"])
+    assert sum("task FINISHED" in l and " : Human " not in l for l in lines) == len(
+        metrics["robots"]
+    )
     assert sum(" : Human - task FINISHED" in l for l in lines) == 1
     records = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()]
     kinds = Counter(r["kind"] for r in records if r["type"] == "event")
@@ -261,11 +319,17 @@ def test_full_thesis_trial_logger_outputs(tmp_path: Path) -> None:
     s = summarize(out / "recording.rrd")
     for rid in metrics["robots"]:
         e = s[f"/robot_{rid}/joints/j1_base_yaw"]
-        assert e.first_tick is not None and e.first_tick <= 1 and e.last_tick >= ticks - 2, (rid, e.first_tick, e.last_tick)
+        assert e.first_tick is not None and e.first_tick <= 1 and e.last_tick >= ticks - 2, (
+            rid,
+            e.first_tick,
+            e.last_tick,
+        )
     for pid in metrics["parts"]:
         assert f"/world/parts/{pid}" in s, pid
     assert any(e.startswith("/world/cues/") for e in s)
     stats = json.loads((out / "logger_stats.json").read_text())
     assert stats["seq_gaps"] == 0
-    print(f"e2e thesis trial: {ticks} ticks in {time.monotonic() - t0:.1f} s; logger lag mean "
-          f"{stats['lag_mean_ticks']} max {stats['lag_max_ticks']} ticks")
+    print(
+        f"e2e thesis trial: {ticks} ticks in {time.monotonic() - t0:.1f} s; logger lag mean "
+        f"{stats['lag_mean_ticks']} max {stats['lag_max_ticks']} ticks"
+    )

@@ -27,9 +27,10 @@ TICK_CAP = 240 * 100  # 100 s of sim time: a stalled policy ends the run instead
 pytestmark = [
     pytest.mark.e2e,
     pytest.mark.slow,
-    pytest.mark.skipif(not ik_binary().exists(),
-                       reason=f"the IK service binary {ik_binary()} is missing "
-                              "(build it with scripts/setup.sh)"),
+    pytest.mark.skipif(
+        not ik_binary().exists(),
+        reason=f"the IK service binary {ik_binary()} is missing (build it with scripts/setup.sh)",
+    ),
 ]
 
 EVENT_RE = re.compile(r" event ([A-Z_]+) \| (.*)$")
@@ -37,10 +38,22 @@ COMMAND_RE = re.compile(r" command (\S+) #(\d+) (MOVE|HOLD) \(([-\d.e]+), ([-\d.
 TIME_RE = re.compile(r"^([-\d.]+) sec : ")
 
 SPEC_FIELDS = [
-    "scenario", "participant", "conditions", "seed", "task.completion_s", "human.completion_s",
-    "human.idle_s", "collisions.human_robot", "collisions.human_robot_count",
-    "collisions.total_delay_s", "collisions.near", "collisions.near_count", "run.mode",
-    "run.ticks", "run.wall_s", "run.realtime_factor",
+    "scenario",
+    "participant",
+    "conditions",
+    "seed",
+    "task.completion_s",
+    "human.completion_s",
+    "human.idle_s",
+    "collisions.human_robot",
+    "collisions.human_robot_count",
+    "collisions.total_delay_s",
+    "collisions.near",
+    "collisions.near_count",
+    "run.mode",
+    "run.ticks",
+    "run.wall_s",
+    "run.realtime_factor",
 ]
 ROBOT_FIELDS = ["completion_s", "idle_s", "avg_tcp_speed_mps", "max_tcp_speed_mps"]
 
@@ -61,13 +74,20 @@ class Line:
 
 def run_trial(scenario: Path, out: Path, ticks: int = TICK_CAP) -> tuple[dict, list[Line]]:
     env = dict(os.environ, HRC_ROOT=str(ROOT))
-    proc = subprocess.run([str(HRC), "run", str(scenario), "--out", str(out),
-                           "--max-ticks", str(ticks)],
-                          cwd=ROOT, env=env, capture_output=True, text=True, timeout=900)
+    proc = subprocess.run(
+        [str(HRC), "run", str(scenario), "--out", str(out), "--max-ticks", str(ticks)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     orch_log = out / "services" / "orchestrator.log"
     log_text = orch_log.read_text(errors="replace") if orch_log.exists() else ""
-    assert proc.returncode == 0, (f"hrc run failed ({proc.returncode}):\n{proc.stdout}\n"
-                                  f"{proc.stderr}\n--- orchestrator log tail:\n{log_text[-3000:]}")
+    assert proc.returncode == 0, (
+        f"hrc run failed ({proc.returncode}):\n{proc.stdout}\n"
+        f"{proc.stderr}\n--- orchestrator log tail:\n{log_text[-3000:]}"
+    )
     metrics = json.loads((out / "metrics.json").read_text())
     return metrics, parse_log(log_text)
 
@@ -83,8 +103,15 @@ def parse_log(text: str) -> list[Line]:
                     robot = name
             lines.append(Line(i, m.group(1), words, robot))
         elif m := COMMAND_RE.search(raw):
-            lines.append(Line(i, m.group(3), raw, m.group(1),
-                              (float(m.group(4)), float(m.group(5)), float(m.group(6)))))
+            lines.append(
+                Line(
+                    i,
+                    m.group(3),
+                    raw,
+                    m.group(1),
+                    (float(m.group(4)), float(m.group(5)), float(m.group(6))),
+                )
+            )
     return lines
 
 
@@ -150,11 +177,15 @@ def test_policy_retreat_both_retreat_then_resume(tmp_path: Path) -> None:
     assert cont is not None
     assert {ln.robot for ln in reached if ln.index < cont.index} == {"r1", "r2"}
     for rid in ("r1", "r2"):
-        moves = [ln for ln in lines if ln.kind == "MOVE" and ln.robot == rid
-                 and col.index < ln.index < cont.index]
+        moves = [
+            ln
+            for ln in lines
+            if ln.kind == "MOVE" and ln.robot == rid and col.index < ln.index < cont.index
+        ]
         assert any(ln.target == pytest.approx(retreat_pose(scen, rid)) for ln in moves)
-        resumed = [ln for ln in lines if ln.kind == "MOVE" and ln.robot == rid
-                   and ln.index > cont.index]
+        resumed = [
+            ln for ln in lines if ln.kind == "MOVE" and ln.robot == rid and ln.index > cont.index
+        ]
         assert resumed, f"{rid} never moved after the collision"
     assert data["collisions"]["human_robot_count"] >= 1
     assert data["collisions"]["human_robot"][0]["delay_s"] > 0
@@ -173,8 +204,9 @@ def test_policy_retreat_button_no_resume_before_the_button(tmp_path: Path) -> No
         if cont is None:
             continue  # never pressed: never resumed (the run ended on the tick cap)
         pressed = first(lines, "BUTTON_PRESSED", c.index)
-        assert pressed is not None and pressed.index < cont.index, \
+        assert pressed is not None and pressed.index < cont.index, (
             "robots resumed without the continue button"
+        )
         last_arrival = max(ln.index for ln in reached if ln.index < cont.index)
         assert last_arrival < cont.index
     # the scripted participant presses the button, so the robots do resume
@@ -196,11 +228,20 @@ def test_policy_stop_colliding_the_other_robot_carries_on(tmp_path: Path) -> Non
     end = cont.index if cont is not None else 10**9
     holds = [ln for ln in lines if ln.kind == "HOLD" and col.index < ln.index < end]
     assert any(ln.robot == touched for ln in holds)
-    near_halts = [ln for ln in lines if ln.kind == "NEAR_COLLISION" and col.index < ln.index < end
-                  and f"{other} halts" in ln.text]
+    near_halts = [
+        ln
+        for ln in lines
+        if ln.kind == "NEAR_COLLISION"
+        and col.index < ln.index < end
+        and f"{other} halts" in ln.text
+    ]
     if not near_halts:
         assert not any(ln.robot == other for ln in holds), f"{other} was stopped as well"
-    assert not any(ln.kind == "MOVE" and ln.robot == other
-                   and ln.target == pytest.approx(retreat_pose(scen, other))
-                   for ln in lines if col.index < ln.index < end)
+    assert not any(
+        ln.kind == "MOVE"
+        and ln.robot == other
+        and ln.target == pytest.approx(retreat_pose(scen, other))
+        for ln in lines
+        if col.index < ln.index < end
+    )
     assert data["collisions"]["human_robot_count"] >= 1

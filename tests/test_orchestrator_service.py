@@ -29,7 +29,6 @@ from orch_fakes import FakeRobot  # noqa: E402
 pytestmark = pytest.mark.slow
 
 
-
 class FakeWorld:
     """Physics stand-in: the participant grabs H1 once it is grabbable and places it on target."""
 
@@ -52,18 +51,19 @@ class FakeWorld:
         events: list[pb.ObjectEvent] = []
         contacts: list[pb.Contact] = []
         if k == 0:
-            contacts.append(pb.Contact(kind=pb.CONTACT_KIND_HAND_ENVELOPE, begin=True,
-                                       a="right", b="0"))
+            contacts.append(
+                pb.Contact(kind=pb.CONTACT_KIND_HAND_ENVELOPE, begin=True, a="right", b="0")
+            )
         with self.lock:
             if self.grab_tick is None and self.grabbable.get("H1") and k >= 20:
                 self.grab_tick = k
-                events.append(pb.ObjectEvent(kind=pb.ObjectEvent.KIND_GRABBED, object="H1",
-                                             holder="right"))
+                events.append(
+                    pb.ObjectEvent(kind=pb.ObjectEvent.KIND_GRABBED, object="H1", holder="right")
+                )
             elif self.grab_tick is not None and not self.released and k >= self.grab_tick + 120:
                 self.released = True
                 target = self.scenario.part("H1").target.xyz
-                e = pb.ObjectEvent(kind=pb.ObjectEvent.KIND_RELEASED, object="H1",
-                                   holder="right")
+                e = pb.ObjectEvent(kind=pb.ObjectEvent.KIND_RELEASED, object="H1", holder="right")
                 e.pose.position.x, e.pose.position.y, e.pose.position.z = target
                 e.pose.orientation.w = 1.0
                 events.append(e)
@@ -79,22 +79,42 @@ def test_orchestrator_runs_minimal_over_the_bus(tmp_path: Path) -> None:
     ik_bus = Bus(BusConfig(session=session, connect=[ep]), "ik_cpp")
     log_path = tmp_path / "orchestrator.log"
     proc = subprocess.Popen(
-        [sys.executable, "-m", "hrc_orchestrator", "--session", session, "--connect", ep,
-         "--scenario", str(scenario_path), "--out", str(tmp_path), "--no-reach-check",
-         "--seed", "5"],
-        stdout=open(log_path, "wb"), stderr=subprocess.STDOUT)
+        [
+            sys.executable,
+            "-m",
+            "hrc_orchestrator",
+            "--session",
+            session,
+            "--connect",
+            ep,
+            "--scenario",
+            str(scenario_path),
+            "--out",
+            str(tmp_path),
+            "--no-reach-check",
+            "--seed",
+            "5",
+        ],
+        stdout=open(log_path, "wb"),
+        stderr=subprocess.STDOUT,
+    )
     try:
         served = master.get_one(master.keys.scenario(), pb.Scenario, timeout=30)
         assert served.info.name == "minimal" and served.info.seed == 5
         dt = 1.0 / served.info.tick_hz
 
         # --- the IK stand-in: follows commands, publishes a state per robot every tick
-        robots = {rid: FakeRobot(rid, tuple(r.home), r.max_tcp_speed, dt)
-                  for rid, r in scenario.robots.items()}
+        robots = {
+            rid: FakeRobot(rid, tuple(r.home), r.max_tcp_speed, dt)
+            for rid, r in scenario.robots.items()
+        }
         ik = LockstepParticipant(ik_bus)
         state_pubs = {rid: ik_bus.publisher(ik_bus.keys.robot_state(rid)) for rid in robots}
-        ik.input(ik_bus.keys.robot_commands(), pb.RobotCommand,
-                 lambda _k, cmd: robots[cmd.robot].command(cmd))
+        ik.input(
+            ik_bus.keys.robot_commands(),
+            pb.RobotCommand,
+            lambda _k, cmd: robots[cmd.robot].command(cmd),
+        )
 
         def ik_step(tick: pb.ClockTick) -> None:
             for rid in sorted(robots):
@@ -110,15 +130,26 @@ def test_orchestrator_runs_minimal_over_the_bus(tmp_path: Path) -> None:
         events: list[pb.TaskEvent] = []
         cues: list[pb.Cue] = []
         final: list[pb.MetricsReport] = []
-        clock = ClockMaster(master, ClockSettings(tick_hz=served.info.tick_hz, ticks=20_000,
-                                                  participants=["ik_cpp", "orchestrator"],
-                                                  observers=[], barrier_timeout_s=20))
+        clock = ClockMaster(
+            master,
+            ClockSettings(
+                tick_hz=served.info.tick_hz,
+                ticks=20_000,
+                participants=["ik_cpp", "orchestrator"],
+                observers=[],
+                barrier_timeout_s=20,
+            ),
+        )
         clock.input(master.keys.world_commands(), pb.WorldCommands, world.on_commands)
         master.subscribe(master.keys.task_events(), pb.TaskEvent, lambda _k, m: events.append(m))
-        master.subscribe(master.keys.task_indicators(), pb.Indicators,
-                         lambda _k, m: cues.extend(m.cues))
-        master.subscribe(master.keys.task_metrics(), pb.MetricsReport,
-                         lambda _k, m: final.append(m) if m.final else None)
+        master.subscribe(
+            master.keys.task_indicators(), pb.Indicators, lambda _k, m: cues.extend(m.cues)
+        )
+        master.subscribe(
+            master.keys.task_metrics(),
+            pb.MetricsReport,
+            lambda _k, m: final.append(m) if m.final else None,
+        )
         objects_pub = master.publisher(master.keys.world_objects())
         contacts_pub = master.publisher(master.keys.world_contacts())
 
@@ -155,4 +186,5 @@ def test_orchestrator_runs_minimal_over_the_bus(tmp_path: Path) -> None:
     assert data["task"]["completion_s"] > 0
     assert data["parts"]["S1"]["placed_s"] >= data["parts"]["H1"]["placed_s"]
     assert final and final[-1].metrics.task.completion_s == pytest.approx(
-        data["task"]["completion_s"])
+        data["task"]["completion_s"]
+    )

@@ -68,20 +68,41 @@ class Record:
 class PhysicsRun:
     """Starts ``python -m hrc_physics`` and the participants; :meth:`run` plays ``ticks``."""
 
-    def __init__(self, tmp: Path, scenario: Path, ticks: int, roles: dict[str, Step | None],
-                 observers: list[str] = ()) -> None:
+    def __init__(
+        self,
+        tmp: Path,
+        scenario: Path,
+        ticks: int,
+        roles: dict[str, Step | None],
+        observers: list[str] = (),
+    ) -> None:
         self.session = f"ph{uuid.uuid4().hex[:8]}"
         self.port = free_port()
         self.scenario_msg = sc.to_proto(sc.load(scenario, motion_check=False))
         self.log_path = tmp / "physics.log"
         self.record = Record()
         self._log = open(self.log_path, "w")
-        argv = [sys.executable, "-m", "hrc_physics", "--session", self.session,
-                "--listen", f"tcp/127.0.0.1:{self.port}", "--ticks", str(ticks),
-                "--participants", ",".join(roles), f"--observers={','.join(observers)}",
-                "--start-timeout", "60", "--barrier-timeout", "30"]
-        self.proc = subprocess.Popen(argv, stdout=self._log, stderr=subprocess.STDOUT,
-                                     stdin=subprocess.DEVNULL)
+        argv = [
+            sys.executable,
+            "-m",
+            "hrc_physics",
+            "--session",
+            self.session,
+            "--listen",
+            f"tcp/127.0.0.1:{self.port}",
+            "--ticks",
+            str(ticks),
+            "--participants",
+            ",".join(roles),
+            f"--observers={','.join(observers)}",
+            "--start-timeout",
+            "60",
+            "--barrier-timeout",
+            "30",
+        ]
+        self.proc = subprocess.Popen(
+            argv, stdout=self._log, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL
+        )
         self.roles: list[Role] = []
         self._observer_buses: list[Bus] = []
         try:
@@ -91,10 +112,16 @@ class PhysicsRun:
                 self.roles.append(Role(name, bus, part, step))
             first = self.roles[0]
             first.bus.queryable(first.bus.keys.scenario(), None, lambda _req: self.scenario_msg)
-            first.part.input(first.bus.keys.world_objects(), pb.WorldObjects,
-                             lambda _k, m: self.record.objects.append(m))
-            first.part.input(first.bus.keys.world_contacts(), pb.WorldContacts,
-                             lambda _k, m: self.record.contacts.append(m))
+            first.part.input(
+                first.bus.keys.world_objects(),
+                pb.WorldObjects,
+                lambda _k, m: self.record.objects.append(m),
+            )
+            first.part.input(
+                first.bus.keys.world_contacts(),
+                pb.WorldContacts,
+                lambda _k, m: self.record.contacts.append(m),
+            )
             for role in self.roles:
                 if role.step is not None:
                     role.part.on_tick(self._stepper(role))
@@ -108,13 +135,15 @@ class PhysicsRun:
             raise
 
     def _config(self) -> BusConfig:
-        return BusConfig(session=self.session, connect=[f"tcp/127.0.0.1:{self.port}"],
-                         listen=["tcp/127.0.0.1:0"])
+        return BusConfig(
+            session=self.session, connect=[f"tcp/127.0.0.1:{self.port}"], listen=["tcp/127.0.0.1:0"]
+        )
 
     @staticmethod
     def _stepper(role: Role) -> Callable[[pb.ClockTick], None]:
         def on_tick(tick: pb.ClockTick) -> None:
             role.step(tick.header.tick, tick.header.sim_time, role)  # type: ignore[misc]
+
         return on_tick
 
     def run(self, timeout: float = 120.0) -> pb.RunEnd:
@@ -174,17 +203,23 @@ def physics_run(tmp_path: Path):
         r.close()
 
 
-def human_state(left=AWAY, right=AWAY, left_grip=0.0, right_grip=0.0,
-                rot=IDENTITY) -> pb.HumanState:
-    return pb.HumanState(left_hand=pose_to_pb(Pose(left, rot)),
-                         right_hand=pose_to_pb(Pose(right, rot)),
-                         head=pose_to_pb(Pose((0.0, -0.7, 0.5))), left_grip=left_grip,
-                         right_grip=right_grip, source=pb.INPUT_SOURCE_REPLAY)
+def human_state(
+    left=AWAY, right=AWAY, left_grip=0.0, right_grip=0.0, rot=IDENTITY
+) -> pb.HumanState:
+    return pb.HumanState(
+        left_hand=pose_to_pb(Pose(left, rot)),
+        right_hand=pose_to_pb(Pose(right, rot)),
+        head=pose_to_pb(Pose((0.0, -0.7, 0.5))),
+        left_grip=left_grip,
+        right_grip=right_grip,
+        source=pb.INPUT_SOURCE_REPLAY,
+    )
 
 
 def robot_state(robot: str, q: list[float]) -> pb.RobotState:
-    return pb.RobotState(robot=robot, joint_names=JOINTS, joint_positions=q,
-                         status=pb.MOTION_STATUS_HOLDING)
+    return pb.RobotState(
+        robot=robot, joint_names=JOINTS, joint_positions=q, status=pb.MOTION_STATUS_HOLDING
+    )
 
 
 JOINTS = ["j1_base_yaw", "j2_shoulder", "j3_elbow", "j4_wrist_pitch", "j5_wrist_roll"]
@@ -198,11 +233,16 @@ class Geometry:
         self.c = p.connect(p.DIRECT)
         self.robots = {}
         for rid, robot in scen.robots.items():
-            self.robots[rid] = p.loadURDF(str(scen.urdf_path(rid)), robot.base.xyz,
-                                          yaw_quat_deg(robot.base.yaw), useFixedBase=True,
-                                          physicsClientId=self.c)
-        shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=[s / 2 for s in HAND_SIZE],
-                                       physicsClientId=self.c)
+            self.robots[rid] = p.loadURDF(
+                str(scen.urdf_path(rid)),
+                robot.base.xyz,
+                yaw_quat_deg(robot.base.yaw),
+                useFixedBase=True,
+                physicsClientId=self.c,
+            )
+        shape = p.createCollisionShape(
+            p.GEOM_BOX, halfExtents=[s / 2 for s in HAND_SIZE], physicsClientId=self.c
+        )
         self.hand = p.createMultiBody(0.0, shape, -1, AWAY, physicsClientId=self.c)
 
     def pose(self, robot: str, q: list[float]) -> None:
@@ -210,8 +250,9 @@ class Geometry:
             p.resetJointState(self.robots[robot], j, v, physicsClientId=self.c)
 
     def point_on(self, robot: str, link: int, along: float) -> tuple[float, float, float]:
-        s = p.getLinkState(self.robots[robot], link, computeForwardKinematics=True,
-                           physicsClientId=self.c)
+        s = p.getLinkState(
+            self.robots[robot], link, computeForwardKinematics=True, physicsClientId=self.c
+        )
         pos, rot = s[4], s[5]
         m = p.getMatrixFromQuaternion(rot)
         return (pos[0] + m[2] * along, pos[1] + m[5] * along, pos[2] + m[8] * along)
@@ -230,6 +271,7 @@ class Geometry:
 
 
 # ---------------------------------------------------------------------------------------- tests
+
 
 def test_hand_path_into_a_robot_link_begins_and_ends_contact_on_time(physics_run) -> None:
     geo = Geometry(MINIMAL)
@@ -262,13 +304,19 @@ def test_hand_path_into_a_robot_link_begins_and_ends_contact_on_time(physics_run
         for rid, q in (("r1", q_r1), ("r2", [0.0] * 5)):
             role.put(role.bus.keys.robot_state(rid), robot_state(rid, q), k, t)
 
-    run = physics_run(MINIMAL, ticks, {"human_input": human, "ik_cpp": ik, "orchestrator": None},
-                      observers=["logger"])
+    run = physics_run(
+        MINIMAL,
+        ticks,
+        {"human_input": human, "ik_cpp": ik, "orchestrator": None},
+        observers=["logger"],
+    )
     end = run.run()
     assert end.ok and end.ticks == ticks
     events = run.record.contact_events(pb.CONTACT_KIND_HAND_ROBOT)
     assert [(c.begin, c.a, c.b, c.link) for _, c in events] == [
-        (True, "left", "r1", "link3_forearm"), (False, "left", "r1", "link3_forearm")]
+        (True, "left", "r1", "link3_forearm"),
+        (False, "left", "r1", "link3_forearm"),
+    ]
     (t_begin, _), (t_end, _) = events
     # The hand input of tick k shows in the world of tick k + 1: the begin comes one tick after
     # the geometric touch of the path, the end one tick after it leaves (never later: the clock
@@ -319,26 +367,35 @@ H1_TARGET = (-0.18, -0.02, 0.02)
 
 def _path(points: list[tuple[int, tuple, float]]):
     """Piecewise-linear hand path: (tick, position, grip) keys; hold the last one."""
+
     def at(k: int) -> tuple[tuple[float, float, float], float]:
         for (k0, p0, g0), (k1, p1, _g1) in zip(points, points[1:]):
             if k0 <= k < k1:
                 s = (k - k0) / (k1 - k0)
                 return tuple(a + (b - a) * s for a, b in zip(p0, p1)), g0  # type: ignore[return-value]
         return points[-1][1], points[-1][2]
+
     return at
 
 
 def test_release_near_and_far_from_the_target(physics_run) -> None:
     near = (H1_TARGET[0] + 0.01, H1_TARGET[1], H1_TARGET[2])  # 1 cm beside the target
     far = (H1_TARGET[0] + 0.10, H1_TARGET[1], 0.08)  # 10 cm beside, 6 cm up
-    path = _path([
-        (0, AWAY, 0.0), (20, H1_START, 0.0), (25, H1_START, 1.0),   # reach, close the hand
-        (95, near, 1.0), (100, near, 0.0),                          # carry, let go
-        (160, (near[0], near[1], 0.10), 0.0),                       # hand up and away...
-        (200, near, 0.0), (205, near, 1.0),                         # ...back, grab again
-        (265, far, 1.0), (270, far, 0.0),                           # carry, let go in the air
-        (330, AWAY, 0.0),
-    ])
+    path = _path(
+        [
+            (0, AWAY, 0.0),
+            (20, H1_START, 0.0),
+            (25, H1_START, 1.0),  # reach, close the hand
+            (95, near, 1.0),
+            (100, near, 0.0),  # carry, let go
+            (160, (near[0], near[1], 0.10), 0.0),  # hand up and away...
+            (200, near, 0.0),
+            (205, near, 1.0),  # ...back, grab again
+            (265, far, 1.0),
+            (270, far, 0.0),  # carry, let go in the air
+            (330, AWAY, 0.0),
+        ]
+    )
 
     def human(k: int, t: float, role: Role) -> None:
         pos, grip = path(k)
@@ -392,12 +449,17 @@ def test_bad_inputs_are_counted_and_the_run_goes_on(physics_run) -> None:
 
     def orchestrator(k: int, t: float, role: Role) -> None:
         if k == 3:
-            bad = pb.WorldCommands(commands=[
-                pb.WorldCommand(attach=pb.Attach(object="NOPE", holder="r1")),
-                pb.WorldCommand(release=pb.Release(object="H1", snap=True, pose=pose_to_pb(
-                    Pose((math.inf, 0.0, 0.0))))),
-                pb.WorldCommand(set_grabbable=pb.SetGrabbable(object="H1", grabbable=True)),
-            ])
+            bad = pb.WorldCommands(
+                commands=[
+                    pb.WorldCommand(attach=pb.Attach(object="NOPE", holder="r1")),
+                    pb.WorldCommand(
+                        release=pb.Release(
+                            object="H1", snap=True, pose=pose_to_pb(Pose((math.inf, 0.0, 0.0)))
+                        )
+                    ),
+                    pb.WorldCommand(set_grabbable=pb.SetGrabbable(object="H1", grabbable=True)),
+                ]
+            )
             role.put(role.bus.keys.world_commands(), bad, k, t)
         if k == 30:
             stats.extend(role.bus.get(role.bus.keys.stats("physics"), pb.ServiceStats, timeout=5))

@@ -30,16 +30,18 @@ CPP = [s for s in services.SERVICES if s.binary is not None]
 
 def _trial_argv(name: str, **opts: object) -> list[str]:
     options = TrialOptions(scenario=THESIS, **opts)  # type: ignore[arg-type]
-    return runner.service_argv(name, options, "s1", 7471, Path("/tmp/trial"),
-                               Path("/tmp/hrc-s1.sock"), True)
+    return runner.service_argv(
+        name, options, "s1", 7471, Path("/tmp/trial"), Path("/tmp/hrc-s1.sock"), True
+    )
 
 
 def test_one_clock_master_listed_first_and_unique_names() -> None:
     assert [s.role for s in services.SERVICES].count(Role.CLOCK_MASTER) == 1
     assert services.SERVICES[0].name == services.CLOCK_MASTER
     assert len(set(services.names())) == len(services.SERVICES)
-    assert set(services.PARTICIPANTS) | set(services.OBSERVERS) | {services.CLOCK_MASTER} == \
-        set(services.names())
+    assert set(services.PARTICIPANTS) | set(services.OBSERVERS) | {services.CLOCK_MASTER} == set(
+        services.names()
+    )
 
 
 @pytest.mark.parametrize("svc", PYTHON, ids=lambda s: s.name)
@@ -57,9 +59,17 @@ def test_cpp_service_script_is_its_binary(svc: services.Service) -> None:
 @pytest.mark.parametrize("svc", PYTHON, ids=lambda s: s.name)
 def test_hrc_run_command_lines_parse_in_the_python_services(svc: services.Service) -> None:
     """Every option the table gives (all of them set) is one the service knows."""
-    argv = _trial_argv(svc.name, seed=3, ticks=100, validated=True, viewer=True, web=True,
-                       record=Path("/tmp/r.jsonl"), replay=Path("/tmp/p.jsonl"),
-                       connect=["tcp/10.0.0.1:7447"])
+    argv = _trial_argv(
+        svc.name,
+        seed=3,
+        ticks=100,
+        validated=True,
+        viewer=True,
+        web=True,
+        record=Path("/tmp/r.jsonl"),
+        replay=Path("/tmp/p.jsonl"),
+        connect=["tcp/10.0.0.1:7447"],
+    )
     assert argv[:3] == [sys.executable, "-m", svc.module]
     service_cls = importlib.import_module(f"{svc.module}.main").SERVICE
     assert service_cls.name == svc.name

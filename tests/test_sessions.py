@@ -13,27 +13,49 @@ from hrc.wire import pb
 
 def test_two_trials_on_one_router_do_not_mix(tmp_path, ik_bin) -> None:
     port = free_port()
-    router = subprocess.Popen([HRC, "router", "--listen", f"tcp/127.0.0.1:{port}"],
-                              stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    router = subprocess.Popen(
+        [HRC, "router", "--listen", f"tcp/127.0.0.1:{port}"],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         ep = f"tcp/127.0.0.1:{port}"
         seen: dict[str, set[str]] = {"A": set(), "B": set()}
         lock = threading.Lock()
-        with Bus(BusConfig(session="sessA", connect=[ep], listen=[]), "spyA") as spy_a, \
-                Bus(BusConfig(session="sessB", connect=[ep], listen=[]), "spyB") as spy_b:
+        with (
+            Bus(BusConfig(session="sessA", connect=[ep], listen=[]), "spyA") as spy_a,
+            Bus(BusConfig(session="sessB", connect=[ep], listen=[]), "spyB") as spy_b,
+        ):
+
             def watch(tag: str):
                 def on(_k: str, m: pb.ClockTick) -> None:
                     with lock:
                         seen[tag].add(m.header.session)
+
                 return on
+
             spy_a.subscribe(spy_a.keys.clock(), pb.ClockTick, watch("A"))
             spy_b.subscribe(spy_b.keys.clock(), pb.ClockTick, watch("B"))
             procs = {}
             for tag in ("A", "B"):
                 procs[tag] = subprocess.Popen(
-                    [HRC, "run", str(ROOT / "scenarios" / "empty.toml"), "--out",
-                     str(tmp_path / tag), "--ticks", "1500", "--session", f"sess{tag}",
-                     "--connect", ep], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                    [
+                        HRC,
+                        "run",
+                        str(ROOT / "scenarios" / "empty.toml"),
+                        "--out",
+                        str(tmp_path / tag),
+                        "--ticks",
+                        "1500",
+                        "--session",
+                        f"sess{tag}",
+                        "--connect",
+                        ep,
+                    ],
+                    stdout=subprocess.PIPE,
+                    stderr=subprocess.PIPE,
+                    text=True,
+                )
             for tag, p in procs.items():
                 out, err = p.communicate(timeout=300)
                 assert p.returncode == 0, f"{tag}: {err}"
@@ -55,8 +77,10 @@ def test_a_subscriber_of_one_session_gets_nothing_from_another(tmp_path) -> None
     port = free_port()
     ep = f"tcp/127.0.0.1:{port}"
     got: list[str] = []
-    with Bus(BusConfig(session="one", listen=[ep]), "a") as a, \
-            Bus(BusConfig(session="two", connect=[ep]), "b") as b:
+    with (
+        Bus(BusConfig(session="one", listen=[ep]), "a") as a,
+        Bus(BusConfig(session="two", connect=[ep]), "b") as b,
+    ):
         b.subscribe(b.keys.task_events(), pb.TaskEvent, lambda _k, m: got.append("two"))
         a.subscribe(a.keys.task_events(), pb.TaskEvent, lambda _k, m: got.append("one"))
         own = b.publisher(b.keys.task_events())

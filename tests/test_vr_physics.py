@@ -26,9 +26,15 @@ def _pose(p: list[float]) -> dict:
 
 def test_a_vr_reach_moves_the_hand_in_physics(tmp_path, ik_bin) -> None:
     session, port, vr_port = f"vr{free_port()}", free_port(), free_port()
-    opts = TrialOptions(scenario=ROOT / "scenarios" / "empty.toml", out=tmp_path / "trial",
-                        ticks=10**9, session=session, port=port, mode="realtime",
-                        extra={"human_input": ["--input", "vr", "--vr-port", str(vr_port)]})
+    opts = TrialOptions(
+        scenario=ROOT / "scenarios" / "empty.toml",
+        out=tmp_path / "trial",
+        ticks=10**9,
+        session=session,
+        port=port,
+        mode="realtime",
+        extra={"human_input": ["--input", "vr", "--vr-port", str(vr_port)]},
+    )
     result: dict = {}
     runner = threading.Thread(target=lambda: result.setdefault("r", run_trial(opts, opts.out)))
     runner.start()
@@ -37,8 +43,11 @@ def test_a_vr_reach_moves_the_hand_in_physics(tmp_path, ik_bin) -> None:
     lock = threading.Lock()
     try:
         time.sleep(1.0)
-        with Bus(BusConfig(session=session, mode="client", connect=[f"tcp/127.0.0.1:{port}"],
-                           listen=[]), "tester") as bus:
+        with Bus(
+            BusConfig(session=session, mode="client", connect=[f"tcp/127.0.0.1:{port}"], listen=[]),
+            "tester",
+        ) as bus:
+
             def on_contacts(_k: str, m: pb.WorldContacts) -> None:
                 with lock:
                     contacts.extend(m.contacts)
@@ -59,19 +68,30 @@ def test_a_vr_reach_moves_the_hand_in_physics(tmp_path, ik_bin) -> None:
                 for i in range(41):
                     s = i / 40
                     p = [a + (b - a) * s for a, b in zip(start, goal)]
-                    ws.send(json.dumps({"head": _pose([0, -0.8, 0.6]),
-                                        "left": _pose([-0.25, -0.75, 0.1]), "right": _pose(p),
-                                        "left_grip": 0.0, "right_grip": 0.0}))
+                    ws.send(
+                        json.dumps(
+                            {
+                                "head": _pose([0, -0.8, 0.6]),
+                                "left": _pose([-0.25, -0.75, 0.1]),
+                                "right": _pose(p),
+                                "left_grip": 0.0,
+                                "right_grip": 0.0,
+                            }
+                        )
+                    )
                     time.sleep(0.05)
 
                 def entered() -> bool:
                     with lock:
-                        return any(c.kind == pb.CONTACT_KIND_HAND_ENVELOPE and c.begin
-                                   and c.a == "right" for c in contacts)
+                        return any(
+                            c.kind == pb.CONTACT_KIND_HAND_ENVELOPE and c.begin and c.a == "right"
+                            for c in contacts
+                        )
 
                 assert wait_until(entered, 20), [str(c) for c in contacts]
             bus.publisher(bus.keys.run_control()).put(
-                pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="test done"))
+                pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="test done")
+            )
             runner.join(60)
     finally:
         runner.join(60)

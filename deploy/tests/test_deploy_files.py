@@ -74,8 +74,11 @@ def test_router_config_routes_between_clients() -> None:
         while not got and time.monotonic() < deadline:
             a.put("hrc/deploytest/data", b"hello")
             time.sleep(0.1)
-        alive = [str(r.ok.key_expr) for r in b.liveliness().get("hrc/deploytest/alive/*", timeout=5)
-                 if r.ok is not None]
+        alive = [
+            str(r.ok.key_expr)
+            for r in b.liveliness().get("hrc/deploytest/alive/*", timeout=5)
+            if r.ok is not None
+        ]
         token.undeclare()
     assert got and got[0] == b"hello"
     assert alive == ["hrc/deploytest/alive/a"]
@@ -91,8 +94,9 @@ def test_committed_deploy_files_are_the_generated_ones() -> None:
 
 def test_hrc_deploy_files_check_says_up_to_date() -> None:
     hrc = Path(sys.executable).with_name("hrc")
-    proc = subprocess.run([str(hrc), "deploy-files", "--check"], capture_output=True, text=True,
-                          timeout=60)
+    proc = subprocess.run(
+        [str(hrc), "deploy-files", "--check"], capture_output=True, text=True, timeout=60
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
 
 
@@ -152,8 +156,10 @@ def _fake_root(tmp: Path) -> Path:
     root = tmp / "root"
     (root / ".venv" / "bin").mkdir(parents=True)
     (root / "build" / "ik_cpp").mkdir(parents=True)
-    exes = [root / (f".venv/bin/{s.script}" if s.module else f"build/{s.binary}")
-            for s in services.SERVICES]
+    exes = [
+        root / (f".venv/bin/{s.script}" if s.module else f"build/{s.binary}")
+        for s in services.SERVICES
+    ]
     for exe in exes:
         exe.write_text(FAKE_SERVICE)
     (root / ".venv" / "bin" / "hrc").write_text(FAKE_HRC)
@@ -164,15 +170,31 @@ def _fake_root(tmp: Path) -> Path:
 
 def _run_pc(tmp: Path, **env: str) -> tuple[int, Path]:
     if not PC_BIN.exists():
-        pytest.skip("tools/bin/process-compose not built (scripts/setup.sh builds it when Go >= 1.24)")
+        pytest.skip(
+            "tools/bin/process-compose not built (scripts/setup.sh builds it when Go >= 1.24)"
+        )
     root = _fake_root(tmp)
     fake_dir = tmp / "out"
     fake_dir.mkdir()
     full_env = {k: v for k, v in os.environ.items() if not k.startswith(("HRC_", "PC_"))}
     full_env.update(HRC_ROOT=str(root), FAKE_DIR=str(fake_dir), **env)
     proc = subprocess.run(
-        [str(PC_BIN), "-f", str(PC_FILE), "up", "--no-server", "-t=false", "-L", str(tmp / "pc.log")],
-        env=full_env, cwd=tmp, stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=60,
+        [
+            str(PC_BIN),
+            "-f",
+            str(PC_FILE),
+            "up",
+            "--no-server",
+            "-t=false",
+            "-L",
+            str(tmp / "pc.log"),
+        ],
+        env=full_env,
+        cwd=tmp,
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     return proc.returncode, fake_dir
 
@@ -180,11 +202,17 @@ def _run_pc(tmp: Path, **env: str) -> tuple[int, Path]:
 def test_process_compose_file_validates() -> None:
     if not PC_BIN.exists():
         pytest.skip("tools/bin/process-compose not built")
-    proc = subprocess.run([str(PC_BIN), "-f", str(PC_FILE), "--dry-run"], capture_output=True,
-                          text=True, timeout=60, stdin=subprocess.DEVNULL)
+    proc = subprocess.run(
+        [str(PC_BIN), "-f", str(PC_FILE), "--dry-run"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        stdin=subprocess.DEVNULL,
+    )
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert re.search(rf"Validated {len(services.SERVICES)} configured processes",
-                     proc.stdout + proc.stderr)
+    assert re.search(
+        rf"Validated {len(services.SERVICES)} configured processes", proc.stdout + proc.stderr
+    )
 
 
 def _expected(settings: Settings) -> dict[str, list[str]]:
@@ -192,18 +220,48 @@ def _expected(settings: Settings) -> dict[str, list[str]]:
 
 
 def test_process_compose_starts_every_service_with_session_settings(tmp_path: Path) -> None:
-    code, out = _run_pc(tmp_path, HRC_SESSION="s7", HRC_PORT="7999", HRC_TICKS="123",
-                        HRC_SCENARIO="scenarios/x.toml", HRC_OUT="runs/x", FAKE_SLEEP="3")
+    code, out = _run_pc(
+        tmp_path,
+        HRC_SESSION="s7",
+        HRC_PORT="7999",
+        HRC_TICKS="123",
+        HRC_SCENARIO="scenarios/x.toml",
+        HRC_OUT="runs/x",
+        FAKE_SLEEP="3",
+    )
     assert code == 0
     argv = {p.name.removeprefix("argv-"): p.read_text().split() for p in out.glob("argv-*")}
     bus = "tcp/127.0.0.1:7999"
-    assert argv == _expected(Settings(session="s7", bus=bus, listen=(bus,), clock="lockstep",
-                                      ticks="123", scenario="scenarios/x.toml", out="runs/x"))
+    assert argv == _expected(
+        Settings(
+            session="s7",
+            bus=bus,
+            listen=(bus,),
+            clock="lockstep",
+            ticks="123",
+            scenario="scenarios/x.toml",
+            out="runs/x",
+        )
+    )
     # star: physics routes for all
-    assert argv["hrc-physics"][:7] == ["hrc-physics", "--session", "s7", "--zenoh-mode",
-                                       "router", "--listen", bus]
-    assert argv["hrc-ik"][:7] == ["hrc-ik", "--session", "s7", "--zenoh-mode", "client",
-                                  "--connect", bus]
+    assert argv["hrc-physics"][:7] == [
+        "hrc-physics",
+        "--session",
+        "s7",
+        "--zenoh-mode",
+        "router",
+        "--listen",
+        bus,
+    ]
+    assert argv["hrc-ik"][:7] == [
+        "hrc-ik",
+        "--session",
+        "s7",
+        "--zenoh-mode",
+        "client",
+        "--connect",
+        bus,
+    ]
     probes = (out / "probes").read_text().splitlines()
     probed = {line.split()[1] for line in probes}
     assert probed == set(services.names())
@@ -215,9 +273,17 @@ def test_process_compose_defaults(tmp_path: Path) -> None:
     assert code == 0
     argv = {p.name.removeprefix("argv-"): p.read_text().split() for p in out.glob("argv-*")}
     bus = "tcp/127.0.0.1:7460"
-    assert argv == _expected(Settings(session="pc", bus=bus, listen=(bus,), clock="lockstep",
-                                      ticks="0", scenario="scenarios/thesis.toml",
-                                      out="runs/pc"))
+    assert argv == _expected(
+        Settings(
+            session="pc",
+            bus=bus,
+            listen=(bus,),
+            clock="lockstep",
+            ticks="0",
+            scenario="scenarios/thesis.toml",
+            out="runs/pc",
+        )
+    )
 
 
 def test_process_compose_one_failing_service_ends_the_session(tmp_path: Path) -> None:
@@ -233,8 +299,16 @@ def test_process_compose_one_failing_service_ends_the_session(tmp_path: Path) ->
 # --------------------------------------------------------------------------- scripts and pins
 
 
-@pytest.mark.parametrize("script", ["scripts/setup.sh", "scripts/test-all.sh", "scripts/lint.sh",
-                                    "scripts/run-default.sh", ".ci/run"])
+@pytest.mark.parametrize(
+    "script",
+    [
+        "scripts/setup.sh",
+        "scripts/test-all.sh",
+        "scripts/lint.sh",
+        "scripts/run-default.sh",
+        ".ci/run",
+    ],
+)
 def test_scripts_parse_and_are_executable(script: str) -> None:
     path = ROOT / script
     assert os.access(path, os.X_OK), f"{script} is not executable"

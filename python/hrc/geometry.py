@@ -44,6 +44,7 @@ class Pose(NamedTuple):
 
 # ---------------------------------------------------------------- vectors
 
+
 def vec3(v: Sequence[float]) -> Vec3:
     """Any 3-sequence (list, numpy array, tuple of ints) as a ``Vec3`` of floats."""
     return (float(v[0]), float(v[1]), float(v[2]))
@@ -82,6 +83,7 @@ def rotate_z_rad(v: Sequence[float], angle_rad: float) -> Vec3:
 
 # ---------------------------------------------------------------- angles
 
+
 def wrap_angle_rad(a_rad: float) -> float:
     """An angle into [-pi, pi)."""
     return (a_rad + math.pi) % (2.0 * math.pi) - math.pi
@@ -94,6 +96,7 @@ def yaw_difference_deg(a_deg: float, b_deg: float) -> float:
 
 
 # ---------------------------------------------------------------- quaternions
+
 
 def quat_norm(q: Sequence[float]) -> float:
     return math.sqrt(q[0] ** 2 + q[1] ** 2 + q[2] ** 2 + q[3] ** 2)
@@ -117,10 +120,12 @@ def quat_mul(a: Sequence[float], b: Sequence[float]) -> Quat:
     """The rotation a * b (b first, then a)."""
     ax, ay, az, aw = a
     bx, by, bz, bw = b
-    return (aw * bx + ax * bw + ay * bz - az * by,
-            aw * by - ax * bz + ay * bw + az * bx,
-            aw * bz + ax * by - ay * bx + az * bw,
-            aw * bw - ax * bx - ay * by - az * bz)
+    return (
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+        aw * bw - ax * bx - ay * by - az * bz,
+    )
 
 
 def quat_conj(q: Sequence[float]) -> Quat:
@@ -136,9 +141,11 @@ def rotate(q: Sequence[float], v: Sequence[float]) -> Vec3:
     tx = 2.0 * (y * vz - z * vy)
     ty = 2.0 * (z * vx - x * vz)
     tz = 2.0 * (x * vy - y * vx)
-    return (vx + w * tx + (y * tz - z * ty),
-            vy + w * ty + (z * tx - x * tz),
-            vz + w * tz + (x * ty - y * tx))
+    return (
+        vx + w * tx + (y * tz - z * ty),
+        vy + w * ty + (z * tx - x * tz),
+        vz + w * tz + (x * ty - y * tx),
+    )
 
 
 def slerp(a: Quat, b: Quat, u: float) -> Quat:
@@ -148,14 +155,19 @@ def slerp(a: Quat, b: Quat, u: float) -> Quat:
         b = (-b[0], -b[1], -b[2], -b[3])
         dot = -dot
     if dot > 0.9995:  # nearly equal: linear interpolation is exact enough and stable
-        return normalized((lerp(a[0], b[0], u), lerp(a[1], b[1], u), lerp(a[2], b[2], u),
-                           lerp(a[3], b[3], u)))
+        return normalized(
+            (lerp(a[0], b[0], u), lerp(a[1], b[1], u), lerp(a[2], b[2], u), lerp(a[3], b[3], u))
+        )
     theta = math.acos(min(1.0, dot))
     s = math.sin(theta)
     wa = math.sin((1.0 - u) * theta) / s
     wb = math.sin(u * theta) / s
-    return (wa * a[0] + wb * b[0], wa * a[1] + wb * b[1], wa * a[2] + wb * b[2],
-            wa * a[3] + wb * b[3])
+    return (
+        wa * a[0] + wb * b[0],
+        wa * a[1] + wb * b[1],
+        wa * a[2] + wb * b[2],
+        wa * a[3] + wb * b[3],
+    )
 
 
 def yaw_quat_rad(yaw_rad: float) -> Quat:
@@ -198,6 +210,7 @@ def look_quat(origin: Sequence[float], target: Sequence[float]) -> Quat:
 
 # ---------------------------------------------------------------- poses
 
+
 def yaw_pose_deg(position: Sequence[float], yaw_deg: float) -> Pose:
     """A pose at ``position`` turned ``yaw_deg`` about world z (the scenario's poses)."""
     return Pose(vec3(position), yaw_quat_deg(yaw_deg))
@@ -238,6 +251,7 @@ def point_box_distance(point: Sequence[float], box: Pose, half_extents: Sequence
 
 # ---------------------------------------------------------------- the wire (hrc.wire pb)
 
+
 def vec3_from_pb(v: pb.Vec3) -> Vec3:
     return (v.x, v.y, v.z)
 
@@ -277,6 +291,7 @@ def pose_yaw_to_pb(position: Sequence[float], yaw_deg: float) -> pb.PoseYaw:
 
 
 # ---------------------------------------------------------------- numpy
+
 
 def to_array(v: Sequence[float]) -> npt.NDArray[np.float64]:
     """A vector or quaternion as a float64 numpy array."""

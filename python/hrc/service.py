@@ -31,8 +31,17 @@ from typing import ClassVar, Protocol
 from google.protobuf.message import Message
 
 from hrc import services
-from hrc.bus import (Bus, ClockFollower, ClockMaster, ClockSettings, LockstepParticipant,
-                     Observer, Outcome, add_bus_arguments, bus_config_from_args)
+from hrc.bus import (
+    Bus,
+    ClockFollower,
+    ClockMaster,
+    ClockSettings,
+    LockstepParticipant,
+    Observer,
+    Outcome,
+    add_bus_arguments,
+    bus_config_from_args,
+)
 from hrc.bus.bus import Validator
 from hrc.bus.inbox import Handler
 from hrc.logsetup import setup_logging
@@ -58,8 +67,9 @@ class ServiceExit(Exception):
 class Inputs(Protocol):
     """What :meth:`Service.register_inputs` gets: the role's input registration."""
 
-    def input(self, key: str, msg_type: type[Message], handler: Handler,
-              validate: Validator | None = None) -> None: ...
+    def input(
+        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+    ) -> None: ...
 
 
 class Service:
@@ -122,22 +132,33 @@ def fetch_scenario(bus: Bus, timeout: float) -> pb.Scenario:
     try:
         return bus.get_one(bus.keys.scenario(), pb.Scenario, timeout=timeout)
     except TimeoutError as exc:
-        raise ServiceExit(f"no scenario: {exc} (is the orchestrator running in session "
-                          f"{bus.keys.session!r}?)") from exc
+        raise ServiceExit(
+            f"no scenario: {exc} (is the orchestrator running in session {bus.keys.session!r}?)"
+        ) from exc
 
 
 def parse_args(cls: type[Service], argv: list[str] | None = None) -> argparse.Namespace:
     description = cls.description or sys.modules[cls.__module__].__doc__ or ""
-    p = argparse.ArgumentParser(prog=cls.entry().script, description=description,
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog=cls.entry().script,
+        description=description,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     add_bus_arguments(p)
     if cls.entry().role is not Role.CLOCK_MASTER:
-        p.add_argument("--input-timeout", type=float, default=10.0, metavar="S",
-                       help="lockstep: seconds to wait for the inputs a clock tick lists "
-                            "(default 10)")
+        p.add_argument(
+            "--input-timeout",
+            type=float,
+            default=10.0,
+            metavar="S",
+            help="lockstep: seconds to wait for the inputs a clock tick lists (default 10)",
+        )
     cls.add_arguments(p)
-    p.add_argument("--log-level", default=None, help="DEBUG, INFO (default; env HRC_LOG_LEVEL), "
-                                                     "WARNING or ERROR")
+    p.add_argument(
+        "--log-level",
+        default=None,
+        help="DEBUG, INFO (default; env HRC_LOG_LEVEL), WARNING or ERROR",
+    )
     return p.parse_args(argv)
 
 
@@ -154,8 +175,10 @@ def _stop_on_signals(role: ClockFollower) -> None:
 def _run_role(service: Service, bus: Bus) -> Outcome:
     kind = service.entry().role
     if (kind is Role.CLOCK_MASTER) != isinstance(service, ClockMasterService):
-        raise TypeError(f"{service.name}: the table says {kind.value}; a clock master "
-                        "is a ClockMasterService and nothing else is")
+        raise TypeError(
+            f"{service.name}: the table says {kind.value}; a clock master "
+            "is a ClockMasterService and nothing else is"
+        )
     if isinstance(service, ClockMasterService):
         clock = ClockMaster(bus, service.clock_settings())
         service.register_inputs(clock)

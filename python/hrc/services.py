@@ -120,38 +120,60 @@ class Service:
 SERVICES: tuple[Service, ...] = (
     # The clock master comes first: the others connect to it, so it is started first.
     Service(
-        "physics", Role.CLOCK_MASTER, "world + clock master (pybullet)",
-        script="hrc-physics", module="hrc_physics",
-        options=(Option("--clock", "clock", required=True),
-                 Option("--ticks", "ticks", required=True),
-                 Option("--barrier-timeout", "barrier_timeout"),
-                 Option("--start-timeout", "start_timeout")),
+        "physics",
+        Role.CLOCK_MASTER,
+        "world + clock master (pybullet)",
+        script="hrc-physics",
+        module="hrc_physics",
+        options=(
+            Option("--clock", "clock", required=True),
+            Option("--ticks", "ticks", required=True),
+            Option("--barrier-timeout", "barrier_timeout"),
+            Option("--start-timeout", "start_timeout"),
+        ),
     ),
     Service(
-        "ik_cpp", Role.PARTICIPANT, "both arms: Cartesian motion + IK (C++/KDL)",
-        script="hrc-ik", binary="ik_cpp/hrc-ik",
+        "ik_cpp",
+        Role.PARTICIPANT,
+        "both arms: Cartesian motion + IK (C++/KDL)",
+        script="hrc-ik",
+        binary="ik_cpp/hrc-ik",
         needs=("the C++ build (scripts/setup.sh)",),
     ),
     Service(
-        "orchestrator", Role.PARTICIPANT, "scenario, task logic, metrics",
-        script="hrc-orchestrator", module="hrc_orchestrator",
-        options=(Option("--scenario", "scenario", required=True),
-                 Option("--out", "out", required=True),
-                 Option("--no-reach-check", "no_reach_check"),
-                 Option("--seed", "seed"),
-                 Option("--keep-running", "keep_running")),
+        "orchestrator",
+        Role.PARTICIPANT,
+        "scenario, task logic, metrics",
+        script="hrc-orchestrator",
+        module="hrc_orchestrator",
+        options=(
+            Option("--scenario", "scenario", required=True),
+            Option("--out", "out", required=True),
+            Option("--no-reach-check", "no_reach_check"),
+            Option("--seed", "seed"),
+            Option("--keep-running", "keep_running"),
+        ),
     ),
     Service(
-        "human_input", Role.PARTICIPANT, "participant: scripted, replay or live VR bridge",
-        script="hrc-human-input", module="hrc_human_input",
+        "human_input",
+        Role.PARTICIPANT,
+        "participant: scripted, replay or live VR bridge",
+        script="hrc-human-input",
+        module="hrc_human_input",
         options=(Option("--record", "record"), Option("--replay", "replay")),
         needs=("a headset's browser that reaches the bridge, for the scenario's input = vr",),
     ),
     Service(
-        "logger", Role.OBSERVER, "observer: rerun recording, log.txt, events.jsonl",
-        script="hrc-logger", module="hrc_logger",
-        options=(Option("--out", "out", required=True),
-                 Option("--viewer", "viewer"), Option("--web", "web")),
+        "logger",
+        Role.OBSERVER,
+        "observer: rerun recording, log.txt, events.jsonl",
+        script="hrc-logger",
+        module="hrc_logger",
+        options=(
+            Option("--out", "out", required=True),
+            Option("--viewer", "viewer"),
+            Option("--web", "web"),
+        ),
         needs=("a display, for --viewer",),
         stop_timeout_s=20,  # it closes the .rrd and flushes its files on SIGTERM
     ),
@@ -196,16 +218,27 @@ def _role_options(role: Role) -> tuple[Option, ...]:
     common = (Option("--session", "session"), Option("--zenoh-lowlatency", "lowlatency"))
     router = Option("--connect", "connect")
     if role is Role.CLOCK_MASTER:
-        return (*common, Option("--zenoh-mode", value="router"),
-                Option("--listen", "listen", required=True), router,
-                Option("--participants", value=",".join(PARTICIPANTS)),
-                Option("--observers", value=",".join(OBSERVERS)))
-    return (*common, Option("--zenoh-mode", value="client"),
-            Option("--connect", "bus", required=True), router,
-            Option("--clock-master", value=CLOCK_MASTER))
+        return (
+            *common,
+            Option("--zenoh-mode", value="router"),
+            Option("--listen", "listen", required=True),
+            router,
+            Option("--participants", value=",".join(PARTICIPANTS)),
+            Option("--observers", value=",".join(OBSERVERS)),
+        )
+    return (
+        *common,
+        Option("--zenoh-mode", value="client"),
+        Option("--connect", "bus", required=True),
+        router,
+        Option("--clock-master", value=CLOCK_MASTER),
+    )
 
 
 def argv(svc: Service, settings: Settings) -> list[str]:
     """The arguments of ``svc`` (without the program) in a deployment with ``settings``."""
-    return [token for opt in (*_role_options(svc.role), *svc.options)
-            for token in opt.argv(settings, svc.name)]
+    return [
+        token
+        for opt in (*_role_options(svc.role), *svc.options)
+        for token in opt.argv(settings, svc.name)
+    ]

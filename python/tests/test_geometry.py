@@ -21,6 +21,7 @@ def canonical(q: g.Quat) -> g.Quat:
 
 # ---------------------------------------------------------------- known rotations
 
+
 def test_a_quarter_turn_about_z_takes_x_to_y() -> None:
     q = g.yaw_quat_deg(90.0)
     assert q == pytest.approx((0.0, 0.0, math.sqrt(0.5), math.sqrt(0.5)))
@@ -51,13 +52,15 @@ def test_multiplying_yaws_adds_them_and_the_conjugate_undoes() -> None:
     pitch, yaw = g.pitch_quat_rad(math.pi / 2), g.yaw_quat_rad(math.pi / 2)
     v = (0.0, 1.0, 0.0)
     assert g.rotate(g.quat_mul(yaw, pitch), v) == pytest.approx(
-        g.rotate(yaw, g.rotate(pitch, v)), abs=1e-15)
+        g.rotate(yaw, g.rotate(pitch, v)), abs=1e-15
+    )
     assert g.rotate(g.quat_mul(yaw, pitch), v) == pytest.approx((0.0, 0.0, 1.0), abs=1e-15)
 
 
 def test_pitch_tilts_y_towards_z() -> None:
     assert g.rotate(g.pitch_quat_rad(math.pi / 2), (0.0, 1.0, 0.0)) == pytest.approx(
-        (0.0, 0.0, 1.0), abs=1e-15)
+        (0.0, 0.0, 1.0), abs=1e-15
+    )
 
 
 def test_look_quat_points_y_at_the_target() -> None:
@@ -71,8 +74,7 @@ def test_look_quat_points_y_at_the_target() -> None:
 
 
 def test_rotate_z_rad_turns_counter_clockwise() -> None:
-    assert g.rotate_z_rad((1.0, 0.0, 0.5), math.pi / 2) == pytest.approx((0.0, 1.0, 0.5),
-                                                                         abs=1e-15)
+    assert g.rotate_z_rad((1.0, 0.0, 0.5), math.pi / 2) == pytest.approx((0.0, 1.0, 0.5), abs=1e-15)
 
 
 def test_angles_wrap_and_differ_the_short_way() -> None:
@@ -94,6 +96,7 @@ def test_slerp_ends_and_the_short_way() -> None:
 
 # ---------------------------------------------------------------- normalisation
 
+
 def test_normalized_keeps_unit_quaternions_bit_identical() -> None:
     q = g.yaw_quat_deg(33.0)
     assert g.normalized(q) == q
@@ -109,6 +112,7 @@ def test_a_zero_quaternion_raises_unless_told_what_it_means() -> None:
 
 # ---------------------------------------------------------------- poses
 
+
 def test_compose_and_relative_undo_each_other() -> None:
     a = g.Pose((0.3, -0.2, 0.1), g.quat_mul(g.yaw_quat_deg(40.0), g.pitch_quat_rad(0.3)))
     b = g.Pose((0.05, 0.0, 0.02), g.yaw_quat_deg(-15.0))
@@ -119,7 +123,8 @@ def test_compose_and_relative_undo_each_other() -> None:
     # a point 1 m along a's x axis
     turned = g.Pose((1.0, 0.0, 0.0), g.yaw_quat_deg(90.0))
     assert g.compose(turned, g.Pose((1.0, 0.0, 0.0))).position == pytest.approx(
-        (1.0, 1.0, 0.0), abs=1e-15)
+        (1.0, 1.0, 0.0), abs=1e-15
+    )
 
 
 def test_a_pose_is_a_tuple() -> None:
@@ -160,6 +165,7 @@ def test_distance_and_vectors() -> None:
 
 # ---------------------------------------------------------------- the wire and numpy
 
+
 def test_wire_round_trips_are_exact() -> None:
     pose = g.Pose((0.1, -0.2, 0.3), g.normalized((0.1, 0.2, 0.3, 0.9)))
     assert g.pose_from_pb(g.pose_to_pb(pose)) == pose
@@ -193,6 +199,7 @@ def test_numpy_round_trip() -> None:
 
 
 # ---------------------------------------------------------------- names carry units
+
 
 def test_every_angle_name_says_its_unit() -> None:
     """A function that takes or gives an angle says its unit in its name (pose_yaw_* name the

@@ -26,10 +26,12 @@ def full_metrics() -> pb.Metrics:
     m.conditions.safety_policy = pb.SAFETY_POLICY_RETREAT_BUTTON
     m.task.started, m.task.finished, m.task.completion_s = True, True, 45.5
     m.human.completion_s, m.human.idle_s = 39.25, 1.5
-    m.robots["r2"].CopyFrom(pb.RobotMetrics(completion_s=44.0, idle_s=0.5, avg_tcp_speed_mps=0.2,
-                                            max_tcp_speed_mps=0.5))
-    m.robots["r1"].CopyFrom(pb.RobotMetrics(completion_s=45.5, idle_s=0.0, avg_tcp_speed_mps=0.3,
-                                            max_tcp_speed_mps=0.5))
+    m.robots["r2"].CopyFrom(
+        pb.RobotMetrics(completion_s=44.0, idle_s=0.5, avg_tcp_speed_mps=0.2, max_tcp_speed_mps=0.5)
+    )
+    m.robots["r1"].CopyFrom(
+        pb.RobotMetrics(completion_s=45.5, idle_s=0.0, avg_tcp_speed_mps=0.3, max_tcp_speed_mps=0.5)
+    )
     col = m.collisions
     col.human_robot.add(t_s=3.5, robot="r2", hand="right", delay_s=1.5)
     col.human_robot_count, col.total_delay_s = 1, 1.5
@@ -37,9 +39,17 @@ def full_metrics() -> pb.Metrics:
     col.near_count = 1
     m.parts["S1"].CopyFrom(pb.PartMetrics(grabbed_s=1.5, placed_s=4.75))
     m.parts["H1"].CopyFrom(pb.PartMetrics(grabbed_s=0.0, placed_s=1.75))
-    m.run.CopyFrom(pb.RunMetrics(mode=pb.CLOCK_MODE_REALTIME, ticks=11364, wall_s=10.5,
-                                 realtime_factor=4.5, ok=True, end_reason="task finished",
-                                 deadline_misses={"ik_cpp": 3, "human_input": 1}))
+    m.run.CopyFrom(
+        pb.RunMetrics(
+            mode=pb.CLOCK_MODE_REALTIME,
+            ticks=11364,
+            wall_s=10.5,
+            realtime_factor=4.5,
+            ok=True,
+            end_reason="task finished",
+            deadline_misses={"ik_cpp": 3, "human_input": 1},
+        )
+    )
     return m
 
 
@@ -110,13 +120,16 @@ def test_a_committed_metrics_json_reads_back_unchanged(name: str) -> None:
     assert metrics.to_dict(metrics.from_dict(data)) == data
 
 
-@pytest.mark.parametrize(("data", "match"), [
-    ({"scenario": "s", "colour": "red"}, "colour: no such field"),
-    ({"conditions": {"safety_policy": "pray"}}, "unknown SafetyPolicy 'pray'"),
-    ({"run": {"mode": 1}}, "run.mode: expected text"),
-    ({"seed": "one"}, "^seed: "),
-    ({"parts": {"H1": {"placed_s": [1.0]}}}, "^parts.H1.placed_s: "),
-])
+@pytest.mark.parametrize(
+    ("data", "match"),
+    [
+        ({"scenario": "s", "colour": "red"}, "colour: no such field"),
+        ({"conditions": {"safety_policy": "pray"}}, "unknown SafetyPolicy 'pray'"),
+        ({"run": {"mode": 1}}, "run.mode: expected text"),
+        ({"seed": "one"}, "^seed: "),
+        ({"parts": {"H1": {"placed_s": [1.0]}}}, "^parts.H1.placed_s: "),
+    ],
+)
 def test_from_dict_refuses_what_is_not_in_the_schema(data: dict[str, Any], match: str) -> None:
     with pytest.raises(ValueError, match=match):
         metrics.from_dict(data)

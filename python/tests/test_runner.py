@@ -28,7 +28,9 @@ def _values(argv: list[str], flag: str) -> list[str]:
 def test_physics_listens_on_the_port_and_the_socket_and_the_others_connect_to_the_socket() -> None:
     sock = Path("/tmp/hrc-s1.sock")
     assert _values(_argv("physics", sock, True), "--listen") == [
-        "tcp/127.0.0.1:7471", f"unixsock-stream/{sock}"]
+        "tcp/127.0.0.1:7471",
+        f"unixsock-stream/{sock}",
+    ]
     for name in SERVICES[1:]:
         assert _values(_argv(name, sock, True), "--connect") == [f"unixsock-stream/{sock}"], name
 

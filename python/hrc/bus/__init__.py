@@ -20,7 +20,22 @@ from hrc.bus.observer import LagStats, Observer
 from hrc.bus.sequence import SeqChecker
 
 __all__ = [
-    "Bus", "BusConfig", "ClockFollower", "ClockMaster", "ClockSettings", "Inbox", "InputStats",
-    "Keys", "LagStats", "LockstepParticipant", "Observer", "Outcome", "Publisher", "RunFailed",
-    "SeqChecker", "add_bus_arguments", "bus_config_from_args", "watch_clock_master",
+    "Bus",
+    "BusConfig",
+    "ClockFollower",
+    "ClockMaster",
+    "ClockSettings",
+    "Inbox",
+    "InputStats",
+    "Keys",
+    "LagStats",
+    "LockstepParticipant",
+    "Observer",
+    "Outcome",
+    "Publisher",
+    "RunFailed",
+    "SeqChecker",
+    "add_bus_arguments",
+    "bus_config_from_args",
+    "watch_clock_master",
 ]

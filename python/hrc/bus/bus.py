@@ -48,8 +48,12 @@ class InputStats:
 
     def to_proto(self, service: str) -> pb.ServiceStats:
         with self._lock:
-            msg = pb.ServiceStats(service=service, subscribed=list(self.subscribed),
-                                  ticks_seen=self.ticks_seen, last_tick=self.last_tick)
+            msg = pb.ServiceStats(
+                service=service,
+                subscribed=list(self.subscribed),
+                ticks_seen=self.ticks_seen,
+                last_tick=self.last_tick,
+            )
             for k, v in self.decode_errors.items():
                 msg.decode_errors[k] = v
         return msg
@@ -66,7 +70,9 @@ class Publisher(Generic[M]):
         self._lock = threading.Lock()
         self._pub = bus.session.declare_publisher(
             key,
-            congestion_control=zenoh.CongestionControl.BLOCK if block else zenoh.CongestionControl.DROP,
+            congestion_control=zenoh.CongestionControl.BLOCK
+            if block
+            else zenoh.CongestionControl.DROP,
             express=express,
         )
 
@@ -140,8 +146,11 @@ class Bus:
 
     def published_marks(self) -> list[pb.PublishedMark]:
         """The last seq of every key this service has published on (for the tick protocol)."""
-        return [pb.PublishedMark(key=k, sender=self.sender, seq=p.seq)
-                for k, p in self._publishers.items() if p.seq > 0]
+        return [
+            pb.PublishedMark(key=k, sender=self.sender, seq=p.seq)
+            for k, p in self._publishers.items()
+            if p.seq > 0
+        ]
 
     def new_marks(self, exclude: str = "") -> list[pb.PublishedMark]:
         """The marks that moved since the previous call (keys other than ``exclude``).
@@ -157,8 +166,13 @@ class Bus:
         return out
 
     # ------------------------------------------------------------------ subscribe
-    def subscribe(self, key: str, msg_type: type[M], callback: Callable[[str, M], None],
-                  validate: Validator | None = None) -> None:
+    def subscribe(
+        self,
+        key: str,
+        msg_type: type[M],
+        callback: Callable[[str, M], None],
+        validate: Validator | None = None,
+    ) -> None:
         """Calls ``callback(key, msg)`` for each well-formed message on ``key``.
 
         A payload is malformed when it does not decode as ``msg_type``, carries another session's
@@ -204,8 +218,9 @@ class Bus:
     # ------------------------------------------------------------------ liveliness
     def declare_token(self, service: str | None = None) -> None:
         """Announce ``alive/<service>``; declare it after all subscriptions ("ready")."""
-        self._declared.append(self.session.liveliness().declare_token(
-            self.keys.alive(service or self.sender)))
+        self._declared.append(
+            self.session.liveliness().declare_token(self.keys.alive(service or self.sender))
+        )
 
     def watch_liveliness(self, on_change: Callable[[str, bool], None]) -> None:
         """``on_change(service, alive)`` for every service token of this session, past and future."""
@@ -214,8 +229,11 @@ class Bus:
             service = self.keys.last_segment(str(sample.key_expr))
             on_change(service, sample.kind == zenoh.SampleKind.PUT)
 
-        self._declared.append(self.session.liveliness().declare_subscriber(
-            self.keys.alive_all(), on_sample, history=True))
+        self._declared.append(
+            self.session.liveliness().declare_subscriber(
+                self.keys.alive_all(), on_sample, history=True
+            )
+        )
 
     def alive_services(self, timeout: float = 1.0) -> set[str]:
         found: set[str] = set()
@@ -225,8 +243,9 @@ class Bus:
         return found
 
     # ------------------------------------------------------------------ queries
-    def queryable(self, key: str, request_type: type[M] | None,
-                  handler: Callable[[M | None], Message]) -> None:
+    def queryable(
+        self, key: str, request_type: type[M] | None, handler: Callable[[M | None], Message]
+    ) -> None:
         """Answers queries on ``key`` with ``handler(request)``; a malformed request gets an error."""
 
         def on_query(query: zenoh.Query) -> None:
@@ -251,15 +270,19 @@ class Bus:
 
         self._declared.append(self.session.declare_queryable(key, on_query))
 
-    def get(self, key: str, reply_type: type[R], request: Message | None = None,
-            timeout: float = 2.0) -> list[R]:
+    def get(
+        self, key: str, reply_type: type[R], request: Message | None = None, timeout: float = 2.0
+    ) -> list[R]:
         """Query ``key``; returns every decodable reply (errors are logged)."""
         payload = request.SerializeToString() if request is not None else None
         out: list[R] = []
         for reply in self.session.get(key, payload=payload, timeout=timeout):
             if reply.ok is None:
-                log.warning("query %s answered with an error: %s", key,
-                            reply.err.payload.to_bytes().decode(errors="replace"))
+                log.warning(
+                    "query %s answered with an error: %s",
+                    key,
+                    reply.err.payload.to_bytes().decode(errors="replace"),
+                )
                 continue
             msg = reply_type()
             try:
@@ -270,8 +293,14 @@ class Bus:
             out.append(msg)
         return out
 
-    def get_one(self, key: str, reply_type: type[R], request: Message | None = None,
-                timeout: float = 10.0, retry_every: float = 0.2) -> R:
+    def get_one(
+        self,
+        key: str,
+        reply_type: type[R],
+        request: Message | None = None,
+        timeout: float = 10.0,
+        retry_every: float = 0.2,
+    ) -> R:
         """Query until one reply arrives (the server may still be starting) or ``timeout``."""
         deadline = time.monotonic() + timeout
         while True:
@@ -285,5 +314,6 @@ class Bus:
 
     def serve_stats(self) -> None:
         """``stats/<service>``: what this service subscribed to and how much garbage it saw."""
-        self.queryable(self.keys.stats(self.sender), None,
-                       lambda _req: self.stats.to_proto(self.sender))
+        self.queryable(
+            self.keys.stats(self.sender), None, lambda _req: self.stats.to_proto(self.sender)
+        )

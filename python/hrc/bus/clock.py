@@ -92,8 +92,9 @@ class ClockMaster:
         self._clock_pub = bus.publisher(bus.keys.clock(), express=True)
         self._end_pub = bus.publisher(bus.keys.run_end())
 
-    def input(self, key: str, msg_type: type[Message], handler: Handler,
-              validate: Validator | None = None) -> None:
+    def input(
+        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+    ) -> None:
         self.inbox.add(key, msg_type, handler, validate)
 
     def start(self) -> None:
@@ -175,7 +176,8 @@ class ClockMaster:
                     missing = ", ".join(sorted(expected - self._alive))
                     raise RunFailed(
                         f"services never came up within {self.settings.start_timeout_s:g} s: {missing}",
-                        sorted(expected - self._alive)[0])
+                        sorted(expected - self._alive)[0],
+                    )
                 self._cond.wait(min(left, 0.5))
 
     def _barrier(self, k: int, deadline: float | None) -> None:
@@ -192,16 +194,20 @@ class ClockMaster:
             missing = self.inbox.wait_for(marks, self.settings.barrier_timeout_s)
             if missing:
                 m = missing[0]
-                raise RunFailed(f"tick {k}: {m.key} #{m.seq} from '{m.sender}' was acknowledged "
-                                f"but never arrived within {self.settings.barrier_timeout_s:g} s",
-                                m.sender)
+                raise RunFailed(
+                    f"tick {k}: {m.key} #{m.seq} from '{m.sender}' was acknowledged "
+                    f"but never arrived within {self.settings.barrier_timeout_s:g} s",
+                    m.sender,
+                )
         else:  # realtime: whatever is late is applied with the next tick
             self.inbox.wait_for(marks, max(0.0, deadline - time.monotonic()))
 
     def _fresh_marks(self) -> list[pb.PublishedMark]:
         """The marks acked since the last barrier, as messages. Under the lock."""
-        return [pb.PublishedMark(key=key, sender=sender, seq=seq)
-                for (key, sender), seq in self._fresh.items()]
+        return [
+            pb.PublishedMark(key=key, sender=sender, seq=seq)
+            for (key, sender), seq in self._fresh.items()
+        ]
 
     def _consume_fresh(self) -> None:
         """The fresh marks, waited for, go to the next clock tick's list. Under the lock."""
@@ -211,8 +217,11 @@ class ClockMaster:
     def _missed_barrier(self, k: int) -> RunFailed:
         """The error for a barrier of tick k that timed out. Under the lock."""
         late = [p for p in self.settings.participants if self._acked[p] < k]
-        return RunFailed(f"participant '{late[0]}' missed the barrier of tick {k} "
-                         f"(no ack within {self.settings.barrier_timeout_s:g} s)", late[0])
+        return RunFailed(
+            f"participant '{late[0]}' missed the barrier of tick {k} "
+            f"(no ack within {self.settings.barrier_timeout_s:g} s)",
+            late[0],
+        )
 
     def _await_acks(self, k: int, deadline: float | None) -> None:
         parts = self.settings.participants
@@ -245,8 +254,10 @@ class ClockMaster:
         self._publish_world(k, sim)
         tick = pb.ClockTick(mode=self._mode, dt=self.dt, participants=self.settings.participants)
         # Only what moved since the previous clock tick (see Bus.new_marks).
-        tick.published.extend(pb.PublishedMark(key=key, sender=snd, seq=seq)
-                              for (key, snd), seq in self._announce.items())
+        tick.published.extend(
+            pb.PublishedMark(key=key, sender=snd, seq=seq)
+            for (key, snd), seq in self._announce.items()
+        )
         self._announce.clear()
         tick.published.extend(self.bus.new_marks(exclude=self._clock_pub.key))
         with self._cond:
@@ -277,8 +288,13 @@ class ClockMaster:
         """Under the lock, on the ack thread: may this thread run the tick transition itself?
         Only when every ack and every output they list is here (nothing to wait for); it then
         claims the transition and takes the fresh marks. Otherwise run() must do it (and wait)."""
-        if (not self._inline or self._claimed or self._ending is not None
-                or self._lost or self._stop is not None):
+        if (
+            not self._inline
+            or self._claimed
+            or self._ending is not None
+            or self._lost
+            or self._stop is not None
+        ):
             return False
         k = self._barrier_tick
         if any(t < k for t in self._acked.values()):
@@ -313,8 +329,12 @@ class ClockMaster:
                 if self._try_inline():  # the acks of k + 1 came back meanwhile
                     continue
                 # Wake run() only if it has something to do; else the next ack carries on.
-                if (self._ending is not None or self._lost or self._stop is not None
-                        or all(t >= self._barrier_tick for t in self._acked.values())):
+                if (
+                    self._ending is not None
+                    or self._lost
+                    or self._stop is not None
+                    or all(t >= self._barrier_tick for t in self._acked.values())
+                ):
                     self._cond.notify_all()
                 return
 
@@ -367,8 +387,9 @@ class ClockMaster:
             if pause > 0:
                 time.sleep(pause)
 
-    def run(self, publish_world: Callable[[int, float], None],
-            step: Callable[[int, float], None]) -> pb.RunEnd:
+    def run(
+        self, publish_world: Callable[[int, float], None], step: Callable[[int, float], None]
+    ) -> pb.RunEnd:
         """Runs the clock to the end and publishes ``run/end``; returns it.
 
         lockstep: the thread that receives the last ack of tick k (or the last output it
@@ -399,9 +420,16 @@ class ClockMaster:
             self._halt()
         k = self.ticks_done
         wall = time.monotonic() - t0
-        end = pb.RunEnd(ok=ok, reason=reason, failed_participant=failed, ticks=k,
-                        sim_time=k * self.dt, wall_s=wall, mode=self._mode,
-                        realtime_factor=(k * self.dt / wall) if wall > 0 else 0.0)
+        end = pb.RunEnd(
+            ok=ok,
+            reason=reason,
+            failed_participant=failed,
+            ticks=k,
+            sim_time=k * self.dt,
+            wall_s=wall,
+            mode=self._mode,
+            realtime_factor=(k * self.dt / wall) if wall > 0 else 0.0,
+        )
         for p, n in self.misses.items():
             end.deadline_misses[p] = n
         if k:
@@ -430,7 +458,8 @@ class ClockMaster:
             while self._alive & others:
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    log.warning("still present after run end: %s",
-                                ", ".join(sorted(self._alive & others)))
+                    log.warning(
+                        "still present after run end: %s", ", ".join(sorted(self._alive & others))
+                    )
                     return
                 self._cond.wait(left)

@@ -60,24 +60,52 @@ class BusConfig:
 def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
     """The options every service takes (environment variables give the defaults)."""
     g = parser.add_argument_group("bus")
-    g.add_argument("--session", default=os.environ.get("HRC_SESSION", "default"),
-                   help="session id; every key is under hrc/<session>/ (env HRC_SESSION)")
-    g.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
-                   help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; "
-                        "env HRC_CONNECT, comma-separated)")
-    g.add_argument("--listen", action="append", default=None, metavar="ENDPOINT",
-                   help="Zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:0)")
-    g.add_argument("--zenoh-mode", choices=["peer", "client", "router"],
-                   default=os.environ.get("HRC_ZENOH_MODE", "peer"), help="Zenoh mode (default peer)")
-    g.add_argument("--zenoh-config", default=None, metavar="FILE",
-                   help="a Zenoh JSON5 config file applied before the options above")
-    g.add_argument("--zenoh-lowlatency", action="store_true",
-                   default=os.environ.get("HRC_ZENOH_LOWLATENCY", "") not in ("", "0"),
-                   help="Zenoh's low-latency transport (no QoS, messages <= 64 KiB; both ends of "
-                        "a link must ask for it; env HRC_ZENOH_LOWLATENCY=1)")
-    g.add_argument("--clock-master", default=CLOCK_MASTER, metavar="NAME",
-                   help="the service whose clock a participant or observer follows "
-                        f"(default {CLOCK_MASTER}, the service table's)")
+    g.add_argument(
+        "--session",
+        default=os.environ.get("HRC_SESSION", "default"),
+        help="session id; every key is under hrc/<session>/ (env HRC_SESSION)",
+    )
+    g.add_argument(
+        "--connect",
+        action="append",
+        default=None,
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; "
+        "env HRC_CONNECT, comma-separated)",
+    )
+    g.add_argument(
+        "--listen",
+        action="append",
+        default=None,
+        metavar="ENDPOINT",
+        help="Zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:0)",
+    )
+    g.add_argument(
+        "--zenoh-mode",
+        choices=["peer", "client", "router"],
+        default=os.environ.get("HRC_ZENOH_MODE", "peer"),
+        help="Zenoh mode (default peer)",
+    )
+    g.add_argument(
+        "--zenoh-config",
+        default=None,
+        metavar="FILE",
+        help="a Zenoh JSON5 config file applied before the options above",
+    )
+    g.add_argument(
+        "--zenoh-lowlatency",
+        action="store_true",
+        default=os.environ.get("HRC_ZENOH_LOWLATENCY", "") not in ("", "0"),
+        help="Zenoh's low-latency transport (no QoS, messages <= 64 KiB; both ends of "
+        "a link must ask for it; env HRC_ZENOH_LOWLATENCY=1)",
+    )
+    g.add_argument(
+        "--clock-master",
+        default=CLOCK_MASTER,
+        metavar="NAME",
+        help="the service whose clock a participant or observer follows "
+        f"(default {CLOCK_MASTER}, the service table's)",
+    )
 
 
 def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
@@ -89,6 +117,12 @@ def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
         listen = args.listen
     else:  # a client only connects; peers and routers accept links on a free loopback port
         listen = [] if args.zenoh_mode == "client" else ["tcp/127.0.0.1:0"]
-    return BusConfig(session=args.session, mode=args.zenoh_mode, connect=connect, listen=listen,
-                     lowlatency=args.zenoh_lowlatency, config_file=args.zenoh_config,
-                     clock_master=args.clock_master)
+    return BusConfig(
+        session=args.session,
+        mode=args.zenoh_mode,
+        connect=connect,
+        listen=listen,
+        lowlatency=args.zenoh_lowlatency,
+        config_file=args.zenoh_config,
+        clock_master=args.clock_master,
+    )

@@ -49,8 +49,9 @@ class Inbox:
         self._received: dict[tuple[str, str], int] = {}
         self._matches: dict[str, bool] = {}
 
-    def add(self, key: str, msg_type: type[Message], handler: Handler,
-            validate: Validator | None = None) -> None:
+    def add(
+        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+    ) -> None:
         index = len(self._handlers)
         self._handlers.append(handler)
         self._exprs.append(zenoh.KeyExpr(key))
@@ -87,8 +88,11 @@ class Inbox:
     def missing(self, marks: list[pb.PublishedMark]) -> list[pb.PublishedMark]:
         """The marks (on keys we subscribe to) whose messages have not all arrived yet."""
         with self._cond:
-            return [m for m in marks if self._subscribed(m.key)
-                    and self._received.get((m.key, m.sender), 0) < m.seq]
+            return [
+                m
+                for m in marks
+                if self._subscribed(m.key) and self._received.get((m.key, m.sender), 0) < m.seq
+            ]
 
     def wait_for(self, marks: list[pb.PublishedMark], timeout: float) -> list[pb.PublishedMark]:
         """Waits until every mark is satisfied; returns what is still missing at the timeout."""

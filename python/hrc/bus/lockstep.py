@@ -99,8 +99,9 @@ class ClockFollower:
         self._lag_s = self._wait_s = self._compute_s = 0.0
 
     # ------------------------------------------------------------------ setup
-    def input(self, key: str, msg_type: type[Message], handler: Handler,
-              validate: Validator | None = None) -> None:
+    def input(
+        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+    ) -> None:
         """``handler(key, msg)`` for each message on ``key``, before the step of its tick."""
         self.inbox.add(key, msg_type, handler, validate)
 
@@ -129,8 +130,14 @@ class ClockFollower:
                 self._latest_seen = tick.header.tick
             # Fast path: when nothing is queued and every input of the tick is here, compute it
             # right on this thread; otherwise the run() thread does (and waits for the inputs).
-            inline = (self.inline and not self._ticks and not self._busy and self._end is None
-                      and self._running and not self.inbox.missing(list(tick.published)))
+            inline = (
+                self.inline
+                and not self._ticks
+                and not self._busy
+                and self._end is None
+                and self._running
+                and not self.inbox.missing(list(tick.published))
+            )
             if not inline:
                 self._ticks.append((tick, arrived))
                 self._cond.notify_all()
@@ -138,8 +145,9 @@ class ClockFollower:
             self._busy = True
         self._process_claimed(tick, arrived, inputs_ready=True)
 
-    def _process_claimed(self, tick: pb.ClockTick, arrived: float,
-                         inputs_ready: bool = False) -> None:
+    def _process_claimed(
+        self, tick: pb.ClockTick, arrived: float, inputs_ready: bool = False
+    ) -> None:
         """Computes a tick this thread claimed (``_busy`` set) and releases the claim."""
         try:
             self._process(tick, arrived, inputs_ready)
@@ -183,7 +191,8 @@ class ClockFollower:
         while True:
             with self._cond:
                 ready = self._cond.wait_for(
-                    lambda: (self._ticks and not self._busy) or self._end is not None, timeout)
+                    lambda: (self._ticks and not self._busy) or self._end is not None, timeout
+                )
                 if self._end is not None and not (self._ticks and self._work_off_queue()):
                     # An inline tick may still be under way: let it end before the bus goes.
                     self._cond.wait_for(lambda: not self._busy, self.input_timeout_s)
@@ -208,9 +217,11 @@ class ClockFollower:
 
     def report(self) -> str:
         n = max(1, self._ticks_done)
-        return (f"{self._ticks_done} ticks; mean us per tick: "
-                f"hand-off {self._lag_s / n * 1e6:.0f}, input wait {self._wait_s / n * 1e6:.0f}, "
-                f"compute {self._compute_s / n * 1e6:.0f}")
+        return (
+            f"{self._ticks_done} ticks; mean us per tick: "
+            f"hand-off {self._lag_s / n * 1e6:.0f}, input wait {self._wait_s / n * 1e6:.0f}, "
+            f"compute {self._compute_s / n * 1e6:.0f}"
+        )
 
     # ------------------------------------------------------------------ one tick
     def _input_wait_s(self) -> float:
@@ -261,8 +272,11 @@ class ClockFollower:
             self._aborted = True
         if first and self._control_pub is not None:
             try:
-                self._control_pub.put(pb.RunControl(command=pb.RunControl.COMMAND_ABORT,
-                                                    reason=reason), k, tick.header.sim_time)
+                self._control_pub.put(
+                    pb.RunControl(command=pb.RunControl.COMMAND_ABORT, reason=reason),
+                    k,
+                    tick.header.sim_time,
+                )
             except Exception:  # noqa: BLE001 - the bus itself may be what failed
                 log.exception("could not ask the clock master to abort")
         self._finish(Outcome(False, reason))

@@ -60,8 +60,14 @@ class Observer(ClockFollower):
 
     inline = False
 
-    def __init__(self, bus: Bus, *, input_timeout_s: float = 10.0, quiet_s: float = 0.3,
-                 drain_max_s: float = 3.0) -> None:
+    def __init__(
+        self,
+        bus: Bus,
+        *,
+        input_timeout_s: float = 10.0,
+        quiet_s: float = 0.3,
+        drain_max_s: float = 3.0,
+    ) -> None:
         super().__init__(bus, input_timeout_s=input_timeout_s)
         self.seq = SeqChecker()
         self.lag = LagStats()
@@ -70,8 +76,9 @@ class Observer(ClockFollower):
         self.missing_inputs = 0
         self._hurry = False  # stop waiting for inputs (stopped, or the run failed)
 
-    def input(self, key: str, msg_type: type[Message], handler: Handler,
-              validate: Validator | None = None) -> None:
+    def input(
+        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+    ) -> None:
         """``handler(key, msg)`` on the run thread, in tick order, after the sequence check."""
 
         def checked(k: str, msg: Message) -> None:

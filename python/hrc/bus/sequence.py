@@ -28,18 +28,22 @@ class SeqProblem:
 
     def describe(self) -> str:
         if self.got > self.expected:
-            return (f"sequence gap on {self.key} from {self.sender!r}: expected seq {self.expected}, "
-                    f"got {self.got} ({self.missing} message(s) lost)")
-        return (f"sequence out of order on {self.key} from {self.sender!r}: expected seq "
-                f"{self.expected}, got {self.got} (duplicate or reordered)")
+            return (
+                f"sequence gap on {self.key} from {self.sender!r}: expected seq {self.expected}, "
+                f"got {self.got} ({self.missing} message(s) lost)"
+            )
+        return (
+            f"sequence out of order on {self.key} from {self.sender!r}: expected seq "
+            f"{self.expected}, got {self.got} (duplicate or reordered)"
+        )
 
 
 @dataclass
 class SeqChecker:
     """Thread-safe; ``check`` returns the problem (also logged and counted) or None."""
 
-    gaps: int = 0            # problems seen (each gap or step back counts once)
-    lost: int = 0            # messages known to be missing (sum of gap sizes)
+    gaps: int = 0  # problems seen (each gap or step back counts once)
+    lost: int = 0  # messages known to be missing (sum of gap sizes)
     messages: int = 0
     _last: dict[tuple[str, str], int] = field(default_factory=dict)
     _lock: threading.Lock = field(default_factory=threading.Lock)

@@ -5,7 +5,11 @@ from __future__ import annotations
 import argparse
 import importlib
 
-_MODULES = {"bus": "hrc.cli.bench_bus", "physics": "hrc.cli.bench_physics", "ik": "hrc.cli.bench_ik"}
+_MODULES = {
+    "bus": "hrc.cli.bench_bus",
+    "physics": "hrc.cli.bench_physics",
+    "ik": "hrc.cli.bench_ik",
+}
 
 
 def main(args: argparse.Namespace) -> int:

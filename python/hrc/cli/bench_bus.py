@@ -39,16 +39,20 @@ def _wait_ready(proc: subprocess.Popen[str], what: str, timeout: float = 20.0) -
     raise RuntimeError(f"{what} did not get ready (exit {proc.poll()})")
 
 
-def measure_rtt(echo_argv: list[str], session: str, port: int, n: int, what: str) -> dict[str, float]:
+def measure_rtt(
+    echo_argv: list[str], session: str, port: int, n: int, what: str
+) -> dict[str, float]:
     """Median and p99 round trip (µs) of a ~100-byte HumanState through an echo peer."""
     cfg = BusConfig(session=session, listen=[f"tcp/127.0.0.1:{port}"])
     with Bus(cfg, "bench") as bus:
         got = threading.Event()
-        ping = bus.session.declare_publisher(bus.keys.bench("ping"), express=True,
-                                             congestion_control=zenoh.CongestionControl.BLOCK)
+        ping = bus.session.declare_publisher(
+            bus.keys.bench("ping"), express=True, congestion_control=zenoh.CongestionControl.BLOCK
+        )
         sub = bus.session.declare_subscriber(bus.keys.bench("pong"), lambda _s: got.set())
-        proc = subprocess.Popen(echo_argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL,
-                                text=True)
+        proc = subprocess.Popen(
+            echo_argv, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True
+        )
         try:
             _wait_ready(proc, what)
             msg = pb.HumanState(source=pb.INPUT_SOURCE_SCRIPTED, left_grip=0.5, right_grip=0.25)
@@ -109,12 +113,43 @@ def run(args: argparse.Namespace) -> int:
     rtt = {}
     s1, p1 = "benchpy", free_port()
     rtt["py_py"] = measure_rtt(
-        [sys.executable, "-m", "hrc.cli.echo", "--session", s1, "--connect",
-         f"tcp/127.0.0.1:{p1}", "--in", "ping", "--out", "pong"], s1, p1, n, "python echo")
+        [
+            sys.executable,
+            "-m",
+            "hrc.cli.echo",
+            "--session",
+            s1,
+            "--connect",
+            f"tcp/127.0.0.1:{p1}",
+            "--in",
+            "ping",
+            "--out",
+            "pong",
+        ],
+        s1,
+        p1,
+        n,
+        "python echo",
+    )
     s2, p2 = "benchcpp", free_port()
     rtt["py_cpp"] = measure_rtt(
-        [str(probe), "echo", "--session", s2, "--connect", f"tcp/127.0.0.1:{p2}",
-         "--in", f"hrc/{s2}/bench/ping", "--out", f"hrc/{s2}/bench/pong"], s2, p2, n, "C++ echo")
+        [
+            str(probe),
+            "echo",
+            "--session",
+            s2,
+            "--connect",
+            f"tcp/127.0.0.1:{p2}",
+            "--in",
+            f"hrc/{s2}/bench/ping",
+            "--out",
+            f"hrc/{s2}/bench/pong",
+        ],
+        s2,
+        p2,
+        n,
+        "C++ echo",
+    )
     # Long enough that the start (services warming up, the scripted participant's head settling
     # in its first ~5 simulated seconds) does not dominate the figure.
     tps = measure_lockstep(max(args.n, 2000) if args.n else LOCKSTEP_TICKS)

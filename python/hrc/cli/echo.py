@@ -21,8 +21,9 @@ def main(argv: list[str] | None = None) -> int:
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())
     with Bus(bus_config_from_args(args), "echo") as bus:
-        pub = bus.session.declare_publisher(bus.keys.bench(args.out), express=True,
-                                            congestion_control=zenoh.CongestionControl.BLOCK)
+        pub = bus.session.declare_publisher(
+            bus.keys.bench(args.out), express=True, congestion_control=zenoh.CongestionControl.BLOCK
+        )
 
         def on_sample(sample: zenoh.Sample) -> None:
             pub.put(sample.payload)

@@ -37,30 +37,46 @@ def _cmd_run(args: argparse.Namespace) -> int:
         s = sc.load(args.scenario)
     except sc.ScenarioError as exc:
         print(str(exc), file=sys.stderr)
-        print(f"scenario rejected: {len(exc.problems)} problem(s); nothing was started",
-              file=sys.stderr)
+        print(
+            f"scenario rejected: {len(exc.problems)} problem(s); nothing was started",
+            file=sys.stderr,
+        )
         return 2
     for name in ("ticks", "max_ticks"):
         if getattr(args, name) < 0:
-            print(f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}",
-                  file=sys.stderr)
+            print(
+                f"--{name.replace('_', '-')} must be >= 0, got {getattr(args, name)}",
+                file=sys.stderr,
+            )
             return 2
     if args.ticks and args.max_ticks:
         print("give --ticks (exact length) or --max-ticks (a cap), not both", file=sys.stderr)
         return 2
     anticipation = s.conditions.anticipation
-    trial_dir = (Path(args.out) if args.out else
-                 default_trial_dir(Path("runs"), s.participant.name, s.scenario.name, anticipation))
-    opts = TrialOptions(scenario=Path(args.scenario).resolve(), out=trial_dir, mode=args.mode,
-                        seed=args.seed, ticks=args.ticks, max_ticks=args.max_ticks,
-                        session=args.session,
-                        port=args.port, unix_socket=not args.tcp,
-                        lowlatency=False if args.no_lowlatency else None,
-                        barrier_timeout_s=args.barrier_timeout,
-                        connect=args.connect or [], validated=True,
-                        viewer=args.viewer, web=args.web,
-                        record=Path(args.record).resolve() if args.record else None,
-                        replay=Path(args.replay).resolve() if args.replay else None)
+    trial_dir = (
+        Path(args.out)
+        if args.out
+        else default_trial_dir(Path("runs"), s.participant.name, s.scenario.name, anticipation)
+    )
+    opts = TrialOptions(
+        scenario=Path(args.scenario).resolve(),
+        out=trial_dir,
+        mode=args.mode,
+        seed=args.seed,
+        ticks=args.ticks,
+        max_ticks=args.max_ticks,
+        session=args.session,
+        port=args.port,
+        unix_socket=not args.tcp,
+        lowlatency=False if args.no_lowlatency else None,
+        barrier_timeout_s=args.barrier_timeout,
+        connect=args.connect or [],
+        validated=True,
+        viewer=args.viewer,
+        web=args.web,
+        record=Path(args.record).resolve() if args.record else None,
+        replay=Path(args.replay).resolve() if args.replay else None,
+    )
     print(f"trial {s.scenario.name!r} ({args.mode}) -> {trial_dir}", flush=True)
     try:
         result = run_trial(opts, trial_dir)
@@ -137,29 +153,57 @@ def build_parser() -> argparse.ArgumentParser:
 
     r = sub.add_parser("run", help="run one trial with all five services")
     r.add_argument("scenario", help="scenario TOML file")
-    r.add_argument("--out", default=None,
-                   help="trial folder (default runs/<date>/<participant>/<scenario>_<condition>/)")
+    r.add_argument(
+        "--out",
+        default=None,
+        help="trial folder (default runs/<date>/<participant>/<scenario>_<condition>/)",
+    )
     r.add_argument("--mode", choices=["lockstep", "realtime"], default="lockstep")
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-    r.add_argument("--ticks", type=int, default=0,
-                   help="run exactly N ticks, even past the task's end (default: until the task ends)")
-    r.add_argument("--max-ticks", type=int, default=0,
-                   help="stop after N ticks at the latest; the task's end stops it earlier")
+    r.add_argument(
+        "--ticks",
+        type=int,
+        default=0,
+        help="run exactly N ticks, even past the task's end (default: until the task ends)",
+    )
+    r.add_argument(
+        "--max-ticks",
+        type=int,
+        default=0,
+        help="stop after N ticks at the latest; the task's end stops it earlier",
+    )
     r.add_argument("--viewer", action="store_true", help="spawn the rerun viewer live")
     r.add_argument("--web", action="store_true", help="serve the rerun web viewer")
     r.add_argument("--record", default=None, help="record the participant's input to FILE (JSONL)")
-    r.add_argument("--replay", default=None, help="replay a recording instead of the scenario's input")
+    r.add_argument(
+        "--replay", default=None, help="replay a recording instead of the scenario's input"
+    )
     r.add_argument("--session", default=None, help="session id (default: random)")
     r.add_argument("--port", type=int, default=0, help="loopback port physics listens on (0: free)")
-    r.add_argument("--tcp", action="store_true",
-                   help="the services talk over TCP loopback (the --port) instead of a Unix socket")
-    r.add_argument("--no-lowlatency", action="store_true",
-                   help="use Zenoh's standard transport (default: the low-latency one, unless the "
-                        "scenario is too large for it)")
-    r.add_argument("--connect", action="append", default=None, metavar="ENDPOINT",
-                   help="also connect every service to this Zenoh endpoint (router, shared bus)")
-    r.add_argument("--barrier-timeout", type=float, default=10.0,
-                   help="lockstep: seconds a participant may take for one tick")
+    r.add_argument(
+        "--tcp",
+        action="store_true",
+        help="the services talk over TCP loopback (the --port) instead of a Unix socket",
+    )
+    r.add_argument(
+        "--no-lowlatency",
+        action="store_true",
+        help="use Zenoh's standard transport (default: the low-latency one, unless the "
+        "scenario is too large for it)",
+    )
+    r.add_argument(
+        "--connect",
+        action="append",
+        default=None,
+        metavar="ENDPOINT",
+        help="also connect every service to this Zenoh endpoint (router, shared bus)",
+    )
+    r.add_argument(
+        "--barrier-timeout",
+        type=float,
+        default=10.0,
+        help="lockstep: seconds a participant may take for one tick",
+    )
     r.set_defaults(func=_cmd_run)
 
     v = sub.add_parser("validate", help="check a scenario file and report every problem")
@@ -172,24 +216,33 @@ def build_parser() -> argparse.ArgumentParser:
 
     a = sub.add_parser("alive", help="exit 0 if SERVICE's liveliness token is on the bus")
     a.add_argument("service")
-    a.add_argument("--wait", type=float, default=5.0,
-                   help="keep trying for this many seconds (default 5: a fresh session needs a "
-                        "moment to learn the tokens)")
+    a.add_argument(
+        "--wait",
+        type=float,
+        default=5.0,
+        help="keep trying for this many seconds (default 5: a fresh session needs a "
+        "moment to learn the tokens)",
+    )
     add_bus_arguments(a)
     a.set_defaults(func=_cmd_alive)
 
     ro = sub.add_parser("router", help="run a Zenoh router (for several hosts)")
-    ro.add_argument("--config", default=None, help="Zenoh JSON5 config, e.g. deploy/zenoh-router.json5")
+    ro.add_argument(
+        "--config", default=None, help="Zenoh JSON5 config, e.g. deploy/zenoh-router.json5"
+    )
     ro.add_argument("--listen", action="append", default=None, metavar="ENDPOINT")
     ro.set_defaults(func=_cmd_router)
 
     se = sub.add_parser("services", help="list the services of a session (the service table)")
     se.set_defaults(func=_cmd_services)
 
-    d = sub.add_parser("deploy-files", help="write deploy/process-compose.yaml and "
-                       "deploy/compose.yaml from the service table")
-    d.add_argument("--check", action="store_true",
-                   help="write nothing; exit 1 if a file is out of date")
+    d = sub.add_parser(
+        "deploy-files",
+        help="write deploy/process-compose.yaml and deploy/compose.yaml from the service table",
+    )
+    d.add_argument(
+        "--check", action="store_true", help="write nothing; exit 1 if a file is out of date"
+    )
     d.set_defaults(func=_cmd_deploy_files)
 
     b = sub.add_parser("bench", help="benchmarks that print their figures")

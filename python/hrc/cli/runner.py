@@ -31,6 +31,7 @@ from hrc.wire import pb
 
 log = logging.getLogger(__name__)
 
+
 @dataclass
 class TrialOptions:
     scenario: Path
@@ -135,8 +136,9 @@ class ServiceGroup:
         self._files.append(f)
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         log.debug("starting %s: %s", name, " ".join(argv))
-        self.procs[name] = subprocess.Popen(argv, stdout=f, stderr=subprocess.STDOUT,
-                                            stdin=subprocess.DEVNULL, env=env)
+        self.procs[name] = subprocess.Popen(
+            argv, stdout=f, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env
+        )
 
     def poll(self) -> dict[str, int | None]:
         return {n: p.poll() for n, p in self.procs.items()}
@@ -193,8 +195,14 @@ def fits_lowlatency(scenario: Path) -> bool:
     return True
 
 
-def trial_settings(opts: TrialOptions, session: str, port: int, trial_dir: Path,
-                   sock: Path | None = None, lowlatency: bool = False) -> services.Settings:
+def trial_settings(
+    opts: TrialOptions,
+    session: str,
+    port: int,
+    trial_dir: Path,
+    sock: Path | None = None,
+    lowlatency: bool = False,
+) -> services.Settings:
     """The values of the services' options in one trial.
 
     Physics listens on tcp/127.0.0.1:``port`` (for tools and other hosts) and on the Unix socket
@@ -202,16 +210,25 @@ def trial_settings(opts: TrialOptions, session: str, port: int, trial_dir: Path,
     tcp = f"tcp/127.0.0.1:{port}"
     bus = f"unixsock-stream/{sock}" if sock is not None else tcp
     return services.Settings(
-        session=session, bus=bus, listen=(tcp, bus) if sock is not None else (tcp,),
-        connect=tuple(opts.connect), lowlatency=lowlatency,
-        clock=opts.mode, ticks=str(opts.ticks or opts.max_ticks),
-        barrier_timeout=str(opts.barrier_timeout_s), start_timeout=str(opts.start_timeout_s),
-        scenario=str(opts.scenario), out=str(trial_dir),
+        session=session,
+        bus=bus,
+        listen=(tcp, bus) if sock is not None else (tcp,),
+        connect=tuple(opts.connect),
+        lowlatency=lowlatency,
+        clock=opts.mode,
+        ticks=str(opts.ticks or opts.max_ticks),
+        barrier_timeout=str(opts.barrier_timeout_s),
+        start_timeout=str(opts.start_timeout_s),
+        scenario=str(opts.scenario),
+        out=str(trial_dir),
         seed=None if opts.seed is None else str(opts.seed),
-        no_reach_check=opts.validated, keep_running=bool(opts.ticks),
+        no_reach_check=opts.validated,
+        keep_running=bool(opts.ticks),
         record=str(opts.record) if opts.record else None,
         replay=str(opts.replay) if opts.replay else None,
-        viewer=opts.viewer, web=opts.web)
+        viewer=opts.viewer,
+        web=opts.web,
+    )
 
 
 def program(svc: services.Service) -> list[str]:
@@ -222,8 +239,15 @@ def program(svc: services.Service) -> list[str]:
     return [str(build_dir() / svc.binary)]
 
 
-def service_argv(name: str, opts: TrialOptions, session: str, port: int, trial_dir: Path,
-                 sock: Path | None = None, lowlatency: bool = False) -> list[str]:
+def service_argv(
+    name: str,
+    opts: TrialOptions,
+    session: str,
+    port: int,
+    trial_dir: Path,
+    sock: Path | None = None,
+    lowlatency: bool = False,
+) -> list[str]:
     """The command line of service ``name`` in one trial (``opts.extra`` appended)."""
     svc = services.service(name)
     settings = trial_settings(opts, session, port, trial_dir, sock, lowlatency)
@@ -260,8 +284,13 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     master = services.CLOCK_MASTER
     for svc in services.SERVICES:
         if svc.binary is not None and not (build_dir() / svc.binary).exists():
-            return TrialResult(False, 2, trial_dir, f"the {svc.name} service binary "
-                               f"{build_dir() / svc.binary} is missing: run scripts/setup.sh")
+            return TrialResult(
+                False,
+                2,
+                trial_dir,
+                f"the {svc.name} service binary "
+                f"{build_dir() / svc.binary} is missing: run scripts/setup.sh",
+            )
     trial_dir.mkdir(parents=True, exist_ok=True)
     group = ServiceGroup(trial_dir)
     watcher: _EndWatcher | None = None
@@ -283,8 +312,11 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             if status[master] is not None:
                 break
             # After a failed run/end the services exit 1 on their own: the end names the cause.
-            if dead and not (watcher is not None and all((status[n] or 0) > 0 for n in dead)
-                             and watcher.failed_end(1.0)):
+            if dead and not (
+                watcher is not None
+                and all((status[n] or 0) > 0 for n in dead)
+                and watcher.failed_end(1.0)
+            ):
                 # A clean exit (0) is not a failure by itself: the clock master notices the lost
                 # liveliness and ends the run naming the service, if the run was still going.
                 failed = dead[0]
@@ -322,8 +354,11 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
                 failure = f"service '{failed}' {describe_exit(status[failed] or 0)}"
         if failed:
             detail = group.tail(failed)
-            msg = failure + (f"\n--- last lines of {group.logs_dir / (failed + '.log')}:\n{detail}"
-                             if detail else "")
+            msg = failure + (
+                f"\n--- last lines of {group.logs_dir / (failed + '.log')}:\n{detail}"
+                if detail
+                else ""
+            )
             return TrialResult(False, 3, trial_dir, msg, failed, end, wall)
         return TrialResult(True, 0, trial_dir, "trial completed", "", end, wall)
     finally:

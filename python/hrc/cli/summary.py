@@ -28,29 +28,39 @@ def _opt(msg: Message, name: str) -> float | None:
 
 
 def format_summary(m: pb.Metrics, logger: dict[str, Any] | None = None) -> list[str]:
-    lines = [f"scenario {m.scenario}, participant {m.participant}, seed {m.seed}, "
-             f"conditions {json.dumps(message_to_dict(m.conditions))}",
-             f"task completion     {_f(_opt(m.task, 'completion_s'), ' s')}",
-             f"human               done {_f(_opt(m.human, 'completion_s'), ' s')}, "
-             f"idle {_f(m.human.idle_s, ' s')}"]
+    lines = [
+        f"scenario {m.scenario}, participant {m.participant}, seed {m.seed}, "
+        f"conditions {json.dumps(message_to_dict(m.conditions))}",
+        f"task completion     {_f(_opt(m.task, 'completion_s'), ' s')}",
+        f"human               done {_f(_opt(m.human, 'completion_s'), ' s')}, "
+        f"idle {_f(m.human.idle_s, ' s')}",
+    ]
     for rid in sorted(m.robots):
         r = m.robots[rid]
-        lines.append(f"robot {rid:<13} done {_f(_opt(r, 'completion_s'), ' s')}, "
-                     f"idle {_f(r.idle_s, ' s')}, TCP avg {_f(r.avg_tcp_speed_mps, ' m/s', 3)}"
-                     f" max {_f(r.max_tcp_speed_mps, ' m/s', 3)}")
+        lines.append(
+            f"robot {rid:<13} done {_f(_opt(r, 'completion_s'), ' s')}, "
+            f"idle {_f(r.idle_s, ' s')}, TCP avg {_f(r.avg_tcp_speed_mps, ' m/s', 3)}"
+            f" max {_f(r.max_tcp_speed_mps, ' m/s', 3)}"
+        )
     col = m.collisions
-    lines.append(f"collisions          human-robot {col.human_robot_count} "
-                 f"(delay {_f(col.total_delay_s, ' s')}), robot-robot near {col.near_count}")
+    lines.append(
+        f"collisions          human-robot {col.human_robot_count} "
+        f"(delay {_f(col.total_delay_s, ' s')}), robot-robot near {col.near_count}"
+    )
     run = m.run
     mode = enum_text(pb.ClockMode.DESCRIPTOR, run.mode) or "?"
-    lines.append(f"run                 {mode}, {run.ticks if m.HasField('run') else '?'} ticks, "
-                 f"{_f(_opt(run, 'wall_s'), ' s wall')}, "
-                 f"{_f(_opt(run, 'realtime_factor'), 'x realtime', 1)}")
+    lines.append(
+        f"run                 {mode}, {run.ticks if m.HasField('run') else '?'} ticks, "
+        f"{_f(_opt(run, 'wall_s'), ' s wall')}, "
+        f"{_f(_opt(run, 'realtime_factor'), 'x realtime', 1)}"
+    )
     if logger:
         # The logger only gets CPU time nobody else wants (SCHED_IDLE) and catches up at the end.
-        lines.append(f"logger lag          mean {_f(logger.get('lag_mean_ticks'), ' ticks', 1)}, "
-                     f"max {logger.get('lag_max_ticks', '-')} ticks (it yields the CPU, then "
-                     "catches up)")
+        lines.append(
+            f"logger lag          mean {_f(logger.get('lag_mean_ticks'), ' ticks', 1)}, "
+            f"max {logger.get('lag_max_ticks', '-')} ticks (it yields the CPU, then "
+            "catches up)"
+        )
     return lines
 
 

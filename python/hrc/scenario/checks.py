@@ -40,8 +40,12 @@ def check_references(raw: dict[str, Any]) -> list[Problem]:
     for rid, rrobot in raw_robots.items():
         roles[rid] = RobotRole.parse(rrobot.get("role")) if isinstance(rrobot, dict) else None
         if rid == HUMAN:
-            problems.append(Problem("robots.human", "'human' is reserved for the participant; "
-                                    "give the robot another id"))
+            problems.append(
+                Problem(
+                    "robots.human",
+                    "'human' is reserved for the participant; give the robot another id",
+                )
+            )
     agents = [HUMAN, *[r for r in raw_robots if r != HUMAN]]
 
     raw_parts = raw.get("parts") if isinstance(raw.get("parts"), list) else []
@@ -58,33 +62,54 @@ def check_references(raw: dict[str, Any]) -> list[Problem]:
         after = [a for a in after_raw if isinstance(a, str)] if isinstance(after_raw, list) else []
         if pid is not None:
             if pid in seen_at:
-                problems.append(Problem(key, f"duplicate part id {pid!r}: parts #{seen_at[pid] + 1} "
-                                        f"and #{i + 1} both use it"))
+                problems.append(
+                    Problem(
+                        key,
+                        f"duplicate part id {pid!r}: parts #{seen_at[pid] + 1} "
+                        f"and #{i + 1} both use it",
+                    )
+                )
                 continue
             seen_at[pid] = i
             parts[pid] = (key, owner, after)
         # owner
         if owner is not None and owner != HUMAN and owner not in roles:
-            problems.append(Problem(f"{key}.owner", f"unknown owner {owner!r}: use 'human' or a "
-                                    f"robot id ({_names(list(roles))})"))
+            problems.append(
+                Problem(
+                    f"{key}.owner",
+                    f"unknown owner {owner!r}: use 'human' or a robot id ({_names(list(roles))})",
+                )
+            )
         # start: required for human and transport parts, none for screws (they come from the feeder)
         owner_role = roles.get(owner) if owner is not None else None
         has_start = "start" in rpart
         if owner == HUMAN or owner_role == RobotRole.TRANSPORT:
             if not has_start:
-                problems.append(Problem(f"{key}.start", f"missing required key: a part owned by "
-                                        f"{owner} needs a start pose"))
+                problems.append(
+                    Problem(
+                        f"{key}.start",
+                        f"missing required key: a part owned by {owner} needs a start pose",
+                    )
+                )
         elif owner_role == RobotRole.SCREWING and has_start:
-            problems.append(Problem(f"{key}.start", f"a part of screwing robot {owner} has no "
-                                    "start pose (it comes from the robot's feeder); remove it"))
+            problems.append(
+                Problem(
+                    f"{key}.start",
+                    f"a part of screwing robot {owner} has no "
+                    "start pose (it comes from the robot's feeder); remove it",
+                )
+            )
 
     # after: known ids, not itself, no repeats
     for pid, (key, _owner, after) in parts.items():
         seen: set[str] = set()
         for dep in after:
             if dep == pid:
-                problems.append(Problem(f"{key}.after", f"{pid} waits for itself (dependency "
-                                        "cycle of one part)"))
+                problems.append(
+                    Problem(
+                        f"{key}.after", f"{pid} waits for itself (dependency cycle of one part)"
+                    )
+                )
             elif dep not in parts:
                 problems.append(Problem(f"{key}.after", f"unknown part {dep!r}"))
             elif dep in seen:
@@ -98,8 +123,12 @@ def check_references(raw: dict[str, Any]) -> list[Problem]:
     for agent, entries in raw_seq.items():
         skey = f"sequence.{agent}"
         if agent not in agents:
-            problems.append(Problem(skey, f"unknown agent {agent!r}: use 'human' or a robot id "
-                                    f"({_names(list(roles))})"))
+            problems.append(
+                Problem(
+                    skey,
+                    f"unknown agent {agent!r}: use 'human' or a robot id ({_names(list(roles))})",
+                )
+            )
             continue
         if not isinstance(entries, list):
             continue
@@ -125,14 +154,21 @@ def check_references(raw: dict[str, Any]) -> list[Problem]:
             if agent == owner:
                 continue
             if len(listers) > 1:
-                msg = (f"{pid} is in two sequences ({_names(listers)}); it belongs to {owner}, "
-                       f"so only sequence.{owner} may list it")
+                msg = (
+                    f"{pid} is in two sequences ({_names(listers)}); it belongs to {owner}, "
+                    f"so only sequence.{owner} may list it"
+                )
             else:
                 msg = f"{pid} belongs to {owner}; only sequence.{owner} may list it"
             problems.append(Problem(f"sequence.{agent}", msg))
         if owner not in listers:
-            problems.append(Problem(key, f"{pid} is owned by {owner} but not in sequence.{owner}: "
-                                    "it would never be done (add it there or remove the part)"))
+            problems.append(
+                Problem(
+                    key,
+                    f"{pid} is owned by {owner} but not in sequence.{owner}: "
+                    "it would never be done (add it there or remove the part)",
+                )
+            )
 
     problems.extend(_deadlocks(list(parts), parts, clean_seq))
     return problems
@@ -162,8 +198,9 @@ def _deadlocks(
         what = "dependency cycle" if only_after else "deadlock through sequence order and after"
         first_after = next(e for e in cycle if e.via == "after")
         key = parts[first_after.dst][0] + ".after"
-        problems.append(Problem(key, f"{what}: {'; '.join(steps)}; so none of {names} can "
-                                "ever be done"))
+        problems.append(
+            Problem(key, f"{what}: {'; '.join(steps)}; so none of {names} can ever be done")
+        )
     return problems
 
 
@@ -175,8 +212,11 @@ def _table(value: Any) -> dict[str, Any]:
 
 
 def _vec3(value: Any) -> list[float] | None:
-    if (isinstance(value, list) and len(value) == 3
-            and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)):
+    if (
+        isinstance(value, list)
+        and len(value) == 3
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+    ):
         return [float(v) for v in value]
     return None
 
@@ -189,13 +229,22 @@ def check_robots(raw: dict[str, Any]) -> list[Problem]:
         role = RobotRole.parse(robot.get("role"))
         key = f"robots.{rid}"
         if role == RobotRole.SCREWING and "feeder" not in robot:
-            problems.append(Problem(f"{key}.feeder", "missing required key: a screwing robot "
-                                    "takes its screws from a feeder position"))
+            problems.append(
+                Problem(
+                    f"{key}.feeder",
+                    "missing required key: a screwing robot "
+                    "takes its screws from a feeder position",
+                )
+            )
         if role == RobotRole.TRANSPORT:
             for name in ("feeder", "screw_time_s"):
                 if name in robot:
-                    problems.append(Problem(f"{key}.{name}", f"only screwing robots have {name}; "
-                                            f"{rid} is a transport robot"))
+                    problems.append(
+                        Problem(
+                            f"{key}.{name}",
+                            f"only screwing robots have {name}; {rid} is a transport robot",
+                        )
+                    )
     return problems
 
 
@@ -209,13 +258,24 @@ def check_workspace(raw: dict[str, Any]) -> list[Problem]:
             continue  # the schema check reports it
         bad = [f"{axis}: {a:g} >= {b:g}" for axis, a, b in zip("xyz", lo, hi) if a >= b]
         if bad:
-            problems.append(Problem(f"workspace.envelope[{i}]", "min must be below max on every "
-                                    f"axis ({', '.join(bad)})"))
+            problems.append(
+                Problem(
+                    f"workspace.envelope[{i}]",
+                    f"min must be below max on every axis ({', '.join(bad)})",
+                )
+            )
     policy = SafetyPolicy.parse(_table(raw.get("conditions")).get("safety_policy"))
-    if (policy == SafetyPolicy.RETREAT_BUTTON and "workspace" in raw
-            and "continue_button" not in workspace):
-        problems.append(Problem("workspace.continue_button", "missing required key: "
-                                "safety_policy = 'retreat_button' needs a continue button"))
+    if (
+        policy == SafetyPolicy.RETREAT_BUTTON
+        and "workspace" in raw
+        and "continue_button" not in workspace
+    ):
+        problems.append(
+            Problem(
+                "workspace.continue_button",
+                "missing required key: safety_policy = 'retreat_button' needs a continue button",
+            )
+        )
     return problems
 
 
@@ -237,8 +297,12 @@ def check_files(raw: dict[str, Any], folder: Path | None, root: Path | None) -> 
     if InputSource.parse(participant.get("input")) == InputSource.REPLAY:
         replay = participant.get("replay_file")
         if replay is None:
-            problems.append(Problem("participant.replay_file", "missing required key: "
-                                    "input = 'replay' needs a replay_file"))
+            problems.append(
+                Problem(
+                    "participant.replay_file",
+                    "missing required key: input = 'replay' needs a replay_file",
+                )
+            )
         elif isinstance(replay, str) and resolve_path(replay, folder, root) is None:
             problems.append(Problem("participant.replay_file", missing(replay)))
     return problems

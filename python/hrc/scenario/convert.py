@@ -48,9 +48,12 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
     pc.provoke_times_s.extend(part.provoke_times_s)
     pc.provoke_probability = part.provoke_probability
 
-    msg.conditions.CopyFrom(pb.Conditions(anticipation=scenario.conditions.anticipation,
-                                          safety_policy=scenario.conditions.safety_policy
-                                          .to_proto()))
+    msg.conditions.CopyFrom(
+        pb.Conditions(
+            anticipation=scenario.conditions.anticipation,
+            safety_policy=scenario.conditions.safety_policy.to_proto(),
+        )
+    )
 
     for rid, robot in scenario.robots.items():
         rc = msg.robots.add()
@@ -103,8 +106,9 @@ def scripted_params_to_proto(params: ScriptedParams) -> pb.ScriptedParams:
     return pb.ScriptedParams(**params.model_dump())
 
 
-def scripted_params_from_proto(msg: pb.ScriptedParams, source: str = "<wire scenario>"
-                               ) -> ScriptedParams:
+def scripted_params_from_proto(
+    msg: pb.ScriptedParams, source: str = "<wire scenario>"
+) -> ScriptedParams:
     """The parameters a message sets, the model's defaults for the others; ScenarioError naming
     the key (participant.<name>) for a value out of its range."""
     return _validated(lambda: ScriptedParams.model_validate(_set_fields(msg)), source)
@@ -121,8 +125,10 @@ def _validated(build: Callable[[], T], source: str) -> T:
     try:
         return build()
     except ValidationError as exc:
-        problems = [Problem(_wire_key(err["loc"]), err["msg"].removeprefix("Value error, "))
-                    for err in exc.errors(include_url=False)]
+        problems = [
+            Problem(_wire_key(err["loc"]), err["msg"].removeprefix("Value error, "))
+            for err in exc.errors(include_url=False)
+        ]
         raise ScenarioError(problems, source) from exc
 
 
@@ -144,21 +150,30 @@ def _set_fields(msg: pb.ScriptedParams) -> dict[str, float | bool]:
 
 def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
     pc = msg.participant
-    provoke: float | list[float] = (list(pc.provoke_times_s) if pc.provoke_times_s
-                                    else pc.provoke_probability)
-    participant = Participant.model_validate({
-        "name": pc.name, "input": _member(InputSource, pc.input, "participant.input", source),
-        "replay_file": pc.replay_file or None, "provoke_collisions": provoke,
-        **_set_fields(pc.scripted),
-    })
+    provoke: float | list[float] = (
+        list(pc.provoke_times_s) if pc.provoke_times_s else pc.provoke_probability
+    )
+    participant = Participant.model_validate(
+        {
+            "name": pc.name,
+            "input": _member(InputSource, pc.input, "participant.input", source),
+            "replay_file": pc.replay_file or None,
+            "provoke_collisions": provoke,
+            **_set_fields(pc.scripted),
+        }
+    )
 
     robots: dict[str, Robot] = {}
     for rc in msg.robots:
         role = _member(RobotRole, rc.role, f"robots.{rc.id}.role", source)
         robots[rc.id] = Robot(
-            role=role, urdf=rc.urdf_path, base=_pose_back(rc.base),
-            max_tcp_speed=rc.max_tcp_speed, home=_vec_back(rc.home),
-            intermediate=_vec_back(rc.intermediate), retreat=_vec_back(rc.retreat),
+            role=role,
+            urdf=rc.urdf_path,
+            base=_pose_back(rc.base),
+            max_tcp_speed=rc.max_tcp_speed,
+            home=_vec_back(rc.home),
+            intermediate=_vec_back(rc.intermediate),
+            retreat=_vec_back(rc.retreat),
             color=rc.color or None,
             feeder=_vec_back(rc.feeder) if rc.HasField("feeder") else None,
             screw_time_s=rc.screw_time_s if role == RobotRole.SCREWING else None,
@@ -166,9 +181,15 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
         )
 
     parts = [
-        Part(id=p.id, owner=p.owner, kind=p.kind, size=_vec_back(p.size),
-             start=_pose_back(p.start) if p.start_given else None,
-             target=_pose_back(p.target), after=list(p.after))
+        Part(
+            id=p.id,
+            owner=p.owner,
+            kind=p.kind,
+            size=_vec_back(p.size),
+            start=_pose_back(p.start) if p.start_given else None,
+            target=_pose_back(p.target),
+            after=list(p.after),
+        )
         for p in msg.parts
     ]
     sequence = {s.agent: list(s.parts) for s in msg.sequences}
@@ -181,17 +202,23 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
     scenario = Scenario(
         scenario=ScenarioInfo(name=msg.info.name, tick_hz=msg.info.tick_hz, seed=msg.info.seed),
         participant=participant,
-        conditions=Conditions(anticipation=msg.conditions.anticipation,
-                              safety_policy=_member(
-                                  SafetyPolicy, msg.conditions.safety_policy,
-                                  "conditions.safety_policy", source,
-                                  Conditions().safety_policy)),
+        conditions=Conditions(
+            anticipation=msg.conditions.anticipation,
+            safety_policy=_member(
+                SafetyPolicy,
+                msg.conditions.safety_policy,
+                "conditions.safety_policy",
+                source,
+                Conditions().safety_policy,
+            ),
+        ),
         robots=robots,
         parts=parts,
         sequence=sequence,
         workspace=workspace,
-        placement=Placement(tolerance_m=msg.place_tolerance_m,
-                            tolerance_deg=msg.place_tolerance_deg),
+        placement=Placement(
+            tolerance_m=msg.place_tolerance_m, tolerance_deg=msg.place_tolerance_deg
+        ),
     )
     scenario._source_path = Path(msg.source_path) if msg.source_path else None
     scenario._source_text = msg.source_toml

@@ -130,10 +130,15 @@ def _schema_problems(exc: ValidationError, raw: dict[str, Any]) -> list[Problem]
         if kind in _MESSAGES:
             message = _MESSAGES[kind]
         elif kind == "string_pattern_mismatch":
-            chars = ("'_', '-' and '.'" if "." in str(err.get("ctx", {}).get("pattern", ""))
-                     else "'_' and '-'")
-            message = (f"{err['input']!r} is not allowed here: use letters, digits, {chars}, "
-                       "starting with a letter or digit")
+            chars = (
+                "'_', '-' and '.'"
+                if "." in str(err.get("ctx", {}).get("pattern", ""))
+                else "'_' and '-'"
+            )
+            message = (
+                f"{err['input']!r} is not allowed here: use letters, digits, {chars}, "
+                "starting with a letter or digit"
+            )
         else:
             message = err["msg"].removeprefix("Value error, ")
             message = message.replace("Input should be", "should be")
@@ -153,8 +158,9 @@ def _loc_key(loc: list[Any], raw: dict[str, Any]) -> str:
             break
         if isinstance(part, int):
             if i == 1 and loc[0] == "parts":
-                out = part_key(part, node[part] if isinstance(node, list) and part < len(node)
-                               else None)
+                out = part_key(
+                    part, node[part] if isinstance(node, list) and part < len(node) else None
+                )
             else:
                 out += f"[{part}]"
         else:

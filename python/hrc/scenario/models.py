@@ -34,8 +34,20 @@ DEFAULT_ROLE_COLORS = {RobotRole.TRANSPORT: "yellow", RobotRole.SCREWING: "green
 # Names the view and the VR clients know; anything else must be written as #rrggbb.
 COLOR_NAMES = frozenset(
     {
-        "red", "green", "blue", "yellow", "orange", "purple", "cyan", "magenta", "white",
-        "black", "grey", "gray", "pink", "brown",
+        "red",
+        "green",
+        "blue",
+        "yellow",
+        "orange",
+        "purple",
+        "cyan",
+        "magenta",
+        "white",
+        "black",
+        "grey",
+        "gray",
+        "pink",
+        "brown",
     }
 )
 _HEX_COLOR = re.compile(r"^#[0-9a-fA-F]{6}$")
@@ -194,8 +206,10 @@ class Part(_Strict):
     id: Id
     owner: Annotated[str, Field(min_length=1)]  # "human" or a robot id
     kind: str = "part"  # free text, shown in the view
-    size: Annotated[list[Annotated[float, Field(gt=0.0, le=2.0, allow_inf_nan=False)]],
-                    Field(min_length=3, max_length=3)]
+    size: Annotated[
+        list[Annotated[float, Field(gt=0.0, le=2.0, allow_inf_nan=False)]],
+        Field(min_length=3, max_length=3),
+    ]
     start: PoseYaw | None = None  # required unless the owner is a screwing robot
     target: PoseYaw
     after: list[str] = Field(default_factory=list)
@@ -265,7 +279,7 @@ class Scenario(_Strict):
 
     @property
     def agents(self) -> list[str]:
-        """"human" then the robot ids, in file order."""
+        """ "human" then the robot ids, in file order."""
         return [HUMAN, *self.robots]
 
     def part(self, part_id: str) -> Part:

@@ -12,8 +12,6 @@ from hrc.bus import Bus, BusConfig
 from hrc.cli.runner import free_port  # noqa: F401 - tests import it from here
 
 
-
-
 @pytest.fixture
 def session_id() -> str:
     return f"u{uuid.uuid4().hex[:8]}"

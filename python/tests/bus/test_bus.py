@@ -17,7 +17,9 @@ def test_typed_round_trip_fills_the_header(bus_pair: tuple[Bus, Bus]) -> None:
     got: list[pb.HumanState] = []
     b.subscribe(b.keys.human_state(), pb.HumanState, lambda _k, m: got.append(m))
     pub = a.publisher(a.keys.human_state())
-    assert wait_until(lambda: (pub.put(pb.HumanState(left_grip=0.7), 5, 0.25) and False) or bool(got))
+    assert wait_until(
+        lambda: (pub.put(pb.HumanState(left_grip=0.7), 5, 0.25) and False) or bool(got)
+    )
     first = got[0]
     assert first.left_grip == 0.7
     assert first.header.session == a.keys.session
@@ -30,7 +32,8 @@ def test_typed_round_trip_fills_the_header(bus_pair: tuple[Bus, Bus]) -> None:
 
 
 def test_garbage_is_counted_with_key_and_sender_and_never_delivered(
-        bus_pair: tuple[Bus, Bus], caplog) -> None:
+    bus_pair: tuple[Bus, Bus], caplog
+) -> None:
     a, b = bus_pair
     got: list[pb.RobotState] = []
     key = b.keys.robot_state("r1")
@@ -54,8 +57,9 @@ def test_validator_rejects_nan_poses(bus_pair: tuple[Bus, Bus]) -> None:
     a, b = bus_pair
     got: list[pb.HumanState] = []
     key = b.keys.human_state()
-    b.subscribe(key, pb.HumanState, lambda _k, m: got.append(m),
-                validate=lambda m: check_pose(m.left_hand))
+    b.subscribe(
+        key, pb.HumanState, lambda _k, m: got.append(m), validate=lambda m: check_pose(m.left_hand)
+    )
     pub = a.publisher(key)
     bad = pb.HumanState()
     bad.left_hand.position.x = math.nan

@@ -7,8 +7,16 @@ import time
 
 import pytest
 
-from hrc.bus import (Bus, BusConfig, ClockFollower, ClockMaster, ClockSettings,
-                     LockstepParticipant, Observer, Outcome)
+from hrc.bus import (
+    Bus,
+    BusConfig,
+    ClockFollower,
+    ClockMaster,
+    ClockSettings,
+    LockstepParticipant,
+    Observer,
+    Outcome,
+)
 from hrc.wire import pb
 
 from .conftest import free_port, wait_until
@@ -27,8 +35,9 @@ class Session:
         self.master_bus.close()
 
 
-def _run_participants(s: Session, steps: dict[str, list[int]],
-                      only: list[str] | None = None) -> dict[str, object]:
+def _run_participants(
+    s: Session, steps: dict[str, list[int]], only: list[str] | None = None
+) -> dict[str, object]:
     outcomes: dict[str, object] = {}
     threads = []
     for name, bus in s.buses.items():
@@ -66,8 +75,11 @@ def test_lockstep_runs_every_tick_through_every_participant(session_id: str) -> 
 
 
 def test_realtime_never_runs_ahead_of_the_wall_clock(session_id: str) -> None:
-    s = Session(session_id, ClockSettings(mode="realtime", tick_hz=200, ticks=60,
-                                          observers=[]), ["ik_cpp", "orchestrator", "human_input"])
+    s = Session(
+        session_id,
+        ClockSettings(mode="realtime", tick_hz=200, ticks=60, observers=[]),
+        ["ik_cpp", "orchestrator", "human_input"],
+    )
     try:
         _run_participants(s, {})
         s.clock.start()
@@ -81,8 +93,11 @@ def test_realtime_never_runs_ahead_of_the_wall_clock(session_id: str) -> None:
 
 
 def test_a_silent_participant_is_named_when_the_barrier_times_out(session_id: str) -> None:
-    s = Session(session_id, ClockSettings(ticks=100, barrier_timeout_s=0.5, observers=[]),
-                ["ik_cpp", "orchestrator", "human_input"])
+    s = Session(
+        session_id,
+        ClockSettings(ticks=100, barrier_timeout_s=0.5, observers=[]),
+        ["ik_cpp", "orchestrator", "human_input"],
+    )
     try:
         _run_participants(s, {}, only=["ik_cpp", "orchestrator"])
         # human_input announces itself but never acks
@@ -97,8 +112,11 @@ def test_a_silent_participant_is_named_when_the_barrier_times_out(session_id: st
 
 
 def test_a_vanished_participant_ends_the_run_naming_it(session_id: str) -> None:
-    s = Session(session_id, ClockSettings(ticks=0, observers=["logger"]),
-                ["ik_cpp", "orchestrator", "human_input", "logger"])
+    s = Session(
+        session_id,
+        ClockSettings(ticks=0, observers=["logger"]),
+        ["ik_cpp", "orchestrator", "human_input", "logger"],
+    )
     try:
         steps: dict[str, list[int]] = {}
         _run_participants(s, steps)
@@ -112,8 +130,9 @@ def test_a_vanished_participant_ends_the_run_naming_it(session_id: str) -> None:
 
 
 def test_a_stop_request_ends_the_run_cleanly(session_id: str) -> None:
-    s = Session(session_id, ClockSettings(ticks=0, observers=[]),
-                ["ik_cpp", "orchestrator", "human_input"])
+    s = Session(
+        session_id, ClockSettings(ticks=0, observers=[]), ["ik_cpp", "orchestrator", "human_input"]
+    )
     try:
         steps: dict[str, list[int]] = {}
         _run_participants(s, steps)
@@ -132,7 +151,8 @@ def test_a_stop_request_ends_the_run_cleanly(session_id: str) -> None:
 
 
 def test_the_tick_transition_runs_on_the_ack_thread_when_nothing_is_missing(
-        session_id: str) -> None:
+    session_id: str,
+) -> None:
     # Lockstep: whoever receives the last ack of a tick applies it and publishes the next one, so
     # in a plain run (outputs arrive before the acks that list them) the run() thread only waits.
     names = ["ik_cpp", "orchestrator", "human_input"]
@@ -141,8 +161,9 @@ def test_the_tick_transition_runs_on_the_ack_thread_when_nothing_is_missing(
         _run_participants(s, {})
         threads: list[str] = []
         s.clock.start()
-        end = s.clock.run(lambda k, t: None,
-                          lambda k, t: threads.append(threading.current_thread().name))
+        end = s.clock.run(
+            lambda k, t: None, lambda k, t: threads.append(threading.current_thread().name)
+        )
         assert end.ok and end.ticks == 200
         on_main = threads.count(threading.current_thread().name)
         assert on_main < 20, f"{on_main} of 200 transitions ran on the run() thread"
@@ -151,11 +172,13 @@ def test_the_tick_transition_runs_on_the_ack_thread_when_nothing_is_missing(
 
 
 def test_an_output_acked_before_it_arrives_is_waited_for_and_applied_in_its_tick(
-        session_id: str) -> None:
+    session_id: str,
+) -> None:
     # The ack lists an output that is still on its way (published 20 ms after the ack): the clock
     # master must not apply the tick without it, whichever thread ends up doing the transition.
-    s = Session(session_id, ClockSettings(ticks=30, participants=["ik_cpp"], observers=[]),
-                ["ik_cpp"])
+    s = Session(
+        session_id, ClockSettings(ticks=30, participants=["ik_cpp"], observers=[]), ["ik_cpp"]
+    )
     try:
         bus = s.buses["ik_cpp"]
         out_key = bus.keys.robot_state("r1")
@@ -206,8 +229,9 @@ def test_a_participant_follows_the_clock_master_its_config_names(session_id: str
 
 
 @pytest.mark.parametrize("failing", ["human_input", "logger"])
-def test_a_service_whose_step_raises_ends_the_run_at_once_naming_it(session_id: str,
-                                                                    failing: str) -> None:
+def test_a_service_whose_step_raises_ends_the_run_at_once_naming_it(
+    session_id: str, failing: str
+) -> None:
     # human_input: a participant computing on the inline path (it has no inputs to wait for);
     # logger: an observer, computing on its run() thread.
     names = ["ik_cpp", "orchestrator", "human_input", "logger"]
@@ -220,10 +244,12 @@ def test_a_service_whose_step_raises_ends_the_run_at_once_naming_it(session_id: 
         for name, bus in s.buses.items():
             p: ClockFollower = Observer(bus) if name == "logger" else LockstepParticipant(bus)
             if name == failing:
+
                 def step(tick: pb.ClockTick) -> None:
                     if tick.header.tick == 50:
                         raised_at.append(time.monotonic())
                         raise ValueError("bad value in tick 50")
+
                 p.on_tick(step)
             p.start()
 
@@ -241,11 +267,14 @@ def test_a_service_whose_step_raises_ends_the_run_at_once_naming_it(session_id: 
         assert raised_at, "the step never raised"
         # The run has ended for everybody when the last service's run() has returned.
         took = max(returned_at.values()) - raised_at[0]
-        print(f"{failing}: every service's run ended {took * 1e3:.1f} ms after its step raised",
-              {n: round((t - raised_at[0]) * 1e3, 1) for n, t in returned_at.items()})
+        print(
+            f"{failing}: every service's run ended {took * 1e3:.1f} ms after its step raised",
+            {n: round((t - raised_at[0]) * 1e3, 1) for n, t in returned_at.items()},
+        )
         assert not end.ok and end.failed_participant == failing, end
-        assert f"aborted by {failing}: tick 50 failed: ValueError: bad value in tick 50" \
-            in end.reason, end.reason
+        assert (
+            f"aborted by {failing}: tick 50 failed: ValueError: bad value in tick 50" in end.reason
+        ), end.reason
         assert took < 2.0
         failed = outcomes[failing]
         assert not failed.ok and failed.exit_code == 1

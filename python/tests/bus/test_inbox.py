@@ -13,18 +13,29 @@ from .conftest import free_port, wait_until
 def _feed(session: str, order: list[tuple[str, int, int]]) -> list[tuple[str, int, int]]:
     """Publishes (sender, tick, value) in ``order``; returns what the inbox delivered at tick 2."""
     ep = f"tcp/127.0.0.1:{free_port()}"
-    with Bus(BusConfig(session=session, listen=[ep]), "svc") as me, \
-            Bus(BusConfig(session=session, connect=[ep]), "physics") as physics, \
-            Bus(BusConfig(session=session, connect=[ep]), "ik_cpp") as ik:
+    with (
+        Bus(BusConfig(session=session, listen=[ep]), "svc") as me,
+        Bus(BusConfig(session=session, connect=[ep]), "physics") as physics,
+        Bus(BusConfig(session=session, connect=[ep]), "ik_cpp") as ik,
+    ):
         inbox = Inbox(me)
         got: list[tuple[str, int, int]] = []
-        inbox.add(me.keys.robot_states(), pb.RobotState,
-                  lambda _k, m: got.append((m.header.sender, m.header.tick, len(m.joint_positions))))
-        inbox.add(me.keys.world_objects(), pb.WorldObjects,
-                  lambda _k, m: got.append((m.header.sender, m.header.tick, len(m.objects))))
-        senders = {"physics": physics.publisher(me.keys.world_objects()),
-                   "ik_cpp": ik.publisher(me.keys.robot_state("r1"))}
+        inbox.add(
+            me.keys.robot_states(),
+            pb.RobotState,
+            lambda _k, m: got.append((m.header.sender, m.header.tick, len(m.joint_positions))),
+        )
+        inbox.add(
+            me.keys.world_objects(),
+            pb.WorldObjects,
+            lambda _k, m: got.append((m.header.sender, m.header.tick, len(m.objects))),
+        )
+        senders = {
+            "physics": physics.publisher(me.keys.world_objects()),
+            "ik_cpp": ik.publisher(me.keys.robot_state("r1")),
+        }
         import time
+
         time.sleep(0.3)
         for sender, tick, value in order:
             if sender == "physics":
@@ -38,8 +49,15 @@ def _feed(session: str, order: list[tuple[str, int, int]]) -> list[tuple[str, in
 
 
 def test_delivery_order_is_independent_of_arrival_order(session_id: str) -> None:
-    msgs = [("physics", 0, 1), ("ik_cpp", 0, 2), ("physics", 1, 3), ("ik_cpp", 1, 4),
-            ("physics", 2, 5), ("ik_cpp", 2, 6), ("ik_cpp", 3, 7)]
+    msgs = [
+        ("physics", 0, 1),
+        ("ik_cpp", 0, 2),
+        ("physics", 1, 3),
+        ("ik_cpp", 1, 4),
+        ("physics", 2, 5),
+        ("ik_cpp", 2, 6),
+        ("ik_cpp", 3, 7),
+    ]
     first = _feed(session_id, msgs)
     shuffled = msgs[:]
     random.Random(3).shuffle(shuffled)
@@ -71,15 +89,22 @@ def test_a_rejected_message_still_satisfies_its_mark(session_id: str) -> None:
     import math
 
     ep = f"tcp/127.0.0.1:{free_port()}"
-    with Bus(BusConfig(session=session_id, listen=[ep]), "svc") as me, \
-            Bus(BusConfig(session=session_id, connect=[ep]), "human_input") as human:
+    with (
+        Bus(BusConfig(session=session_id, listen=[ep]), "svc") as me,
+        Bus(BusConfig(session=session_id, connect=[ep]), "human_input") as human,
+    ):
         inbox = Inbox(me)
         got: list[pb.HumanState] = []
         key = me.keys.human_state()
-        inbox.add(key, pb.HumanState, lambda _k, m: got.append(m),
-                  validate=lambda m: "NaN" if math.isnan(m.left_grip) else None)
+        inbox.add(
+            key,
+            pb.HumanState,
+            lambda _k, m: got.append(m),
+            validate=lambda m: "NaN" if math.isnan(m.left_grip) else None,
+        )
         pub = human.publisher(key)
         import time
+
         time.sleep(0.3)
         pub.put(pb.HumanState(left_grip=math.nan), 0)
         pub.put(pb.HumanState(left_grip=0.5), 0)

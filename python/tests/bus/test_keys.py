@@ -5,10 +5,25 @@ from hrc.bus import Keys
 
 def test_every_key_lives_under_the_session_prefix() -> None:
     k = Keys("s1")
-    built = [k.clock(), k.clock_ack("ik_cpp"), k.run_control(), k.run_end(), k.alive("physics"),
-             k.stats("logger"), k.scenario(), k.robot_command("r1"), k.robot_state("r2"),
-             k.robot_reach(), k.human_state(), k.world_objects(), k.world_contacts(),
-             k.world_commands(), k.task_events(), k.task_indicators(), k.task_metrics()]
+    built = [
+        k.clock(),
+        k.clock_ack("ik_cpp"),
+        k.run_control(),
+        k.run_end(),
+        k.alive("physics"),
+        k.stats("logger"),
+        k.scenario(),
+        k.robot_command("r1"),
+        k.robot_state("r2"),
+        k.robot_reach(),
+        k.human_state(),
+        k.world_objects(),
+        k.world_contacts(),
+        k.world_commands(),
+        k.task_events(),
+        k.task_indicators(),
+        k.task_metrics(),
+    ]
     assert all(key.startswith("hrc/s1/") for key in built)
     assert len(set(built)) == len(built)
     assert k.robot_command("r1") == "hrc/s1/robot/r1/command"

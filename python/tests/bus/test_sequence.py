@@ -23,7 +23,10 @@ def test_a_gap_is_reported_as_an_error_and_counted(caplog: pytest.LogCaptureFixt
         p = s.check("hrc/x/task/events", "orchestrator", 4)
     assert p is not None and p.missing == 2
     assert (s.gaps, s.lost) == (1, 2)
-    assert "sequence gap on hrc/x/task/events from 'orchestrator': expected seq 2, got 4" in caplog.text
+    assert (
+        "sequence gap on hrc/x/task/events from 'orchestrator': expected seq 2, got 4"
+        in caplog.text
+    )
     assert s.check("hrc/x/task/events", "orchestrator", 5) is None  # continues from the new number
 
 

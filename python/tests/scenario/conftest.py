@@ -34,24 +34,47 @@ _JOINT = """  <joint name="{name}" type="revolute">
 
 def arm_urdf(upper: float = 0.40, fore: float = 0.35) -> str:
     """base yaw (z), shoulder (y), elbow (y), wrist pitch (y), wrist roll (z), then a fixed tool."""
-    links = [("base_link", 0.15), ("link1", 0.10), ("link2", upper), ("link3", fore),
-             ("link4", 0.05), ("link5", 0.03)]
-    joints = [("joint1", "0 0 1", -3.1416, 3.1416), ("joint2", "0 1 0", -2.0, 2.0),
-              ("joint3", "0 1 0", -2.6, 2.6), ("joint4", "0 1 0", -2.2, 2.2),
-              ("joint5", "0 0 1", -3.1416, 3.1416)]
+    links = [
+        ("base_link", 0.15),
+        ("link1", 0.10),
+        ("link2", upper),
+        ("link3", fore),
+        ("link4", 0.05),
+        ("link5", 0.03),
+    ]
+    joints = [
+        ("joint1", "0 0 1", -3.1416, 3.1416),
+        ("joint2", "0 1 0", -2.0, 2.0),
+        ("joint3", "0 1 0", -2.6, 2.6),
+        ("joint4", "0 1 0", -2.2, 2.2),
+        ("joint5", "0 0 1", -3.1416, 3.1416),
+    ]
     out = ['<?xml version="1.0"?>\n<robot name="arm5_test">\n']
     for name, length in links:
         out.append(_LINK.format(name=name, length=length, half=length / 2))
     for i, (name, axis, lo, hi) in enumerate(joints):
-        out.append(_JOINT.format(name=name, parent=links[i][0], child=links[i + 1][0],
-                                 z=links[i][1], axis=axis, lo=lo, hi=hi))
+        out.append(
+            _JOINT.format(
+                name=name,
+                parent=links[i][0],
+                child=links[i + 1][0],
+                z=links[i][1],
+                axis=axis,
+                lo=lo,
+                hi=hi,
+            )
+        )
     # the tool frame sits 5 cm beyond the last link; its inertial origin is deliberately offset
     # so a check that used the centre of mass instead of the link frame would be caught
-    out.append('  <link name="tool"><inertial><origin xyz="0.02 0 0.01"/><mass value="0.1"/>'
-               '<inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/>'
-               '</inertial></link>\n')
-    out.append('  <joint name="tool_joint" type="fixed"><parent link="link5"/><child link="tool"/>'
-               '<origin xyz="0 0 0.08"/></joint>\n')
+    out.append(
+        '  <link name="tool"><inertial><origin xyz="0.02 0 0.01"/><mass value="0.1"/>'
+        '<inertia ixx="0.001" ixy="0" ixz="0" iyy="0.001" iyz="0" izz="0.001"/>'
+        "</inertial></link>\n"
+    )
+    out.append(
+        '  <joint name="tool_joint" type="fixed"><parent link="link5"/><child link="tool"/>'
+        '<origin xyz="0 0 0.08"/></joint>\n'
+    )
     out.append("</robot>\n")
     return "".join(out)
 
@@ -95,8 +118,11 @@ def to_toml(data: dict[str, Any]) -> str:
                 lines.append("[[parts]]")
                 lines.extend(f"{_key(k)} = {_value(v)}" for k, v in part.items())
                 lines.append("")
-        elif name == "robots" and isinstance(value, dict) and all(
-                isinstance(r, dict) for r in value.values()):
+        elif (
+            name == "robots"
+            and isinstance(value, dict)
+            and all(isinstance(r, dict) for r in value.values())
+        ):
             for rid, robot in value.items():
                 lines.append(f"[robots.{_key(rid)}]")
                 lines.extend(f"{_key(k)} = {_value(v)}" for k, v in robot.items())

@@ -32,10 +32,22 @@ def test_deadlock_file(arm_root: Path) -> None:
 def test_many_problems_file_reports_each_one(arm_root: Path) -> None:
     found = problems("many_problems.toml", arm_root)
     expected = {
-        "scenario.name", "scenario.tick_hz", "scenario.colour", "participant.replay_file",
-        "participant.caution", "workspace.continue_button", "robots.r1.max_tcp_speed",
-        "robots.r1.color", "robots.r2.feeder", "robots.r2.urdf", "parts.H1.size[1]",
-        "parts.H1.after", "parts.H1", "parts.RA1.owner", "sequence.human", "workspace.envelope[0]",
+        "scenario.name",
+        "scenario.tick_hz",
+        "scenario.colour",
+        "participant.replay_file",
+        "participant.caution",
+        "workspace.continue_button",
+        "robots.r1.max_tcp_speed",
+        "robots.r1.color",
+        "robots.r2.feeder",
+        "robots.r2.urdf",
+        "parts.H1.size[1]",
+        "parts.H1.after",
+        "parts.H1",
+        "parts.RA1.owner",
+        "sequence.human",
+        "workspace.envelope[0]",
     }
     assert expected <= set(found), sorted(expected - set(found))
     # S1 <-> S2 is a dependency cycle, keyed on one of them

@@ -24,7 +24,8 @@ def test_every_field_is_filled(thesis, arm_root: Path) -> None:
     assert msg.participant.scripted.caution == 0.5
     # every parameter is set, defaults applied
     assert {f.name for f, _ in msg.participant.scripted.ListFields()} == set(
-        pb.ScriptedParams.DESCRIPTOR.fields_by_name)
+        pb.ScriptedParams.DESCRIPTOR.fields_by_name
+    )
     assert msg.conditions.anticipation
     assert msg.conditions.safety_policy == pb.SAFETY_POLICY_RETREAT
     assert [r.id for r in msg.robots] == ["r1", "r2"]
@@ -76,8 +77,9 @@ def test_round_trip(thesis) -> None:
     assert back.robot("r2").id == "r2"
 
 
-def test_round_trip_keeps_provoke_times_and_absent_button(minimal_raw, write_scenario,
-                                                          arm_root) -> None:
+def test_round_trip_keeps_provoke_times_and_absent_button(
+    minimal_raw, write_scenario, arm_root
+) -> None:
     minimal_raw["participant"]["provoke_collisions"] = [4.0, 1.5]
     del minimal_raw["workspace"]["continue_button"]
     scenario = load(write_scenario(minimal_raw), project_root=arm_root, motion_check=False)

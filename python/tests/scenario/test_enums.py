@@ -27,8 +27,9 @@ WIRE = {SafetyPolicy: pb.SafetyPolicy, RobotRole: pb.RobotRole, InputSource: pb.
 
 
 @pytest.mark.parametrize(("enum", "text", "number"), TABLE)
-def test_every_string_maps_to_its_wire_value_and_back(enum: type[WireEnum], text: str,
-                                                      number: int) -> None:
+def test_every_string_maps_to_its_wire_value_and_back(
+    enum: type[WireEnum], text: str, number: int
+) -> None:
     member = enum(text)
     assert member.to_proto() == number
     assert enum.from_proto(number) is member
@@ -79,8 +80,9 @@ continue_button = [0.0, 0.0, 0.0]
 
 
 def _load(**values: Any):
-    text = MINIMAL.format(**{"input": "scripted", "policy": "retreat", "role": "transport",
-                             **values})
+    text = MINIMAL.format(
+        **{"input": "scripted", "policy": "retreat", "role": "transport", **values}
+    )
     return loads(text, project_root=project_root())
 
 
@@ -91,12 +93,15 @@ def test_the_scenario_file_gives_members() -> None:
     assert s.robots["r1"].role is RobotRole.TRANSPORT
 
 
-@pytest.mark.parametrize(("key", "value", "name"), [
-    ("input", "keyboard", "participant.input"),
-    ("policy", "pray", "conditions.safety_policy"),
-    ("policy", "RETREAT", "conditions.safety_policy"),
-    ("role", "welding", "robots.r1.role"),
-])
+@pytest.mark.parametrize(
+    ("key", "value", "name"),
+    [
+        ("input", "keyboard", "participant.input"),
+        ("policy", "pray", "conditions.safety_policy"),
+        ("policy", "RETREAT", "conditions.safety_policy"),
+        ("role", "welding", "robots.r1.role"),
+    ],
+)
 def test_an_unknown_string_is_rejected_naming_the_key(key: str, value: str, name: str) -> None:
     with pytest.raises(ScenarioError) as err:
         _load(**{key: value})

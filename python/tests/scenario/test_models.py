@@ -57,7 +57,12 @@ def test_find_cycles_handles_long_chains_without_recursion() -> None:
 
 def test_find_cycles_one_per_component() -> None:
     nodes = ["a", "b", "c", "d"]
-    edges = [Edge("a", "b", "after"), Edge("b", "a", "after"), Edge("c", "d", "x"),
-             Edge("d", "c", "after"), Edge("b", "c", "after")]
+    edges = [
+        Edge("a", "b", "after"),
+        Edge("b", "a", "after"),
+        Edge("c", "d", "x"),
+        Edge("d", "c", "after"),
+        Edge("b", "c", "after"),
+    ]
     cycles = find_cycles(nodes, edges)
     assert [{e.src for e in c} for c in cycles] == [{"a", "b"}, {"c", "d"}]

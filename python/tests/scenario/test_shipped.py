@@ -67,10 +67,12 @@ def test_thesis_screws_go_into_holes_on_top_of_human_and_r1_parts(thesis: Scenar
 
 
 def test_thesis_has_waits_both_ways(thesis: Scenario) -> None:
-    human_waits_for_r1 = [p.id for p in thesis.parts_of(HUMAN)
-                          if any(thesis.part(d).owner == "r1" for d in p.after)]
-    r1_waits_for_human = [p.id for p in thesis.parts_of("r1")
-                          if any(thesis.part(d).owner == HUMAN for d in p.after)]
+    human_waits_for_r1 = [
+        p.id for p in thesis.parts_of(HUMAN) if any(thesis.part(d).owner == "r1" for d in p.after)
+    ]
+    r1_waits_for_human = [
+        p.id for p in thesis.parts_of("r1") if any(thesis.part(d).owner == HUMAN for d in p.after)
+    ]
     assert human_waits_for_r1 and r1_waits_for_human
 
 

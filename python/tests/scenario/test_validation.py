@@ -25,18 +25,31 @@ def only(problems: list[Problem], key: str) -> Problem:
 
 
 def add_r1_part(raw: Data, pid: str, **extra: Any) -> None:
-    raw["parts"].append({
-        "id": pid, "owner": "r1", "kind": "resistor", "size": [0.06, 0.02, 0.02],
-        "start": {"xyz": [0.80, 0.30, 0.01], "yaw": 0},
-        "target": {"xyz": [0.20, 0.02, 0.01], "yaw": 0}, **extra,
-    })
+    raw["parts"].append(
+        {
+            "id": pid,
+            "owner": "r1",
+            "kind": "resistor",
+            "size": [0.06, 0.02, 0.02],
+            "start": {"xyz": [0.80, 0.30, 0.01], "yaw": 0},
+            "target": {"xyz": [0.20, 0.02, 0.01], "yaw": 0},
+            **extra,
+        }
+    )
 
 
 def add_human_part(raw: Data, pid: str, **extra: Any) -> None:
-    raw["parts"].append({
-        "id": pid, "owner": "human", "kind": "relay", "size": [0.05, 0.05, 0.06],
-        "start": {"xyz": [-0.10, -0.38, 0.03]}, "target": {"xyz": [-0.22, 0.10, 0.03]}, **extra,
-    })
+    raw["parts"].append(
+        {
+            "id": pid,
+            "owner": "human",
+            "kind": "relay",
+            "size": [0.05, 0.05, 0.06],
+            "start": {"xyz": [-0.10, -0.38, 0.03]},
+            "target": {"xyz": [-0.22, 0.10, 0.03]},
+            **extra,
+        }
+    )
 
 
 def test_the_base_case_is_clean(minimal_raw: Data, problems_of) -> None:
@@ -344,8 +357,13 @@ def test_every_problem_is_reported_not_just_the_first(minimal_raw: Data, problem
     minimal_raw["sequence"]["r2"] = []  # never used
     minimal_raw["robots"]["r2"]["urdf"] = "missing.urdf"  # file
     keys = {p.key for p in problems_of(minimal_raw)}
-    assert keys == {"scenario.tick_hz", "robots.r1.max_tcp_speed", "parts.H1.after", "parts.S1",
-                    "robots.r2.urdf"}
+    assert keys == {
+        "scenario.tick_hz",
+        "robots.r1.max_tcp_speed",
+        "parts.H1.after",
+        "parts.S1",
+        "robots.r2.urdf",
+    }
 
 
 def test_error_text_is_one_line_per_problem(minimal_raw: Data, write_scenario, arm_root) -> None:
@@ -365,8 +383,14 @@ def test_error_text_is_one_line_per_problem(minimal_raw: Data, write_scenario, a
 
 @pytest.mark.parametrize(
     ("value", "times", "probability"),
-    [(False, [], 0.0), (True, [], 1.0), (0.25, [], 0.25), (1, [], 1.0), ([12, 3.5], [3.5, 12.0], 0.0),
-     ([], [], 0.0)],
+    [
+        (False, [], 0.0),
+        (True, [], 1.0),
+        (0.25, [], 0.25),
+        (1, [], 1.0),
+        ([12, 3.5], [3.5, 12.0], 0.0),
+        ([], [], 0.0),
+    ],
 )
 def test_provoke_collisions_shapes(
     minimal_raw: Data, write_scenario, arm_root, value: Any, times: list[float], probability: float
@@ -379,7 +403,9 @@ def test_provoke_collisions_shapes(
 
 
 @pytest.mark.parametrize("value", [1.5, -0.1, "often", [1.0, "x"], [-2.0], {"p": 1}])
-def test_provoke_collisions_rejects_other_shapes(minimal_raw: Data, problems_of, value: Any) -> None:
+def test_provoke_collisions_rejects_other_shapes(
+    minimal_raw: Data, problems_of, value: Any
+) -> None:
     minimal_raw["participant"]["provoke_collisions"] = value
     (problem,) = problems_of(minimal_raw)
     assert problem.key == "participant.provoke_collisions"

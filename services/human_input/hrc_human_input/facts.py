@@ -61,23 +61,34 @@ def from_proto(msg: pb.Scenario) -> ScenarioFacts:
     pc = msg.participant
     defaults = ScenarioFacts()
     facts = ScenarioFacts(
-        name=msg.info.name, seed=int(msg.info.seed), tick_hz=msg.info.tick_hz or DEFAULT_TICK_HZ,
-        participant=pc.name, input=sc.InputSource.from_proto(pc.input, defaults.input),
-        replay_file=pc.replay_file, anticipation=msg.conditions.anticipation,
-        safety_policy=sc.SafetyPolicy.from_proto(msg.conditions.safety_policy,
-                                                 defaults.safety_policy),
+        name=msg.info.name,
+        seed=int(msg.info.seed),
+        tick_hz=msg.info.tick_hz or DEFAULT_TICK_HZ,
+        participant=pc.name,
+        input=sc.InputSource.from_proto(pc.input, defaults.input),
+        replay_file=pc.replay_file,
+        anticipation=msg.conditions.anticipation,
+        safety_policy=sc.SafetyPolicy.from_proto(
+            msg.conditions.safety_policy, defaults.safety_policy
+        ),
         place_tolerance_m=msg.place_tolerance_m or DEFAULT_TOLERANCE_M,
         params=sc.scripted_params_from_proto(pc.scripted, msg.source_path or "<wire scenario>"),
         provoke_times_s=sorted(t for t in pc.provoke_times_s if math.isfinite(t) and t >= 0),
         provoke_probability=min(1.0, max(0.0, pc.provoke_probability))
-        if math.isfinite(pc.provoke_probability) else 0.0,
+        if math.isfinite(pc.provoke_probability)
+        else 0.0,
     )
     for p in msg.parts:
         facts.parts[p.id] = PartFacts(
-            id=p.id, owner=p.owner, size=vec3_from_pb(p.size),
+            id=p.id,
+            owner=p.owner,
+            size=vec3_from_pb(p.size),
             start=vec3_from_pb(p.start.xyz) if p.start_given else None,
-            start_yaw_deg=p.start.yaw_deg, target=vec3_from_pb(p.target.xyz),
-            target_yaw_deg=p.target.yaw_deg, after=tuple(p.after))
+            start_yaw_deg=p.start.yaw_deg,
+            target=vec3_from_pb(p.target.xyz),
+            target_yaw_deg=p.target.yaw_deg,
+            after=tuple(p.after),
+        )
     for r in msg.robots:
         facts.robots[r.id] = RobotFacts(id=r.id, color=r.color, retreat=vec3_from_pb(r.retreat))
     for s in msg.sequences:

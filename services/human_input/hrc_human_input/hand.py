@@ -18,7 +18,7 @@ from hrc_human_input.motor import MotorParams, Segment, movement_time
 class Move:
     goal: Vec3
     yaw_rad: float | None = None  # None keeps the current yaw
-    width: float = 0.06        # Fitts target width (m): the accuracy the move needs
+    width: float = 0.06  # Fitts target width (m): the accuracy the move needs
     label: str = ""
 
 
@@ -38,8 +38,9 @@ Step = Move | Dwell | Grip
 
 
 class Hand:
-    def __init__(self, name: str, pos: Vec3, yaw_rad: float, motor: MotorParams,
-                 rng: np.random.Generator) -> None:
+    def __init__(
+        self, name: str, pos: Vec3, yaw_rad: float, motor: MotorParams, rng: np.random.Generator
+    ) -> None:
         self.name = name
         self.pos = pos
         self.yaw_rad = yaw_rad
@@ -67,8 +68,12 @@ class Hand:
 
     @property
     def busy(self) -> bool:
-        return bool(self.plan) or self.segment is not None or self._dwell_until is not None \
+        return (
+            bool(self.plan)
+            or self.segment is not None
+            or self._dwell_until is not None
             or self._grip_target is not None
+        )
 
     def pending_grip_change(self) -> bool:
         return self._grip_target is not None or any(isinstance(s, Grip) for s in self.plan)
@@ -92,8 +97,9 @@ class Hand:
             self._cursor = t
         # A grip ramp runs alongside (the fingers close while the hand is still).
         if self._grip_target is not None:
-            rate = 1.0 / (self.motor.grip_close_s if self._grip_target > self.grip
-                          else self.motor.grip_open_s)
+            rate = 1.0 / (
+                self.motor.grip_close_s if self._grip_target > self.grip else self.motor.grip_open_s
+            )
             step = rate * dt
             if abs(self._grip_target - self.grip) <= step:
                 self.grip = self._grip_target
@@ -127,8 +133,11 @@ class Hand:
 
     def _start(self, step: Step, t0: float) -> None:
         if isinstance(step, Move):
-            yaw1_rad = self.yaw_rad if step.yaw_rad is None else (
-                self.yaw_rad + wrap_angle_rad(step.yaw_rad - self.yaw_rad))
+            yaw1_rad = (
+                self.yaw_rad
+                if step.yaw_rad is None
+                else (self.yaw_rad + wrap_angle_rad(step.yaw_rad - self.yaw_rad))
+            )
             d = distance(self.pos, step.goal)
             if d < 1e-6 and abs(yaw1_rad - self.yaw_rad) < 1e-6:
                 return

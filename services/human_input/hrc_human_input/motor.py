@@ -22,7 +22,7 @@ from hrc.geometry import Vec3, distance, lerp, lerp3
 
 # Peak speed of a minimum-jerk reach is this factor times the mean speed D / MT.
 MIN_JERK_PEAK_FACTOR = 1.875
-REACTION_LOG_SD = 0.25   # lognormal spread of reaction times (about +-25 % around the median)
+REACTION_LOG_SD = 0.25  # lognormal spread of reaction times (about +-25 % around the median)
 MOVEMENT_TIME_SD = 0.08  # relative trial-to-trial variability of movement times
 MIN_MOVEMENT_TIME_S = 0.05
 
@@ -30,7 +30,7 @@ MIN_MOVEMENT_TIME_S = 0.05
 def min_jerk(tau: float) -> float:
     """Normalised minimum-jerk position profile s(tau), s(0) = 0, s(1) = 1."""
     tau = min(1.0, max(0.0, tau))
-    return tau ** 3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+    return tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
 
 
 def min_jerk_speed(tau: float) -> float:
@@ -58,15 +58,16 @@ class MotorParams:
     """The scripted participant's motor parameters (docs/scenario.md, the [participant] table)."""
 
     reaction_time_s: float = 0.4
-    peak_hand_speed: float = 1.0   # m/s, upper bound of a reach's peak speed
+    peak_hand_speed: float = 1.0  # m/s, upper bound of a reach's peak speed
     fitts_a_s: float = 0.1
     fitts_b_s: float = 0.15
-    grip_close_s: float = 0.15     # grip 0 -> 1
-    grip_open_s: float = 0.10      # grip 1 -> 0
+    grip_close_s: float = 0.15  # grip 0 -> 1
+    grip_open_s: float = 0.10  # grip 1 -> 0
 
 
-def movement_time(distance_m: float, width_m: float, p: MotorParams,
-                  rng: np.random.Generator | None = None) -> float:
+def movement_time(
+    distance_m: float, width_m: float, p: MotorParams, rng: np.random.Generator | None = None
+) -> float:
     """Fitts' time, with trial-to-trial variability, and never so short that the peak speed of
     the minimum-jerk profile would exceed ``peak_hand_speed``."""
     mt = fitts_mt(distance_m, width_m, p.fitts_a_s, p.fitts_b_s)

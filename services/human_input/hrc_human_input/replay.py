@@ -48,18 +48,22 @@ def parse_recording(lines: list[str], path: str = "<recording>") -> Recording:
     try:
         obj = json.loads(first)
     except json.JSONDecodeError as exc:
-        problems.append(f"line {first_no}: header is not valid JSON: {exc.msg} (column {exc.colno})")
+        problems.append(
+            f"line {first_no}: header is not valid JSON: {exc.msg} (column {exc.colno})"
+        )
     else:
         if not isinstance(obj, dict):
             problems.append(f"line {first_no}: header must be a JSON object")
         else:
             header = obj
             if obj.get("format") != FORMAT:
-                problems.append(f"line {first_no}: header format must be {FORMAT!r}, "
-                                f"got {obj.get('format')!r}")
+                problems.append(
+                    f"line {first_no}: header format must be {FORMAT!r}, got {obj.get('format')!r}"
+                )
             if obj.get("version") != VERSION:
-                problems.append(f"line {first_no}: header version must be {VERSION}, "
-                                f"got {obj.get('version')!r}")
+                problems.append(
+                    f"line {first_no}: header version must be {VERSION}, got {obj.get('version')!r}"
+                )
     last_t: float | None = None
     last_no = 0
     for no, text in numbered[1:]:
@@ -73,8 +77,10 @@ def parse_recording(lines: list[str], path: str = "<recording>") -> Recording:
         if sample is None:
             continue
         if last_t is not None and sample.t <= last_t:
-            problems.append(f"line {no}: t = {sample.t:g} is not after t = {last_t:g} of line "
-                            f"{last_no} (times must increase)")
+            problems.append(
+                f"line {no}: t = {sample.t:g} is not after t = {last_t:g} of line "
+                f"{last_no} (times must increase)"
+            )
             continue
         last_t, last_no = sample.t, no
         samples.append(sample)
@@ -130,8 +136,11 @@ class Recorder:
         self._file: IO[str] | None = open(self.path, "w", encoding="utf-8")
         self._last_t: float | None = None
         self.count = 0
-        header = {"format": FORMAT, "version": VERSION,
-                  "created": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds")}
+        header = {
+            "format": FORMAT,
+            "version": VERSION,
+            "created": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+        }
         header.update(metadata or {})
         self._write(header)
 

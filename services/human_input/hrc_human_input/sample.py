@@ -47,8 +47,13 @@ class Sample:
 
     def same_as(self, other: "Sample") -> bool:
         """Same poses and grips (the time aside)."""
-        return (self.left == other.left and self.right == other.right and self.head == other.head
-                and self.left_grip == other.left_grip and self.right_grip == other.right_grip)
+        return (
+            self.left == other.left
+            and self.right == other.right
+            and self.head == other.head
+            and self.left_grip == other.left_grip
+            and self.right_grip == other.right_grip
+        )
 
     def grip(self, name: str) -> float:
         return self.left_grip if name == "left" else self.right_grip
@@ -58,20 +63,35 @@ class Sample:
         return Sample(t, self.head, self.left, self.right, self.left_grip, self.right_grip)
 
     def to_proto(self, source: InputSource) -> pb.HumanState:
-        return pb.HumanState(head=pose_to_pb(self.head), left_hand=pose_to_pb(self.left),
-                             right_hand=pose_to_pb(self.right), left_grip=self.left_grip,
-                             right_grip=self.right_grip, source=source.to_proto())
+        return pb.HumanState(
+            head=pose_to_pb(self.head),
+            left_hand=pose_to_pb(self.left),
+            right_hand=pose_to_pb(self.right),
+            left_grip=self.left_grip,
+            right_grip=self.right_grip,
+            source=source.to_proto(),
+        )
 
     @staticmethod
     def from_proto(msg: pb.HumanState) -> "Sample":
-        return Sample(msg.header.sim_time, pose_from_pb(msg.head),
-                      pose_from_pb(msg.left_hand), pose_from_pb(msg.right_hand),
-                      msg.left_grip, msg.right_grip)
+        return Sample(
+            msg.header.sim_time,
+            pose_from_pb(msg.head),
+            pose_from_pb(msg.left_hand),
+            pose_from_pb(msg.right_hand),
+            msg.left_grip,
+            msg.right_grip,
+        )
 
     def to_json(self) -> dict[str, Any]:
-        return {"t": self.t, "head": pose_json(self.head), "left": pose_json(self.left),
-                "right": pose_json(self.right), "left_grip": self.left_grip,
-                "right_grip": self.right_grip}
+        return {
+            "t": self.t,
+            "head": pose_json(self.head),
+            "left": pose_json(self.left),
+            "right": pose_json(self.right),
+            "left_grip": self.left_grip,
+            "right_grip": self.right_grip,
+        }
 
 
 def interpolate(a: Sample, b: Sample, t: float) -> Sample:
@@ -79,9 +99,14 @@ def interpolate(a: Sample, b: Sample, t: float) -> Sample:
     if b.t <= a.t:
         return b.at(t)
     u = min(1.0, max(0.0, (t - a.t) / (b.t - a.t)))
-    return Sample(t, interpolate_pose(a.head, b.head, u), interpolate_pose(a.left, b.left, u),
-                  interpolate_pose(a.right, b.right, u), lerp(a.left_grip, b.left_grip, u),
-                  lerp(a.right_grip, b.right_grip, u))
+    return Sample(
+        t,
+        interpolate_pose(a.head, b.head, u),
+        interpolate_pose(a.left, b.left, u),
+        interpolate_pose(a.right, b.right, u),
+        lerp(a.left_grip, b.left_grip, u),
+        lerp(a.right_grip, b.right_grip, u),
+    )
 
 
 # ---------------------------------------------------------------- JSON parsing with every problem named
@@ -113,11 +138,16 @@ def _pose(obj: Any, name: str, problems: list[str]) -> Pose | None:
         if key not in obj:
             problems.append(f"{name}.{key} is missing")
     pos = _vector(obj["position"], 3, f"{name}.position", problems) if "position" in obj else None
-    quat = (_vector(obj["orientation"], 4, f"{name}.orientation", problems)
-            if "orientation" in obj else None)
+    quat = (
+        _vector(obj["orientation"], 4, f"{name}.orientation", problems)
+        if "orientation" in obj
+        else None
+    )
     if pos is not None and any(abs(c) > MAX_ABS_COORD_M for c in pos):
-        problems.append(f"{name}.position {list(pos)} is more than {MAX_ABS_COORD_M:g} m from "
-                        "the origin (metres, world frame expected)")
+        problems.append(
+            f"{name}.position {list(pos)} is more than {MAX_ABS_COORD_M:g} m from "
+            "the origin (metres, world frame expected)"
+        )
     if quat is not None:
         try:
             quat = normalized(quat)
@@ -161,8 +191,9 @@ def parse_sample(obj: Any, *, require_t: bool) -> tuple[Sample | None, list[str]
             grips[name] = float(obj[name])
     if problems:
         return None, problems
-    return Sample(t, poses["head"], poses["left"], poses["right"], grips["left_grip"],
-                  grips["right_grip"]), []
+    return Sample(
+        t, poses["head"], poses["left"], poses["right"], grips["left_grip"], grips["right_grip"]
+    ), []
 
 
 def _show(value: Any) -> str:

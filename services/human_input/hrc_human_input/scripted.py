@@ -40,19 +40,19 @@ from hrc_human_input.task_view import TaskView
 
 log = logging.getLogger(__name__)
 
-HEAD_POS: Vec3 = (0.0, -0.70, 0.60)           # standing at -y, eyes 0.6 m above the board
+HEAD_POS: Vec3 = (0.0, -0.70, 0.60)  # standing at -y, eyes 0.6 m above the board
 REST: dict[str, Vec3] = {"left": (-0.22, -0.56, 0.10), "right": (0.22, -0.56, 0.10)}
-GRASP_HEIGHT_MAX = 0.02      # hand this far above a part's centre at most (top face if lower)
-APPROACH_CLEARANCE = 0.08    # approach and leave a part vertically from this far above
-CARRY_CLEARANCE = 0.10       # carry a held part this far above the higher of start and goal
-RELEASE_CLEARANCE = 0.003    # let go this far above the resting height
-PICK_WIDTH = 0.06            # Fitts width: a grasp succeeds within 3 cm
-GROSS_WIDTH = 0.10           # Fitts width of lifts, withdrawals and pull-backs
+GRASP_HEIGHT_MAX = 0.02  # hand this far above a part's centre at most (top face if lower)
+APPROACH_CLEARANCE = 0.08  # approach and leave a part vertically from this far above
+CARRY_CLEARANCE = 0.10  # carry a held part this far above the higher of start and goal
+RELEASE_CLEARANCE = 0.003  # let go this far above the resting height
+PICK_WIDTH = 0.06  # Fitts width: a grasp succeeds within 3 cm
+GROSS_WIDTH = 0.10  # Fitts width of lifts, withdrawals and pull-backs
 PULLBACK = (0.0, -0.20, 0.08)
 HAND_Y_MIN = -0.60
-GRASP_TIMEOUT_S = 0.6        # grip closed, still not held: try again
-RELEASE_RETRY_S = 1.5        # released, not placed: grab it again after this long at most
-RELEASE_MIN_S = 0.3          # ... and not before this
+GRASP_TIMEOUT_S = 0.6  # grip closed, still not held: try again
+RELEASE_RETRY_S = 1.5  # released, not placed: grab it again after this long at most
+RELEASE_MIN_S = 0.3  # ... and not before this
 COLLISION_FALLBACK_S = 30.0  # no CONTINUED ever: carry on anyway
 PROVOKE_GIVE_UP_S = 4.0
 BUTTON_REPEAT_S = 3.0
@@ -60,17 +60,17 @@ HEAD_TIME_CONSTANT_S = 0.15
 
 
 class Phase(str, Enum):
-    IDLE = "idle"                  # waiting for something to grab
-    REACT = "react"                # reaction time (and caution) before a reach
-    REACH = "reach"                # reaching and gripping
-    HOLD = "hold"                  # holding: decide to carry (reaction time, caution)
-    WAIT_DEPS = "wait_deps"        # holding, lifted, while the part's `after` parts are missing
-    CARRY = "carry"                # carrying, lowering and releasing
+    IDLE = "idle"  # waiting for something to grab
+    REACT = "react"  # reaction time (and caution) before a reach
+    REACH = "reach"  # reaching and gripping
+    HOLD = "hold"  # holding: decide to carry (reaction time, caution)
+    WAIT_DEPS = "wait_deps"  # holding, lifted, while the part's `after` parts are missing
+    CARRY = "carry"  # carrying, lowering and releasing
     RELEASE_CHECK = "release_check"
     WITHDRAW = "withdraw"
-    PULLBACK = "pullback"          # collision: pulling the hand back
+    PULLBACK = "pullback"  # collision: pulling the hand back
     COLLISION_WAIT = "collision_wait"
-    PROVOKE = "provoke"            # reaching into a robot on purpose
+    PROVOKE = "provoke"  # reaching into a robot on purpose
     DONE = "done"
 
 
@@ -78,10 +78,14 @@ class ScriptedParticipant:
     def __init__(self, facts: ScenarioFacts, seed: int | None = None) -> None:
         self.facts = facts
         p = facts.params
-        self.motor = MotorParams(reaction_time_s=p.reaction_time_s,
-                                 peak_hand_speed=p.peak_hand_speed, fitts_a_s=p.fitts_a_s,
-                                 fitts_b_s=p.fitts_b_s, grip_close_s=p.grip_close_s,
-                                 grip_open_s=p.grip_open_s)
+        self.motor = MotorParams(
+            reaction_time_s=p.reaction_time_s,
+            peak_hand_speed=p.peak_hand_speed,
+            fitts_a_s=p.fitts_a_s,
+            fitts_b_s=p.fitts_b_s,
+            grip_close_s=p.grip_close_s,
+            grip_open_s=p.grip_open_s,
+        )
         self.caution = p.caution
         self.pick_dwell = p.pick_dwell_s
         self.place_dwell = p.place_dwell_s
@@ -103,15 +107,15 @@ class ScriptedParticipant:
         self._head_t: float | None = None
         self.phase = Phase.IDLE
         self.phase_since = 0.0
-        self.part: str | None = None          # the part being handled
-        self.go_t: float | None = None        # when the pending action starts
+        self.part: str | None = None  # the part being handled
+        self.go_t: float | None = None  # when the pending action starts
         self.hold_since: float | None = None  # holding back (caution) since
         self.hold_expired = False
         self.hold_backs: list[tuple[float, str]] = []  # (time, robot) whenever caution held back
         self.grasp: tuple[Vec3, float, float] | None = None  # hand - object, hand & object yaw_rad
         self.in_collision = False
         self.collision_since = 0.0
-        self.collision_confirmed = False      # the orchestrator announced it (COLLISION event)
+        self.collision_confirmed = False  # the orchestrator announced it (COLLISION event)
         self.last_press: float | None = None
         self.provoke_times = list(facts.provoke_times_s)
         self.provoked_parts: set[str] = set()
@@ -128,7 +132,9 @@ class ScriptedParticipant:
 
     def _set(self, phase: Phase, t: float, why: str = "") -> None:
         if phase != self.phase:
-            self.log.append((t, f"{self.phase.value} -> {phase.value}" + (f": {why}" if why else "")))
+            self.log.append(
+                (t, f"{self.phase.value} -> {phase.value}" + (f": {why}" if why else ""))
+            )
             log.debug("t=%.3f %s -> %s %s", t, self.phase.value, phase.value, why)
         self.phase = phase
         self.phase_since = t
@@ -165,11 +171,16 @@ class ScriptedParticipant:
         assert self.grasp is not None
         offset, hand_yaw0_rad, obj_yaw0_rad = self.grasp
         delta_rad = math.remainder(math.radians(part.target_yaw_deg) - obj_yaw0_rad, 2.0 * math.pi)
-        err = self.rng_place.normal(0.0, self.place_error, size=2) if self.place_error > 0 \
+        err = (
+            self.rng_place.normal(0.0, self.place_error, size=2)
+            if self.place_error > 0
             else np.zeros(2)
+        )
         hand = add(part.target, rotate_z_rad(offset, delta_rad))
-        return ((hand[0] + float(err[0]), hand[1] + float(err[1]), hand[2] + RELEASE_CLEARANCE),
-                hand_yaw0_rad + delta_rad)
+        return (
+            (hand[0] + float(err[0]), hand[1] + float(err[1]), hand[2] + RELEASE_CLEARANCE),
+            hand_yaw0_rad + delta_rad,
+        )
 
     # ------------------------------------------------------------------ caution
     def caution_radius(self) -> float:
@@ -238,10 +249,14 @@ class ScriptedParticipant:
             hand.advance(t)
         self._look(t)
         left, right = self.hands["left"], self.hands["right"]
-        return Sample(t, Pose(HEAD_POS, self.head_q),
-                      Pose(left.pos, yaw_quat_rad(left.yaw_rad)),
-                      Pose(right.pos, yaw_quat_rad(right.yaw_rad)),
-                      left.grip, right.grip)
+        return Sample(
+            t,
+            Pose(HEAD_POS, self.head_q),
+            Pose(left.pos, yaw_quat_rad(left.yaw_rad)),
+            Pose(right.pos, yaw_quat_rad(right.yaw_rad)),
+            left.grip,
+            right.grip,
+        )
 
     def _perceive(self, t: float, view: TaskView) -> None:
         object_events, task_events = view.drain()
@@ -255,8 +270,10 @@ class ScriptedParticipant:
                 collision_begins = True
             elif e.kind == pb.TASK_EVENT_KIND_CONTINUED:
                 self._collision_over(t, "robots continue")
-            elif (e.kind == pb.TASK_EVENT_KIND_COLLISION_END
-                  and self.facts.safety_policy == SafetyPolicy.STOP_COLLIDING):
+            elif (
+                e.kind == pb.TASK_EVENT_KIND_COLLISION_END
+                and self.facts.safety_policy == SafetyPolicy.STOP_COLLIDING
+            ):
                 self._collision_over(t, "collision ended")
         if view.hand_robot_contacts:  # felt before the orchestrator announces it
             collision_begins = True
@@ -264,10 +281,13 @@ class ScriptedParticipant:
             self._collision_begins(t, view)
         if self.in_collision:
             waited = t - self.collision_since
-            if (not self.collision_confirmed and not view.hand_robot_contacts and waited > 1.0) \
-                    or waited > COLLISION_FALLBACK_S:
-                self._collision_over(t, "no collision announced" if not self.collision_confirmed
-                                     else "gave up waiting")
+            if (
+                not self.collision_confirmed and not view.hand_robot_contacts and waited > 1.0
+            ) or waited > COLLISION_FALLBACK_S:
+                self._collision_over(
+                    t,
+                    "no collision announced" if not self.collision_confirmed else "gave up waiting",
+                )
 
     def _collision_begins(self, t: float, view: TaskView) -> None:
         self.in_collision = True
@@ -295,8 +315,14 @@ class ScriptedParticipant:
         tt = view.task_time(t)
         if tt is None or tt < self.provoke_times[0]:
             return
-        interruptible = self.phase in (Phase.IDLE, Phase.REACT, Phase.WAIT_DEPS, Phase.HOLD,
-                                       Phase.DONE, Phase.WITHDRAW)
+        interruptible = self.phase in (
+            Phase.IDLE,
+            Phase.REACT,
+            Phase.WAIT_DEPS,
+            Phase.HOLD,
+            Phase.DONE,
+            Phase.WITHDRAW,
+        )
         if self.phase in (Phase.REACH, Phase.CARRY):
             interruptible = self.hand.segment is not None and self.hand.pending_grip_change()
         if interruptible and self._start_provoke(t, view, "at task time %.2f s" % tt):
@@ -361,8 +387,12 @@ class ScriptedParticipant:
                 self.released_at = t
                 self.rested = False
                 self._set(Phase.RELEASE_CHECK, t)
-            elif (self.part is not None and view.held_by(self.part) != self.active
-                  and hand.pending_grip_change() and hand.segment is not None):
+            elif (
+                self.part is not None
+                and view.held_by(self.part) != self.active
+                and hand.pending_grip_change()
+                and hand.segment is not None
+            ):
                 hand.cancel()
                 self._set(Phase.IDLE, t, "part dropped while carrying")
         elif ph == Phase.RELEASE_CHECK:
@@ -405,18 +435,25 @@ class ScriptedParticipant:
             return
         if self.go_t is None or t < self.go_t:
             return
-        if (pid not in self.provoked_parts and self.facts.provoke_probability > 0.0):
+        if pid not in self.provoked_parts and self.facts.provoke_probability > 0.0:
             self.provoked_parts.add(pid)
             if self.rng_provoke.random() < self.facts.provoke_probability:
                 if self._start_provoke(t, view, f"before reaching for {pid}"):
                     return
         hand = self.hand
         hand.cancel()
-        obj_yaw_rad = view.objects[pid].yaw_rad if pid in view.objects else math.radians(
-            self._part(pid).start_yaw_deg)
-        hand.do(Grip(0.0), Move(above, obj_yaw_rad, PICK_WIDTH, "reach"),
-                Move(goal, obj_yaw_rad, PICK_WIDTH, "descend"), Grip(1.0, "grip"),
-                Dwell(max(0.0, self.pick_dwell - self.motor.grip_close_s), "pick dwell"))
+        obj_yaw_rad = (
+            view.objects[pid].yaw_rad
+            if pid in view.objects
+            else math.radians(self._part(pid).start_yaw_deg)
+        )
+        hand.do(
+            Grip(0.0),
+            Move(above, obj_yaw_rad, PICK_WIDTH, "reach"),
+            Move(goal, obj_yaw_rad, PICK_WIDTH, "descend"),
+            Grip(1.0, "grip"),
+            Dwell(max(0.0, self.pick_dwell - self.motor.grip_close_s), "pick dwell"),
+        )
         self._action_started()
         self._set(Phase.REACH, t, f"reaching for {pid}")
 
@@ -424,14 +461,19 @@ class ScriptedParticipant:
         pid = self.part
         assert pid is not None
         hand = self.hand
-        if view.held_by(pid) == self.active and not hand.pending_grip_change() \
-                and hand.segment is None and not hand.plan:
+        if (
+            view.held_by(pid) == self.active
+            and not hand.pending_grip_change()
+            and hand.segment is None
+            and not hand.plan
+        ):
             self._grasped(t, view)
             return
         if hand.busy:
             # the part moved (e.g. still rolling after a missed release): aim again
-            if hand.pending_grip_change() and any(isinstance(s, Grip) and s.value >= GRIP_CLOSED
-                                                  for s in hand.plan):
+            if hand.pending_grip_change() and any(
+                isinstance(s, Grip) and s.value >= GRIP_CLOSED for s in hand.plan
+            ):
                 if distance(self.grasp_point(view, pid), self._planned_grasp(hand)) > 0.02:
                     self.go_t = t
                     self._set(Phase.REACT, t, f"{pid} moved")
@@ -459,8 +501,15 @@ class ScriptedParticipant:
         assert pid is not None
         hand = self.hand
         obj = view.objects[pid]
-        self.grasp = ((hand.pos[0] - obj.position[0], hand.pos[1] - obj.position[1],
-                       hand.pos[2] - obj.position[2]), hand.yaw_rad, obj.yaw_rad)
+        self.grasp = (
+            (
+                hand.pos[0] - obj.position[0],
+                hand.pos[1] - obj.position[1],
+                hand.pos[2] - obj.position[2],
+            ),
+            hand.yaw_rad,
+            obj.yaw_rad,
+        )
         self.go_t = t  # a continuous action: no new reaction time
         self._set(Phase.HOLD, t, f"holding {pid}")
 
@@ -479,8 +528,9 @@ class ScriptedParticipant:
         carry_z = max(hand.pos[2], release[2] + CARRY_CLEARANCE)
         if not self.deps_done(view, pid):
             if carry_z - hand.pos[2] > 0.01:
-                hand.do(Move((hand.pos[0], hand.pos[1], carry_z), None, GROSS_WIDTH,
-                             "lift and wait"))
+                hand.do(
+                    Move((hand.pos[0], hand.pos[1], carry_z), None, GROSS_WIDTH, "lift and wait")
+                )
             self._set(Phase.WAIT_DEPS, t, f"{pid} waits for {', '.join(part.after)}")
             return
         hover = (release[0], release[1], carry_z)
@@ -491,10 +541,13 @@ class ScriptedParticipant:
         steps: list = []
         if carry_z - hand.pos[2] > 0.01:
             steps.append(Move((hand.pos[0], hand.pos[1], carry_z), None, GROSS_WIDTH, "lift"))
-        steps += [Move(hover, yaw_rad, PICK_WIDTH, "carry"),
-                  Move(release, yaw_rad, 2.0 * self.facts.place_tolerance_m, "lower"),
-                  Dwell(self.place_dwell / 2.0, "place dwell"), Grip(0.0, "release"),
-                  Dwell(self.place_dwell / 2.0, "after release")]
+        steps += [
+            Move(hover, yaw_rad, PICK_WIDTH, "carry"),
+            Move(release, yaw_rad, 2.0 * self.facts.place_tolerance_m, "lower"),
+            Dwell(self.place_dwell / 2.0, "place dwell"),
+            Grip(0.0, "release"),
+            Dwell(self.place_dwell / 2.0, "after release"),
+        ]
         hand.do(*steps)
         self._action_started()
         self._set(Phase.CARRY, t, f"carrying {pid}")
@@ -504,8 +557,9 @@ class ScriptedParticipant:
         assert pid is not None and self.released_at is not None
         hand = self.hand
         if view.is_placed(pid):
-            hand.do(Move(add(hand.pos, (0.0, 0.0, APPROACH_CLEARANCE)), None, GROSS_WIDTH,
-                         "withdraw"))
+            hand.do(
+                Move(add(hand.pos, (0.0, 0.0, APPROACH_CLEARANCE)), None, GROSS_WIDTH, "withdraw")
+            )
             self.grasp = None
             self._set(Phase.WITHDRAW, t, f"{pid} placed")
             return
@@ -529,8 +583,12 @@ class ScriptedParticipant:
         if free.busy:
             return
         self.last_press = t
-        free.do(Dwell(self._rt()), Move(add(button, (0.0, 0.0, 0.01)), 0.0, 0.03, "button"),
-                Dwell(0.3, "press"), Move(REST[self.free], 0.0, GROSS_WIDTH, "rest"))
+        free.do(
+            Dwell(self._rt()),
+            Move(add(button, (0.0, 0.0, 0.01)), 0.0, 0.03, "button"),
+            Dwell(0.3, "press"),
+            Move(REST[self.free], 0.0, GROSS_WIDTH, "rest"),
+        )
         self.log.append((t, "pressing the continue button"))
 
     def _provoke_step(self, t: float, view: TaskView) -> None:
@@ -556,6 +614,6 @@ class ScriptedParticipant:
     # ------------------------------------------------------------------ analysis
     def reaches(self) -> list:
         """Every minimum-jerk segment either hand made."""
-        return sorted(self.hands["left"].segments + self.hands["right"].segments,
-                      key=lambda s: s.t0)
-
+        return sorted(
+            self.hands["left"].segments + self.hands["right"].segments, key=lambda s: s.t0
+        )

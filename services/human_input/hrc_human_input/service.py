@@ -24,8 +24,13 @@ from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource
 from hrc_human_input.task_view import TaskView
-from hrc_human_input.vr_bridge import (DEFAULT_HOST, DEFAULT_PORT, BridgeConfigError, VrBridge,
-                                       check_bind)
+from hrc_human_input.vr_bridge import (
+    DEFAULT_HOST,
+    DEFAULT_PORT,
+    BridgeConfigError,
+    VrBridge,
+    check_bind,
+)
 
 log = logging.getLogger("hrc_human_input")
 
@@ -46,22 +51,46 @@ class HumanInputService(Service):
 
     @classmethod
     def add_arguments(cls, p: argparse.ArgumentParser) -> None:
-        p.add_argument("--input", choices=[s.value for s in InputSource], default=None,
-                       help="input source (default: the scenario's [participant] input)")
-        p.add_argument("--replay", default=None, metavar="FILE",
-                       help="replay this recording whatever the scenario's input says")
-        p.add_argument("--record", default=None, metavar="FILE",
-                       help="record what the source relayed to FILE (replay format, JSONL)")
-        p.add_argument("--vr-host", default=os.environ.get("HRC_VR_HOST", DEFAULT_HOST),
-                       help="address the VR bridge binds (default 127.0.0.1; anything else needs "
-                            "a token)")
-        p.add_argument("--vr-port", type=int,
-                       default=int(os.environ.get("HRC_VR_PORT", DEFAULT_PORT)),
-                       help=f"port of the VR bridge and its page (default {DEFAULT_PORT}; 0 = any)")
-        p.add_argument("--vr-token", default=os.environ.get("HRC_VR_TOKEN") or None,
-                       help="token VR clients must present (env HRC_VR_TOKEN)")
-        p.add_argument("--start-timeout", type=float, default=60.0,
-                       help="seconds to wait for the scenario (default 60)")
+        p.add_argument(
+            "--input",
+            choices=[s.value for s in InputSource],
+            default=None,
+            help="input source (default: the scenario's [participant] input)",
+        )
+        p.add_argument(
+            "--replay",
+            default=None,
+            metavar="FILE",
+            help="replay this recording whatever the scenario's input says",
+        )
+        p.add_argument(
+            "--record",
+            default=None,
+            metavar="FILE",
+            help="record what the source relayed to FILE (replay format, JSONL)",
+        )
+        p.add_argument(
+            "--vr-host",
+            default=os.environ.get("HRC_VR_HOST", DEFAULT_HOST),
+            help="address the VR bridge binds (default 127.0.0.1; anything else needs a token)",
+        )
+        p.add_argument(
+            "--vr-port",
+            type=int,
+            default=int(os.environ.get("HRC_VR_PORT", DEFAULT_PORT)),
+            help=f"port of the VR bridge and its page (default {DEFAULT_PORT}; 0 = any)",
+        )
+        p.add_argument(
+            "--vr-token",
+            default=os.environ.get("HRC_VR_TOKEN") or None,
+            help="token VR clients must present (env HRC_VR_TOKEN)",
+        )
+        p.add_argument(
+            "--start-timeout",
+            type=float,
+            default=60.0,
+            help="seconds to wait for the scenario (default 60)",
+        )
 
     def __init__(self, args: argparse.Namespace) -> None:
         """Refuses unsafe or broken input before joining the run."""
@@ -84,31 +113,62 @@ class HumanInputService(Service):
             raise ServiceExit(f"scenario rejected:\n{exc}", EXIT_BAD_INPUT) from exc
         self.source = self._source(facts, keys.session, stack)
         if args.record:
-            self.recorder = stack.enter_context(Recorder(Path(args.record), {
-                "source": self.source.name, "scenario": facts.name,
-                "participant": facts.participant, "seed": facts.seed, "tick_hz": facts.tick_hz,
-                "session": keys.session, "anticipation": facts.anticipation}))
+            self.recorder = stack.enter_context(
+                Recorder(
+                    Path(args.record),
+                    {
+                        "source": self.source.name,
+                        "scenario": facts.name,
+                        "participant": facts.participant,
+                        "seed": facts.seed,
+                        "tick_hz": facts.tick_hz,
+                        "session": keys.session,
+                        "anticipation": facts.anticipation,
+                    },
+                )
+            )
         self.publisher = bus.publisher(keys.human_state())
         self.keyframe_every = max(1, round(facts.tick_hz))  # once per simulated second
-        log.info("participant %r ready (input %s%s)", facts.participant, self.source.name,
-                 f", recording to {args.record}" if args.record else "")
+        log.info(
+            "participant %r ready (input %s%s)",
+            facts.participant,
+            self.source.name,
+            f", recording to {args.record}" if args.record else "",
+        )
 
-    def _source(self, facts: facts_mod.ScenarioFacts, session: str,
-                stack: contextlib.ExitStack) -> Source:
+    def _source(
+        self, facts: facts_mod.ScenarioFacts, session: str, stack: contextlib.ExitStack
+    ) -> Source:
         args = self.args
-        kind = (InputSource.REPLAY if args.replay
-                else InputSource(args.input) if args.input else facts.input)
+        kind = (
+            InputSource.REPLAY
+            if args.replay
+            else InputSource(args.input)
+            if args.input
+            else facts.input
+        )
         if kind == InputSource.REPLAY:
             if self.recording is None:
                 if not facts.replay_file:
-                    raise ServiceExit("input = replay but the scenario names no replay_file "
-                                      "(and no --replay FILE was given)", EXIT_BAD_INPUT)
+                    raise ServiceExit(
+                        "input = replay but the scenario names no replay_file "
+                        "(and no --replay FILE was given)",
+                        EXIT_BAD_INPUT,
+                    )
                 self.recording = _load(facts.replay_file)
             return ReplaySource(Replayer(self.recording))
         if kind == InputSource.VR:
-            bridge = VrBridge(args.vr_host, args.vr_port, args.vr_token,
-                              hello={"session": session, "scenario": facts.name,
-                                     "participant": facts.participant, "tick_hz": facts.tick_hz})
+            bridge = VrBridge(
+                args.vr_host,
+                args.vr_port,
+                args.vr_token,
+                hello={
+                    "session": session,
+                    "scenario": facts.name,
+                    "participant": facts.participant,
+                    "tick_hz": facts.tick_hz,
+                },
+            )
             try:
                 bridge.start()
             except BridgeConfigError as exc:

@@ -21,8 +21,14 @@ from hrc_human_input.vr_bridge import VrBridge
 
 def rest_sample(t: float = 0.0) -> Sample:
     """Standing at the table, hands down, grips open."""
-    return Sample(t, Pose(HEAD_POS, look_quat(HEAD_POS, (0.0, 0.0, 0.0))), Pose(REST["left"]),
-                  Pose(REST["right"]), 0.0, 0.0)
+    return Sample(
+        t,
+        Pose(HEAD_POS, look_quat(HEAD_POS, (0.0, 0.0, 0.0))),
+        Pose(REST["left"]),
+        Pose(REST["right"]),
+        0.0,
+        0.0,
+    )
 
 
 class Source(Protocol):
@@ -55,8 +61,10 @@ class ScriptedSource:
 
     def summary(self) -> str | None:
         sp = self.participant
-        return (f"scripted participant: phase {sp.phase.value}, {len(sp.reaches())} reaches, "
-                f"{len(sp.hold_backs)} hold-backs")
+        return (
+            f"scripted participant: phase {sp.phase.value}, {len(sp.reaches())} reaches, "
+            f"{len(sp.hold_backs)} hold-backs"
+        )
 
 
 class ReplaySource:
@@ -93,5 +101,7 @@ class VrSource:
 
     def summary(self) -> str | None:
         st = self.bridge.stats
-        return (f"VR bridge: {st.clients} clients, {st.accepted} samples accepted, "
-                f"{st.rejected} rejected")
+        return (
+            f"VR bridge: {st.clients} clients, {st.accepted} samples accepted, "
+            f"{st.rejected} rejected"
+        )

@@ -15,7 +15,6 @@ from hrc.wire import pb
 from hrc_human_input.facts import ScenarioFacts
 
 
-
 @dataclass
 class ObjectView:
     id: str
@@ -60,7 +59,7 @@ class TaskView:
     robots: dict[str, RobotView] = field(default_factory=dict)
     cues: dict[str, pb.Cue] = field(default_factory=dict)
     placed_events: set[str] = field(default_factory=set)
-    task_start: float | None = None          # sim time of TASK_STARTED
+    task_start: float | None = None  # sim time of TASK_STARTED
     hand_robot_contacts: set[tuple[str, str]] = field(default_factory=set)
     # Events since the participant last looked (it drains them every step).
     object_events: list[ObjectEventView] = field(default_factory=list)
@@ -71,9 +70,14 @@ class TaskView:
     def on_objects(self, msg: pb.WorldObjects) -> None:
         t = msg.header.sim_time
         for o in msg.objects:
-            self.objects[o.id] = ObjectView(o.id, vec3_from_pb(o.pose.position),
-                                            quat_yaw_rad(quat_from_pb(o.pose.orientation)),
-                                            o.held_by, o.grabbable, o.placed)
+            self.objects[o.id] = ObjectView(
+                o.id,
+                vec3_from_pb(o.pose.position),
+                quat_yaw_rad(quat_from_pb(o.pose.orientation)),
+                o.held_by,
+                o.grabbable,
+                o.placed,
+            )
         for e in msg.events:
             self.object_events.append(ObjectEventView(t, e.kind, e.object, e.holder))
 
@@ -86,8 +90,11 @@ class TaskView:
             # States are published on change: the arm stood at prev.tcp until the tick before
             # this one, so the displacement took one tick, however long ago prev came.
             dt = 1.0 / self.facts.tick_hz
-            velocity = ((tcp[0] - prev.tcp[0]) / dt, (tcp[1] - prev.tcp[1]) / dt,
-                        (tcp[2] - prev.tcp[2]) / dt)
+            velocity = (
+                (tcp[0] - prev.tcp[0]) / dt,
+                (tcp[1] - prev.tcp[1]) / dt,
+                (tcp[2] - prev.tcp[2]) / dt,
+            )
         self.robots[msg.robot] = RobotView(msg.robot, tcp, msg.tcp_speed, velocity, msg.status, t)
 
     def robot_velocity(self, robot: RobotView, now: float) -> Vec3:
@@ -111,8 +118,9 @@ class TaskView:
             self.robot_waiting_events.add(msg.robot or msg.agent)
         elif msg.kind == pb.TASK_EVENT_KIND_ROBOT_WAIT_OVER:
             self.robot_waiting_events.discard(msg.robot or msg.agent)
-        self.task_events.append(TaskEventView(t, msg.kind, msg.part, msg.robot or msg.agent,
-                                              msg.hand))
+        self.task_events.append(
+            TaskEventView(t, msg.kind, msg.part, msg.robot or msg.agent, msg.hand)
+        )
 
     def on_contacts(self, msg: pb.WorldContacts) -> None:
         for c in msg.contacts:

@@ -54,7 +54,8 @@ def check_bind(host: str, token: str | None) -> None:
         raise BridgeConfigError(
             f"refusing to bind the VR bridge to {host!r} without a token: anyone on the network "
             "could drive the participant's hands. Give --vr-token (or HRC_VR_TOKEN), or bind "
-            "127.0.0.1")
+            "127.0.0.1"
+        )
 
 
 def page_html() -> bytes:
@@ -72,8 +73,13 @@ class BridgeStats:
 class VrBridge:
     """Accepts JSON samples over WebSocket and keeps the latest one."""
 
-    def __init__(self, host: str = DEFAULT_HOST, port: int = DEFAULT_PORT,
-                 token: str | None = None, hello: dict[str, Any] | None = None) -> None:
+    def __init__(
+        self,
+        host: str = DEFAULT_HOST,
+        port: int = DEFAULT_PORT,
+        token: str | None = None,
+        hello: dict[str, Any] | None = None,
+    ) -> None:
         check_bind(host, token)
         self.host = host
         self.port = port
@@ -100,7 +106,8 @@ class VrBridge:
             raise BridgeConfigError(f"the VR bridge did not start within {timeout:g} s")
         if self._error is not None:
             raise BridgeConfigError(
-                f"cannot serve the VR bridge on {self.host}:{self.port}: {self._error}")
+                f"cannot serve the VR bridge on {self.host}:{self.port}: {self._error}"
+            )
         return self.bound_port
 
     def stop(self) -> None:
@@ -136,13 +143,25 @@ class VrBridge:
     async def _main(self) -> None:
         self._loop = asyncio.get_running_loop()
         self._stop = asyncio.Event()
-        async with serve(self._handler, self.host, self.port, process_request=self._http,
-                         max_size=MAX_FRAME_BYTES, ping_interval=20, ping_timeout=20) as server:
+        async with serve(
+            self._handler,
+            self.host,
+            self.port,
+            process_request=self._http,
+            max_size=MAX_FRAME_BYTES,
+            ping_interval=20,
+            ping_timeout=20,
+        ) as server:
             self._server = server
             self.bound_port = int(next(iter(server.sockets)).getsockname()[1])
-            log.info("VR bridge on ws://%s:%d/ws (page http://%s:%d/)%s", self.host,
-                     self.bound_port, self.host, self.bound_port,
-                     ", token required" if self.token else "")
+            log.info(
+                "VR bridge on ws://%s:%d/ws (page http://%s:%d/)%s",
+                self.host,
+                self.bound_port,
+                self.host,
+                self.bound_port,
+                ", token required" if self.token else "",
+            )
             self._ready.set()
             await self._stop.wait()
 
@@ -155,8 +174,9 @@ class VrBridge:
                 return _response(HTTPStatus.OK, self._page, "text/html; charset=utf-8")
             return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")
         if parts.path not in WS_PATHS:
-            return _response(HTTPStatus.NOT_FOUND, b"WebSocket endpoint is /ws\n",
-                             "text/plain; charset=utf-8")
+            return _response(
+                HTTPStatus.NOT_FOUND, b"WebSocket endpoint is /ws\n", "text/plain; charset=utf-8"
+            )
         given = parse_qs(parts.query).get("token")
         if given is not None and self.token is not None and not self._token_ok(given[0]):
             self.stats.auth_failures += 1
@@ -165,8 +185,11 @@ class VrBridge:
         return None
 
     def _token_ok(self, given: Any) -> bool:
-        return (isinstance(given, str) and self.token is not None
-                and hmac.compare_digest(given.encode(), self.token.encode()))
+        return (
+            isinstance(given, str)
+            and self.token is not None
+            and hmac.compare_digest(given.encode(), self.token.encode())
+        )
 
     # ------------------------------------------------------------------ WebSocket
     async def _handler(self, ws: ServerConnection) -> None:
@@ -176,8 +199,7 @@ class VrBridge:
         self.stats.clients += 1
         log.info("VR client %s connected%s", peer, "" if authed else " (must authenticate)")
         try:
-            await ws.send(json.dumps({"type": "hello", "auth_required": not authed,
-                                      **self.hello}))
+            await ws.send(json.dumps({"type": "hello", "auth_required": not authed, **self.hello}))
             async for message in ws:
                 if isinstance(message, bytes):
                     await self._error_reply(ws, ["binary frames are not accepted: send JSON text"])
@@ -198,8 +220,10 @@ class VrBridge:
                     return
                 if not authed:
                     self.stats.auth_failures += 1
-                    await self._error_reply(ws, ['authenticate first: send {"token": "..."} or '
-                                                 "connect to /ws?token=..."])
+                    await self._error_reply(
+                        ws,
+                        ['authenticate first: send {"token": "..."} or connect to /ws?token=...'],
+                    )
                     await ws.close(1008, "token required")
                     return
                 sample, problems = parse_sample(obj, require_t=False)
@@ -217,15 +241,26 @@ class VrBridge:
     async def _error_reply(self, ws: ServerConnection, problems: list[str]) -> None:
         self.stats.rejected += 1
         if self.stats.rejected <= 20 or self.stats.rejected % 1000 == 0:
-            log.warning("VR client %s sent a malformed frame (#%d): %s", _peer(ws),
-                        self.stats.rejected, "; ".join(problems))
-        await ws.send(json.dumps({"type": "error", "error": "; ".join(problems),
-                                  "problems": problems}))
+            log.warning(
+                "VR client %s sent a malformed frame (#%d): %s",
+                _peer(ws),
+                self.stats.rejected,
+                "; ".join(problems),
+            )
+        await ws.send(
+            json.dumps({"type": "error", "error": "; ".join(problems), "problems": problems})
+        )
 
 
 def _response(status: HTTPStatus, body: bytes, content_type: str) -> Response:
-    headers = Headers([("Content-Type", content_type), ("Content-Length", str(len(body))),
-                       ("Cache-Control", "no-store"), ("Connection", "close")])
+    headers = Headers(
+        [
+            ("Content-Type", content_type),
+            ("Content-Length", str(len(body))),
+            ("Cache-Control", "no-store"),
+            ("Connection", "close"),
+        ]
+    )
     return Response(status.value, status.phrase, headers, body)
 
 

@@ -16,10 +16,26 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from hrc.geometry import (Pose, Vec3, add, distance, pose_to_pb, quat_yaw_rad, rotate_z_rad, sub,
-                          vec3_to_pb, wrap_angle_rad, yaw_quat_rad)
-from hrc.scenario.conventions import (GRASP_DISTANCE_M, GRIP_CLOSED, HANDS, outline_cue_id,
-                                      target_cue_id)
+from hrc.geometry import (
+    Pose,
+    Vec3,
+    add,
+    distance,
+    pose_to_pb,
+    quat_yaw_rad,
+    rotate_z_rad,
+    sub,
+    vec3_to_pb,
+    wrap_angle_rad,
+    yaw_quat_rad,
+)
+from hrc.scenario.conventions import (
+    GRASP_DISTANCE_M,
+    GRIP_CLOSED,
+    HANDS,
+    outline_cue_id,
+    target_cue_id,
+)
 from hrc.scenario.models import DEFAULT_TOLERANCE_DEG, HUMAN
 from hrc.wire import pb
 
@@ -44,9 +60,9 @@ class SimObject:
 class MiniWorld:
     facts: ScenarioFacts
     participant: ScriptedParticipant
-    robot_delay_s: float = 2.0             # a robot part is placed this long after it may be
-    collision_radius: float = 0.05         # hand this close to a robot TCP: collision
-    continue_after_s: float = 2.0          # COLLISION -> CONTINUED
+    robot_delay_s: float = 2.0  # a robot part is placed this long after it may be
+    collision_radius: float = 0.05  # hand this close to a robot TCP: collision
+    continue_after_s: float = 2.0  # COLLISION -> CONTINUED
     tcp: dict[str, Vec3] = field(default_factory=dict)
     view: TaskView = field(init=False)
     objects: dict[str, SimObject] = field(default_factory=dict)
@@ -69,8 +85,9 @@ class MiniWorld:
         self.view = TaskView(self.facts)
         for part in self.facts.parts.values():
             if part.start is not None:
-                self.objects[part.id] = SimObject(part.id, part.start,
-                                                  math.radians(part.start_yaw_deg))
+                self.objects[part.id] = SimObject(
+                    part.id, part.start, math.radians(part.start_yaw_deg)
+                )
         self._update_grabbable(0.0)
 
     @property
@@ -79,8 +96,9 @@ class MiniWorld:
 
     # ------------------------------------------------------------------ orchestrator-lite
     def _event(self, t: float, kind: int, **kw: object) -> None:
-        ev = pb.TaskEvent(kind=kind, task_time=(t - self.task_start) if self.task_start else 0.0,
-                          **kw)
+        ev = pb.TaskEvent(
+            kind=kind, task_time=(t - self.task_start) if self.task_start else 0.0, **kw
+        )
         ev.header.sim_time = t
         self._task_events.append(ev)
 
@@ -113,9 +131,15 @@ class MiniWorld:
         part = self.facts.parts[pid]
         o = self.objects.get(pid)
         if o is not None:
-            o.pos, o.yaw_rad, o.held_by, o.placed = (part.target, math.radians(part.target_yaw_deg),
-                                                      "", True)
-            self._pending_events.append(pb.ObjectEvent(kind=pb.ObjectEvent.KIND_SNAPPED, object=pid))
+            o.pos, o.yaw_rad, o.held_by, o.placed = (
+                part.target,
+                math.radians(part.target_yaw_deg),
+                "",
+                True,
+            )
+            self._pending_events.append(
+                pb.ObjectEvent(kind=pb.ObjectEvent.KIND_SNAPPED, object=pid)
+            )
         self._event(t, pb.TASK_EVENT_KIND_PART_PLACED, part=pid)
         self._cue(target_cue_id(pid), False, part=pid)
 
@@ -133,8 +157,9 @@ class MiniWorld:
                     break  # robots work their sequence in order
                 ready = max([last] + [self.placed_at[a] for a in after])
                 if self.facts.anticipation:
-                    self._cue(target_cue_id(pid), True, part=pid, robot=rid,
-                              kind=pb.CUE_KIND_TARGET)
+                    self._cue(
+                        target_cue_id(pid), True, part=pid, robot=rid, kind=pb.CUE_KIND_TARGET
+                    )
                 if t >= ready + self.robot_delay_s:
                     self._place(t, pid)
                 break
@@ -152,32 +177,48 @@ class MiniWorld:
                     o.held_by = ""
                     part = self.facts.parts[o.id]
                     d = distance(o.pos, part.target)
-                    ang = abs(math.degrees(wrap_angle_rad(
-                        o.yaw_rad - math.radians(part.target_yaw_deg))))
+                    ang = abs(
+                        math.degrees(wrap_angle_rad(o.yaw_rad - math.radians(part.target_yaw_deg)))
+                    )
                     self.released.append((t, o.id, d))
-                    self._pending_events.append(pb.ObjectEvent(
-                        kind=pb.ObjectEvent.KIND_RELEASED, object=o.id, holder=hand,
-                        target_distance_m=d, target_angle_deg=ang))
+                    self._pending_events.append(
+                        pb.ObjectEvent(
+                            kind=pb.ObjectEvent.KIND_RELEASED,
+                            object=o.id,
+                            holder=hand,
+                            target_distance_m=d,
+                            target_angle_deg=ang,
+                        )
+                    )
                     if d <= self.facts.place_tolerance_m and ang <= DEFAULT_TOLERANCE_DEG:
                         self._place(t, o.id)
                     else:
                         o.pos = (o.pos[0], o.pos[1], part.size[2] / 2.0)
-                        self._pending_events.append(pb.ObjectEvent(
-                            kind=pb.ObjectEvent.KIND_RESTED, object=o.id))
+                        self._pending_events.append(
+                            pb.ObjectEvent(kind=pb.ObjectEvent.KIND_RESTED, object=o.id)
+                        )
                     self._update_grabbable(t)
                 else:
                     o.pos = add(pose.position, rotate_z_rad(rel, hyaw_rad))
                     o.yaw_rad = hyaw_rad + dyaw_rad
             if grip >= GRIP_CLOSED and not held:
                 for o in sorted(self.objects.values(), key=lambda o: o.id):
-                    if (o.grabbable and not o.held_by
-                            and distance(pose.position, o.pos) <= GRASP_DISTANCE_M):
+                    if (
+                        o.grabbable
+                        and not o.held_by
+                        and distance(pose.position, o.pos) <= GRASP_DISTANCE_M
+                    ):
                         o.held_by = hand
-                        o.grab_rel = (rotate_z_rad(sub(o.pos, pose.position), -hyaw_rad),
-                                      o.yaw_rad - hyaw_rad)
+                        o.grab_rel = (
+                            rotate_z_rad(sub(o.pos, pose.position), -hyaw_rad),
+                            o.yaw_rad - hyaw_rad,
+                        )
                         self.grabbed_at.setdefault(o.id, []).append(t)
-                        self._pending_events.append(pb.ObjectEvent(
-                            kind=pb.ObjectEvent.KIND_GRABBED, object=o.id, holder=hand))
+                        self._pending_events.append(
+                            pb.ObjectEvent(
+                                kind=pb.ObjectEvent.KIND_GRABBED, object=o.id, holder=hand
+                            )
+                        )
                         if self.task_start is None:
                             self.task_start = t
                             self._event(t, pb.TASK_EVENT_KIND_TASK_STARTED)
@@ -192,8 +233,9 @@ class MiniWorld:
                 key = (hand, rid)
                 if touching and key not in self._touching:
                     self._touching.add(key)
-                    self._contacts.append(pb.Contact(kind=pb.CONTACT_KIND_HAND_ROBOT, begin=True,
-                                                     a=hand, b=rid))
+                    self._contacts.append(
+                        pb.Contact(kind=pb.CONTACT_KIND_HAND_ROBOT, begin=True, a=hand, b=rid)
+                    )
                     if self.collision_until is None and self.task_start is not None:
                         self.collisions.append((t, rid, hand))
                         self.collision_until = t + self.continue_after_s
@@ -201,8 +243,9 @@ class MiniWorld:
                         self._update_grabbable(t)
                 elif not touching and key in self._touching:
                     self._touching.discard(key)
-                    self._contacts.append(pb.Contact(kind=pb.CONTACT_KIND_HAND_ROBOT, begin=False,
-                                                     a=hand, b=rid))
+                    self._contacts.append(
+                        pb.Contact(kind=pb.CONTACT_KIND_HAND_ROBOT, begin=False, a=hand, b=rid)
+                    )
                     self._event(t, pb.TASK_EVENT_KIND_COLLISION_END, robot=rid, hand=hand)
 
     # ------------------------------------------------------------------ the loop
@@ -211,8 +254,13 @@ class MiniWorld:
         msg.header.sim_time = t
         msg.header.tick = self.tick
         for o in sorted(self.objects.values(), key=lambda o: o.id):
-            msg.objects.add(id=o.id, held_by=o.held_by, grabbable=o.grabbable, placed=o.placed,
-                            pose=pose_to_pb(Pose(o.pos, yaw_quat_rad(o.yaw_rad))))
+            msg.objects.add(
+                id=o.id,
+                held_by=o.held_by,
+                grabbable=o.grabbable,
+                placed=o.placed,
+                pose=pose_to_pb(Pose(o.pos, yaw_quat_rad(o.yaw_rad))),
+            )
         msg.events.extend(self._pending_events)
         self._pending_events = []
         self.view.on_objects(msg)
@@ -248,8 +296,11 @@ class MiniWorld:
         return sample
 
     def done(self) -> bool:
-        return all(p.id in self.placed_at for p in self.facts.parts.values()
-                   if p.owner == HUMAN or p.owner in self.facts.robots)
+        return all(
+            p.id in self.placed_at
+            for p in self.facts.parts.values()
+            if p.owner == HUMAN or p.owner in self.facts.robots
+        )
 
     def run(self, max_s: float) -> bool:
         while self.tick * self.dt < max_s:

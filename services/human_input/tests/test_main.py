@@ -15,11 +15,16 @@ def test_non_loopback_vr_bind_without_token_exits_2(capsys: pytest.CaptureFixtur
     assert "without a token" in capsys.readouterr().err
 
 
-def test_broken_replay_file_exits_2_with_line_numbers(tmp_path: Path,
-                                                      capsys: pytest.CaptureFixture[str]) -> None:
+def test_broken_replay_file_exits_2_with_line_numbers(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     f = tmp_path / "broken.jsonl"
-    f.write_text(json.dumps({"format": "hrc-human-input", "version": 1}) + "\n{bad\n"
-                 + json.dumps({"t": 0.0}) + "\n")
+    f.write_text(
+        json.dumps({"format": "hrc-human-input", "version": 1})
+        + "\n{bad\n"
+        + json.dumps({"t": 0.0})
+        + "\n"
+    )
     assert main(["--replay", str(f)]) == 2
     err = capsys.readouterr().err
     assert "line 2: not valid JSON" in err

@@ -7,9 +7,17 @@ import math
 import numpy as np
 import pytest
 
-from hrc_human_input.motor import (MIN_JERK_PEAK_FACTOR, MotorParams, Segment, fitts_index,
-                                   fitts_mt, min_jerk, min_jerk_speed, movement_time,
-                                   reaction_time)
+from hrc_human_input.motor import (
+    MIN_JERK_PEAK_FACTOR,
+    MotorParams,
+    Segment,
+    fitts_index,
+    fitts_mt,
+    min_jerk,
+    min_jerk_speed,
+    movement_time,
+    reaction_time,
+)
 
 
 def speed_profile(seg: Segment, hz: float = 240.0) -> np.ndarray:

@@ -10,8 +10,15 @@ import pytest
 
 from hrc.geometry import Pose, quat_norm, quat_yaw_rad, yaw_quat_rad
 
-from hrc_human_input.replay import (FORMAT, VERSION, Recorder, ReplayError, Replayer,
-                                    load_recording, parse_recording)
+from hrc_human_input.replay import (
+    FORMAT,
+    VERSION,
+    Recorder,
+    ReplayError,
+    Replayer,
+    load_recording,
+    parse_recording,
+)
 from hrc_human_input.sample import Sample, interpolate, parse_sample
 
 HEADER = json.dumps({"format": FORMAT, "version": VERSION, "scenario": "x"})
@@ -19,8 +26,14 @@ HEADER = json.dumps({"format": FORMAT, "version": VERSION, "scenario": "x"})
 
 def sample_json(t: float, x: float = 0.0, grip: float = 0.0) -> dict:
     pose = {"position": [x, -0.5, 0.1], "orientation": [0, 0, 0, 1]}
-    return {"t": t, "head": pose, "left": pose, "right": pose, "left_grip": grip,
-            "right_grip": grip}
+    return {
+        "t": t,
+        "head": pose,
+        "left": pose,
+        "right": pose,
+        "left_grip": grip,
+        "right_grip": grip,
+    }
 
 
 def lines(*objs: object) -> list[str]:
@@ -46,8 +59,19 @@ def test_every_error_is_reported_with_its_line_number() -> None:
     extra["speed"] = 3
     nan = sample_json(0.6)
     nan["left"] = {"position": [float("nan"), 0, 0], "orientation": [0, 0, 0, 1]}
-    text = lines(HEADER, sample_json(0.0), "{not json", "", bad_grip, bad_quat, missing, extra,
-                 sample_json(0.1), nan, sample_json(0.7))
+    text = lines(
+        HEADER,
+        sample_json(0.0),
+        "{not json",
+        "",
+        bad_grip,
+        bad_quat,
+        missing,
+        extra,
+        sample_json(0.1),
+        nan,
+        sample_json(0.7),
+    )
     with pytest.raises(ReplayError) as err:
         parse_recording(text, "rec.jsonl")
     problems = err.value.problems
@@ -66,8 +90,14 @@ def test_every_error_is_reported_with_its_line_number() -> None:
 
 def test_time_must_increase_and_header_is_checked() -> None:
     with pytest.raises(ReplayError) as err:
-        parse_recording(lines({"format": "other", "version": 2}, sample_json(0.5),
-                              sample_json(0.5), sample_json(0.2)))
+        parse_recording(
+            lines(
+                {"format": "other", "version": 2},
+                sample_json(0.5),
+                sample_json(0.5),
+                sample_json(0.2),
+            )
+        )
     joined = "\n".join(err.value.problems)
     assert "line 1: header format must be 'hrc-human-input'" in joined
     assert "line 1: header version must be 1, got 2" in joined
@@ -86,8 +116,9 @@ def test_empty_and_header_only_files(tmp_path: Path) -> None:
 
 def test_interpolation_lerps_positions_and_grips_and_slerps_orientations() -> None:
     a = Sample(1.0, Pose((0, 0, 0), yaw_quat_rad(0.0)), Pose((0, 0, 0)), Pose((0, 0, 0)), 0.0, 0.0)
-    b = Sample(2.0, Pose((1, 2, 3), yaw_quat_rad(math.pi / 2)), Pose((1, 0, 0)), Pose((0, 1, 0)),
-               1.0, 0.5)
+    b = Sample(
+        2.0, Pose((1, 2, 3), yaw_quat_rad(math.pi / 2)), Pose((1, 0, 0)), Pose((0, 1, 0)), 1.0, 0.5
+    )
     m = interpolate(a, b, 1.25)
     assert m.head.position == pytest.approx((0.25, 0.5, 0.75))
     assert quat_yaw_rad(m.head.orientation) == pytest.approx(math.pi / 8)
@@ -95,8 +126,8 @@ def test_interpolation_lerps_positions_and_grips_and_slerps_orientations() -> No
     assert m.left_grip == pytest.approx(0.25) and m.right_grip == pytest.approx(0.125)
     rp = Replayer(parse_recording(lines(HEADER, a.to_json(), b.to_json())))
     assert rp.sample_at(1.5).right.position == pytest.approx((0, 0.5, 0))
-    assert rp.sample_at(0.0).head.position == (0, 0, 0)      # before: first holds
-    assert rp.sample_at(9.0).head.position == (1, 2, 3)      # after: last holds
+    assert rp.sample_at(0.0).head.position == (0, 0, 0)  # before: first holds
+    assert rp.sample_at(9.0).head.position == (1, 2, 3)  # after: last holds
     assert rp.sample_at(9.0).t == 9.0
 
 
@@ -113,8 +144,16 @@ def test_record_then_replay_is_bit_identical(tmp_path: Path) -> None:
     for k in range(50):
         t = k / 240.0
         q = yaw_quat_rad(0.1 * k)
-        samples.append(Sample(t, Pose((0.1 * k / 3, -0.5, 0.2), q), Pose((k / 7, 0.0, 0.1), q),
-                              Pose((0.3, k / 11, 0.1)), (k % 10) / 9, 1.0 / 3.0))
+        samples.append(
+            Sample(
+                t,
+                Pose((0.1 * k / 3, -0.5, 0.2), q),
+                Pose((k / 7, 0.0, 0.1), q),
+                Pose((0.3, k / 11, 0.1)),
+                (k % 10) / 9,
+                1.0 / 3.0,
+            )
+        )
     with Recorder(path, {"scenario": "demo", "seed": 3}) as rec:
         for s in samples:
             rec.write(s)

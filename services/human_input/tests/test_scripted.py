@@ -32,9 +32,15 @@ def scenario_pb(name: str, **params: float | bool) -> pb.Scenario:
     return msg
 
 
-def make_world(name: str = "minimal", *, anticipation: bool = True, seed: int | None = None,
-               provoke_times: list[float] | None = None, provoke_probability: float = 0.0,
-               **params: float | bool) -> MiniWorld:
+def make_world(
+    name: str = "minimal",
+    *,
+    anticipation: bool = True,
+    seed: int | None = None,
+    provoke_times: list[float] | None = None,
+    provoke_probability: float = 0.0,
+    **params: float | bool,
+) -> MiniWorld:
     msg = scenario_pb(name, **params)
     msg.conditions.anticipation = anticipation
     if seed is not None:
@@ -174,20 +180,38 @@ def view_for_caution(anticipation: bool, **cue_kw: object) -> tuple[ScriptedPart
     p = ScriptedParticipant(facts)
     h1 = facts.parts["H1"]
     wo = pb.WorldObjects(full=True)
-    wo.objects.add(id="H1", grabbable=True, pose=pb.Pose(
-        position=pb.Vec3(x=h1.start[0], y=h1.start[1], z=h1.start[2]),
-        orientation=pb.Quat(w=1.0)))
+    wo.objects.add(
+        id="H1",
+        grabbable=True,
+        pose=pb.Pose(
+            position=pb.Vec3(x=h1.start[0], y=h1.start[1], z=h1.start[2]),
+            orientation=pb.Quat(w=1.0),
+        ),
+    )
     view.on_objects(wo)
     for rid, tcp in (("r1", (0.20, 0.25, 0.25)), ("r2", (-0.20, 0.25, 0.25))):
         for t in (0.0, 0.1):  # two states: it stands still
-            rs = pb.RobotState(robot=rid, tcp=pb.Pose(position=pb.Vec3(x=tcp[0], y=tcp[1],
-                                                                       z=tcp[2])))
+            rs = pb.RobotState(
+                robot=rid, tcp=pb.Pose(position=pb.Vec3(x=tcp[0], y=tcp[1], z=tcp[2]))
+            )
             rs.header.sim_time = t
             view.on_robot_state(rs)
     # r1 carries RA1 and its lit target says it is heading to where H1 lies
-    view.on_indicators(pb.Indicators(cues=[pb.Cue(
-        id="target:RA1", kind=pb.CUE_KIND_TARGET, on=True, part="RA1", robot="r1",
-        color="yellow", position=pb.Vec3(x=h1.start[0], y=h1.start[1] + 0.05, z=0.05))]))
+    view.on_indicators(
+        pb.Indicators(
+            cues=[
+                pb.Cue(
+                    id="target:RA1",
+                    kind=pb.CUE_KIND_TARGET,
+                    on=True,
+                    part="RA1",
+                    robot="r1",
+                    color="yellow",
+                    position=pb.Vec3(x=h1.start[0], y=h1.start[1] + 0.05, z=0.05),
+                )
+            ]
+        )
+    )
     if cue_kw:
         view.on_indicators(pb.Indicators(cues=[pb.Cue(**cue_kw)]))
     return p, view
@@ -207,8 +231,9 @@ def test_caution_uses_the_anticipation_cues_only_when_enabled() -> None:
     assert p_on.phase == Phase.REACT and p_on.hold_backs and p_on.hold_backs[0][1] == "r1"
     assert not p_off.hold_backs and p_off.phase in (Phase.REACH, Phase.HOLD)
     # a robot showing "Waiting.." is not coming: no reason to hold back
-    p_wait, v_wait = view_for_caution(True, id="waiting:r1", kind=pb.CUE_KIND_WAITING, on=True,
-                                      robot="r1")
+    p_wait, v_wait = view_for_caution(
+        True, id="waiting:r1", kind=pb.CUE_KIND_WAITING, on=True, robot="r1"
+    )
     run_view(p_wait, v_wait, 2.0)
     assert not p_wait.hold_backs
     # holding back never lasts longer than max_hold_back_s
@@ -224,7 +249,9 @@ def test_caution_sees_a_robot_moving_towards_the_goal_without_anticipation() -> 
     dt = 1.0 / view.facts.tick_hz
     for k in range(2):  # r2 sweeping towards the part at 0.5 m/s, states on two ticks
         x = goal[0] + 0.35 - 0.5 * dt * k
-        rs = pb.RobotState(robot="r2", tcp=pb.Pose(position=pb.Vec3(x=x, y=goal[1], z=goal[2] + 0.08)))
+        rs = pb.RobotState(
+            robot="r2", tcp=pb.Pose(position=pb.Vec3(x=x, y=goal[1], z=goal[2] + 0.08))
+        )
         rs.header.sim_time = 0.3 + k * dt
         view.on_robot_state(rs)
     above = (goal[0], goal[1], goal[2] + 0.08)

@@ -36,10 +36,12 @@ def test_accepts_samples_and_answers_malformed_frames() -> None:
             assert wait_for(lambda: bridge.latest() is not None)
             assert bridge.latest().right_grip == 1.0
             good = bridge.latest()
-            for frame, words in [("{nope", "not valid JSON"),
-                                 (json.dumps({**SAMPLE, "left_grip": 2}), "left_grip"),
-                                 (json.dumps({"head": POSE}), "left is missing"),
-                                 (b"\x00\x01", "binary frames")]:
+            for frame, words in [
+                ("{nope", "not valid JSON"),
+                (json.dumps({**SAMPLE, "left_grip": 2}), "left_grip"),
+                (json.dumps({"head": POSE}), "left is missing"),
+                (b"\x00\x01", "binary frames"),
+            ]:
                 ws.send(frame)
                 reply = json.loads(ws.recv(timeout=5))
                 assert reply["type"] == "error" and words in reply["error"], reply

@@ -59,7 +59,8 @@ std::string json_quote(std::string_view s) {
       default:
         if (static_cast<unsigned char>(c) < 0x20) {
           char buf[8];
-          std::snprintf(buf, sizeof buf, "\\u%04x", static_cast<unsigned>(static_cast<unsigned char>(c)));
+          std::snprintf(buf, sizeof buf, "\\u%04x",
+                        static_cast<unsigned>(static_cast<unsigned char>(c)));
           out += buf;
         } else {
           out += c;
@@ -132,7 +133,8 @@ std::string BusConfig::to_json5() const {
            "period_increase_factor: 2 } },\n";
   }
   if (!listen.empty()) out += "  listen: { endpoints: " + json_list(listen) + " },\n";
-  if (lowlatency) out += "  transport: { unicast: { lowlatency: true, qos: { enabled: false } } },\n";
+  if (lowlatency)
+    out += "  transport: { unicast: { lowlatency: true, qos: { enabled: false } } },\n";
   out += "}\n";
   return out;
 }
@@ -165,8 +167,8 @@ Publisher::~Publisher() { hrcz_undeclare_publisher(handle_); }
 void Publisher::put(std::string_view payload, std::string_view attachment) const {
   if (handle_ == nullptr) throw BusError("put on an empty Publisher");
   ErrBuf err{};
-  if (hrcz_publisher_put(handle_, u8(payload), payload.size(), u8(attachment), attachment.size(), err.data(),
-                         err.size()) != 0) {
+  if (hrcz_publisher_put(handle_, u8(payload), payload.size(), u8(attachment), attachment.size(),
+                         err.data(), err.size()) != 0) {
     throw BusError(err_text(err));
   }
 }
@@ -236,7 +238,8 @@ Subscriber::~Subscriber() { reset(); }
 
 // ------------------------------------------------------------------ liveliness token
 
-LivelinessToken::LivelinessToken(LivelinessToken&& o) noexcept : handle_(o.handle_), key_(std::move(o.key_)) {
+LivelinessToken::LivelinessToken(LivelinessToken&& o) noexcept
+    : handle_(o.handle_), key_(std::move(o.key_)) {
   o.handle_ = nullptr;
 }
 
@@ -255,17 +258,22 @@ LivelinessToken::~LivelinessToken() { hrcz_undeclare_token(handle_); }
 // ------------------------------------------------------------------ queryable
 
 namespace {
-void query_trampoline(void* ctx, const HrczQuery* query, const char* key, size_t key_len, const uint8_t* payload,
-                      size_t len, const uint8_t* att, size_t att_len) noexcept {
+void query_trampoline(void* ctx, const HrczQuery* query, const char* key, size_t key_len,
+                      const uint8_t* payload, size_t len, const uint8_t* att,
+                      size_t att_len) noexcept {
   auto* handler = static_cast<Queryable::Handler*>(ctx);
   try {
-    const QueryReply reply = (*handler)(QueryView{view(key, key_len), view(payload, len), view(att, att_len)});
+    const QueryReply reply =
+        (*handler)(QueryView{view(key, key_len), view(payload, len), view(att, att_len)});
     ErrBuf err{};
     const int rc = reply.is_error
-                       ? hrcz_query_reply_err(query, u8(reply.payload), reply.payload.size(), err.data(), err.size())
-                       : hrcz_query_reply(query, u8(reply.payload), reply.payload.size(), nullptr, 0, err.data(),
-                                          err.size());
-    if (rc != 0) log::warning("reply to query on '" + std::string(view(key, key_len)) + "' failed: " + err_text(err));
+                       ? hrcz_query_reply_err(query, u8(reply.payload), reply.payload.size(),
+                                              err.data(), err.size())
+                       : hrcz_query_reply(query, u8(reply.payload), reply.payload.size(), nullptr,
+                                          0, err.data(), err.size());
+    if (rc != 0)
+      log::warning("reply to query on '" + std::string(view(key, key_len)) +
+                   "' failed: " + err_text(err));
   } catch (...) {
     report_callback_failure("queryable", view(key, key_len));
   }
@@ -315,8 +323,8 @@ Session Session::open(const BusConfig& config) {
     values.push_back(v.c_str());
   }
   ErrBuf err{};
-  HrczSession* h = hrcz_open_ex(config.config_file.empty() ? nullptr : config.config_file.c_str(), paths.data(),
-                                values.data(), pairs.size(), err.data(), err.size());
+  HrczSession* h = hrcz_open_ex(config.config_file.empty() ? nullptr : config.config_file.c_str(),
+                                paths.data(), values.data(), pairs.size(), err.data(), err.size());
   if (h == nullptr) throw BusError(err_text(err));
   return Session(h);
 }
@@ -367,22 +375,22 @@ Subscriber Session::declare_subscriber(const std::string& key_expr, SampleHandle
   cb->key_expr = key_expr;
   cb->on_sample = std::move(handler);
   ErrBuf err{};
-  HrczSubscriber* s = hrcz_declare_subscriber(handle_, key_expr.c_str(), &Subscriber::Callbacks::sample, cb.get(),
-                                              err.data(), err.size());
+  HrczSubscriber* s = hrcz_declare_subscriber(
+      handle_, key_expr.c_str(), &Subscriber::Callbacks::sample, cb.get(), err.data(), err.size());
   if (s == nullptr) throw BusError(err_text(err));
   return Subscriber(s, std::move(cb), key_expr);
 }
 
-Subscriber Session::declare_liveliness_subscriber(const std::string& key_expr, LivelinessHandler handler,
-                                                  bool history) const {
+Subscriber Session::declare_liveliness_subscriber(const std::string& key_expr,
+                                                  LivelinessHandler handler, bool history) const {
   require_open(handle_);
   auto cb = std::make_unique<Subscriber::Callbacks>();
   cb->key_expr = key_expr;
   cb->on_liveliness = std::move(handler);
   ErrBuf err{};
   HrczSubscriber* s = hrcz_declare_liveliness_subscriber(handle_, key_expr.c_str(), history ? 1 : 0,
-                                                         &Subscriber::Callbacks::liveliness, cb.get(), err.data(),
-                                                         err.size());
+                                                         &Subscriber::Callbacks::liveliness,
+                                                         cb.get(), err.data(), err.size());
   if (s == nullptr) throw BusError(err_text(err));
   return Subscriber(s, std::move(cb), key_expr);
 }
@@ -399,14 +407,15 @@ Queryable Session::declare_queryable(const std::string& key, Queryable::Handler 
   require_open(handle_);
   auto h = std::make_unique<Queryable::Handler>(std::move(handler));
   ErrBuf err{};
-  HrczQueryable* q = hrcz_declare_queryable(handle_, key.c_str(), &query_trampoline, h.get(), err.data(), err.size());
+  HrczQueryable* q = hrcz_declare_queryable(handle_, key.c_str(), &query_trampoline, h.get(),
+                                            err.data(), err.size());
   if (q == nullptr) throw BusError(err_text(err));
   return Queryable(q, std::move(h), key);
 }
 
 namespace {
-void reply_trampoline(void* ctx, const char* key, size_t key_len, const uint8_t* payload, size_t len,
-                      const uint8_t* att, size_t att_len, int is_error) noexcept {
+void reply_trampoline(void* ctx, const char* key, size_t key_len, const uint8_t* payload,
+                      size_t len, const uint8_t* att, size_t att_len, int is_error) noexcept {
   auto* out = static_cast<std::vector<Reply>*>(ctx);
   try {
     out->push_back(Reply{std::string(view(key, key_len)), std::string(view(payload, len)),
@@ -417,14 +426,16 @@ void reply_trampoline(void* ctx, const char* key, size_t key_len, const uint8_t*
 }
 }  // namespace
 
-std::vector<Reply> Session::get(const std::string& selector, std::string_view payload, std::string_view attachment,
+std::vector<Reply> Session::get(const std::string& selector, std::string_view payload,
+                                std::string_view attachment,
                                 std::chrono::milliseconds timeout) const {
   require_open(handle_);
   std::vector<Reply> replies;
   ErrBuf err{};
   const auto ms = static_cast<uint64_t>(timeout.count() < 0 ? 0 : timeout.count());
-  const int64_t n = hrcz_get(handle_, selector.c_str(), u8(payload), payload.size(), u8(attachment),
-                             attachment.size(), ms, &reply_trampoline, &replies, err.data(), err.size());
+  const int64_t n =
+      hrcz_get(handle_, selector.c_str(), u8(payload), payload.size(), u8(attachment),
+               attachment.size(), ms, &reply_trampoline, &replies, err.data(), err.size());
   if (n < 0) throw BusError(err_text(err));
   return replies;
 }

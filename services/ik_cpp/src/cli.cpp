@@ -38,7 +38,8 @@ Args::Args(const std::vector<std::string>& argv, const std::vector<std::string>&
       continue;
     }
     const bool is_single = contains(single, name);
-    if (!is_single && !contains(repeatable, name)) throw UsageError("unknown option '" + name + "'");
+    if (!is_single && !contains(repeatable, name))
+      throw UsageError("unknown option '" + name + "'");
     if (!value) {
       if (i + 1 >= argv.size()) throw UsageError("option " + name + " needs a value");
       value = argv[++i];
@@ -71,10 +72,11 @@ int64_t Args::get_int(const std::string& flag, int64_t fallback, int64_t min, in
   if (!v) return fallback;
   char* end = nullptr;
   const long long n = std::strtoll(v->c_str(), &end, 10);
-  if (v->empty() || end == nullptr || *end != '\0') throw UsageError("option " + flag + ": '" + *v + "' is not an integer");
+  if (v->empty() || end == nullptr || *end != '\0')
+    throw UsageError("option " + flag + ": '" + *v + "' is not an integer");
   if (n < min || n > max) {
-    throw UsageError("option " + flag + ": " + *v + " is out of range [" + std::to_string(min) + ", " +
-                     std::to_string(max) + "]");
+    throw UsageError("option " + flag + ": " + *v + " is out of range [" + std::to_string(min) +
+                     ", " + std::to_string(max) + "]");
   }
   return n;
 }
@@ -84,10 +86,11 @@ double Args::get_double(const std::string& flag, double fallback, double min, do
   if (!v) return fallback;
   char* end = nullptr;
   const double d = std::strtod(v->c_str(), &end);
-  if (v->empty() || end == nullptr || *end != '\0') throw UsageError("option " + flag + ": '" + *v + "' is not a number");
+  if (v->empty() || end == nullptr || *end != '\0')
+    throw UsageError("option " + flag + ": '" + *v + "' is not a number");
   if (!(d >= min && d <= max)) {
-    throw UsageError("option " + flag + ": " + *v + " is out of range [" + std::to_string(min) + ", " +
-                     std::to_string(max) + "]");
+    throw UsageError("option " + flag + ": " + *v + " is out of range [" + std::to_string(min) +
+                     ", " + std::to_string(max) + "]");
   }
   return d;
 }
@@ -104,13 +107,18 @@ std::vector<std::string> bus_bool_flags() { return {"--zenoh-lowlatency"}; }
 
 std::string bus_usage() {
   return "bus options:\n"
-         "  --session ID         session id; every key is under hrc/<ID>/ (env HRC_SESSION, default 'default')\n"
-         "  --connect EP         zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable;\n"
+         "  --session ID         session id; every key is under hrc/<ID>/ (env HRC_SESSION, "
+         "default 'default')\n"
+         "  --connect EP         zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 "
+         "(repeatable;\n"
          "                       env HRC_CONNECT, comma-separated)\n"
-         "  --listen EP          zenoh endpoint to listen on (repeatable; default tcp/127.0.0.1:0)\n"
-         "  --mode peer|client|router   zenoh mode (alias --zenoh-mode; env HRC_ZENOH_MODE, default peer)\n"
+         "  --listen EP          zenoh endpoint to listen on (repeatable; default "
+         "tcp/127.0.0.1:0)\n"
+         "  --mode peer|client|router   zenoh mode (alias --zenoh-mode; env HRC_ZENOH_MODE, "
+         "default peer)\n"
          "  --zenoh-config FILE  zenoh JSON5 config file applied before the options above\n"
-         "  --zenoh-lowlatency   zenoh's low-latency transport (no QoS, messages <= 64 KiB; both ends\n"
+         "  --zenoh-lowlatency   zenoh's low-latency transport (no QoS, messages <= 64 KiB; both "
+         "ends\n"
          "                       of a link must ask for it; env HRC_ZENOH_LOWLATENCY=1)\n"
          "  --clock-master NAME  the service whose clock this one follows (default " +
          LockstepOptions{}.clock_master + ")\n";
@@ -130,8 +138,10 @@ BusArgs bus_args(const Args& args) {
   } catch (const std::invalid_argument& e) {
     throw UsageError(e.what());
   }
-  if (args.has("--mode") && args.has("--zenoh-mode")) throw UsageError("give --mode or --zenoh-mode, not both");
-  out.config.mode = args.get_or("--mode", args.get_or("--zenoh-mode", env_or("HRC_ZENOH_MODE", "peer")));
+  if (args.has("--mode") && args.has("--zenoh-mode"))
+    throw UsageError("give --mode or --zenoh-mode, not both");
+  out.config.mode =
+      args.get_or("--mode", args.get_or("--zenoh-mode", env_or("HRC_ZENOH_MODE", "peer")));
   if (args.has("--connect")) {
     out.config.connect = args.all("--connect");
   } else {
@@ -139,7 +149,8 @@ BusArgs bus_args(const Args& args) {
     std::size_t start = 0;
     while (start <= env.size()) {
       const auto comma = env.find(',', start);
-      const std::string item = env.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+      const std::string item =
+          env.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
       if (!item.empty()) out.config.connect.push_back(item);
       if (comma == std::string::npos) break;
       start = comma + 1;

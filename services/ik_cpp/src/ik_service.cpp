@@ -70,7 +70,8 @@ std::vector<RobotSpec> robots_from_scenario(const v2::Scenario& scenario) {
     if (!seen.insert(r.id()).second) throw std::invalid_argument(who + " is listed twice");
     if (r.urdf_path().empty()) throw std::invalid_argument(who + ": urdf_path is empty");
     if (!(r.max_tcp_speed() > 0) || !std::isfinite(r.max_tcp_speed())) {
-      throw std::invalid_argument(who + ": max_tcp_speed must be > 0, got " + fmt(r.max_tcp_speed()));
+      throw std::invalid_argument(who + ": max_tcp_speed must be > 0, got " +
+                                  fmt(r.max_tcp_speed()));
     }
     const Eigen::Vector3d base = vec(r.base().xyz());
     const Eigen::Vector3d home = vec(r.home());
@@ -83,7 +84,8 @@ std::vector<RobotSpec> robots_from_scenario(const v2::Scenario& scenario) {
     s.urdf_path = r.urdf_path();
     s.world_T_base.translation() = base;
     s.world_T_base.linear() =
-        Eigen::AngleAxisd(r.base().yaw_deg() * kDegToRad, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+        Eigen::AngleAxisd(r.base().yaw_deg() * kDegToRad, Eigen::Vector3d::UnitZ())
+            .toRotationMatrix();
     s.max_tcp_speed = r.max_tcp_speed();
     s.home = home;
     out.push_back(std::move(s));
@@ -103,9 +105,11 @@ double tick_dt(const v2::Scenario& scenario) {
 
 IkEngine::IkEngine(std::vector<RobotSpec> robots, double dt) : dt_(dt) {
   if (!(dt > 0) || !std::isfinite(dt)) throw std::invalid_argument("IkEngine: dt must be > 0");
-  std::sort(robots.begin(), robots.end(), [](const RobotSpec& a, const RobotSpec& b) { return a.id < b.id; });
+  std::sort(robots.begin(), robots.end(),
+            [](const RobotSpec& a, const RobotSpec& b) { return a.id < b.id; });
   for (RobotSpec& spec : robots) {
-    if (!ids_.empty() && ids_.back() == spec.id) throw std::invalid_argument("robot '" + spec.id + "' is listed twice");
+    if (!ids_.empty() && ids_.back() == spec.id)
+      throw std::invalid_argument("robot '" + spec.id + "' is listed twice");
     Arm arm;
     try {
       arm.model = std::make_unique<kin::RobotModel>(kin::RobotModel::fromUrdfFile(spec.urdf_path));
@@ -118,7 +122,8 @@ IkEngine::IkEngine(std::vector<RobotSpec> robots, double dt) : dt_(dt) {
     arm.probe = std::make_unique<kin::MotionGenerator>(*arm.model, spec.world_T_base, dt, limits);
     if (!arm.motion->resetToPose(spec.home, kHomeYaw)) {
       throw std::runtime_error("robot '" + spec.id + "': home " + fmt_point(spec.home) +
-                               " is not reachable with the tool pointing down (URDF " + spec.urdf_path + ")");
+                               " is not reachable with the tool pointing down (URDF " +
+                               spec.urdf_path + ")");
     }
     arm.probe->reset(arm.motion->state().q);
     ids_.push_back(spec.id);
@@ -140,7 +145,7 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
     return "unknown robot '" + robot + "' (this scenario has " + known + ")";
   }
   Arm& arm = arms_[static_cast<std::size_t>(i)];
-  const double nums[] = {c.target().x(), c.target().y(), c.target().z(), c.yaw_deg(),
+  const double nums[] = {c.target().x(),      c.target().y(),    c.target().z(), c.yaw_deg(),
                          c.approach_height(), c.depart_height(), c.max_speed()};
   for (const double v : nums) {
     if (!std::isfinite(v)) return "command has a NaN or infinite number";
@@ -148,7 +153,8 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
   if (c.max_speed() < 0) return "max_speed is negative";
   switch (c.kind()) {
     case v2::RobotCommand::KIND_MOVE: {
-      if (c.approach_height() < 0 || c.depart_height() < 0) return "approach/depart height is negative";
+      if (c.approach_height() < 0 || c.depart_height() < 0)
+        return "approach/depart height is negative";
       kin::MoveCommand m;
       m.target = vec(c.target());
       m.yaw = c.yaw_deg() * kDegToRad;
@@ -159,11 +165,10 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
       arm.motion->move(m);
       break;
     }
-    case v2::RobotCommand::KIND_HOLD:
-      arm.motion->hold();
-      break;
+    case v2::RobotCommand::KIND_HOLD: arm.motion->hold(); break;
     default:
-      return "command kind " + std::to_string(static_cast<int>(c.kind())) + " is neither MOVE nor HOLD";
+      return "command kind " + std::to_string(static_cast<int>(c.kind())) +
+             " is neither MOVE nor HOLD";
   }
   arm.command_id = c.command_id();
   return {};
@@ -231,7 +236,8 @@ v2::ReachReply IkEngine::reach(const v2::ReachRequest& request) {
       continue;
     }
     double err = 0.0;
-    const bool ok = arms_[static_cast<std::size_t>(i)].probe->reachable(target, item.yaw_deg() * kDegToRad, &err);
+    const bool ok = arms_[static_cast<std::size_t>(i)].probe->reachable(
+        target, item.yaw_deg() * kDegToRad, &err);
     r->set_reachable(ok);
     r->set_position_error_m(err);
     if (!ok) {
@@ -317,7 +323,8 @@ void TickTimes::add(double us) {
 
 double TickTimes::quantile(double q) const {
   if (count_ == 0) return 0.0;
-  const auto rank = static_cast<uint64_t>(std::ceil(std::clamp(q, 0.0, 1.0) * static_cast<double>(count_)));
+  const auto rank =
+      static_cast<uint64_t>(std::ceil(std::clamp(q, 0.0, 1.0) * static_cast<double>(count_)));
   uint64_t seen = 0;
   for (std::size_t b = 0; b < kBins; ++b) {
     seen += bins_[b];
@@ -328,8 +335,8 @@ double TickTimes::quantile(double q) const {
 
 std::string TickTimes::summary() const {
   if (count_ == 0) return "no ticks";
-  return "n " + std::to_string(count_) + ", mean " + fmt(mean()) + " us, p50 " + fmt(quantile(0.5)) +
-         " us, p99 " + fmt(quantile(0.99)) + " us, max " + fmt(max_) + " us";
+  return "n " + std::to_string(count_) + ", mean " + fmt(mean()) + " us, p50 " +
+         fmt(quantile(0.5)) + " us, p99 " + fmt(quantile(0.99)) + " us, max " + fmt(max_) + " us";
 }
 
 // ---------------------------------------------------------------- service
@@ -346,12 +353,13 @@ IkService::IkService(Bus& bus, LockstepParticipant& participant, IkEngine& engin
       bus_.keys().robot_commands(),
       [this](const std::string& key, const v2::RobotCommand& c) { on_command(key, c); });
   participant.on_tick([this](const v2::ClockTick& t) { step(t); });
-  bus_.queryable<v2::ReachRequest, v2::ReachReply>(bus_.keys().robot_reach(), [this](const v2::ReachRequest& req) {
-    v2::ReachReply reply = engine_.reach(req);
-    reply.mutable_header()->set_session(bus_.keys().session());
-    reply.mutable_header()->set_sender(bus_.sender());
-    return reply;
-  });
+  bus_.queryable<v2::ReachRequest, v2::ReachReply>(
+      bus_.keys().robot_reach(), [this](const v2::ReachRequest& req) {
+        v2::ReachReply reply = engine_.reach(req);
+        reply.mutable_header()->set_session(bus_.keys().session());
+        reply.mutable_header()->set_sender(bus_.sender());
+        return reply;
+      });
 }
 
 std::string IkService::validate_command(const std::string& key, const v2::RobotCommand& c) {
@@ -373,8 +381,8 @@ void IkService::on_command(const std::string& key, const v2::RobotCommand& comma
     ++commands_rejected_;
     const uint64_t n = bus_.stats().count_error(key);
     log::warning("rejected command #" + std::to_string(n) + " on " + key + " from sender '" +
-                 command.header().sender() + "' (command_id " + std::to_string(command.command_id()) +
-                 "): " + problem);
+                 command.header().sender() + "' (command_id " +
+                 std::to_string(command.command_id()) + "): " + problem);
     return;
   }
   ++commands_received_;
@@ -386,8 +394,8 @@ void IkService::on_command(const std::string& key, const v2::RobotCommand& comma
 void IkService::step(const v2::ClockTick& tick) {
   if (!dt_warned_ && tick.dt() > 0 && std::abs(tick.dt() - engine_.dt()) > 1e-9 * engine_.dt()) {
     dt_warned_ = true;
-    log::warning("the clock's dt " + fmt(tick.dt()) + " s differs from the scenario's " + fmt(engine_.dt()) +
-                 " s; the arms step by the scenario's dt");
+    log::warning("the clock's dt " + fmt(tick.dt()) + " s differs from the scenario's " +
+                 fmt(engine_.dt()) + " s; the arms step by the scenario's dt");
   }
   const auto t0 = std::chrono::steady_clock::now();
   engine_.step();
@@ -414,12 +422,15 @@ void IkService::publish_states(uint64_t tick, double sim_time) {
 }
 
 uint64_t IkService::run_standalone(double hz, const std::function<bool()>& keep_going) {
-  if (!(hz > 0) || !std::isfinite(hz)) throw std::invalid_argument("standalone rate must be > 0 Hz");
-  bus_.subscribe<v2::RunEnd>(bus_.keys().run_end(), [this](const std::string&, const v2::RunEnd&) { run_ended_ = true; });
+  if (!(hz > 0) || !std::isfinite(hz))
+    throw std::invalid_argument("standalone rate must be > 0 Hz");
+  bus_.subscribe<v2::RunEnd>(bus_.keys().run_end(),
+                             [this](const std::string&, const v2::RunEnd&) { run_ended_ = true; });
   bus_.serve_stats();
   bus_.declare_token();
   using clock = std::chrono::steady_clock;
-  const auto period = std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(1.0 / hz));
+  const auto period =
+      std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(1.0 / hz));
   v2::ClockTick tick;  // synthesized, reused: only header.tick / sim_time / dt change
   tick.set_dt(1.0 / hz);
   uint64_t k = 0;
@@ -446,8 +457,9 @@ uint64_t IkService::run_standalone(double hz, const std::function<bool()>& keep_
 }
 
 std::string IkService::timing_summary() const {
-  std::string s = "per-tick compute (kinematics, " + std::to_string(engine_.size()) + " arms): " +
-                  compute_times_.summary() + "; with publishing: " + step_times_.summary();
+  std::string s = "per-tick compute (kinematics, " + std::to_string(engine_.size()) +
+                  " arms): " + compute_times_.summary() +
+                  "; with publishing: " + step_times_.summary();
   if (overruns_ > 0) s += "; timer overruns: " + std::to_string(overruns_);
   return s;
 }

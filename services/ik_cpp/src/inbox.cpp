@@ -35,7 +35,8 @@ bool Inbox::subscribed_locked(const std::string& key) {
   return hit;
 }
 
-std::vector<v2::PublishedMark> Inbox::missing_locked(const std::vector<v2::PublishedMark>& wanted) const {
+std::vector<v2::PublishedMark> Inbox::missing_locked(
+    const std::vector<v2::PublishedMark>& wanted) const {
   std::vector<v2::PublishedMark> out;
   for (const auto& m : wanted) {
     const auto it = received_.find({m.key(), m.sender()});
@@ -54,16 +55,17 @@ std::vector<v2::PublishedMark> Inbox::missing(const std::vector<v2::PublishedMar
   return missing_locked(wanted);
 }
 
-std::vector<v2::PublishedMark> Inbox::wait_for(const std::vector<v2::PublishedMark>& marks, double timeout_s) {
+std::vector<v2::PublishedMark> Inbox::wait_for(const std::vector<v2::PublishedMark>& marks,
+                                               double timeout_s) {
   std::unique_lock<std::mutex> lock(mutex_);
   std::vector<v2::PublishedMark> wanted;
   for (const auto& m : marks) {
     if (subscribed_locked(m.key())) wanted.push_back(m);
   }
   if (wanted.empty()) return {};
-  const auto deadline =
-      std::chrono::steady_clock::now() + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                             std::chrono::duration<double>(timeout_s));
+  const auto deadline = std::chrono::steady_clock::now() +
+                        std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                            std::chrono::duration<double>(timeout_s));
   while (true) {
     auto still = missing_locked(wanted);
     if (still.empty()) return still;
@@ -78,7 +80,8 @@ std::size_t Inbox::deliver(uint64_t upto_tick, const std::string& master) {
     const std::lock_guard<std::mutex> lock(mutex_);
     std::vector<Pending> keep;
     for (auto& p : pending_) {
-      const bool due = p.tick < upto_tick || (!master.empty() && p.tick == upto_tick && p.sender == master);
+      const bool due =
+          p.tick < upto_tick || (!master.empty() && p.tick == upto_tick && p.sender == master);
       (due ? ready : keep).push_back(std::move(p));
     }
     if (ready.empty()) {

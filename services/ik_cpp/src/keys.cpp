@@ -10,7 +10,8 @@ namespace {
 bool valid_name(const std::string& v) {
   if (v.empty() || v.size() > 64) return false;
   for (const char c : v) {
-    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+    const bool ok = (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') ||
+                    c == '_' || c == '-';
     if (!ok) return false;
   }
   return true;
@@ -28,7 +29,8 @@ const std::string& check_name(std::string_view kind, const std::string& value) {
 
 Keys::Keys(std::string session) : session_(std::move(session)) {
   if (!valid_name(session_)) {
-    throw std::invalid_argument("invalid session id '" + session_ + "': use 1-64 characters of A-Z a-z 0-9 _ -");
+    throw std::invalid_argument("invalid session id '" + session_ +
+                                "': use 1-64 characters of A-Z a-z 0-9 _ -");
   }
   prefix_ = std::string(kRoot) + "/" + session_;
 }
@@ -43,7 +45,9 @@ std::string Keys::k(std::string_view a, std::string_view b, std::string_view c) 
 
 std::string Keys::all() const { return k("**"); }
 std::string Keys::clock() const { return k("clock"); }
-std::string Keys::clock_ack(const std::string& p) const { return k("clock", "ack", check_name("participant", p)); }
+std::string Keys::clock_ack(const std::string& p) const {
+  return k("clock", "ack", check_name("participant", p));
+}
 std::string Keys::clock_acks() const { return k("clock", "ack", "*"); }
 std::string Keys::run_control() const { return k("run", "control"); }
 std::string Keys::run_end() const { return k("run", "end"); }
@@ -51,9 +55,13 @@ std::string Keys::alive(const std::string& s) const { return k("alive", check_na
 std::string Keys::alive_all() const { return k("alive", "*"); }
 std::string Keys::stats(const std::string& s) const { return k("stats", check_name("service", s)); }
 std::string Keys::scenario() const { return k("scenario"); }
-std::string Keys::robot_command(const std::string& r) const { return k("robot", check_name("robot id", r), "command"); }
+std::string Keys::robot_command(const std::string& r) const {
+  return k("robot", check_name("robot id", r), "command");
+}
 std::string Keys::robot_commands() const { return k("robot", "*", "command"); }
-std::string Keys::robot_state(const std::string& r) const { return k("robot", check_name("robot id", r), "state"); }
+std::string Keys::robot_state(const std::string& r) const {
+  return k("robot", check_name("robot id", r), "state");
+}
 std::string Keys::robot_states() const { return k("robot", "*", "state"); }
 std::string Keys::robot_reach() const { return k("robot", "reach"); }
 std::string Keys::human_state() const { return k("human", "state"); }
@@ -63,7 +71,9 @@ std::string Keys::world_commands() const { return k("world", "commands"); }
 std::string Keys::task_events() const { return k("task", "events"); }
 std::string Keys::task_indicators() const { return k("task", "indicators"); }
 std::string Keys::task_metrics() const { return k("task", "metrics"); }
-std::string Keys::bench(const std::string& name) const { return k("bench", check_name("bench key", name)); }
+std::string Keys::bench(const std::string& name) const {
+  return k("bench", check_name("bench key", name));
+}
 
 std::string Keys::last_segment(std::string_view key) {
   const auto pos = key.rfind('/');
@@ -75,7 +85,8 @@ std::string Keys::robot_of(std::string_view key) {
   std::size_t start = 0;
   while (true) {
     const auto pos = key.find('/', start);
-    parts.push_back(key.substr(start, pos == std::string_view::npos ? std::string_view::npos : pos - start));
+    parts.push_back(
+        key.substr(start, pos == std::string_view::npos ? std::string_view::npos : pos - start));
     if (pos == std::string_view::npos) break;
     start = pos + 1;
   }

@@ -34,9 +34,12 @@ void LockstepParticipant::start() {
     ack_pub_ = &bus_.publisher(keys.clock_ack(name()), PublisherOptions{true, true});
   }
   control_pub_ = &bus_.publisher(keys.run_control());
-  bus_.subscribe<v2::ClockTick>(keys.clock(), [this](const std::string&, const v2::ClockTick& t) { on_clock(t); });
-  bus_.subscribe<v2::RunEnd>(keys.run_end(), [this](const std::string&, const v2::RunEnd& e) { on_run_end(e); });
-  bus_.watch_liveliness([this](const std::string& service, bool alive) { on_liveliness(service, alive); });
+  bus_.subscribe<v2::ClockTick>(
+      keys.clock(), [this](const std::string&, const v2::ClockTick& t) { on_clock(t); });
+  bus_.subscribe<v2::RunEnd>(keys.run_end(),
+                             [this](const std::string&, const v2::RunEnd& e) { on_run_end(e); });
+  bus_.watch_liveliness(
+      [this](const std::string& service, bool alive) { on_liveliness(service, alive); });
   bus_.serve_stats();
   // Last: the token means "ready, nothing will be missed".
   bus_.declare_token();
@@ -149,7 +152,8 @@ Outcome LockstepParticipant::run(double timeout_s) {
       cond_.wait(lock, [this] { return !busy_; });
       if (aborted_) {
         // Leave after the clock master has ended the run, so its end names our abort.
-        cond_.wait_for(lock, std::chrono::duration<double>(kAbortWaitS), [this] { return master_done_; });
+        cond_.wait_for(lock, std::chrono::duration<double>(kAbortWaitS),
+                       [this] { return master_done_; });
       }
       return *end_;
     }
@@ -190,7 +194,8 @@ void LockstepParticipant::process(const v2::ClockTick& tick) {
       v2::TickAck ack;
       ack.set_participant(name());
       // ... and ends here, before the ack is built and published.
-      const auto us = std::chrono::duration_cast<std::chrono::microseconds>(std::chrono::steady_clock::now() - t0);
+      const auto us = std::chrono::duration_cast<std::chrono::microseconds>(
+          std::chrono::steady_clock::now() - t0);
       ack.set_compute_us(static_cast<uint32_t>(std::min<int64_t>(us.count(), UINT32_MAX)));
       for (auto& m : bus_.new_marks(ack_pub_->key())) *ack.add_published() = std::move(m);
       ack_pub_->put(ack, k, tick.header().sim_time());

@@ -84,12 +84,16 @@ struct Options {
 
 // The scenario from the orchestrator's queryable; it may still be starting, so ask until it
 // answers (like the Python services' Bus.get_one) or `timeout_s` passes.
-std::optional<hrc::v2::Scenario> fetch_scenario(const hrc::Bus& bus, double timeout_s, const std::atomic<bool>& stop) {
+std::optional<hrc::v2::Scenario> fetch_scenario(const hrc::Bus& bus, double timeout_s,
+                                                const std::atomic<bool>& stop) {
   using clock = std::chrono::steady_clock;
-  const auto deadline = clock::now() + std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(timeout_s));
+  const auto deadline = clock::now() + std::chrono::duration_cast<clock::duration>(
+                                           std::chrono::duration<double>(timeout_s));
   while (!stop) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - clock::now());
-    const auto wait = std::clamp(left, std::chrono::milliseconds(50), std::chrono::milliseconds(1000));
+    const auto left =
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - clock::now());
+    const auto wait =
+        std::clamp(left, std::chrono::milliseconds(50), std::chrono::milliseconds(1000));
     auto replies = bus.get<hrc::v2::Scenario>(bus.keys().scenario(), nullptr, wait);
     if (!replies.empty()) return std::move(replies.front());
     if (clock::now() >= deadline) break;
@@ -103,7 +107,8 @@ int run(const std::vector<std::string>& argv) {
   Options opt;
   try {
     auto single = hrc::cli::bus_single_flags();
-    single.insert(single.end(), {"--name", "--input-timeout", "--start-timeout", "--standalone-hz"});
+    single.insert(single.end(),
+                  {"--name", "--input-timeout", "--start-timeout", "--standalone-hz"});
     auto flags = hrc::cli::bus_bool_flags();
     flags.emplace_back("--help");
     flags.emplace_back("--check-moves");
@@ -121,7 +126,8 @@ int run(const std::vector<std::string>& argv) {
     }
     opt.input_timeout = args.get_double("--input-timeout", 10.0, 0.001, 86400.0);
     opt.start_timeout = args.get_double("--start-timeout", 60.0, 0.0, 86400.0);
-    if (args.has("--standalone-hz")) opt.standalone_hz = args.get_double("--standalone-hz", 0.0, 1.0, 100000.0);
+    if (args.has("--standalone-hz"))
+      opt.standalone_hz = args.get_double("--standalone-hz", 0.0, 1.0, 100000.0);
     opt.bus = hrc::cli::bus_args(args);
   } catch (const UsageError& e) {
     std::cerr << "hrc-ik: error: " << e.what() << "\n" << kUsage;
@@ -136,7 +142,8 @@ int run(const std::vector<std::string>& argv) {
   // Before zenoh starts its threads, so they inherit the blocked signal mask.
   hrc::SignalWatcher signals;
   signals.start([&](int sig) {
-    const std::string reason = std::string("stopped by signal ") + (sig == SIGINT ? "SIGINT" : "SIGTERM");
+    const std::string reason =
+        std::string("stopped by signal ") + (sig == SIGINT ? "SIGINT" : "SIGTERM");
     stop_requested = true;
     const std::lock_guard<std::mutex> lock(active_mutex);
     if (active != nullptr) active->stop(reason);
@@ -167,10 +174,12 @@ int run(const std::vector<std::string>& argv) {
       robots = "(none)";
       hrc::log::warning("the scenario has no robots: no robot states will be published");
     }
-    hrc::log::info("scenario '" + scenario->info().name() + "': robots " + robots + ", dt " + num(dt) +
-                   " s; models loaded in " +
-                   num(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_load).count()) +
-                   " ms");
+    hrc::log::info(
+        "scenario '" + scenario->info().name() + "': robots " + robots + ", dt " + num(dt) +
+        " s; models loaded in " +
+        num(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t_load)
+                .count()) +
+        " ms");
 
     hrc::LockstepOptions options;
     options.input_timeout_s = opt.input_timeout;
@@ -196,7 +205,8 @@ int run(const std::vector<std::string>& argv) {
     if (opt.standalone_hz > 0) {
       hrc::log::info("ready (standalone at " + num(opt.standalone_hz) + " Hz): session '" +
                      opt.bus.session + "', alive/" + opt.name + " declared");
-      const uint64_t steps = service.run_standalone(opt.standalone_hz, [&] { return !stop_requested.load(); });
+      const uint64_t steps =
+          service.run_standalone(opt.standalone_hz, [&] { return !stop_requested.load(); });
       hrc::log::info("standalone run ended after " + std::to_string(steps) + " steps; " +
                      std::to_string(service.commands_received()) + " commands, " +
                      std::to_string(service.commands_rejected()) + " rejected");
@@ -227,6 +237,4 @@ int run(const std::vector<std::string>& argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  return run(std::vector<std::string>(argv + 1, argv + argc));
-}
+int main(int argc, char** argv) { return run(std::vector<std::string>(argv + 1, argv + argc)); }

@@ -8,7 +8,8 @@
 namespace hrc {
 namespace {
 
-// SIGUSR2 only wakes the watcher for shutdown; it is blocked too so it is never delivered elsewhere.
+// SIGUSR2 only wakes the watcher for shutdown; it is blocked too so it is never delivered
+// elsewhere.
 sigset_t watched() {
   sigset_t set;
   sigemptyset(&set);

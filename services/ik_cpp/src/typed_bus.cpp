@@ -58,7 +58,8 @@ v2::ServiceStats InputStats::to_proto(const std::string& service) const {
 
 // ------------------------------------------------------------------ TypedPublisher
 
-TypedPublisher::TypedPublisher(const Bus& bus, Publisher publisher) : bus_(bus), publisher_(std::move(publisher)) {}
+TypedPublisher::TypedPublisher(const Bus& bus, Publisher publisher)
+    : bus_(bus), publisher_(std::move(publisher)) {}
 
 void TypedPublisher::stamp(v2::Header& h, uint64_t tick, double sim_time, uint64_t seq) const {
   h.set_session(bus_.keys().session());
@@ -68,7 +69,9 @@ void TypedPublisher::stamp(v2::Header& h, uint64_t tick, double sim_time, uint64
   h.set_seq(seq);
 }
 
-void TypedPublisher::put_bytes_locked(const std::string& bytes) { publisher_.put(bytes, bus_.sender()); }
+void TypedPublisher::put_bytes_locked(const std::string& bytes) {
+  publisher_.put(bytes, bus_.sender());
+}
 
 void TypedPublisher::put_raw(std::string_view payload) {
   const std::lock_guard<std::mutex> lock(mutex_);
@@ -89,7 +92,9 @@ Bus::Bus(const BusConfig& config, std::string session_id, std::string sender)
 }
 
 Bus::Bus(Session session, std::string session_id, std::string sender)
-    : keys_(std::move(session_id)), sender_(check_name("service name", sender)), session_(std::move(session)) {}
+    : keys_(std::move(session_id)),
+      sender_(check_name("service name", sender)),
+      session_(std::move(session)) {}
 
 Bus::~Bus() { close(); }
 
@@ -165,8 +170,8 @@ void Bus::malformed(const SampleView& s, const std::string& problem) {
   const std::string key(s.key);
   const std::string sender = s.attachment.empty() ? std::string("?") : std::string(s.attachment);
   const uint64_t n = stats_.count_error(key);
-  log::warning("malformed message #" + std::to_string(n) + " on " + key + " from sender '" + sender +
-               "': " + problem);
+  log::warning("malformed message #" + std::to_string(n) + " on " + key + " from sender '" +
+               sender + "': " + problem);
 }
 
 void Bus::add_subscriber(Subscriber s) {
@@ -189,7 +194,8 @@ void Bus::watch_liveliness(std::function<void(const std::string& service, bool a
   auto handler = [on_change = std::move(on_change)](std::string_view key, bool alive) {
     on_change(Keys::last_segment(key), alive);
   };
-  add_subscriber(session_.declare_liveliness_subscriber(keys_.alive_all(), std::move(handler), true));
+  add_subscriber(
+      session_.declare_liveliness_subscriber(keys_.alive_all(), std::move(handler), true));
 }
 
 void Bus::serve_stats() {

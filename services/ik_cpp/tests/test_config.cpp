@@ -20,7 +20,8 @@ TEST(BusConfig, DefaultsArePeerOnLoopbackWithoutMulticast) {
   EXPECT_EQ(ins[0], (std::pair<std::string, std::string>{"mode", "\"peer\""}));
   EXPECT_EQ(ins[1], (std::pair<std::string, std::string>{"scouting/multicast/enabled", "false"}));
   EXPECT_EQ(ins[2], (std::pair<std::string, std::string>{"scouting/gossip/enabled", "true"}));
-  EXPECT_EQ(ins[3], (std::pair<std::string, std::string>{"listen/endpoints", "[\"tcp/127.0.0.1:0\"]"}));
+  EXPECT_EQ(ins[3],
+            (std::pair<std::string, std::string>{"listen/endpoints", "[\"tcp/127.0.0.1:0\"]"}));
 }
 
 TEST(BusConfig, ClientWithSeveralEndpoints) {
@@ -57,9 +58,7 @@ TEST(BusConfig, ValidateNamesTheBadField) {
   EXPECT_THROW(c.validate(), std::invalid_argument);  // a client needs somewhere to connect
 }
 
-TEST(BusConfig, JsonQuoteEscapes) {
-  EXPECT_EQ(hrc::json_quote("a\"b\\c\n"), "\"a\\\"b\\\\c\\n\"");
-}
+TEST(BusConfig, JsonQuoteEscapes) { EXPECT_EQ(hrc::json_quote("a\"b\\c\n"), "\"a\\\"b\\\\c\\n\""); }
 
 TEST(BusConfig, GeneratedJson5OpensAZenohSession) {
   hrc::BusConfig c;  // listens on an ephemeral loopback port, connects nowhere
@@ -85,7 +84,8 @@ TEST(BusConfig, MissingConfigFileIsNamed) {
     hrc::Session::open(c);
     FAIL() << "expected BusError";
   } catch (const hrc::BusError& e) {
-    EXPECT_NE(std::string(e.what()).find("/nonexistent/zenoh.json5"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/zenoh.json5"), std::string::npos)
+        << e.what();
   }
 }
 

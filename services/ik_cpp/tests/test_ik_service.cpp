@@ -41,7 +41,8 @@ hrc::v2::Scenario minimal_scenario() {
   return s;
 }
 
-RobotCommand move(double x, double y, double z, uint64_t id, double yaw_deg = 0, double max_speed = 0) {
+RobotCommand move(double x, double y, double z, uint64_t id, double yaw_deg = 0,
+                  double max_speed = 0) {
   RobotCommand c;
   c.set_robot("r1");
   c.set_command_id(id);
@@ -291,8 +292,8 @@ TEST_F(Engine, ReachAnswersEveryItem) {
     it->mutable_target()->set_y(y);
     it->mutable_target()->set_z(z);
   };
-  add("good", "r1", 0.66, 0.30, 0.06);   // RA1's pick in minimal.toml
-  add("far", "r1", 1.60, 0.30, 0.06);    // ~1.2 m from the base: beyond the 0.8 m reach
+  add("good", "r1", 0.66, 0.30, 0.06);  // RA1's pick in minimal.toml
+  add("far", "r1", 1.60, 0.30, 0.06);   // ~1.2 m from the base: beyond the 0.8 m reach
   add("nobody", "r7", 0.0, 0.0, 0.1);
   add("nan", "r2", 0.0, std::nan(""), 0.1);
   add("good2", "r2", -0.60, 0.35, 0.05);  // r2's feeder
@@ -332,7 +333,8 @@ TEST(IkService, ValidatesTheCommandsAddress) {
   c.set_robot("r1");
   c.mutable_target()->set_x(0.4);
   EXPECT_EQ(hrc::IkService::validate_command("hrc/s/robot/r1/command", c), "");
-  EXPECT_NE(hrc::IkService::validate_command("hrc/s/robot/r2/command", c).find("'r2'"), std::string::npos);
+  EXPECT_NE(hrc::IkService::validate_command("hrc/s/robot/r2/command", c).find("'r2'"),
+            std::string::npos);
   c.clear_robot();  // an empty robot field takes the key's
   EXPECT_EQ(hrc::IkService::validate_command("hrc/s/robot/r2/command", c), "");
 }
@@ -347,10 +349,11 @@ TEST(IkService, PublishesStatesOnChangeWithKeyframesAndCountsBadCommands) {
   hrc::Bus watcher(peers.b, "iks", "watcher");
   std::mutex mutex;
   std::vector<RobotState> got;
-  watcher.subscribe<RobotState>(watcher.keys().robot_states(), [&](const std::string&, const RobotState& s) {
-    const std::lock_guard<std::mutex> lock(mutex);
-    got.push_back(s);
-  });
+  watcher.subscribe<RobotState>(watcher.keys().robot_states(),
+                                [&](const std::string&, const RobotState& s) {
+                                  const std::lock_guard<std::mutex> lock(mutex);
+                                  got.push_back(s);
+                                });
   ASSERT_TRUE(hrc::test::wait_until([&] {
     return bus.publisher(bus.keys().robot_state("r1")).has_subscribers() &&
            bus.publisher(bus.keys().robot_state("r2")).has_subscribers();
@@ -430,7 +433,8 @@ TEST(IkService, ServesReachQueries) {
   it->mutable_target()->set_z(0.35);
   std::vector<hrc::v2::ReachReply> replies;
   ASSERT_TRUE(hrc::test::wait_until([&] {
-    replies = asker.get<hrc::v2::ReachReply>(asker.keys().robot_reach(), &req, std::chrono::milliseconds(500));
+    replies = asker.get<hrc::v2::ReachReply>(asker.keys().robot_reach(), &req,
+                                             std::chrono::milliseconds(500));
     return !replies.empty();
   }));
   ASSERT_EQ(replies.front().results_size(), 1);

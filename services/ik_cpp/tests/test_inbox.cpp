@@ -35,23 +35,26 @@ TEST(Inbox, DeliversInDeterministicOrderUpToTheTick) {
   hrc::Inbox inbox(bus);
   std::vector<std::string> order;
   const auto& k = bus.keys();
-  inbox.add<hrc::v2::HumanState>(k.human_state(), [&](const std::string& key, const hrc::v2::HumanState& m) {
-    order.push_back(key + "|" + m.header().sender() + "#" + std::to_string(m.header().seq()));
-  });
-  inbox.add<hrc::v2::RobotCommand>(k.robot_commands(), [&](const std::string& key, const hrc::v2::RobotCommand& m) {
-    order.push_back(key + "|" + m.header().sender() + "#" + std::to_string(m.header().seq()));
-  });
+  inbox.add<hrc::v2::HumanState>(
+      k.human_state(), [&](const std::string& key, const hrc::v2::HumanState& m) {
+        order.push_back(key + "|" + m.header().sender() + "#" + std::to_string(m.header().seq()));
+      });
+  inbox.add<hrc::v2::RobotCommand>(
+      k.robot_commands(), [&](const std::string& key, const hrc::v2::RobotCommand& m) {
+        order.push_back(key + "|" + m.header().sender() + "#" + std::to_string(m.header().seq()));
+      });
   auto& human = bus.publisher(k.human_state());
   auto& r1 = bus.publisher(k.robot_command("r1"));
   auto& r2 = bus.publisher(k.robot_command("r2"));
-  ASSERT_TRUE(wait_until([&] { return human.has_subscribers() && r1.has_subscribers() && r2.has_subscribers(); }));
+  ASSERT_TRUE(wait_until(
+      [&] { return human.has_subscribers() && r1.has_subscribers() && r2.has_subscribers(); }));
   // Arrival order deliberately scrambled.
   r2.put_raw(with_header(hrc::v2::RobotCommand{}, "orchestrator", 1, 0));
   human.put_raw(with_header(hrc::v2::HumanState{}, "human_input", 2, 1));
   r1.put_raw(with_header(hrc::v2::RobotCommand{}, "orchestrator", 1, 0));
   human.put_raw(with_header(hrc::v2::HumanState{}, "human_input", 1, 0));
-  human.put_raw(with_header(hrc::v2::HumanState{}, "physics", 1, 2));       // the master's, tick 2
-  human.put_raw(with_header(hrc::v2::HumanState{}, "human_input", 3, 2));   // tick 2: not yet
+  human.put_raw(with_header(hrc::v2::HumanState{}, "physics", 1, 2));      // the master's, tick 2
+  human.put_raw(with_header(hrc::v2::HumanState{}, "human_input", 3, 2));  // tick 2: not yet
 
   const std::vector<hrc::v2::PublishedMark> marks = {
       mark(k.human_state(), "human_input", 3), mark(k.robot_command("r1"), "orchestrator", 1),
@@ -74,7 +77,8 @@ TEST(Inbox, DeliversInDeterministicOrderUpToTheTick) {
 TEST(Inbox, WaitForReportsWhatNeverArrived) {
   hrc::Bus bus(hrc::BusConfig{}, "inbox", "ik_cpp");
   hrc::Inbox inbox(bus);
-  inbox.add<hrc::v2::HumanState>(bus.keys().human_state(), [](const std::string&, const hrc::v2::HumanState&) {});
+  inbox.add<hrc::v2::HumanState>(bus.keys().human_state(),
+                                 [](const std::string&, const hrc::v2::HumanState&) {});
   const auto missing = inbox.wait_for({mark(bus.keys().human_state(), "human_input", 1)}, 0.05);
   ASSERT_EQ(missing.size(), 1u);
   EXPECT_EQ(missing[0].sender(), "human_input");

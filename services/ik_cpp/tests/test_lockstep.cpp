@@ -20,20 +20,23 @@ using hrc::test::wait_until;
 /// Minimal clock master: token alive/physics, collects acks, publishes ticks and run/end.
 class FakePhysics {
  public:
-  explicit FakePhysics(const hrc::BusConfig& cfg, const std::string& session) : bus(cfg, session, "physics") {
-    bus.subscribe<hrc::v2::TickAck>(bus.keys().clock_acks(), [this](const std::string&, const hrc::v2::TickAck& a) {
-      const std::lock_guard<std::mutex> lock(mutex);
-      acks.push_back(a);
-    });
+  explicit FakePhysics(const hrc::BusConfig& cfg, const std::string& session)
+      : bus(cfg, session, "physics") {
+    bus.subscribe<hrc::v2::TickAck>(bus.keys().clock_acks(),
+                                    [this](const std::string&, const hrc::v2::TickAck& a) {
+                                      const std::lock_guard<std::mutex> lock(mutex);
+                                      acks.push_back(a);
+                                    });
     // Like the clock master: an abort ends the run at once, naming its sender.
-    bus.subscribe<hrc::v2::RunControl>(bus.keys().run_control(), [this](const std::string&, const hrc::v2::RunControl& c) {
-      if (c.command() != hrc::v2::RunControl::COMMAND_ABORT) return;
-      {
-        const std::lock_guard<std::mutex> lock(mutex);
-        aborts.push_back(c);
-      }
-      end(false, "aborted by " + c.header().sender() + ": " + c.reason(), c.header().sender());
-    });
+    bus.subscribe<hrc::v2::RunControl>(
+        bus.keys().run_control(), [this](const std::string&, const hrc::v2::RunControl& c) {
+          if (c.command() != hrc::v2::RunControl::COMMAND_ABORT) return;
+          {
+            const std::lock_guard<std::mutex> lock(mutex);
+            aborts.push_back(c);
+          }
+          end(false, "aborted by " + c.header().sender() + ": " + c.reason(), c.header().sender());
+        });
     bus.watch_liveliness([this](const std::string& s, bool alive) {
       const std::lock_guard<std::mutex> lock(mutex);
       alive_services[s] = alive;
@@ -55,7 +58,8 @@ class FakePhysics {
     t.set_dt(0.01);
     t.add_participants("ik_cpp");
     for (auto& m : marks) *t.add_published() = m;
-    bus.publisher(bus.keys().clock(), hrc::PublisherOptions{true, true}).put(t, k, 0.01 * static_cast<double>(k));
+    bus.publisher(bus.keys().clock(), hrc::PublisherOptions{true, true})
+        .put(t, k, 0.01 * static_cast<double>(k));
   }
   void end(bool ok, const std::string& reason, const std::string& failed = "") {
     hrc::v2::RunEnd e;
@@ -155,10 +159,11 @@ TEST_F(Lockstep, StepWaitsForInputsTheClockSaysWerePublished) {
   hrc::LockstepParticipant p(*bus);
   std::vector<std::string> log;
   std::mutex m;
-  p.input<hrc::v2::RobotCommand>(bus->keys().robot_commands(), [&](const std::string&, const hrc::v2::RobotCommand& c) {
-    const std::lock_guard<std::mutex> lock(m);
-    log.push_back("command " + std::to_string(c.command_id()));
-  });
+  p.input<hrc::v2::RobotCommand>(bus->keys().robot_commands(),
+                                 [&](const std::string&, const hrc::v2::RobotCommand& c) {
+                                   const std::lock_guard<std::mutex> lock(m);
+                                   log.push_back("command " + std::to_string(c.command_id()));
+                                 });
   p.on_tick([&](const hrc::v2::ClockTick& t) {
     const std::lock_guard<std::mutex> lock(m);
     log.push_back("step " + std::to_string(t.header().tick()));
@@ -208,7 +213,8 @@ TEST_F(Lockstep, AStepThatThrowsAbortsTheRunAtOnceNamingTheParticipant) {
   ASSERT_EQ(result.wait_for(std::chrono::seconds(2)), std::future_status::ready);
   const hrc::Outcome o = result.get();
   const double took_ms =
-      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - thrown_at).count();
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - thrown_at)
+          .count();
   std::cout << "run() returned " << took_ms << " ms after the step threw\n";
   EXPECT_LT(took_ms, 2000.0);
   EXPECT_FALSE(o.ok);

@@ -82,14 +82,16 @@ TEST(HeaderSeq, PerKeyStartingAtOneWithSessionTickTimeSender) {
 TEST_F(TwoPeers, TypedRoundTripCarriesSenderAttachmentAndHeader) {
   Received got;
   std::atomic<int> attachments_ok{0};
-  b->subscribe<hrc::v2::HumanState>(b->keys().human_state(), [&](const std::string& k, const hrc::v2::HumanState& m) {
-    const std::lock_guard<std::mutex> lock(got.mutex);
-    got.msgs.emplace_back(k, m);
-  });
+  b->subscribe<hrc::v2::HumanState>(b->keys().human_state(),
+                                    [&](const std::string& k, const hrc::v2::HumanState& m) {
+                                      const std::lock_guard<std::mutex> lock(got.mutex);
+                                      got.msgs.emplace_back(k, m);
+                                    });
   // A raw subscriber on the same key sees the attachment (the sender name).
-  hrc::Subscriber raw = b->session().declare_subscriber(a->keys().human_state(), [&](const hrc::SampleView& s) {
-    if (s.attachment == "alpha") ++attachments_ok;
-  });
+  hrc::Subscriber raw =
+      b->session().declare_subscriber(a->keys().human_state(), [&](const hrc::SampleView& s) {
+        if (s.attachment == "alpha") ++attachments_ok;
+      });
   auto& pub = a->publisher(a->keys().human_state());
   ASSERT_TRUE(wait_until([&] { return pub.has_subscribers(); }));
   for (int i = 1; i <= 3; ++i) {
@@ -177,7 +179,8 @@ TEST_F(TwoPeers, LivelinessTokensAppearAndDisappear) {
 }
 
 TEST_F(TwoPeers, StatsQueryableAndTypedQueryable) {
-  b->subscribe<hrc::v2::HumanState>(b->keys().human_state(), [](const std::string&, const hrc::v2::HumanState&) {});
+  b->subscribe<hrc::v2::HumanState>(b->keys().human_state(),
+                                    [](const std::string&, const hrc::v2::HumanState&) {});
   b->stats().count_error("hrc/t1/human/state");
   b->stats().tick(41);
   b->stats().tick(42);
@@ -194,7 +197,8 @@ TEST_F(TwoPeers, StatsQueryableAndTypedQueryable) {
       });
   std::vector<hrc::v2::ServiceStats> stats;
   ASSERT_TRUE(wait_until([&] {
-    stats = a->get<hrc::v2::ServiceStats>(a->keys().stats("beta"), nullptr, std::chrono::milliseconds(500));
+    stats = a->get<hrc::v2::ServiceStats>(a->keys().stats("beta"), nullptr,
+                                          std::chrono::milliseconds(500));
     return !stats.empty();
   }));
   EXPECT_EQ(stats[0].service(), "beta");

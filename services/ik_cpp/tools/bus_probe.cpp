@@ -26,8 +26,10 @@ using hrc::cli::UsageError;
 
 const char* kUsage =
     "usage:\n"
-    "  hrc-bus-probe echo --in KEY --out KEY [--type TYPE] [--count N] [--timeout-s S] [--name NAME] [bus options]\n"
-    "  hrc-bus-probe publish --key KEY --type RobotState --count N [--interval-ms MS] [--wait-s S]\n"
+    "  hrc-bus-probe echo --in KEY --out KEY [--type TYPE] [--count N] [--timeout-s S] [--name "
+    "NAME] [bus options]\n"
+    "  hrc-bus-probe publish --key KEY --type RobotState --count N [--interval-ms MS] [--wait-s "
+    "S]\n"
     "                        [--linger-ms MS] [--name NAME] [bus options]\n"
     "\n"
     "KEY is relative to hrc/<session>/ (e.g. bench/ping) unless it starts with 'hrc/'.\n"
@@ -89,8 +91,11 @@ class Done {
 };
 
 const google::protobuf::Message* prototype_of(const std::string& type) {
-  const auto* desc = google::protobuf::DescriptorPool::generated_pool()->FindMessageTypeByName("hrc.v2." + type);
-  if (desc == nullptr) throw UsageError("unknown message type '" + type + "' (a message of hrc/v2/hrc.proto, e.g. HumanState)");
+  const auto* desc =
+      google::protobuf::DescriptorPool::generated_pool()->FindMessageTypeByName("hrc.v2." + type);
+  if (desc == nullptr)
+    throw UsageError("unknown message type '" + type +
+                     "' (a message of hrc/v2/hrc.proto, e.g. HumanState)");
   return google::protobuf::MessageFactory::generated_factory()->GetPrototype(desc);
 }
 
@@ -131,7 +136,8 @@ int echo(hrc::Bus& bus, const hrc::cli::Args& args, hrc::SignalWatcher& signals)
   const std::string out = full_key(bus.keys(), args.get("--out").value_or(""));
   const int64_t count = args.get_int("--count", 0, 0, INT64_MAX);
   const double timeout_s = args.get_double("--timeout-s", 0.0, 0.0, 1e9);
-  const google::protobuf::Message* proto = args.has("--type") ? prototype_of(*args.get("--type")) : nullptr;
+  const google::protobuf::Message* proto =
+      args.has("--type") ? prototype_of(*args.get("--type")) : nullptr;
 
   hrc::TypedPublisher& pub = bus.publisher(out, hrc::PublisherOptions{true, true});
   Done done;
@@ -145,8 +151,9 @@ int echo(hrc::Bus& bus, const hrc::cli::Args& args, hrc::SignalWatcher& signals)
       if (!hrc::Bus::parse(*msg, s.payload)) {
         const std::string key(s.key);
         const uint64_t n = bus_ptr->stats().count_error(key);
-        hrc::log::warning("malformed message #" + std::to_string(n) + " on " + key + " from sender '" +
-                          std::string(s.attachment) + "': does not decode as " + proto->GetDescriptor()->name());
+        hrc::log::warning("malformed message #" + std::to_string(n) + " on " + key +
+                          " from sender '" + std::string(s.attachment) + "': does not decode as " +
+                          proto->GetDescriptor()->name());
         return;
       }
       pub.put_raw(msg->SerializeAsString());
@@ -162,8 +169,8 @@ int echo(hrc::Bus& bus, const hrc::cli::Args& args, hrc::SignalWatcher& signals)
   const int code = done.wait(timeout_s, 1);
   signals.stop();
   if (code != 0) {
-    hrc::log::error("echo: timeout after " + std::to_string(timeout_s) + " s with " + std::to_string(echoed.load()) +
-                    " of " + std::to_string(count) + " echoes");
+    hrc::log::error("echo: timeout after " + std::to_string(timeout_s) + " s with " +
+                    std::to_string(echoed.load()) + " of " + std::to_string(count) + " echoes");
   }
   return code;
 }
@@ -171,7 +178,8 @@ int echo(hrc::Bus& bus, const hrc::cli::Args& args, hrc::SignalWatcher& signals)
 int publish(hrc::Bus& bus, const hrc::cli::Args& args, hrc::SignalWatcher& signals) {
   const std::string key = full_key(bus.keys(), args.get("--key").value_or(""));
   const std::string type = args.get_or("--type", "RobotState");
-  if (type != "RobotState") throw UsageError("publish supports --type RobotState only, not '" + type + "'");
+  if (type != "RobotState")
+    throw UsageError("publish supports --type RobotState only, not '" + type + "'");
   const int64_t count = args.get_int("--count", 1, 1, 100000000);
   const int64_t interval_ms = args.get_int("--interval-ms", 0, 0, 3600000);
   const double wait_s = args.get_double("--wait-s", 10.0, 0.0, 86400.0);
@@ -197,7 +205,8 @@ int publish(hrc::Bus& bus, const hrc::cli::Args& args, hrc::SignalWatcher& signa
     hrc::v2::RobotState s = probe_state(static_cast<uint64_t>(i), static_cast<uint64_t>(count));
     pub.put(s, static_cast<uint64_t>(i), 0.5 * static_cast<double>(i));
     ++sent;
-    if (interval_ms > 0 && i < count) std::this_thread::sleep_for(std::chrono::milliseconds(interval_ms));
+    if (interval_ms > 0 && i < count)
+      std::this_thread::sleep_for(std::chrono::milliseconds(interval_ms));
   }
   std::this_thread::sleep_for(std::chrono::milliseconds(linger_ms));
   signals.stop();
@@ -215,12 +224,14 @@ int run(const std::vector<std::string>& argv) {
   hrc::cli::BusArgs bus_args;
   std::string name;
   try {
-    if (mode != "echo" && mode != "publish") throw UsageError("unknown mode '" + mode + "': use echo or publish");
+    if (mode != "echo" && mode != "publish")
+      throw UsageError("unknown mode '" + mode + "': use echo or publish");
     auto single = hrc::cli::bus_single_flags();
-    single.insert(single.end(), {"--name", "--in", "--out", "--type", "--count", "--timeout-s", "--key",
-                                 "--interval-ms", "--wait-s", "--linger-ms"});
-    args = std::make_unique<hrc::cli::Args>(std::vector<std::string>(argv.begin() + 1, argv.end()), single,
-                                            hrc::cli::bus_repeatable_flags(), hrc::cli::bus_bool_flags());
+    single.insert(single.end(), {"--name", "--in", "--out", "--type", "--count", "--timeout-s",
+                                 "--key", "--interval-ms", "--wait-s", "--linger-ms"});
+    args = std::make_unique<hrc::cli::Args>(std::vector<std::string>(argv.begin() + 1, argv.end()),
+                                            single, hrc::cli::bus_repeatable_flags(),
+                                            hrc::cli::bus_bool_flags());
     for (const char* required : mode == "echo" ? std::vector<const char*>{"--in", "--out"}
                                                : std::vector<const char*>{"--key", "--count"}) {
       if (!args->has(required)) throw UsageError(mode + " needs " + required);

@@ -50,17 +50,19 @@ def payload_dict(ev: pb.TaskEvent) -> dict[str, Any]:
 
 def event_record(ev: pb.TaskEvent) -> dict[str, Any]:
     r = _head(ev, "event")
-    r.update({
-        "kind": kind_name(ev.kind),
-        "task_time": num(ev.task_time),
-        "agent": ev.agent,
-        "part": ev.part,
-        "robot": ev.robot,
-        "hand": ev.hand,
-        "text": ev.text,
-        "payload": payload_dict(ev),
-        "wall_time": ev.wall_time,
-    })
+    r.update(
+        {
+            "kind": kind_name(ev.kind),
+            "task_time": num(ev.task_time),
+            "agent": ev.agent,
+            "part": ev.part,
+            "robot": ev.robot,
+            "hand": ev.hand,
+            "text": ev.text,
+            "payload": payload_dict(ev),
+            "wall_time": ev.wall_time,
+        }
+    )
     return r
 
 
@@ -68,17 +70,19 @@ def cue_records(ind: pb.Indicators) -> list[dict[str, Any]]:
     out = []
     for c in ind.cues:
         r = _head(ind, "cue")
-        r.update({
-            "kind": cue_kind_name(c.kind),
-            "id": c.id,
-            "on": c.on,
-            "part": c.part,
-            "robot": c.robot,
-            "color": c.color,
-            "position": [num(c.position.x), num(c.position.y), num(c.position.z)],
-            "text": c.text,
-            "flashing": c.flashing,
-        })
+        r.update(
+            {
+                "kind": cue_kind_name(c.kind),
+                "id": c.id,
+                "on": c.on,
+                "part": c.part,
+                "robot": c.robot,
+                "color": c.color,
+                "position": [num(c.position.x), num(c.position.y), num(c.position.z)],
+                "text": c.text,
+                "flashing": c.flashing,
+            }
+        )
         out.append(r)
     return out
 
@@ -92,7 +96,14 @@ def metrics_record(report: pb.MetricsReport) -> dict[str, Any]:
 
 def run_end_record(end: pb.RunEnd) -> dict[str, Any]:
     r = _head(end, "run_end")
-    r.update({"ok": end.ok, "reason": end.reason, "failed_participant": end.failed_participant,
-              "ticks": int(end.ticks), "wall_s": num(end.wall_s),
-              "realtime_factor": num(end.realtime_factor)})
+    r.update(
+        {
+            "ok": end.ok,
+            "reason": end.reason,
+            "failed_participant": end.failed_participant,
+            "ticks": int(end.ticks),
+            "wall_s": num(end.wall_s),
+            "realtime_factor": num(end.realtime_factor),
+        }
+    )
     return r

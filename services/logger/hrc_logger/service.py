@@ -35,13 +35,15 @@ def fetch_scenario(bus: Bus, timeout: float) -> pb.Scenario | None:
     try:
         return bus.get_one(bus.keys.scenario(), pb.Scenario, timeout=timeout)
     except TimeoutError as exc:
-        log.warning("no scenario (%s): the view will lack robots' URDFs, targets and workspace",
-                    exc)
+        log.warning(
+            "no scenario (%s): the view will lack robots' URDFs, targets and workspace", exc
+        )
         return None
 
 
-def stats_dict(obs: Observer, rec: TrialRecorder, view: View, bus: Bus,
-               handler_errors: int) -> dict[str, Any]:
+def stats_dict(
+    obs: Observer, rec: TrialRecorder, view: View, bus: Bus, handler_errors: int
+) -> dict[str, Any]:
     return {
         "lag_mean_ticks": round(obs.lag.mean_ticks, 3),
         "lag_max_ticks": obs.lag.max_ticks,
@@ -80,27 +82,51 @@ class LoggerService(Service):
     @classmethod
     def add_arguments(cls, p: argparse.ArgumentParser) -> None:
         p.add_argument("--out", required=True, help="trial folder (created if missing)")
-        p.add_argument("--sched", choices=["idle", "nice", "normal"], default="idle",
-                       help="CPU priority of this observer: idle (Linux SCHED_IDLE: only CPU time "
-                            "nobody else wants; the default), nice (--nice added), normal")
-        p.add_argument("--nice", type=int, default=10,
-                       help="niceness added with --sched nice (default 10)")
-        p.add_argument("--viewer", action="store_true",
-                       help="also stream to a spawned native rerun viewer")
-        p.add_argument("--viewer-port", type=int, default=9876,
-                       help="port of the spawned viewer (default 9876)")
-        p.add_argument("--web", action="store_true",
-                       help="also serve the rerun web viewer on http://127.0.0.1:WEB_PORT")
+        p.add_argument(
+            "--sched",
+            choices=["idle", "nice", "normal"],
+            default="idle",
+            help="CPU priority of this observer: idle (Linux SCHED_IDLE: only CPU time "
+            "nobody else wants; the default), nice (--nice added), normal",
+        )
+        p.add_argument(
+            "--nice", type=int, default=10, help="niceness added with --sched nice (default 10)"
+        )
+        p.add_argument(
+            "--viewer", action="store_true", help="also stream to a spawned native rerun viewer"
+        )
+        p.add_argument(
+            "--viewer-port",
+            type=int,
+            default=9876,
+            help="port of the spawned viewer (default 9876)",
+        )
+        p.add_argument(
+            "--web",
+            action="store_true",
+            help="also serve the rerun web viewer on http://127.0.0.1:WEB_PORT",
+        )
         p.add_argument("--web-port", type=int, default=9090, help="web viewer port (default 9090)")
-        p.add_argument("--grpc-port", type=int, default=9877,
-                       help="gRPC port the web viewer reads the data from (default 9877)")
-        p.add_argument("--view-hz", type=float, default=30.0,
-                       help="robot/hand/object updates per simulated second in the view "
-                            "(default 30)")
-        p.add_argument("--scenario-timeout", type=float, default=30.0,
-                       help="seconds to wait for the orchestrator's scenario (default 30; without "
-                            "it the view shows TCPs, hands and objects but no URDF robots, "
-                            "targets or workspace)")
+        p.add_argument(
+            "--grpc-port",
+            type=int,
+            default=9877,
+            help="gRPC port the web viewer reads the data from (default 9877)",
+        )
+        p.add_argument(
+            "--view-hz",
+            type=float,
+            default=30.0,
+            help="robot/hand/object updates per simulated second in the view (default 30)",
+        )
+        p.add_argument(
+            "--scenario-timeout",
+            type=float,
+            default=30.0,
+            help="seconds to wait for the orchestrator's scenario (default 30; without "
+            "it the view shows TCPs, hands and objects but no URDF robots, "
+            "targets or workspace)",
+        )
 
     def __init__(self, args: argparse.Namespace) -> None:
         super().__init__(args)
@@ -120,9 +146,15 @@ class LoggerService(Service):
         super().open(bus, stack)
         args = self.args
         self.scenario = fetch_scenario(bus, args.scenario_timeout)
-        rec = open_recording(self.out / RRD_FILE, bus.keys.session, viewer=args.viewer,
-                             web=args.web, viewer_port=args.viewer_port, web_port=args.web_port,
-                             grpc_port=args.grpc_port)
+        rec = open_recording(
+            self.out / RRD_FILE,
+            bus.keys.session,
+            viewer=args.viewer,
+            web=args.web,
+            viewer_port=args.viewer_port,
+            web_port=args.web_port,
+            grpc_port=args.grpc_port,
+        )
         self.view = View(rec, ViewSettings(view_hz=args.view_hz))
         self.view.setup(self.scenario)
         self.recorder = TrialRecorder(self.out, self.view)
@@ -136,6 +168,7 @@ class LoggerService(Service):
             except Exception:
                 self.handler_errors += 1
                 log.exception("handling a message on %s failed", key)
+
         return call
 
     def register_inputs(self, inputs: Inputs) -> None:
@@ -161,12 +194,21 @@ class LoggerService(Service):
         assert obs is not None, "run_service sets the observer"
         stats = stats_dict(obs, self.recorder, self.view, self.bus, self.handler_errors)
         write_json_atomic(self.out / STATS_FILE, stats)
-        log.info("logger summary: %d ticks, %d messages, lag mean %.1f / max %d ticks "
-                 "(%.1f / %.1f ms), %d sequence gap(s), %d event(s), %d cue change(s)",
-                 stats["ticks"], stats["messages"], stats["lag_mean_ticks"],
-                 stats["lag_max_ticks"], stats["lag_mean_ms"], stats["lag_max_ms"],
-                 stats["seq_gaps"], stats["events"], stats["cue_changes"])
+        log.info(
+            "logger summary: %d ticks, %d messages, lag mean %.1f / max %d ticks "
+            "(%.1f / %.1f ms), %d sequence gap(s), %d event(s), %d cue change(s)",
+            stats["ticks"],
+            stats["messages"],
+            stats["lag_mean_ticks"],
+            stats["lag_max_ticks"],
+            stats["lag_mean_ms"],
+            stats["lag_max_ms"],
+            stats["seq_gaps"],
+            stats["events"],
+            stats["cue_changes"],
+        )
         if stats["seq_gaps"]:
-            log.error("%d sequence gap(s), %d message(s) lost", stats["seq_gaps"],
-                      stats["lost_messages"])
+            log.error(
+                "%d sequence gap(s), %d message(s) lost", stats["seq_gaps"], stats["lost_messages"]
+            )
         return None

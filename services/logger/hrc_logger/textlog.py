@@ -75,8 +75,9 @@ def _near(ev: pb.TaskEvent, c: LogCounters) -> str:
 def _collision(ev: pb.TaskEvent, c: LogCounters) -> str:
     n = ev.collision.number if ev.HasField("collision") else c.collisions
     hand = f"{ev.hand} hand" if ev.hand else "hand"
-    return (f"{secs(ev.task_time)} sec : Collision {n} "
-            f"occurred between {ev.robot or '?'} and {hand}.")
+    return (
+        f"{secs(ev.task_time)} sec : Collision {n} occurred between {ev.robot or '?'} and {hand}."
+    )
 
 
 def _continued(ev: pb.TaskEvent, c: LogCounters) -> str:
@@ -84,8 +85,10 @@ def _continued(ev: pb.TaskEvent, c: LogCounters) -> str:
         n, delay = ev.continued.number, secs(ev.continued.delay_s)
     else:
         n, delay = c.collisions, "?"
-    return (f"{secs(ev.task_time)} sec : Continuing after robot-hand collision "
-            f"{n}. Delayed {delay} sec.")
+    return (
+        f"{secs(ev.task_time)} sec : Continuing after robot-hand collision "
+        f"{n}. Delayed {delay} sec."
+    )
 
 
 def _robot_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
@@ -93,28 +96,30 @@ def _robot_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
     line = f"{secs(ev.task_time)} sec : {robot} - task FINISHED."
     if ev.HasField("robot_finished"):
         f = ev.robot_finished
-        line += (f" Max speed reached : {_mps(f.max_tcp_speed_mps)} m/s, average speed : "
-                 f"{_mps(f.avg_tcp_speed_mps)} m/s. Waited human for {secs(f.idle_s)} sec.")
+        line += (
+            f" Max speed reached : {_mps(f.max_tcp_speed_mps)} m/s, average speed : "
+            f"{_mps(f.avg_tcp_speed_mps)} m/s. Waited human for {secs(f.idle_s)} sec."
+        )
     return line
 
 
 def _human_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
     line = f"{secs(ev.task_time)} sec : Human - task FINISHED."
     if ev.HasField("human_finished"):
-        line += (f" Idle (hands outside the workspace) for {secs(ev.human_finished.idle_s)} "
-                 "sec.")
+        line += f" Idle (hands outside the workspace) for {secs(ev.human_finished.idle_s)} sec."
     return line
 
 
 def _task_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
-    n = (ev.task_finished.human_robot_collisions if ev.HasField("task_finished")
-         else c.collisions)
+    n = ev.task_finished.human_robot_collisions if ev.HasField("task_finished") else c.collisions
     return f"{secs(ev.task_time)} sec : TASK FINISHED. {n} total collisions."
 
 
 def _unreachable(ev: pb.TaskEvent, c: LogCounters) -> str:
     what = f" ({ev.part})" if ev.part else ""
-    return f"{secs(ev.task_time)} sec : {ev.robot or ev.agent or 'robot'} - target unreachable{what}."
+    return (
+        f"{secs(ev.task_time)} sec : {ev.robot or ev.agent or 'robot'} - target unreachable{what}."
+    )
 
 
 FORMATTERS: dict[int, Callable[[pb.TaskEvent, LogCounters], str]] = {
@@ -151,13 +156,19 @@ class ThesisLog:
         return text or fmt(ev, self.counters)
 
 
-def run_end_line(end: pb.RunEnd | None, reason: str, task_finished: bool, last_task_time: float) -> str | None:
+def run_end_line(
+    end: pb.RunEnd | None, reason: str, task_finished: bool, last_task_time: float
+) -> str | None:
     """A closing line when the run did not end with TASK FINISHED (so the log says why)."""
     if end is not None and end.ok and task_finished:
         return None
     if end is None or not end.ok:
         why = (end.reason if end is not None else reason) or "unknown"
-        who = f" (service '{end.failed_participant}')" if end is not None and end.failed_participant else ""
+        who = (
+            f" (service '{end.failed_participant}')"
+            if end is not None and end.failed_participant
+            else ""
+        )
         return f"{secs(last_task_time)} sec : RUN ENDED WITH AN ERROR{who}: {why}"
     if not task_finished:
         return f"{secs(last_task_time)} sec : RUN ENDED before the task finished ({end.reason or 'stopped'})."

@@ -29,11 +29,13 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
     cy, sy = math.cos(yaw), math.sin(yaw)
-    return np.array([
-        [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-        [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-        [-sp, cp * sr, cp * cr],
-    ])
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
 
 
 def axis_angle_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
@@ -41,11 +43,13 @@ def axis_angle_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
     x, y, z = axis
     c, s = math.cos(angle), math.sin(angle)
     t = 1.0 - c
-    return np.array([
-        [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
-        [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
-        [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
-    ])
+    return np.array(
+        [
+            [t * x * x + c, t * x * y - s * z, t * x * z + s * y],
+            [t * x * y + s * z, t * y * y + c, t * y * z - s * x],
+            [t * x * z - s * y, t * y * z + s * x, t * z * z + c],
+        ]
+    )
 
 
 def matrix_to_quat_xyzw(r: np.ndarray) -> tuple[float, float, float, float]:
@@ -159,10 +163,16 @@ class UrdfModel:
             if parent is None or child is None:
                 raise UrdfError(f"{where}: needs <parent> and <child>")
             origin = j.find("origin")
-            xyz = _floats(origin.get("xyz") if origin is not None else None, 3, 0.0, f"{where} origin xyz")
-            rpy = _floats(origin.get("rpy") if origin is not None else None, 3, 0.0, f"{where} origin rpy")
+            xyz = _floats(
+                origin.get("xyz") if origin is not None else None, 3, 0.0, f"{where} origin xyz"
+            )
+            rpy = _floats(
+                origin.get("rpy") if origin is not None else None, 3, 0.0, f"{where} origin rpy"
+            )
             axis_el = j.find("axis")
-            axis = _floats(axis_el.get("xyz") if axis_el is not None else None, 3, 0.0, f"{where} axis")
+            axis = _floats(
+                axis_el.get("xyz") if axis_el is not None else None, 3, 0.0, f"{where} axis"
+            )
             if axis_el is None:
                 axis = (1.0, 0.0, 0.0)  # the URDF default
             norm = math.sqrt(sum(a * a for a in axis))
@@ -170,8 +180,16 @@ class UrdfModel:
                 raise UrdfError(f"{where}: axis is zero")
             if norm > 0:
                 axis = tuple(a / norm for a in axis)
-            joints.append(Joint(name, kind, parent.get("link", ""), child.get("link", ""),
-                                transform(rpy_matrix(*rpy), xyz), axis))  # type: ignore[arg-type]
+            joints.append(
+                Joint(
+                    name,
+                    kind,
+                    parent.get("link", ""),
+                    child.get("link", ""),
+                    transform(rpy_matrix(*rpy), xyz),
+                    axis,
+                )
+            )  # type: ignore[arg-type]
         children = {j.child for j in joints}
         roots = [l for l in links if l not in children]
         if len(roots) != 1:
@@ -183,8 +201,10 @@ class UrdfModel:
         while pending:
             ready = [j for j in pending if j.parent in known]
             if not ready:
-                raise UrdfError(f"URDF {source}: joints not connected to the root: "
-                                f"{', '.join(j.name for j in pending)}")
+                raise UrdfError(
+                    f"URDF {source}: joints not connected to the root: "
+                    f"{', '.join(j.name for j in pending)}"
+                )
             for j in ready:
                 ordered.append(j)
                 known.add(j.child)
@@ -195,7 +215,9 @@ class UrdfModel:
         """Every joint's local transform (parent link -> child link); missing joints at 0."""
         return {j.name: j.local(float(q.get(j.name, 0.0))) for j in self.joints}
 
-    def link_poses(self, q: Mapping[str, float], base: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def link_poses(
+        self, q: Mapping[str, float], base: np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
         """Every link's pose in the world (``base`` places the root link; identity if None)."""
         poses = {self.root: np.eye(4) if base is None else base}
         for j in self.joints:

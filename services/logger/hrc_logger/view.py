@@ -45,17 +45,31 @@ from hrc.scenario.models import DEFAULT_TICK_HZ, HUMAN
 from hrc.wire import pb
 
 from hrc_logger.textlog import kind_name
-from hrc_logger.urdf_fk import (UrdfError, UrdfModel, matrix_to_quat_xyzw, point_polyline_distance,
-                                yaw_transform)
+from hrc_logger.urdf_fk import (
+    UrdfError,
+    UrdfModel,
+    matrix_to_quat_xyzw,
+    point_polyline_distance,
+    yaw_transform,
+)
 
 log = logging.getLogger(__name__)
 
 ROOT_FRAME = "tf#/"  # rerun's implicit frame of the root entity: the world
 COLORS: dict[str, tuple[int, int, int]] = {
-    "red": (220, 45, 45), "green": (45, 170, 70), "blue": (50, 100, 225), "yellow": (235, 200, 35),
-    "orange": (240, 140, 35), "purple": (140, 65, 190), "cyan": (40, 200, 210),
-    "magenta": (210, 55, 190), "white": (240, 240, 240), "black": (25, 25, 25),
-    "grey": (128, 128, 128), "gray": (128, 128, 128), "pink": (240, 150, 185),
+    "red": (220, 45, 45),
+    "green": (45, 170, 70),
+    "blue": (50, 100, 225),
+    "yellow": (235, 200, 35),
+    "orange": (240, 140, 35),
+    "purple": (140, 65, 190),
+    "cyan": (40, 200, 210),
+    "magenta": (210, 55, 190),
+    "white": (240, 240, 240),
+    "black": (25, 25, 25),
+    "grey": (128, 128, 128),
+    "gray": (128, 128, 128),
+    "pink": (240, 150, 185),
     "brown": (135, 85, 45),
 }
 HUMAN_COLOR = (90, 150, 235)
@@ -92,8 +106,8 @@ def finite(values: Any) -> bool:
 
 @dataclass
 class ViewSettings:
-    view_hz: float = 30.0    # robot/hand/object updates per simulated second (logging cost)
-    flash_hz: float = 2.0    # cue blinking: on for half of each 1/flash_hz period
+    view_hz: float = 30.0  # robot/hand/object updates per simulated second (logging cost)
+    flash_hz: float = 2.0  # cue blinking: on for half of each 1/flash_hz period
     tick_hz: float = DEFAULT_TICK_HZ  # replaced by the scenario's / clock's rate when known
 
 
@@ -108,7 +122,7 @@ class StateStream(Generic[S]):
     def __init__(self) -> None:
         self.next_due = 0
         self.pending: S | None = None  # held back by the rate limit
-        self.last: S | None = None     # in force until the next one
+        self.last: S | None = None  # in force until the next one
         self.logged_tick = -1
 
     def offer(self, msg: S, every: int) -> bool:
@@ -172,8 +186,16 @@ class CueView:
     visible: bool = False
 
 
-def open_recording(path: Path, recording_id: str, *, viewer: bool = False, web: bool = False,
-                   viewer_port: int = 9876, web_port: int = 9090, grpc_port: int = 9877) -> rr.RecordingStream:
+def open_recording(
+    path: Path,
+    recording_id: str,
+    *,
+    viewer: bool = False,
+    web: bool = False,
+    viewer_port: int = 9876,
+    web_port: int = 9090,
+    grpc_port: int = 9877,
+) -> rr.RecordingStream:
     """A recording that always writes ``path``; ``viewer`` also streams to a spawned native viewer,
     ``web`` also hosts a gRPC server plus the web viewer (http://127.0.0.1:<web_port>)."""
     rec = rr.RecordingStream("hrc-cosim", recording_id=recording_id)
@@ -246,29 +268,57 @@ class View:
             color = self.owner_color.get(p.owner, UNKNOWN_COLOR)
             size = (p.size.x, p.size.y, p.size.z)
             self.objects[p.id] = ObjectView(p.id, size, color)
-            self._log(f"world/targets/{part(p.id)}", rr.Boxes3D(
-                half_sizes=[[s / 2 for s in size]], centers=[vec3_from_pb(p.target.xyz)],
-                quaternions=[yaw_quat_deg(p.target.yaw_deg)], colors=[rgba(color, 110)],
-                fill_mode="majorwireframe", labels=[f"{p.id} target"], show_labels=False),
-                static=True)
+            self._log(
+                f"world/targets/{part(p.id)}",
+                rr.Boxes3D(
+                    half_sizes=[[s / 2 for s in size]],
+                    centers=[vec3_from_pb(p.target.xyz)],
+                    quaternions=[yaw_quat_deg(p.target.yaw_deg)],
+                    colors=[rgba(color, 110)],
+                    fill_mode="majorwireframe",
+                    labels=[f"{p.id} target"],
+                    show_labels=False,
+                ),
+                static=True,
+            )
         for i, b in enumerate(scenario.workspace.envelope):
             lo, hi = np.array(vec3_from_pb(b.min)), np.array(vec3_from_pb(b.max))
-            self._log(f"world/workspace/envelope_{i}", rr.Boxes3D(
-                half_sizes=[(hi - lo) / 2], centers=[(hi + lo) / 2], colors=[(150, 150, 150, 60)],
-                fill_mode="majorwireframe"), static=True)
+            self._log(
+                f"world/workspace/envelope_{i}",
+                rr.Boxes3D(
+                    half_sizes=[(hi - lo) / 2],
+                    centers=[(hi + lo) / 2],
+                    colors=[(150, 150, 150, 60)],
+                    fill_mode="majorwireframe",
+                ),
+                static=True,
+            )
         self.button = np.array(vec3_from_pb(scenario.workspace.continue_button))
-        self._log("world/workspace/continue_button", rr.Points3D(
-            [self.button], radii=[0.015], colors=[(120, 120, 120)], labels=["continue button"]),
-            static=True)
+        self._log(
+            "world/workspace/continue_button",
+            rr.Points3D(
+                [self.button], radii=[0.015], colors=[(120, 120, 120)], labels=["continue button"]
+            ),
+            static=True,
+        )
         for r in scenario.robots:
             if r.role == pb.ROBOT_ROLE_SCREWING:
-                self._log(f"world/workspace/feeder_{part(r.id)}", rr.Points3D(
-                    [vec3_from_pb(r.feeder)], radii=[0.02], colors=[rgb(r.color)],
-                    labels=[f"{r.id} feeder"]),
-                    static=True)
+                self._log(
+                    f"world/workspace/feeder_{part(r.id)}",
+                    rr.Points3D(
+                        [vec3_from_pb(r.feeder)],
+                        radii=[0.02],
+                        colors=[rgb(r.color)],
+                        labels=[f"{r.id} feeder"],
+                    ),
+                    static=True,
+                )
         for rid, rv in self.robots.items():
-            self._log(f"plots/tcp_speed/{part(rid)}", rr.SeriesLines(colors=[rv.color], names=[f"{rid} TCP speed"]),
-                      static=True)
+            self._log(
+                f"plots/tcp_speed/{part(rid)}",
+                rr.SeriesLines(colors=[rv.color], names=[f"{rid} TCP speed"]),
+                static=True,
+            )
 
     def _setup_robot(self, r: pb.RobotConfig) -> None:
         base = yaw_transform(vec3_from_pb(r.base.xyz), r.base.yaw_deg)
@@ -277,8 +327,12 @@ class View:
         ent = f"robot_{part(r.id)}"
         try:
             rv.model = UrdfModel.from_file(r.urdf_path)
-            tree = UrdfTree.from_file_path(r.urdf_path, ent, frame_prefix=f"{r.id}/",
-                                           static_transform_entity_path=f"{ent}/tf_static")
+            tree = UrdfTree.from_file_path(
+                r.urdf_path,
+                ent,
+                frame_prefix=f"{r.id}/",
+                static_transform_entity_path=f"{ent}/tf_static",
+            )
             # Geometry only: every joint transform comes from us (fixed ones static, the others
             # per state), so no child frame has two sources.
             rr.send_chunks(tree.stream(include_joint_transforms=False), recording=self.rec)
@@ -287,9 +341,16 @@ class View:
             rv.model = None
             return
         q = rv.base[:3, :3]
-        self._log(f"{ent}/base", rr.Transform3D(
-            translation=rv.base[:3, 3], quaternion=matrix_to_quat_xyzw(q),
-            parent_frame=ROOT_FRAME, child_frame=f"{r.id}/{rv.model.root}"), static=True)
+        self._log(
+            f"{ent}/base",
+            rr.Transform3D(
+                translation=rv.base[:3, 3],
+                quaternion=matrix_to_quat_xyzw(q),
+                parent_frame=ROOT_FRAME,
+                child_frame=f"{r.id}/{rv.model.root}",
+            ),
+            static=True,
+        )
         for j in rv.model.joints:
             if j.kind == "fixed":
                 self._log_joint(rv, j.name, j.local(0.0), static=True)
@@ -298,9 +359,16 @@ class View:
     def _log_joint(self, rv: RobotView, name: str, t: np.ndarray, static: bool = False) -> None:
         assert rv.model is not None
         j = rv.model.by_name[name]
-        self._log(f"robot_{part(rv.rid)}/joints/{part(name)}", rr.Transform3D(
-            translation=t[:3, 3], quaternion=matrix_to_quat_xyzw(t[:3, :3]),
-            parent_frame=f"{rv.rid}/{j.parent}", child_frame=f"{rv.rid}/{j.child}"), static=static)
+        self._log(
+            f"robot_{part(rv.rid)}/joints/{part(name)}",
+            rr.Transform3D(
+                translation=t[:3, 3],
+                quaternion=matrix_to_quat_xyzw(t[:3, :3]),
+                parent_frame=f"{rv.rid}/{j.parent}",
+                child_frame=f"{rv.rid}/{j.child}",
+            ),
+            static=static,
+        )
 
     # ------------------------------------------------------------------ robots
     def robot_state(self, st: pb.RobotState) -> None:
@@ -328,13 +396,17 @@ class View:
             unknown = [n for n in rv.q if n not in rv.model.by_name]
             if unknown and not rv.unknown_joints_warned:
                 rv.unknown_joints_warned = True
-                log.warning("robot %s: joints not in its URDF ignored: %s", rv.rid, ", ".join(unknown))
+                log.warning(
+                    "robot %s: joints not in its URDF ignored: %s", rv.rid, ", ".join(unknown)
+                )
             for name, t in rv.model.joint_transforms(rv.q).items():
                 if rv.model.by_name[name].kind != "fixed":
                     self._log_joint(rv, name, t)
             rv.chain = rv.model.chain_points(rv.q, rv.base)
         if rv.tcp is not None:
-            self._log(f"world/tcp/{part(rv.rid)}", rr.Points3D([rv.tcp], radii=[0.01], colors=[rv.color]))
+            self._log(
+                f"world/tcp/{part(rv.rid)}", rr.Points3D([rv.tcp], radii=[0.01], colors=[rv.color])
+            )
         if math.isfinite(st.tcp_speed):
             self._log(f"plots/tcp_speed/{part(rv.rid)}", rr.Scalars(st.tcp_speed))
 
@@ -352,20 +424,31 @@ class View:
         self.human.logged(hs)
         h = hs.head.position
         if finite((h.x, h.y, h.z)):
-            self._log("world/human/head", rr.Points3D([[h.x, h.y, h.z]], radii=[0.09], colors=[(230, 190, 160)]))
+            self._log(
+                "world/human/head",
+                rr.Points3D([[h.x, h.y, h.z]], radii=[0.09], colors=[(230, 190, 160)]),
+            )
         for hand, grip in (("left", hs.left_grip), ("right", hs.right_grip)):
             pos = self.hands.get(hand)
             if pos is None:
                 continue
             g = min(1.0, max(0.0, grip if math.isfinite(grip) else 0.0))
             color = (int(240 - 90 * g), int(200 - 110 * g), int(170 - 110 * g))
-            self._log(f"world/human/{hand}_hand", rr.Points3D([pos], radii=[0.035], colors=[color],
-                                                              labels=[f"{hand} {g:.1f}"]))
+            self._log(
+                f"world/human/{hand}_hand",
+                rr.Points3D([pos], radii=[0.035], colors=[color], labels=[f"{hand} {g:.1f}"]),
+            )
             for rid, rv in self.robots.items():
-                pts = rv.chain if rv.chain is not None else (rv.tcp[None, :] if rv.tcp is not None else None)
+                pts = (
+                    rv.chain
+                    if rv.chain is not None
+                    else (rv.tcp[None, :] if rv.tcp is not None else None)
+                )
                 if pts is not None:
-                    self._log(f"plots/hand_distance/{hand}/{part(rid)}",
-                              rr.Scalars(point_polyline_distance(pos, pts)))
+                    self._log(
+                        f"plots/hand_distance/{hand}/{part(rid)}",
+                        rr.Scalars(point_polyline_distance(pos, pts)),
+                    )
 
     # ------------------------------------------------------------------ objects
     def world_objects(self, wo: pb.WorldObjects) -> None:
@@ -381,8 +464,11 @@ class View:
                 continue
             pos, quat = np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])
             changed_state = o.held_by != ov.held_by or o.placed != ov.placed
-            moved = (ov.pos is None or float(np.linalg.norm(pos - ov.pos)) > 5e-4
-                     or abs(float(np.dot(quat, ov.quat))) < 0.99999)  # type: ignore[arg-type]
+            moved = (
+                ov.pos is None
+                or float(np.linalg.norm(pos - ov.pos)) > 5e-4
+                or abs(float(np.dot(quat, ov.quat))) < 0.99999
+            )  # type: ignore[arg-type]
             if not (moved or changed_state or not ov.shown):
                 continue
             if ov.shown and not (o.id in forced or changed_state) and tick < ov.next_due:
@@ -392,10 +478,20 @@ class View:
                 timed = True
             ent = f"world/parts/{part(o.id)}"
             if not ov.shown or changed_state:
-                label = o.id + (f" ({o.held_by})" if o.held_by else "") + (" placed" if o.placed else "")
-                self._log(ent, rr.Boxes3D(half_sizes=[[s / 2 for s in ov.size]],
-                                          colors=[rgba(ov.color, 255 if o.placed else 200)],
-                                          fill_mode="solid", labels=[label]))
+                label = (
+                    o.id
+                    + (f" ({o.held_by})" if o.held_by else "")
+                    + (" placed" if o.placed else "")
+                )
+                self._log(
+                    ent,
+                    rr.Boxes3D(
+                        half_sizes=[[s / 2 for s in ov.size]],
+                        colors=[rgba(ov.color, 255 if o.placed else 200)],
+                        fill_mode="solid",
+                        labels=[label],
+                    ),
+                )
                 ov.shown = True
             self._log(ent, rr.Transform3D(translation=pos, quaternion=quat))
             ov.pos, ov.quat, ov.held_by, ov.placed = pos, quat, o.held_by, o.placed
@@ -412,8 +508,15 @@ class View:
             ent = f"world/contacts/{kind}/{name}"
             if c.begin and finite(vec3_from_pb(c.point)):
                 color = (255, 40, 40) if c.kind == pb.CONTACT_KIND_HAND_ROBOT else (255, 150, 0)
-                self._log(ent, rr.Points3D([vec3_from_pb(c.point)], radii=[0.025], colors=[color],
-                                           labels=[f"{c.a}-{c.b}"]))
+                self._log(
+                    ent,
+                    rr.Points3D(
+                        [vec3_from_pb(c.point)],
+                        radii=[0.025],
+                        colors=[color],
+                        labels=[f"{c.a}-{c.b}"],
+                    ),
+                )
             elif not c.begin:
                 self._log(ent, rr.Clear(recursive=False))
 
@@ -430,8 +533,12 @@ class View:
             else:
                 self.cues.pop(c.id, None)
                 self._log(ent, rr.Clear(recursive=False))
-        self._log("status/cues", rr.TextDocument(
-            "\n".join(f"- {cid}" for cid in sorted(self.cues)) or "(no cue active)"))
+        self._log(
+            "status/cues",
+            rr.TextDocument(
+                "\n".join(f"- {cid}" for cid in sorted(self.cues)) or "(no cue active)"
+            ),
+        )
 
     def _show_cue(self, ent: str, c: pb.Cue) -> None:
         color = rgb(c.color, self.owner_color.get(c.robot, (255, 255, 255)))
@@ -440,13 +547,21 @@ class View:
         p = self.parts.get(c.part)
         if c.kind == pb.CUE_KIND_TARGET and p is not None:
             size = np.array([p.size.x, p.size.y, p.size.z]) * 1.15
-            self._log(ent, rr.Boxes3D(half_sizes=[size / 2], centers=[vec3_from_pb(p.target.xyz)],
-                                      quaternions=[yaw_quat_deg(p.target.yaw_deg)],
-                                      colors=[rgba(color, 170)],
-                                      fill_mode="solid", labels=[c.text or f"{c.part}"]))
+            self._log(
+                ent,
+                rr.Boxes3D(
+                    half_sizes=[size / 2],
+                    centers=[vec3_from_pb(p.target.xyz)],
+                    quaternions=[yaw_quat_deg(p.target.yaw_deg)],
+                    colors=[rgba(color, 170)],
+                    fill_mode="solid",
+                    labels=[c.text or f"{c.part}"],
+                ),
+            )
         elif c.kind == pb.CUE_KIND_OUTLINE and (
-                (c.part in self.objects and self.objects[c.part].pos is not None)
-                or (p is not None and p.start_given)):
+            (c.part in self.objects and self.objects[c.part].pos is not None)
+            or (p is not None and p.start_given)
+        ):
             ov = self.objects.get(c.part)
             if ov is not None and ov.pos is not None:
                 size, center, quat = np.array(ov.size), ov.pos, ov.quat
@@ -455,20 +570,46 @@ class View:
                 size = np.array([p.size.x, p.size.y, p.size.z])
                 center = to_array(vec3_from_pb(p.start.xyz))
                 quat = to_array(yaw_quat_deg(p.start.yaw_deg))
-            self._log(ent, rr.Boxes3D(half_sizes=[size * 1.3 / 2], centers=[center], quaternions=[quat],
-                                      colors=[rgba(color, 255)], fill_mode="majorwireframe"))
+            self._log(
+                ent,
+                rr.Boxes3D(
+                    half_sizes=[size * 1.3 / 2],
+                    centers=[center],
+                    quaternions=[quat],
+                    colors=[rgba(color, 255)],
+                    fill_mode="majorwireframe",
+                ),
+            )
         elif c.kind == pb.CUE_KIND_WAITING:
             rv = self.robots.get(c.robot)
             if not given and rv is not None:
                 pos = vec3_from_array(rv.base[:3, 3] + np.array([0.0, 0.0, WAITING_HEIGHT_M]))
-            self._log(ent, rr.Points3D([pos], radii=[0.02], colors=[color],
-                                       labels=[c.text or WAITING_TEXT], show_labels=True))
+            self._log(
+                ent,
+                rr.Points3D(
+                    [pos],
+                    radii=[0.02],
+                    colors=[color],
+                    labels=[c.text or WAITING_TEXT],
+                    show_labels=True,
+                ),
+            )
         elif c.kind == pb.CUE_KIND_CONTINUE_BUTTON:
             where = pos if given else list(self.button)
-            self._log(ent, rr.Points3D([where], radii=[0.03], colors=[rgb(c.color, (255, 60, 60))],
-                                       labels=[c.text or "Continue"], show_labels=True))
+            self._log(
+                ent,
+                rr.Points3D(
+                    [where],
+                    radii=[0.03],
+                    colors=[rgb(c.color, (255, 60, 60))],
+                    labels=[c.text or "Continue"],
+                    show_labels=True,
+                ),
+            )
         else:
-            self._log(ent, rr.Points3D([pos], radii=[0.02], colors=[color], labels=[c.text or c.id]))
+            self._log(
+                ent, rr.Points3D([pos], radii=[0.02], colors=[color], labels=[c.text or c.id])
+            )
 
     def tick(self, k: int, sim_time: float) -> None:
         """Blinks the flashing cues on the sim timeline (on for the first half of each period)."""
@@ -496,9 +637,19 @@ class View:
     def event(self, ev: pb.TaskEvent, line: str | None) -> None:
         self._time(ev.header.tick, ev.header.sim_time)
         name = kind_name(ev.kind)
-        text = line or " ".join(x for x in (name, ev.agent, ev.robot, ev.part, ev.hand, ev.text) if x)
-        level = "WARN" if ev.kind in (pb.TASK_EVENT_KIND_COLLISION, pb.TASK_EVENT_KIND_NEAR_COLLISION,
-                                      pb.TASK_EVENT_KIND_ROBOT_UNREACHABLE) else "INFO"
+        text = line or " ".join(
+            x for x in (name, ev.agent, ev.robot, ev.part, ev.hand, ev.text) if x
+        )
+        level = (
+            "WARN"
+            if ev.kind
+            in (
+                pb.TASK_EVENT_KIND_COLLISION,
+                pb.TASK_EVENT_KIND_NEAR_COLLISION,
+                pb.TASK_EVENT_KIND_ROBOT_UNREACHABLE,
+            )
+            else "INFO"
+        )
         self._log("events", rr.TextLog(text, level=level))
 
     # ------------------------------------------------------------------ end

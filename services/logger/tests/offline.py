@@ -17,9 +17,14 @@ def run_offline(trial: SyntheticTrial, out: Path, session: str = "offline") -> T
     view = View(open_recording(out / "recording.rrd", session))
     view.setup(trial.sc)
     rec = TrialRecorder(out, view)
-    handlers = {"world_objects": rec.on_world_objects, "world_contacts": rec.on_world_contacts,
-                "human_state": rec.on_human_state, "task_events": rec.on_event,
-                "task_indicators": rec.on_indicators, "task_metrics": rec.on_metrics}
+    handlers = {
+        "world_objects": rec.on_world_objects,
+        "world_contacts": rec.on_world_contacts,
+        "human_state": rec.on_human_state,
+        "task_events": rec.on_event,
+        "task_indicators": rec.on_indicators,
+        "task_metrics": rec.on_metrics,
+    }
 
     def send(o: Outgoing, k: int) -> None:
         o.msg.header.tick = k  # type: ignore[attr-defined]

@@ -29,7 +29,9 @@ while True:
 
 def test_kill_9_mid_run_leaves_every_written_line_parseable(tmp_path: Path) -> None:
     path = tmp_path / "events.jsonl"
-    child = subprocess.Popen([sys.executable, "-c", CHILD, str(path)], stdout=subprocess.PIPE, text=True)
+    child = subprocess.Popen(
+        [sys.executable, "-c", CHILD, str(path)], stdout=subprocess.PIPE, text=True
+    )
     try:
         assert child.stdout is not None
         reported = 0

@@ -36,8 +36,17 @@ def test_log_txt_in_thesis_order(trial_dir: tuple[Path, SyntheticTrial]) -> None
     assert sum(" : Near-collision " in l for l in lines) == trial.expected.near == 1
     assert sum("Continuing after robot-hand collision" in l for l in lines) == 2
     order = [l.split(" sec : ")[1].split(" ")[0] for l in lines[1:]]
-    assert order == ["Collision", "Continuing", "Near-collision", "Collision", "Continuing",
-                     "r1", "r2", "Human", "TASK"]
+    assert order == [
+        "Collision",
+        "Continuing",
+        "Near-collision",
+        "Collision",
+        "Continuing",
+        "r1",
+        "r2",
+        "Human",
+        "TASK",
+    ]
     times = [float(l.split(" sec : ")[0]) for l in lines[1:]]
     assert times == sorted(times)
 
@@ -57,7 +66,9 @@ def test_events_jsonl_counts(trial_dir: tuple[Path, SyntheticTrial]) -> None:
         assert {"type", "tick", "sim_time"} <= set(r)
 
 
-def test_recording_holds_robots_parts_cues_over_the_trial(trial_dir: tuple[Path, SyntheticTrial]) -> None:
+def test_recording_holds_robots_parts_cues_over_the_trial(
+    trial_dir: tuple[Path, SyntheticTrial],
+) -> None:
     out, trial = trial_dir
     s = summarize(out / "recording.rrd")
     last = trial.n - 1
@@ -68,7 +79,10 @@ def test_recording_holds_robots_parts_cues_over_the_trial(trial_dir: tuple[Path,
             joint = s[f"/robot_{rid}/joints/{j}"]
             assert "Transform3D:quaternion" in joint.components
             assert (joint.first_tick, joint.last_tick) == (0, last), (rid, j)
-        assert (s[f"/plots/tcp_speed/{rid}"].first_tick, s[f"/plots/tcp_speed/{rid}"].last_tick) == (0, last)
+        assert (
+            s[f"/plots/tcp_speed/{rid}"].first_tick,
+            s[f"/plots/tcp_speed/{rid}"].last_tick,
+        ) == (0, last)
         for hand in ("left", "right"):
             assert s[f"/plots/hand_distance/{hand}/{rid}"].last_tick == last
     for p in trial.sc.parts:
@@ -95,8 +109,11 @@ def test_rate_limit_keeps_the_view_cheap(trial_dir: tuple[Path, SyntheticTrial])
 
 
 def test_record_mapping_is_flat_and_json_safe() -> None:
-    ev = pb.TaskEvent(kind=pb.TASK_EVENT_KIND_CONTINUED, task_time=float("nan"),
-                      continued=pb.Continued(number=2, delay_s=1.5))
+    ev = pb.TaskEvent(
+        kind=pb.TASK_EVENT_KIND_CONTINUED,
+        task_time=float("nan"),
+        continued=pb.Continued(number=2, delay_s=1.5),
+    )
     ev.header.tick, ev.header.sim_time, ev.header.seq = 7, 7 / 240, 3
     r = event_record(ev)
     assert r["kind"] == "CONTINUED" and r["task_time"] is None
@@ -113,7 +130,8 @@ def test_record_mapping_is_flat_and_json_safe() -> None:
     rec = metrics_record(report)
     assert (rec["type"], rec["tick"], rec["final"]) == ("metrics", 9, True)
     assert rec["collisions"]["human_robot_count"] == 1 and rec["collisions"]["near"] == [
-        {"t_s": None}]
+        {"t_s": None}
+    ]
     assert math.isclose(rec["collisions"]["human_robot"][0]["delay_s"], 2.0)
     assert rec["run"] is None and rec["task"] is None  # not set by the sender
     json.dumps(rec, allow_nan=False)

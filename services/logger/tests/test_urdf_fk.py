@@ -11,8 +11,13 @@ import pytest
 from rerun.urdf import UrdfTree
 
 from hrc.paths import project_root
-from hrc_logger.urdf_fk import (UrdfError, UrdfModel, matrix_to_quat_xyzw, point_polyline_distance,
-                                yaw_transform)
+from hrc_logger.urdf_fk import (
+    UrdfError,
+    UrdfModel,
+    matrix_to_quat_xyzw,
+    point_polyline_distance,
+    yaw_transform,
+)
 
 ARM5 = project_root() / "robots" / "arm5.urdf"
 
@@ -41,7 +46,13 @@ def test_joint_transforms_match_rerun_urdf_loader() -> None:
 
 def test_arm_points_straight_up_at_zero_and_bends_as_documented() -> None:
     model = UrdfModel.from_file(ARM5)
-    assert model.movable == ["j1_base_yaw", "j2_shoulder", "j3_elbow", "j4_wrist_pitch", "j5_wrist_roll"]
+    assert model.movable == [
+        "j1_base_yaw",
+        "j2_shoulder",
+        "j3_elbow",
+        "j4_wrist_pitch",
+        "j5_wrist_roll",
+    ]
     base = yaw_transform([0.45, 0.55, 0.0], 180.0)
     tool = model.link_poses({}, base)["tool"]
     assert np.allclose(tool[:3, 3], [0.45, 0.55, 0.10 + 0.10 + 0.42 + 0.40 + 0.05 + 0.05])
@@ -49,7 +60,9 @@ def test_arm_points_straight_up_at_zero_and_bends_as_documented() -> None:
     tool = model.link_poses({"j2_shoulder": math.pi / 2}, base)["tool"]
     assert np.allclose(tool[:3, 3], [0.45 - (0.42 + 0.40 + 0.10), 0.55, 0.20], atol=1e-9)
     # tool pointing down: j2 + j3 + j4 = pi  ->  tool z = world -z
-    tool = model.link_poses({"j2_shoulder": 0.5, "j3_elbow": 1.5, "j4_wrist_pitch": math.pi - 2.0}, base)["tool"]
+    tool = model.link_poses(
+        {"j2_shoulder": 0.5, "j3_elbow": 1.5, "j4_wrist_pitch": math.pi - 2.0}, base
+    )["tool"]
     assert np.allclose(tool[:3, 2], [0, 0, -1], atol=1e-9)
 
 
@@ -59,11 +72,13 @@ def test_quaternion_round_trip() -> None:
         q = rng.normal(size=4)
         q /= np.linalg.norm(q)
         x, y, z, w = q
-        r = np.array([
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ])
+        r = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+            ]
+        )
         assert _same_rotation(matrix_to_quat_xyzw(r), q)
 
 
@@ -75,17 +90,29 @@ def test_point_polyline_distance() -> None:
     assert point_polyline_distance(np.array([0, 0, 2.0]), pts[:1]) == pytest.approx(2.0)
 
 
-@pytest.mark.parametrize("text,match", [
-    ("<robot", "not XML"),
-    ("<model/>", "not <robot>"),
-    ('<robot name="a"><link name="a"/><link name="b"/><joint name="j" type="ball"><parent link="a"/>'
-     '<child link="b"/></joint></robot>', "type 'ball'"),
-    ('<robot name="a"><link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a"/>'
-     '<child link="b"/><origin xyz="0 0"/></joint></robot>', "expected 3 numbers"),
-    ('<robot name="a"><link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a"/>'
-     '<child link="b"/><axis xyz="0 0 0"/></joint></robot>', "axis is zero"),
-    ('<robot name="a"><link name="a"/><link name="b"/></robot>', "one root link"),
-])
+@pytest.mark.parametrize(
+    "text,match",
+    [
+        ("<robot", "not XML"),
+        ("<model/>", "not <robot>"),
+        (
+            '<robot name="a"><link name="a"/><link name="b"/><joint name="j" type="ball"><parent link="a"/>'
+            '<child link="b"/></joint></robot>',
+            "type 'ball'",
+        ),
+        (
+            '<robot name="a"><link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a"/>'
+            '<child link="b"/><origin xyz="0 0"/></joint></robot>',
+            "expected 3 numbers",
+        ),
+        (
+            '<robot name="a"><link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a"/>'
+            '<child link="b"/><axis xyz="0 0 0"/></joint></robot>',
+            "axis is zero",
+        ),
+        ('<robot name="a"><link name="a"/><link name="b"/></robot>', "one root link"),
+    ],
+)
 def test_bad_urdf_is_named(text: str, match: str) -> None:
     with pytest.raises(UrdfError, match=match):
         UrdfModel.from_string(text, "x.urdf")

@@ -11,8 +11,16 @@ counted from the start until the human's last part is placed.
 from __future__ import annotations
 
 from hrc import scenario as sc
-from hrc.geometry import (distance, pose_to_pb, quat_from_pb, quat_yaw_deg, vec3, vec3_from_pb,
-                          yaw_difference_deg, yaw_pose_deg)
+from hrc.geometry import (
+    distance,
+    pose_to_pb,
+    quat_from_pb,
+    quat_yaw_deg,
+    vec3,
+    vec3_from_pb,
+    yaw_difference_deg,
+    yaw_pose_deg,
+)
 from hrc.scenario.conventions import HANDS
 from hrc.wire import pb
 from hrc_orchestrator import events as ev
@@ -71,8 +79,9 @@ class HumanAgent:
         self.held_part, self.held_hand = "", ""
         if e.HasField("pose"):
             distance_m = distance(vec3_from_pb(e.pose.position), vec3(part.target.xyz))
-            angle_deg = yaw_difference_deg(quat_yaw_deg(quat_from_pb(e.pose.orientation)),
-                                           part.target.yaw)
+            angle_deg = yaw_difference_deg(
+                quat_yaw_deg(quat_from_pb(e.pose.orientation)), part.target.yaw
+            )
         else:  # physics' own figures
             distance_m, angle_deg = e.target_distance_m, e.target_angle_deg
         missing = self.board.missing_deps(e.object)
@@ -82,8 +91,11 @@ class HumanAgent:
             why = f"tolerance {self.tol_m * 100:g} cm / {self.tol_deg:g} deg"
         else:
             snap = yaw_pose_deg(part.target.xyz, part.target.yaw)
-            self.board.command(pb.WorldCommand(release=pb.Release(
-                object=e.object, snap=True, pose=pose_to_pb(snap))))
+            self.board.command(
+                pb.WorldCommand(
+                    release=pb.Release(object=e.object, snap=True, pose=pose_to_pb(snap))
+                )
+            )
             self.board.mark_placed(e.object, t)
             self.board.emit(ev.part_placed(t, sc.HUMAN, e.object, hand))
             self.index += 1

@@ -69,9 +69,15 @@ def build(task: Task, seed: int, run: pb.RunMetrics | None = None) -> pb.Metrics
 
 def run_metrics(end: pb.RunEnd) -> pb.RunMetrics:
     """The run section from physics's run/end."""
-    return pb.RunMetrics(mode=end.mode, ticks=end.ticks, wall_s=_r(end.wall_s),
-                         realtime_factor=_r(end.realtime_factor), ok=end.ok,
-                         end_reason=end.reason, deadline_misses=dict(end.deadline_misses))
+    return pb.RunMetrics(
+        mode=end.mode,
+        ticks=end.ticks,
+        wall_s=_r(end.wall_s),
+        realtime_factor=_r(end.realtime_factor),
+        ok=end.ok,
+        end_reason=end.reason,
+        deadline_misses=dict(end.deadline_misses),
+    )
 
 
 def broken_off_run(ticks: int, reason: str) -> pb.RunMetrics:

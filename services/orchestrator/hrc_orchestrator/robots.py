@@ -60,9 +60,15 @@ class Motion:
         return self.kind == pb.RobotCommand.KIND_MOVE
 
     def to_proto(self, robot: str, command_id: int) -> pb.RobotCommand:
-        return pb.RobotCommand(robot=robot, command_id=command_id, kind=self.kind,
-                               target=vec3_to_pb(self.target), yaw_deg=self.yaw_deg,
-                               approach_height=self.approach, depart_height=self.depart)
+        return pb.RobotCommand(
+            robot=robot,
+            command_id=command_id,
+            kind=self.kind,
+            target=vec3_to_pb(self.target),
+            yaw_deg=self.yaw_deg,
+            approach_height=self.approach,
+            depart_height=self.depart,
+        )
 
 
 HOLD = Motion(pb.RobotCommand.KIND_HOLD)
@@ -124,9 +130,13 @@ class RobotAgent:
 
     def reached(self, motion: Motion | None) -> bool:
         """The arm reports REACHED for the command that sent exactly `motion`."""
-        return (motion is not None and self.sent == motion and self.state is not None
-                and self.state.command_id == self.sent_id
-                and self.state.status == pb.MOTION_STATUS_REACHED)
+        return (
+            motion is not None
+            and self.sent == motion
+            and self.state is not None
+            and self.state.command_id == self.sent_id
+            and self.state.status == pb.MOTION_STATUS_REACHED
+        )
 
     def record_sent(self, motion: Motion) -> int:
         self.sent = motion
@@ -135,8 +145,9 @@ class RobotAgent:
 
     # ------------------------------------------------------------------ targets
     def _intermediate(self, yaw_deg: float, depart: bool) -> Motion:
-        return Motion.move(vec3(self.cfg.intermediate), yaw_deg, 0.0,
-                           APPROACH_HEIGHT_M if depart else 0.0)
+        return Motion.move(
+            vec3(self.cfg.intermediate), yaw_deg, 0.0, APPROACH_HEIGHT_M if depart else 0.0
+        )
 
     def _pick(self, part_id: str) -> Motion:
         part = self.board.parts[part_id]
@@ -144,13 +155,15 @@ class RobotAgent:
             feeder = vec3(self.cfg.feeder or (0.0, 0.0, 0.0))
             return Motion.move(grasp_point(feeder, part.size), 0.0, APPROACH_HEIGHT_M)
         assert part.start is not None  # checked by the scenario loader
-        return Motion.move(grasp_point(vec3(part.start.xyz), part.size), part.start.yaw,
-                           APPROACH_HEIGHT_M)
+        return Motion.move(
+            grasp_point(vec3(part.start.xyz), part.size), part.start.yaw, APPROACH_HEIGHT_M
+        )
 
     def _place(self, part_id: str) -> Motion:
         part = self.board.parts[part_id]
-        return Motion.move(grasp_point(vec3(part.target.xyz), part.size), part.target.yaw,
-                           APPROACH_HEIGHT_M)
+        return Motion.move(
+            grasp_point(vec3(part.target.xyz), part.size), part.target.yaw, APPROACH_HEIGHT_M
+        )
 
     # ------------------------------------------------------------------ phase machine
     def _enter(self, phase: Phase, t: float, goal: Motion | None) -> None:
@@ -162,8 +175,9 @@ class RobotAgent:
 
     def _next_part(self, t: float) -> None:
         if self.index < len(self.sequence):
-            self._enter(Phase.TO_FEEDER if self.screwing else Phase.TO_PICK, t,
-                        self._pick(self.part))
+            self._enter(
+                Phase.TO_FEEDER if self.screwing else Phase.TO_PICK, t, self._pick(self.part)
+            )
         else:
             self._enter(Phase.TO_HOME, t, Motion.move(vec3(self.cfg.home), 0.0))
 
@@ -213,9 +227,17 @@ class RobotAgent:
         part = self.board.parts[part_id]
         if self.screwing:
             feeder = vec3(self.cfg.feeder or (0.0, 0.0, 0.0))
-            self.board.command(pb.WorldCommand(spawn=pb.Spawn(
-                object=part_id, pose=pose_to_pb(yaw_pose_deg(feeder, 0.0)),
-                size=vec3_to_pb(part.size), kind=part.kind, owner=self.id)))
+            self.board.command(
+                pb.WorldCommand(
+                    spawn=pb.Spawn(
+                        object=part_id,
+                        pose=pose_to_pb(yaw_pose_deg(feeder, 0.0)),
+                        size=vec3_to_pb(part.size),
+                        kind=part.kind,
+                        owner=self.id,
+                    )
+                )
+            )
         self.board.command(pb.WorldCommand(attach=pb.Attach(object=part_id, holder=self.id)))
         self.carrying = part_id
         self.board.mark_grabbed(part_id, t)
@@ -235,8 +257,9 @@ class RobotAgent:
         part_id = self.carrying
         part = self.board.parts[part_id]
         snap = yaw_pose_deg(part.target.xyz, part.target.yaw)
-        self.board.command(pb.WorldCommand(release=pb.Release(
-            object=part_id, snap=True, pose=pose_to_pb(snap))))
+        self.board.command(
+            pb.WorldCommand(release=pb.Release(object=part_id, snap=True, pose=pose_to_pb(snap)))
+        )
         self.board.mark_placed(part_id, t)
         self.board.emit(ev.part_placed(t, self.id, part_id))
         self.carrying = ""
@@ -256,12 +279,17 @@ class RobotAgent:
         self.phase = Phase.FINISHED
         self.completion_s = t
         self.idle.end(t)
-        self.board.emit(ev.robot_finished(t, self.id, self.speed_max, self.avg_speed,
-                                          self.idle.total))
+        self.board.emit(
+            ev.robot_finished(t, self.id, self.speed_max, self.avg_speed, self.idle.total)
+        )
 
     def _check_unreachable(self, t: float) -> None:
         st = self.state
-        if (st is not None and st.status == pb.MOTION_STATUS_UNREACHABLE
-                and st.command_id == self.sent_id and self._unreachable_reported != self.sent_id):
+        if (
+            st is not None
+            and st.status == pb.MOTION_STATUS_UNREACHABLE
+            and st.command_id == self.sent_id
+            and self._unreachable_reported != self.sent_id
+        ):
             self._unreachable_reported = self.sent_id
             self.board.emit(ev.robot_unreachable(t, self.id, st.detail))

@@ -27,6 +27,7 @@ from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
 from hrc_orchestrator.robots import HOLD, Motion, RobotAgent
 
+
 @dataclass
 class CollisionRecord:
     n: int
@@ -71,8 +72,11 @@ class Safety:
     @property
     def button_wanted(self) -> bool:
         """The continue button flashes: a retreat_button collision that was not yet confirmed."""
-        return (self.policy == SafetyPolicy.RETREAT_BUTTON and self.retreating is not None
-                and not self.retreating.pressed)
+        return (
+            self.policy == SafetyPolicy.RETREAT_BUTTON
+            and self.retreating is not None
+            and not self.retreating.pressed
+        )
 
     def override(self, robot: str) -> Motion | None:
         """What safety makes the robot do instead of its phase goal (None: nothing)."""
@@ -109,14 +113,18 @@ class Safety:
             if robot not in self.halted:
                 rec = self._new_record(t, robot, hand, c.link)
                 self.halted[robot] = rec
-                self.board.emit(ev.robot_halted(t, robot, f"{hand} hand touches it (collision "
-                                                          f"{rec.n})"))
+                self.board.emit(
+                    ev.robot_halted(t, robot, f"{hand} hand touches it (collision {rec.n})")
+                )
         elif self.retreating is None:
             rec = self._new_record(t, robot, hand, c.link)
             retreat: dict[str, Motion] = {}
             for rid, agent in self.agents.items():
-                yaw_deg = agent.sent.yaw_deg if agent.sent is not None and agent.sent.is_move else (
-                    agent.goal.yaw_deg if agent.goal is not None else 0.0)
+                yaw_deg = (
+                    agent.sent.yaw_deg
+                    if agent.sent is not None and agent.sent.is_move
+                    else (agent.goal.yaw_deg if agent.goal is not None else 0.0)
+                )
                 retreat[rid] = Motion.move(vec3(agent.cfg.retreat), yaw_deg)
             self.retreating = RetreatState(rec, retreat, {rid: False for rid in self.agents})
 

@@ -85,8 +85,9 @@ class OrchestratorService(Service):
         except scenario_mod.ScenarioError as exc:
             raise ServiceExit(f"scenario rejected:\n{exc}", EXIT_BAD_INPUT) from exc
         except OSError as exc:
-            raise ServiceExit(f"cannot read scenario {args.scenario}: {exc}",
-                              EXIT_BAD_INPUT) from exc
+            raise ServiceExit(
+                f"cannot read scenario {args.scenario}: {exc}", EXIT_BAD_INPUT
+            ) from exc
         self.spb = scenario_mod.to_proto(self.scenario)
         if args.seed is not None:
             if args.seed < 0:
@@ -116,9 +117,13 @@ class OrchestratorService(Service):
         self.cues_pub = bus.publisher(keys.task_indicators())
         self.metrics_pub = bus.publisher(keys.task_metrics())
         self.control_pub = bus.publisher(keys.run_control())
-        log.info("serving scenario %r (seed %d, policy %s, anticipation %s)", spb.info.name,
-                 spb.info.seed, self.scenario.conditions.safety_policy,
-                 spb.conditions.anticipation)
+        log.info(
+            "serving scenario %r (seed %d, policy %s, anticipation %s)",
+            spb.info.name,
+            spb.info.seed,
+            self.scenario.conditions.safety_policy,
+            spb.conditions.anticipation,
+        )
 
     def register_inputs(self, inputs: Inputs) -> None:
         keys = self.bus.keys
@@ -152,13 +157,22 @@ class OrchestratorService(Service):
         # Events first: what happened this tick, then what is done about it.
         for event in out.events:
             # One parseable line per event (tests and people read the service log too).
-            log.info("event %s | %s", pb.TaskEventKind.Name(event.kind).removeprefix(
-                "TASK_EVENT_KIND_"), event.text)
+            log.info(
+                "event %s | %s",
+                pb.TaskEventKind.Name(event.kind).removeprefix("TASK_EVENT_KIND_"),
+                event.text,
+            )
             self.events_pub.put(event, k, t)
         for cmd in out.robot_commands:
-            log.info("command %s #%d %s (%.4f, %.4f, %.4f)", cmd.robot, cmd.command_id,
-                     pb.RobotCommand.Kind.Name(cmd.kind).removeprefix("KIND_"), cmd.target.x,
-                     cmd.target.y, cmd.target.z)
+            log.info(
+                "command %s #%d %s (%.4f, %.4f, %.4f)",
+                cmd.robot,
+                cmd.command_id,
+                pb.RobotCommand.Kind.Name(cmd.kind).removeprefix("KIND_"),
+                cmd.target.x,
+                cmd.target.y,
+                cmd.target.z,
+            )
             self.cmd_pubs[cmd.robot].put(cmd, k, t)
         if out.world_commands:
             self.world_pub.put(pb.WorldCommands(commands=out.world_commands), k, t)
@@ -171,20 +185,23 @@ class OrchestratorService(Service):
             self._stop_sent = True
             self.metrics_pub.put(metrics.report(metrics.build(self.task, self.seed), True), k, t)
             if not self.keep_running:
-                self.control_pub.put(pb.RunControl(command=pb.RunControl.COMMAND_STOP,
-                                                   reason=out.stop), k, t)
+                self.control_pub.put(
+                    pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=out.stop), k, t
+                )
 
     # ------------------------------------------------------------------ the end
     def finish(self, outcome: Outcome) -> int | None:
         run_end = outcome.run_end
         # The run broke off without run/end: say so, keep the task numbers.
-        run = (metrics.run_metrics(run_end) if run_end is not None
-               else metrics.broken_off_run(self.task.tick, outcome.reason))
+        run = (
+            metrics.run_metrics(run_end)
+            if run_end is not None
+            else metrics.broken_off_run(self.task.tick, outcome.reason)
+        )
         data = metrics.build(self.task, self.seed, run)
         if run_end is not None:
             try:  # best effort: the run is over, observers may already be leaving
-                self.metrics_pub.put(metrics.report(data, True), run_end.ticks,
-                                     run_end.sim_time)
+                self.metrics_pub.put(metrics.report(data, True), run_end.ticks, run_end.sim_time)
             except Exception as exc:  # noqa: BLE001 - never lose metrics.json over this
                 log.warning("could not publish the final metrics: %s", exc)
         if self.out_dir is not None:

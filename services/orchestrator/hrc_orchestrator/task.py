@@ -60,8 +60,9 @@ class Outputs:
 
 
 class Task:
-    def __init__(self, scenario: sc.Scenario, *,
-                 wall_clock: Callable[[], str] = wall_clock_now) -> None:
+    def __init__(
+        self, scenario: sc.Scenario, *, wall_clock: Callable[[], str] = wall_clock_now
+    ) -> None:
         self.scenario = scenario
         self.board = Board(scenario)
         self.human = HumanAgent(scenario, self.board)
@@ -141,7 +142,7 @@ class Task:
     # ------------------------------------------------------------------ inputs
     def _object_event(self, e: pb.ObjectEvent) -> None:
         if e.kind == pb.ObjectEvent.KIND_GRABBED:
-            if (not self.started and e.object == self.human.first_part and e.holder in HANDS):
+            if not self.started and e.object == self.human.first_part and e.holder in HANDS:
                 self._start(e.object)
             if self.running:
                 self.human.grabbed(e, self.now())
@@ -200,8 +201,9 @@ class Task:
             want = part.owner == sc.HUMAN and self.human.grabbable(part.id, blocked)
             if self._grabbable.get(part.id) != want:
                 self._grabbable[part.id] = want
-                cmds.append(pb.WorldCommand(set_grabbable=pb.SetGrabbable(object=part.id,
-                                                                         grabbable=want)))
+                cmds.append(
+                    pb.WorldCommand(set_grabbable=pb.SetGrabbable(object=part.id, grabbable=want))
+                )
         return cmds
 
     def _desired_cues(self) -> list[pb.Cue]:
@@ -210,29 +212,65 @@ class Task:
         cues: list[pb.Cue] = []
         nxt = self.human.next_part
         if nxt and not self.human.held_part and self.human.grabbable(nxt, self.safety.blocks_grab):
-            cues.append(pb.Cue(id=outline_cue_id(nxt), kind=pb.CUE_KIND_OUTLINE, part=nxt,
-                               color=HUMAN_COLOR, position=vec3_to_pb(self._positions[nxt]),
-                               flashing=True))
+            cues.append(
+                pb.Cue(
+                    id=outline_cue_id(nxt),
+                    kind=pb.CUE_KIND_OUTLINE,
+                    part=nxt,
+                    color=HUMAN_COLOR,
+                    position=vec3_to_pb(self._positions[nxt]),
+                    flashing=True,
+                )
+            )
         if self.human.target_cue_wanted():
             part = self.board.parts[self.human.held_part]
-            cues.append(pb.Cue(id=target_cue_id(part.id), kind=pb.CUE_KIND_TARGET, part=part.id,
-                               color=HUMAN_COLOR, position=vec3_to_pb(part.target.xyz),
-                               flashing=True))
+            cues.append(
+                pb.Cue(
+                    id=target_cue_id(part.id),
+                    kind=pb.CUE_KIND_TARGET,
+                    part=part.id,
+                    color=HUMAN_COLOR,
+                    position=vec3_to_pb(part.target.xyz),
+                    flashing=True,
+                )
+            )
         button = self.scenario.workspace.continue_button
         if self.safety.button_wanted and button is not None:
-            cues.append(pb.Cue(id=CONTINUE_BUTTON_CUE, kind=pb.CUE_KIND_CONTINUE_BUTTON,
-                               position=vec3_to_pb(button), flashing=True))
+            cues.append(
+                pb.Cue(
+                    id=CONTINUE_BUTTON_CUE,
+                    kind=pb.CUE_KIND_CONTINUE_BUTTON,
+                    position=vec3_to_pb(button),
+                    flashing=True,
+                )
+            )
         if self.anticipation and self.running:
             for rid, agent in self.agents.items():
                 color = agent.cfg.color_or_default
                 if agent.carrying:
                     part = self.board.parts[agent.carrying]
-                    cues.append(pb.Cue(id=target_cue_id(part.id), kind=pb.CUE_KIND_TARGET,
-                                       part=part.id, robot=rid, color=color,
-                                       position=vec3_to_pb(part.target.xyz), flashing=True))
+                    cues.append(
+                        pb.Cue(
+                            id=target_cue_id(part.id),
+                            kind=pb.CUE_KIND_TARGET,
+                            part=part.id,
+                            robot=rid,
+                            color=color,
+                            position=vec3_to_pb(part.target.xyz),
+                            flashing=True,
+                        )
+                    )
                 if agent.phase == Phase.WAITING:
                     above_base = add(vec3(agent.cfg.base.xyz), (0.0, 0.0, WAITING_HEIGHT_M))
-                    cues.append(pb.Cue(id=waiting_cue_id(rid), kind=pb.CUE_KIND_WAITING, robot=rid,
-                                       color=color, text=WAITING_TEXT, flashing=True,
-                                       position=vec3_to_pb(above_base)))
+                    cues.append(
+                        pb.Cue(
+                            id=waiting_cue_id(rid),
+                            kind=pb.CUE_KIND_WAITING,
+                            robot=rid,
+                            color=color,
+                            text=WAITING_TEXT,
+                            flashing=True,
+                            position=vec3_to_pb(above_base),
+                        )
+                    )
         return cues

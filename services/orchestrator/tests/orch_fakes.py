@@ -74,8 +74,12 @@ class FakeRobot:
             target = (self.cmd.target.x, self.cmd.target.y, self.cmd.target.z)
             if not self.waypoints and distance(self.tcp, target) <= REACHED_M:
                 self.status = pb.MOTION_STATUS_REACHED
-        st = pb.RobotState(robot=self.id, status=self.status, tcp_speed=moved / self.dt,
-                           command_id=self.cmd.command_id if self.cmd else 0)
+        st = pb.RobotState(
+            robot=self.id,
+            status=self.status,
+            tcp_speed=moved / self.dt,
+            command_id=self.cmd.command_id if self.cmd else 0,
+        )
         st.tcp.position.x, st.tcp.position.y, st.tcp.position.z = self.tcp
         st.tcp.orientation.w = 1.0
         return st
@@ -107,8 +111,10 @@ class Sim:
     def __post_init__(self) -> None:
         self.task = Task(self.scenario, wall_clock=lambda: self.wall)
         self.dt = 1.0 / self.scenario.scenario.tick_hz
-        self.robots = {rid: FakeRobot(rid, vec3(r.home), r.max_tcp_speed, self.dt)
-                       for rid, r in self.scenario.robots.items()}
+        self.robots = {
+            rid: FakeRobot(rid, vec3(r.home), r.max_tcp_speed, self.dt)
+            for rid, r in self.scenario.robots.items()
+        }
         self.k = 0
         self.states: list[pb.RobotState] = []
         self.grabbable: dict[str, bool] = {}
@@ -127,8 +133,14 @@ class Sim:
     def contact(self, kind: int, begin: bool, a: str, b: str, link: str = "") -> None:
         self._contacts.append(pb.Contact(kind=kind, begin=begin, a=a, b=b, link=link))
 
-    def object_event(self, kind: int, obj: str, holder: str = "",
-                     position: Vec3 | None = None, yaw_deg: float = 0.0) -> None:
+    def object_event(
+        self,
+        kind: int,
+        obj: str,
+        holder: str = "",
+        position: Vec3 | None = None,
+        yaw_deg: float = 0.0,
+    ) -> None:
         e = pb.ObjectEvent(kind=kind, object=obj, holder=holder)
         if position is not None:
             e.pose.CopyFrom(pose_to_pb(yaw_pose_deg(position, yaw_deg)))
@@ -137,8 +149,7 @@ class Sim:
     def grab(self, part: str, hand: str = "right") -> None:
         self.object_event(pb.ObjectEvent.KIND_GRABBED, part, hand)
 
-    def release(self, part: str, position: Vec3, yaw_deg: float = 0.0,
-                hand: str = "right") -> None:
+    def release(self, part: str, position: Vec3, yaw_deg: float = 0.0, hand: str = "right") -> None:
         self.object_event(pb.ObjectEvent.KIND_RELEASED, part, hand, position, yaw_deg)
 
     # ---------------------------------------------------------------- running
@@ -180,8 +191,10 @@ class Sim:
         limit = self.k + int(max_s / self.dt)
         while not until(self):
             if self.k >= limit:
-                raise AssertionError(f"condition not met within {max_s} s of sim time; "
-                                     f"last events: {[e.text for e in self.events[-8:]]}")
+                raise AssertionError(
+                    f"condition not met within {max_s} s of sim time; "
+                    f"last events: {[e.text for e in self.events[-8:]]}"
+                )
             self.step()
 
     def run_to_end(self, max_s: float = 600.0) -> None:
@@ -230,5 +243,8 @@ class Sim:
 
 
 def idle_seconds(events: list[pb.TaskEvent], robot: str) -> float:
-    return math.fsum(e.robot_wait_over.waited_s for e in events
-                     if e.kind == K.TASK_EVENT_KIND_ROBOT_WAIT_OVER and e.robot == robot)
+    return math.fsum(
+        e.robot_wait_over.waited_s
+        for e in events
+        if e.kind == K.TASK_EVENT_KIND_ROBOT_WAIT_OVER and e.robot == robot
+    )

@@ -10,8 +10,11 @@ from hrc.wire import pb
 
 
 def grabbable_cmds(out: pb.WorldCommand | list) -> dict[str, bool]:
-    return {w.set_grabbable.object: w.set_grabbable.grabbable for w in out
-            if w.HasField("set_grabbable")}
+    return {
+        w.set_grabbable.object: w.set_grabbable.grabbable
+        for w in out
+        if w.HasField("set_grabbable")
+    }
 
 
 def test_nothing_moves_before_the_first_grab_then_the_task_starts_at_zero() -> None:
@@ -37,8 +40,10 @@ def test_nothing_moves_before_the_first_grab_then_the_task_starts_at_zero() -> N
     assert started.task_time == 0.0 and started.wall_time == sim.wall
     assert sim.wall not in started.text  # the date stays out of the deterministic text
     assert sim.task.start_sim_time == pytest.approx(k_start * sim.dt)
-    assert any(e.kind == K.TASK_EVENT_KIND_PART_GRABBED and e.part == "H1" and e.hand == "left"
-               for e in out.events)
+    assert any(
+        e.kind == K.TASK_EVENT_KIND_PART_GRABBED and e.part == "H1" and e.hand == "left"
+        for e in out.events
+    )
     assert {c.robot for c in out.robot_commands} == {"r1", "r2"}
     assert "outline:H1" not in sim.cues  # held: no outline
     assert "target:H1" in sim.cues  # H1 has no `after`: placeable at once

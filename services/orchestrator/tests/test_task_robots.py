@@ -26,9 +26,13 @@ def robot_log(sim: Sim, robot: str) -> list[str]:
             continue
         if e.kind == K.TASK_EVENT_KIND_ROBOT_PHASE:
             out.append(e.text.split("phase ")[1].split(" ")[0].rstrip("."))
-        elif e.kind in (K.TASK_EVENT_KIND_PART_GRABBED, K.TASK_EVENT_KIND_PART_PLACED,
-                        K.TASK_EVENT_KIND_ROBOT_WAITING, K.TASK_EVENT_KIND_ROBOT_WAIT_OVER,
-                        K.TASK_EVENT_KIND_ROBOT_FINISHED):
+        elif e.kind in (
+            K.TASK_EVENT_KIND_PART_GRABBED,
+            K.TASK_EVENT_KIND_PART_PLACED,
+            K.TASK_EVENT_KIND_ROBOT_WAITING,
+            K.TASK_EVENT_KIND_ROBOT_WAIT_OVER,
+            K.TASK_EVENT_KIND_ROBOT_FINISHED,
+        ):
             out.append(pb.TaskEventKind.Name(e.kind).removeprefix("TASK_EVENT_KIND_").lower())
     return out
 
@@ -38,20 +42,30 @@ def test_transport_robot_phases_commands_and_world_commands() -> None:
     sim = Sim(s)
     start(sim)
     sim.run_to_end()
-    assert robot_log(sim, "r1") == ["to_pick", "part_grabbed", "to_intermediate", "to_place",
-                                    "part_placed", "returning", "to_home", "robot_finished"]
+    assert robot_log(sim, "r1") == [
+        "to_pick",
+        "part_grabbed",
+        "to_intermediate",
+        "to_place",
+        "part_placed",
+        "returning",
+        "to_home",
+        "robot_finished",
+    ]
     r1 = [c for c in sim.commands if c.robot == "r1"]
     part = s.part("RA1")
     pick, mid, place, back, home = r1
     assert [c.command_id for c in r1] == [1, 2, 3, 4, 5]
     top = part.size[2] / 2
     assert (pick.target.x, pick.target.y, pick.target.z) == pytest.approx(
-        (part.start.xyz[0], part.start.xyz[1], part.start.xyz[2] + top))
+        (part.start.xyz[0], part.start.xyz[1], part.start.xyz[2] + top)
+    )
     assert pick.approach_height == 0.05 and pick.depart_height == 0.0
     assert (mid.target.x, mid.target.y, mid.target.z) == tuple(s.robots["r1"].intermediate)
     assert mid.depart_height == 0.05
     assert (place.target.x, place.target.y, place.target.z) == pytest.approx(
-        (part.target.xyz[0], part.target.xyz[1], part.target.xyz[2] + top))
+        (part.target.xyz[0], part.target.xyz[1], part.target.xyz[2] + top)
+    )
     assert place.approach_height == APPROACH_HEIGHT_M and place.yaw_deg == part.target.yaw
     assert back.depart_height == 0.05
     assert (home.target.x, home.target.y, home.target.z) == tuple(s.robots["r1"].home)
@@ -60,7 +74,8 @@ def test_transport_robot_phases_commands_and_world_commands() -> None:
     rel = [w.release for w in sim.world if w.HasField("release") and w.release.object == "RA1"]
     assert len(rel) == 1 and rel[0].snap
     assert (rel[0].pose.position.x, rel[0].pose.position.y, rel[0].pose.position.z) == tuple(
-        part.target.xyz)
+        part.target.xyz
+    )
     fin = [e for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_FINISHED) if e.robot == "r1"][0]
     assert fin.robot_finished.max_tcp_speed_mps == pytest.approx(0.5)
     assert 0 < fin.robot_finished.avg_tcp_speed_mps <= 0.5
@@ -72,22 +87,35 @@ def test_screwing_robot_spawns_at_the_feeder_and_dwells_at_least_screw_time() ->
     sim = Sim(s)
     start(sim)
     sim.run_to_end()
-    assert robot_log(sim, "r2") == ["to_feeder", "part_grabbed", "to_intermediate", "to_place",
-                                    "part_placed", "screwing", "returning", "to_home",
-                                    "robot_finished"]
+    assert robot_log(sim, "r2") == [
+        "to_feeder",
+        "part_grabbed",
+        "to_intermediate",
+        "to_place",
+        "part_placed",
+        "screwing",
+        "returning",
+        "to_home",
+        "robot_finished",
+    ]
     world = [w for w in sim.world if not w.HasField("set_grabbable")]
     i_spawn = next(i for i, w in enumerate(world) if w.HasField("spawn"))
     spawn = world[i_spawn].spawn
     assert spawn.object == "S1" and spawn.kind == "screw" and spawn.owner == "r2"
-    assert (spawn.pose.position.x, spawn.pose.position.y,
-            spawn.pose.position.z) == tuple(s.robots["r2"].feeder)
+    assert (spawn.pose.position.x, spawn.pose.position.y, spawn.pose.position.z) == tuple(
+        s.robots["r2"].feeder
+    )
     assert world[i_spawn + 1].attach.object == "S1" and world[i_spawn + 1].attach.holder == "r2"
     to_feeder = next(c for c in sim.commands if c.robot == "r2")
     assert to_feeder.target.z == pytest.approx(s.robots["r2"].feeder[2] + 0.01)
-    placed = next(e for e in sim.events
-                  if e.kind == K.TASK_EVENT_KIND_PART_PLACED and e.part == "S1")
-    returning = next(e for e in sim.events if e.kind == K.TASK_EVENT_KIND_ROBOT_PHASE
-                     and e.robot == "r2" and "returning" in e.text)
+    placed = next(
+        e for e in sim.events if e.kind == K.TASK_EVENT_KIND_PART_PLACED and e.part == "S1"
+    )
+    returning = next(
+        e
+        for e in sim.events
+        if e.kind == K.TASK_EVENT_KIND_ROBOT_PHASE and e.robot == "r2" and "returning" in e.text
+    )
     dwell = returning.task_time - placed.task_time
     screw = s.robots["r2"].screw_time_or_default
     assert screw - 1e-9 <= dwell < screw + 2 * sim.dt

@@ -69,7 +69,8 @@ def test_retreat_both_robots_retreat_then_resume_their_targets() -> None:
     assert len(rec) == 1 and rec[0].delay_s == pytest.approx(cont.continued.delay_s)
     assert sim.task.safety.total_delay == pytest.approx(cont.continued.delay_s)
     assert sim.kinds(K.TASK_EVENT_KIND_TASK_FINISHED)[0].text.endswith(
-        "TASK FINISHED. 1 total collisions.")
+        "TASK FINISHED. 1 total collisions."
+    )
 
 
 def test_robots_keep_what_they_hold_during_a_retreat() -> None:
@@ -104,7 +105,8 @@ def test_retreat_button_waits_for_the_button() -> None:
     assert "continue_button" not in sim.cues
     sim.step()
     assert {target(last_cmd(sim, r)) for r in ("r1", "r2")} != {
-        tuple(sim.scenario.robots[r].retreat) for r in ("r1", "r2")}
+        tuple(sim.scenario.robots[r].retreat) for r in ("r1", "r2")
+    }
     sim.run_to_end()
 
 
@@ -156,8 +158,12 @@ def test_no_new_grab_during_a_collision_but_the_held_part_can_be_placed() -> Non
     sim.step()
     sim.contact(HR, True, "left", "r2")
     out = sim.step()
-    assert not any(w.HasField("set_grabbable") and not w.set_grabbable.grabbable
-                   and w.set_grabbable.object == "H1" for w in out.world_commands)
+    assert not any(
+        w.HasField("set_grabbable")
+        and not w.set_grabbable.grabbable
+        and w.set_grabbable.object == "H1"
+        for w in out.world_commands
+    )
     sim.release("H1", vec3(s.part("H1").target.xyz))
     out = sim.step()
     assert any(e.kind == K.TASK_EVENT_KIND_PART_PLACED and e.part == "H1" for e in out.events)

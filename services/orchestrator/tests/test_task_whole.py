@@ -29,14 +29,18 @@ def test_whole_task_completes_and_ends_with_a_stop_request(name: str, parts: int
     sim.run_to_end()
     assert sim.stop == "task finished"
     fin = sim.kinds(K.TASK_EVENT_KIND_TASK_FINISHED)
-    assert len(fin) == 1 and fin[0].text == f"{fin[0].text[:fin[0].text.index(' sec')]} sec : " \
-        "TASK FINISHED. 0 total collisions."
+    assert (
+        len(fin) == 1
+        and fin[0].text
+        == f"{fin[0].text[: fin[0].text.index(' sec')]} sec : TASK FINISHED. 0 total collisions."
+    )
     assert len(sim.kinds(K.TASK_EVENT_KIND_PART_PLACED)) == parts
     assert all(sim.task.board.is_done(p.id) for p in sim.scenario.parts)
     assert len(sim.kinds(K.TASK_EVENT_KIND_PART_RELEASED)) == 1  # the one miss
     assert sim.task.completion_s == pytest.approx(fin[0].task_time)
     assert sim.task.completion_s == max(
-        [sim.task.human.completion_s] + [a.completion_s for a in sim.task.agents.values()])
+        [sim.task.human.completion_s] + [a.completion_s for a in sim.task.agents.values()]
+    )
     # After the end nothing more is produced.
     out = sim.step()
     assert out.events == [] and out.robot_commands == [] and out.world_commands == []
@@ -49,15 +53,19 @@ def test_thesis_cross_waits_accrue_robot_idle_time_with_a_slow_participant() -> 
     waits = sim.kinds(K.TASK_EVENT_KIND_ROBOT_WAITING)
     assert {e.robot for e in waits} == {"r1", "r2"}  # both wait on the participant
     for rid, agent in sim.task.agents.items():
-        over = [e.robot_wait_over.waited_s for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_WAIT_OVER)
-                if e.robot == rid]
+        over = [
+            e.robot_wait_over.waited_s
+            for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_WAIT_OVER)
+            if e.robot == rid
+        ]
         assert agent.idle.total == pytest.approx(sum(over)) and agent.idle.total > 0
 
 
 def _run(name: str, **conditions: object) -> Sim:
     # The participant is slow enough for r2 to wait for H1 at its intermediate pose.
-    sim = Sim(load(name, conditions=conditions),
-              human=FakeHuman(grab_delay_s=1.5, place_delay_s=3.0))
+    sim = Sim(
+        load(name, conditions=conditions), human=FakeHuman(grab_delay_s=1.5, place_delay_s=3.0)
+    )
     return sim
 
 
@@ -80,12 +88,16 @@ def test_anticipation_cues_robot_target_in_robot_colour_from_grab_to_placement()
             if c.id == "target:RA1":
                 if c.on:
                     on_tick = sim.k
-                    assert any(e.kind == K.TASK_EVENT_KIND_PART_GRABBED and e.part == "RA1"
-                               for e in out.events)
+                    assert any(
+                        e.kind == K.TASK_EVENT_KIND_PART_GRABBED and e.part == "RA1"
+                        for e in out.events
+                    )
                 else:
                     off_tick = sim.k
-                    assert any(e.kind == K.TASK_EVENT_KIND_PART_PLACED and e.part == "RA1"
-                               for e in out.events)
+                    assert any(
+                        e.kind == K.TASK_EVENT_KIND_PART_PLACED and e.part == "RA1"
+                        for e in out.events
+                    )
     assert 0 < on_tick < off_tick
 
 
@@ -97,10 +109,22 @@ def test_without_anticipation_only_the_participants_own_cues() -> None:
 
 
 METRIC_FIELDS = [
-    "scenario", "participant", "conditions", "seed", "task.completion_s", "human.completion_s",
-    "human.idle_s", "collisions.human_robot", "collisions.human_robot_count",
-    "collisions.total_delay_s", "collisions.near", "collisions.near_count", "run.mode",
-    "run.ticks", "run.wall_s", "run.realtime_factor",
+    "scenario",
+    "participant",
+    "conditions",
+    "seed",
+    "task.completion_s",
+    "human.completion_s",
+    "human.idle_s",
+    "collisions.human_robot",
+    "collisions.human_robot_count",
+    "collisions.total_delay_s",
+    "collisions.near",
+    "collisions.near_count",
+    "run.mode",
+    "run.ticks",
+    "run.wall_s",
+    "run.realtime_factor",
 ]
 
 
@@ -111,9 +135,11 @@ def dig(d: dict, path: str):
 
 
 def test_metrics_have_every_field_and_match_the_events() -> None:
-    sim = Sim(load("thesis.toml", conditions={"safety_policy": "retreat"}),
-              human=FakeHuman(grab_delay_s=1.0, place_delay_s=1.0),
-              hands_in_envelope=False)
+    sim = Sim(
+        load("thesis.toml", conditions={"safety_policy": "retreat"}),
+        human=FakeHuman(grab_delay_s=1.0, place_delay_s=1.0),
+        hands_in_envelope=False,
+    )
     sim.run(lambda x: x.task.started and x.t >= 4.0)
     sim.contact(pb.CONTACT_KIND_HAND_ROBOT, True, "right", "r2", "tool")
     sim.step()
@@ -122,8 +148,15 @@ def test_metrics_have_every_field_and_match_the_events() -> None:
     sim.step()
     sim.contact(pb.CONTACT_KIND_ROBOT_ROBOT, False, "r1", "r2")
     sim.run_to_end()
-    end = pb.RunEnd(ok=True, reason="stopped: task finished", ticks=sim.k, sim_time=sim.k * sim.dt,
-                    wall_s=2.0, mode=pb.CLOCK_MODE_LOCKSTEP, realtime_factor=sim.k * sim.dt / 2)
+    end = pb.RunEnd(
+        ok=True,
+        reason="stopped: task finished",
+        ticks=sim.k,
+        sim_time=sim.k * sim.dt,
+        wall_s=2.0,
+        mode=pb.CLOCK_MODE_LOCKSTEP,
+        realtime_factor=sim.k * sim.dt / 2,
+    )
     msg = metrics.build(sim.task, 7, metrics.run_metrics(end))
     data = metrics_schema.to_dict(msg)
     json.dumps(data, allow_nan=False)  # serialisable
@@ -168,16 +201,25 @@ def test_metrics_of_an_unfinished_task_leave_never_unset() -> None:
 def test_a_run_that_broke_off_says_what_is_unknown() -> None:
     sim = Sim(load("minimal.toml"), human=None)
     sim.step()
-    data = metrics_schema.to_dict(metrics.build(sim.task, 1, metrics.broken_off_run(
-        sim.task.tick, "terminated by SIGTERM")))
-    assert data["run"] == {"mode": None, "ticks": sim.task.tick, "wall_s": None,
-                           "realtime_factor": None, "ok": False,
-                           "end_reason": "terminated by SIGTERM", "deadline_misses": {}}
+    data = metrics_schema.to_dict(
+        metrics.build(sim.task, 1, metrics.broken_off_run(sim.task.tick, "terminated by SIGTERM"))
+    )
+    assert data["run"] == {
+        "mode": None,
+        "ticks": sim.task.tick,
+        "wall_s": None,
+        "realtime_factor": None,
+        "ok": False,
+        "end_reason": "terminated by SIGTERM",
+        "deadline_misses": {},
+    }
 
 
 def _trace(policy: str) -> tuple[list[bytes], list[bytes], dict]:
-    sim = Sim(load("thesis.toml", conditions={"safety_policy": policy}),
-              human=FakeHuman(grab_delay_s=0.7, place_delay_s=0.9, misses=2))
+    sim = Sim(
+        load("thesis.toml", conditions={"safety_policy": policy}),
+        human=FakeHuman(grab_delay_s=0.7, place_delay_s=0.9, misses=2),
+    )
     cues: list[bytes] = []
 
     def provoke(x: Sim) -> None:

@@ -83,9 +83,11 @@ def main(argv: list[str] | None = None) -> int:
         print(json.dumps({"us_per_tick": result["us_per_tick"]}))
     else:
         rate = 1e6 / result["us_per_tick"] if result["us_per_tick"] > 0 else math.inf
-        print(f"physics tick, thesis world, no bus ({args.n} ticks after {WARMUP_TICKS} warm-up): "
-              f"{result['us_per_tick']:.1f} us/tick (at most {rate:,.0f} ticks/s), "
-              f"{result['contact_events']} contact events")
+        print(
+            f"physics tick, thesis world, no bus ({args.n} ticks after {WARMUP_TICKS} warm-up): "
+            f"{result['us_per_tick']:.1f} us/tick (at most {rate:,.0f} ticks/s), "
+            f"{result['contact_events']} contact events"
+        )
     return 0
 
 

@@ -31,8 +31,15 @@ class Touch(NamedTuple):
 
 def _contact(key: ContactKey, touch: Touch, begin: bool) -> pb.Contact:
     x, y, z = touch.point
-    return pb.Contact(kind=key.kind, begin=begin, a=key.a, b=key.b, link=touch.link,  # type: ignore[arg-type]
-                      point=pb.Vec3(x=x, y=y, z=z), distance=touch.distance)
+    return pb.Contact(
+        kind=key.kind,
+        begin=begin,
+        a=key.a,
+        b=key.b,
+        link=touch.link,  # type: ignore[arg-type]
+        point=pb.Vec3(x=x, y=y, z=z),
+        distance=touch.distance,
+    )
 
 
 class ContactTracker:

@@ -32,10 +32,12 @@ class Hand:
 def create_hand(client: int, name: str) -> Hand:
     half = [s / 2 for s in HAND_SIZE]
     shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=client)
-    visual = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=[0.95, 0.75, 0.6, 1.0],
-                                 physicsClientId=client)
-    body = p.createMultiBody(0.0, shape, visual, list(PARKED), list(IDENTITY),
-                             physicsClientId=client)
+    visual = p.createVisualShape(
+        p.GEOM_BOX, halfExtents=half, rgbaColor=[0.95, 0.75, 0.6, 1.0], physicsClientId=client
+    )
+    body = p.createMultiBody(
+        0.0, shape, visual, list(PARKED), list(IDENTITY), physicsClientId=client
+    )
     # Queries only: the hand pushes nothing (a held part follows it kinematically instead).
     p.setCollisionFilterGroupMask(body, -1, 0, 0, physicsClientId=client)
     return Hand(name, body)

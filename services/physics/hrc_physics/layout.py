@@ -52,15 +52,28 @@ def _footprint(xy: tuple[float, float], size: list[float], yaw_deg: float) -> tu
 
 
 def _union(bounds: list[tuple[float, ...]]) -> tuple[float, float, float, float]:
-    return (min(b[0] for b in bounds), min(b[1] for b in bounds),
-            max(b[2] for b in bounds), max(b[3] for b in bounds))
+    return (
+        min(b[0] for b in bounds),
+        min(b[1] for b in bounds),
+        max(b[2] for b in bounds),
+        max(b[3] for b in bounds),
+    )
 
 
-def _slab(name: str, bounds: tuple[float, ...], top: float, margin: float,
-          rgba: tuple[float, float, float, float]) -> StaticBox:
+def _slab(
+    name: str,
+    bounds: tuple[float, ...],
+    top: float,
+    margin: float,
+    rgba: tuple[float, float, float, float],
+) -> StaticBox:
     x0, y0, x1, y1 = bounds[0] - margin, bounds[1] - margin, bounds[2] + margin, bounds[3] + margin
-    return StaticBox(name, (0.5 * (x0 + x1), 0.5 * (y0 + y1), top - 0.5 * TABLE_THICKNESS),
-                     (0.5 * (x1 - x0), 0.5 * (y1 - y0), 0.5 * TABLE_THICKNESS), rgba=rgba)
+    return StaticBox(
+        name,
+        (0.5 * (x0 + x1), 0.5 * (y0 + y1), top - 0.5 * TABLE_THICKNESS),
+        (0.5 * (x1 - x0), 0.5 * (y1 - y0), 0.5 * TABLE_THICKNESS),
+        rgba=rgba,
+    )
 
 
 def furniture(scenario: sc.Scenario) -> list[StaticBox]:
@@ -68,38 +81,64 @@ def furniture(scenario: sc.Scenario) -> list[StaticBox]:
     boxes: list[StaticBox] = []
     bx, by, bz = BOARD_SIZE
     board = (-bx / 2, -by / 2, bx / 2, by / 2)
-    boxes.append(StaticBox("board", (0.0, 0.0, -bz / 2), (bx / 2, by / 2, bz / 2),
-                           rgba=(0.1, 0.45, 0.2, 1.0)))
+    boxes.append(
+        StaticBox(
+            "board", (0.0, 0.0, -bz / 2), (bx / 2, by / 2, bz / 2), rgba=(0.1, 0.45, 0.2, 1.0)
+        )
+    )
     # The table carries the board and the participant's parts.
-    human = [_footprint((p.start.xyz[0], p.start.xyz[1]), p.size, p.start.yaw)
-             for p in scenario.parts if p.owner == sc.HUMAN and p.start is not None]
-    boxes.append(_slab("table", _union([board, *human]), 0.0, TABLE_MARGIN, (0.55, 0.45, 0.35, 1.0)))
+    human = [
+        _footprint((p.start.xyz[0], p.start.xyz[1]), p.size, p.start.yaw)
+        for p in scenario.parts
+        if p.owner == sc.HUMAN and p.start is not None
+    ]
+    boxes.append(
+        _slab("table", _union([board, *human]), 0.0, TABLE_MARGIN, (0.55, 0.45, 0.35, 1.0))
+    )
 
     for rid, robot in scenario.robots.items():
         own = [p for p in scenario.parts if p.owner == rid and p.start is not None]
         if own:
-            bounds = _union([_footprint((p.start.xyz[0], p.start.xyz[1]), p.size, p.start.yaw)
-                             for p in own])  # type: ignore[union-attr]
+            bounds = _union(
+                [_footprint((p.start.xyz[0], p.start.xyz[1]), p.size, p.start.yaw) for p in own]
+            )  # type: ignore[union-attr]
             top = min(p.start.xyz[2] - p.size[2] / 2 for p in own)  # type: ignore[union-attr]
-            boxes.append(_slab(f"{rid}_picking_table", bounds, top, PICKING_MARGIN,
-                               (0.5, 0.5, 0.55, 1.0)))
+            boxes.append(
+                _slab(f"{rid}_picking_table", bounds, top, PICKING_MARGIN, (0.5, 0.5, 0.55, 1.0))
+            )
         if robot.feeder is not None:
             fx, fy, fz = robot.feeder
             heights = [p.size[2] for p in scenario.parts if p.owner == rid and p.start is None]
             top = fz - 0.5 * (max(heights) if heights else DEFAULT_SCREW_HEIGHT)
             bottom = min(-TABLE_THICKNESS, top - TABLE_THICKNESS)
-            boxes.append(StaticBox(f"{rid}_feeder", (fx, fy, 0.5 * (top + bottom)),
-                                   (FEEDER_HALF, FEEDER_HALF, 0.5 * (top - bottom)),
-                                   rgba=(0.3, 0.3, 0.3, 1.0)))
+            boxes.append(
+                StaticBox(
+                    f"{rid}_feeder",
+                    (fx, fy, 0.5 * (top + bottom)),
+                    (FEEDER_HALF, FEEDER_HALF, 0.5 * (top - bottom)),
+                    rgba=(0.3, 0.3, 0.3, 1.0),
+                )
+            )
             wall_top = top + FEEDER_WALL_HEIGHT
-            boxes.append(StaticBox(f"{rid}_feeder_wall",
-                                   (fx, fy - FEEDER_WALL_GAP, 0.5 * (wall_top + bottom)),
-                                   (1.5 * FEEDER_HALF, 0.005, 0.5 * (wall_top - bottom)),
-                                   rgba=(0.35, 0.35, 0.35, 1.0)))
+            boxes.append(
+                StaticBox(
+                    f"{rid}_feeder_wall",
+                    (fx, fy - FEEDER_WALL_GAP, 0.5 * (wall_top + bottom)),
+                    (1.5 * FEEDER_HALF, 0.005, 0.5 * (wall_top - bottom)),
+                    rgba=(0.35, 0.35, 0.35, 1.0),
+                )
+            )
 
     for p in scenario.parts:
         t = p.target
-        boxes.append(StaticBox(f"target:{p.id}", (t.xyz[0], t.xyz[1], t.xyz[2]),
-                               (p.size[0] / 2, p.size[1] / 2, p.size[2] / 2), t.yaw,
-                               collides=False, rgba=(1.0, 1.0, 1.0, 0.25)))
+        boxes.append(
+            StaticBox(
+                f"target:{p.id}",
+                (t.xyz[0], t.xyz[1], t.xyz[2]),
+                (p.size[0] / 2, p.size[1] / 2, p.size[2] / 2),
+                t.yaw,
+                collides=False,
+                rgba=(1.0, 1.0, 1.0, 0.25),
+            )
+        )
     return boxes

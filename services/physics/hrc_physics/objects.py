@@ -52,29 +52,43 @@ def mass_of(size: Sequence[float]) -> float:
     return max(MIN_MASS, DENSITY * size[0] * size[1] * size[2])
 
 
-def create_box(client: int, size: Sequence[float], pos: Vec3, rot: Quat, mass: float,
-               rgba: Sequence[float] = (0.8, 0.8, 0.8, 1.0)) -> int:
+def create_box(
+    client: int,
+    size: Sequence[float],
+    pos: Vec3,
+    rot: Quat,
+    mass: float,
+    rgba: Sequence[float] = (0.8, 0.8, 0.8, 1.0),
+) -> int:
     half = [s / 2 for s in size]
     shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=client)
-    visual = p.createVisualShape(p.GEOM_BOX, halfExtents=half, rgbaColor=list(rgba),
-                                 physicsClientId=client)
+    visual = p.createVisualShape(
+        p.GEOM_BOX, halfExtents=half, rgbaColor=list(rgba), physicsClientId=client
+    )
     body = p.createMultiBody(mass, shape, visual, list(pos), list(rot), physicsClientId=client)
-    p.changeDynamics(body, -1, lateralFriction=FRICTION, rollingFriction=ROLLING_FRICTION,
-                     spinningFriction=ROLLING_FRICTION, restitution=0.0,
-                     activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING, physicsClientId=client)
+    p.changeDynamics(
+        body,
+        -1,
+        lateralFriction=FRICTION,
+        rollingFriction=ROLLING_FRICTION,
+        spinningFriction=ROLLING_FRICTION,
+        restitution=0.0,
+        activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING,
+        physicsClientId=client,
+    )
     return body
 
 
 def sleep(client: int, obj: WorldObject) -> None:
     """A part at rest costs the solver nothing while asleep; a moving body touching it wakes it."""
-    p.changeDynamics(obj.body, -1, activationState=p.ACTIVATION_STATE_SLEEP,
-                     physicsClientId=client)
+    p.changeDynamics(obj.body, -1, activationState=p.ACTIVATION_STATE_SLEEP, physicsClientId=client)
     obj.awake = False
 
 
 def wake(client: int, obj: WorldObject) -> None:
-    p.changeDynamics(obj.body, -1, activationState=p.ACTIVATION_STATE_WAKE_UP,
-                     physicsClientId=client)
+    p.changeDynamics(
+        obj.body, -1, activationState=p.ACTIVATION_STATE_WAKE_UP, physicsClientId=client
+    )
     obj.awake = True
     obj.still_ticks = 0
 

@@ -22,15 +22,27 @@ class KinematicRobot:
     """One arm at its base pose. It takes no part in the dynamics (collision mask 0): its links
     are posed each tick and only the contact queries look at their collision shapes."""
 
-    def __init__(self, client: int, robot_id: str, urdf: Path, base_xyz: Sequence[float],
-                 base_yaw_deg: float, near_margin: float, tool_link: str = TOOL_LINK) -> None:
+    def __init__(
+        self,
+        client: int,
+        robot_id: str,
+        urdf: Path,
+        base_xyz: Sequence[float],
+        base_yaw_deg: float,
+        near_margin: float,
+        tool_link: str = TOOL_LINK,
+    ) -> None:
         self.id = robot_id
         self.near_margin = near_margin
         self._c = client
         try:
-            self.body = p.loadURDF(str(urdf), basePosition=list(base_xyz),
-                                   baseOrientation=yaw_quat_deg(base_yaw_deg), useFixedBase=True,
-                                   physicsClientId=client)
+            self.body = p.loadURDF(
+                str(urdf),
+                basePosition=list(base_xyz),
+                baseOrientation=yaw_quat_deg(base_yaw_deg),
+                useFixedBase=True,
+                physicsClientId=client,
+            )
         except p.error as exc:
             raise RobotModelError(f"robot {robot_id}: pybullet cannot load {urdf}: {exc}") from exc
         base_name = p.getBodyInfo(self.body, physicsClientId=client)[0].decode()
@@ -53,13 +65,21 @@ class KinematicRobot:
             p.setCollisionFilterGroupMask(self.body, link, 0, 0, physicsClientId=client)
         # Asleep for good: the solver never integrates the arm (no sagging between our resets,
         # no cost); resetting its joints still moves its colliders for the contact queries.
-        p.changeDynamics(self.body, BASE, activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING,
-                         physicsClientId=client)
-        p.changeDynamics(self.body, BASE, activationState=p.ACTIVATION_STATE_SLEEP,
-                         physicsClientId=client)
+        p.changeDynamics(
+            self.body,
+            BASE,
+            activationState=p.ACTIVATION_STATE_ENABLE_SLEEPING,
+            physicsClientId=client,
+        )
+        p.changeDynamics(
+            self.body, BASE, activationState=p.ACTIVATION_STATE_SLEEP, physicsClientId=client
+        )
         # Links with collision shapes (the tool frame has none).
-        self._links = [link for link in self.link_names
-                       if p.getCollisionShapeData(self.body, link, physicsClientId=client)]
+        self._links = [
+            link
+            for link in self.link_names
+            if p.getCollisionShapeData(self.body, link, physicsClientId=client)
+        ]
         self.joint_names = [n for n, _ in sorted(self.joint_index.items(), key=lambda kv: kv[1])]
         self.positions: list[float] = [0.0] * len(self.movable)
         self._applied: list[float] | None = None
@@ -84,8 +104,7 @@ class KinematicRobot:
             return f"robot {self.id}: joint positions contain NaN or infinity"
         if names:
             if len(names) != len(positions):
-                return (f"robot {self.id}: {len(names)} joint names but "
-                        f"{len(positions)} positions")
+                return f"robot {self.id}: {len(names)} joint names but {len(positions)} positions"
             order = self._indices(names)
             if isinstance(order, str):
                 return order
@@ -94,8 +113,10 @@ class KinematicRobot:
                 new[i] = float(v)
         else:
             if len(positions) != len(self.movable):
-                return (f"robot {self.id}: {len(positions)} joint positions for "
-                        f"{len(self.movable)} joints")
+                return (
+                    f"robot {self.id}: {len(positions)} joint positions for "
+                    f"{len(self.movable)} joints"
+                )
             new = [float(v) for v in positions]
         self.positions = new
         return None
@@ -105,8 +126,9 @@ class KinematicRobot:
         they moved."""
         if self.positions == self._applied:
             return False  # the arm stands still: nothing to move
-        p.resetJointStatesMultiDof(self.body, self.movable, [[v] for v in self.positions],
-                                   physicsClientId=self._c)
+        p.resetJointStatesMultiDof(
+            self.body, self.movable, [[v] for v in self.positions], physicsClientId=self._c
+        )
         self._applied = list(self.positions)
         return True
 
@@ -118,8 +140,9 @@ class KinematicRobot:
         return lo, hi  # type: ignore[return-value]
 
     def tool_pose(self) -> Pose:
-        s = p.getLinkState(self.body, self.tool, computeForwardKinematics=True,
-                           physicsClientId=self._c)
+        s = p.getLinkState(
+            self.body, self.tool, computeForwardKinematics=True, physicsClientId=self._c
+        )
         return Pose(tuple(s[4]), tuple(s[5]))  # type: ignore[arg-type]
 
     def link_name(self, index: int) -> str:

@@ -52,32 +52,60 @@ class PhysicsService(ClockMasterService):
 
     @classmethod
     def add_arguments(cls, p: argparse.ArgumentParser) -> None:
-        p.add_argument("--clock", choices=["lockstep", "realtime"], default="lockstep",
-                       help="co-simulation mode (default lockstep)")
-        p.add_argument("--ticks", type=int, default=0,
-                       help="stop after N ticks (0: when told to stop)")
-        p.add_argument("--tick-hz", type=float, default=0.0,
-                       help="override the scenario's tick_hz (0: use the scenario's)")
-        p.add_argument("--participants", default=",".join(PARTICIPANTS),
-                       help="comma-separated services whose acks close the barrier "
-                            "(default: the service table's, %(default)s)")
-        p.add_argument("--observers", default=",".join(OBSERVERS),
-                       help="comma-separated services that must be present but never ack "
-                            "(default: the service table's, %(default)s)")
-        p.add_argument("--barrier-timeout", type=float, default=10.0,
-                       help="lockstep: seconds a participant may take for one tick (default 10)")
-        p.add_argument("--start-timeout", type=float, default=60.0,
-                       help="seconds to wait for the scenario and every service (default 60)")
-        p.add_argument("--solver-iterations", type=int, default=WorldSettings.solver_iterations,
-                       help="pybullet solver iterations per step (default %(default)s)")
+        p.add_argument(
+            "--clock",
+            choices=["lockstep", "realtime"],
+            default="lockstep",
+            help="co-simulation mode (default lockstep)",
+        )
+        p.add_argument(
+            "--ticks", type=int, default=0, help="stop after N ticks (0: when told to stop)"
+        )
+        p.add_argument(
+            "--tick-hz",
+            type=float,
+            default=0.0,
+            help="override the scenario's tick_hz (0: use the scenario's)",
+        )
+        p.add_argument(
+            "--participants",
+            default=",".join(PARTICIPANTS),
+            help="comma-separated services whose acks close the barrier "
+            "(default: the service table's, %(default)s)",
+        )
+        p.add_argument(
+            "--observers",
+            default=",".join(OBSERVERS),
+            help="comma-separated services that must be present but never ack "
+            "(default: the service table's, %(default)s)",
+        )
+        p.add_argument(
+            "--barrier-timeout",
+            type=float,
+            default=10.0,
+            help="lockstep: seconds a participant may take for one tick (default 10)",
+        )
+        p.add_argument(
+            "--start-timeout",
+            type=float,
+            default=60.0,
+            help="seconds to wait for the scenario and every service (default 60)",
+        )
+        p.add_argument(
+            "--solver-iterations",
+            type=int,
+            default=WorldSettings.solver_iterations,
+            help="pybullet solver iterations per step (default %(default)s)",
+        )
 
     def __init__(self, args: argparse.Namespace) -> None:
         super().__init__(args)
         if args.ticks < 0:
             raise ServiceExit(f"--ticks must be >= 0, got {args.ticks}", EXIT_BAD_INPUT)
         if args.solver_iterations < 1:
-            raise ServiceExit(f"--solver-iterations must be >= 1, got {args.solver_iterations}",
-                              EXIT_BAD_INPUT)
+            raise ServiceExit(
+                f"--solver-iterations must be >= 1, got {args.solver_iterations}", EXIT_BAD_INPUT
+            )
         self.pending_commands: list[pb.WorldCommand] = []
 
     def open(self, bus: Bus, stack: contextlib.ExitStack) -> None:
@@ -86,17 +114,22 @@ class PhysicsService(ClockMasterService):
         self.scenario = fetch_scenario(bus, args.start_timeout)
         tick_hz = args.tick_hz or self.scenario.info.tick_hz or 240.0
         try:
-            self.settings = ClockSettings(mode=args.clock, tick_hz=tick_hz, ticks=args.ticks,
-                                          participants=_names(args.participants),
-                                          observers=_names(args.observers),
-                                          barrier_timeout_s=args.barrier_timeout,
-                                          start_timeout_s=args.start_timeout)
+            self.settings = ClockSettings(
+                mode=args.clock,
+                tick_hz=tick_hz,
+                ticks=args.ticks,
+                participants=_names(args.participants),
+                observers=_names(args.observers),
+                barrier_timeout_s=args.barrier_timeout,
+                start_timeout_s=args.start_timeout,
+            )
         except ValueError as exc:
             raise ServiceExit(str(exc), EXIT_BAD_INPUT) from exc
         try:
             typed = sc.from_proto(self.scenario)  # raises ScenarioError naming the bad field
-            self.world = World(typed, WorldSettings(dt=1.0 / tick_hz,
-                                                    solver_iterations=args.solver_iterations))
+            self.world = World(
+                typed, WorldSettings(dt=1.0 / tick_hz, solver_iterations=args.solver_iterations)
+            )
         except (sc.ScenarioError, RobotModelError) as exc:
             raise ServiceExit(f"cannot build the world: {exc}") from exc
         stack.callback(self.close)
@@ -104,14 +137,21 @@ class PhysicsService(ClockMasterService):
         self._commands_key = keys.world_commands()
         self._objects_pub = bus.publisher(keys.world_objects())
         self._contacts_pub = bus.publisher(keys.world_contacts())
-        log.info("scenario %r, %s at %g Hz, %d objects, waiting for %s", self.scenario.info.name,
-                 args.clock, tick_hz, len(self.world.objects),
-                 ", ".join(self.settings.participants + self.settings.observers))
+        log.info(
+            "scenario %r, %s at %g Hz, %d objects, waiting for %s",
+            self.scenario.info.name,
+            args.clock,
+            tick_hz,
+            len(self.world.objects),
+            ", ".join(self.settings.participants + self.settings.observers),
+        )
 
     def close(self) -> None:
         if self.world.rejected:
-            log.info("world commands rejected, by object: %s",
-                     ", ".join(f"{k}: {v}" for k, v in sorted(self.world.rejected.items())))
+            log.info(
+                "world commands rejected, by object: %s",
+                ", ".join(f"{k}: {v}" for k, v in sorted(self.world.rejected.items())),
+            )
         self.world.close()
 
     def clock_settings(self) -> ClockSettings:
@@ -143,14 +183,22 @@ class PhysicsService(ClockMasterService):
         states = self.world.object_states(full=full)
         events = self.world.take_events()
         if full or states or events:
-            self._objects_pub.put(pb.WorldObjects(objects=states, full=full, events=events),
-                                  tick, sim_time)
+            self._objects_pub.put(
+                pb.WorldObjects(objects=states, full=full, events=events), tick, sim_time
+            )
         contacts = self.world.contact_events()
         if contacts:
             self._contacts_pub.put(pb.WorldContacts(contacts=contacts), tick, sim_time)
             for c in contacts:
-                log.debug("tick %d: contact %s %s %s-%s %s", tick, pb.ContactKind.Name(c.kind),
-                          "begins" if c.begin else "ends", c.a, c.b, c.link)
+                log.debug(
+                    "tick %d: contact %s %s %s-%s %s",
+                    tick,
+                    pb.ContactKind.Name(c.kind),
+                    "begins" if c.begin else "ends",
+                    c.a,
+                    c.b,
+                    c.link,
+                )
 
     def step_world(self, tick: int, sim_time: float) -> None:
         """Applies the outputs of ``tick`` and advances the world to ``tick + 1``."""
@@ -163,6 +211,11 @@ class PhysicsService(ClockMasterService):
     def finish(self, outcome: Outcome) -> int | None:
         end = outcome.run_end
         if end is not None:
-            log.info("run ended after %d ticks (%.2f s wall, %.1fx realtime): %s", end.ticks,
-                     end.wall_s, end.realtime_factor, end.reason)
+            log.info(
+                "run ended after %d ticks (%.2f s wall, %.1fx realtime): %s",
+                end.ticks,
+                end.wall_s,
+                end.realtime_factor,
+                end.reason,
+            )
         return None

@@ -109,9 +109,13 @@ class World:
         c, s = self.c, self.settings
         p.resetSimulation(physicsClientId=c)
         # Fixed step, fixed iterations, deterministic pair order: same inputs => same outputs.
-        p.setPhysicsEngineParameter(fixedTimeStep=s.dt, numSolverIterations=s.solver_iterations,
-                                    numSubSteps=0, deterministicOverlappingPairs=1,
-                                    physicsClientId=c)
+        p.setPhysicsEngineParameter(
+            fixedTimeStep=s.dt,
+            numSolverIterations=s.solver_iterations,
+            numSubSteps=0,
+            deterministicOverlappingPairs=1,
+            physicsClientId=c,
+        )
         p.setGravity(0.0, 0.0, GRAVITY, physicsClientId=c)
         plane = p.createCollisionShape(p.GEOM_PLANE, physicsClientId=c)
         self.floor = p.createMultiBody(0.0, plane, -1, [0.0, 0.0, FLOOR_Z], physicsClientId=c)
@@ -124,36 +128,49 @@ class World:
         self.button: int | None = None
         ws = self.scenario.workspace
         if ws.continue_button is not None:
-            shape = p.createCollisionShape(p.GEOM_CYLINDER, radius=BUTTON_RADIUS,
-                                           height=BUTTON_HEIGHT, physicsClientId=c)
-            visual = p.createVisualShape(p.GEOM_CYLINDER, radius=BUTTON_RADIUS,
-                                         length=BUTTON_HEIGHT, rgbaColor=[0.9, 0.1, 0.1, 1.0],
-                                         physicsClientId=c)
-            self.button = p.createMultiBody(0.0, shape, visual, list(ws.continue_button),
-                                            physicsClientId=c)
+            shape = p.createCollisionShape(
+                p.GEOM_CYLINDER, radius=BUTTON_RADIUS, height=BUTTON_HEIGHT, physicsClientId=c
+            )
+            visual = p.createVisualShape(
+                p.GEOM_CYLINDER,
+                radius=BUTTON_RADIUS,
+                length=BUTTON_HEIGHT,
+                rgbaColor=[0.9, 0.1, 0.1, 1.0],
+                physicsClientId=c,
+            )
+            self.button = p.createMultiBody(
+                0.0, shape, visual, list(ws.continue_button), physicsClientId=c
+            )
             p.setCollisionFilterGroupMask(self.button, -1, 0, 0, physicsClientId=c)
             self._button_box = p.getAABB(self.button, -1, physicsClientId=c)
-        self.envelope: list[tuple[Vec3, Vec3]] = [
-            (tuple(b.min), tuple(b.max)) for b in ws.envelope]  # type: ignore[misc]
+        self.envelope: list[tuple[Vec3, Vec3]] = [(tuple(b.min), tuple(b.max)) for b in ws.envelope]  # type: ignore[misc]
 
         self.robots: dict[str, KinematicRobot] = {}
         for rid, robot in self.scenario.robots.items():
             urdf = self.scenario.urdf_path(rid) or Path(robot.urdf)
-            self.robots[rid] = KinematicRobot(c, rid, urdf, robot.base.xyz, robot.base.yaw,
-                                              robot.near_margin)
+            self.robots[rid] = KinematicRobot(
+                c, rid, urdf, robot.base.xyz, robot.base.yaw, robot.near_margin
+            )
         for r in self.robots.values():
             r.apply()  # zero pose until the first RobotState
         ids = list(self.robots)
-        self.robot_pairs = [(ids[i], ids[j]) for i in range(len(ids))
-                            for j in range(i + 1, len(ids))]
+        self.robot_pairs = [
+            (ids[i], ids[j]) for i in range(len(ids)) for j in range(i + 1, len(ids))
+        ]
 
         self.hands: dict[str, Hand] = {name: create_hand(c, name) for name in HANDS}
         self.parts = {part.id: part for part in self.scenario.parts}
         self.objects: dict[str, WorldObject] = {}
         for part in self.scenario.parts:
             if part.start is not None:
-                self._add_object(part.id, part.kind, part.owner, tuple(part.size),  # type: ignore[arg-type]
-                                 tuple(part.start.xyz), yaw_quat_deg(part.start.yaw))  # type: ignore[arg-type]
+                self._add_object(
+                    part.id,
+                    part.kind,
+                    part.owner,
+                    tuple(part.size),  # type: ignore[arg-type]
+                    tuple(part.start.xyz),
+                    yaw_quat_deg(part.start.yaw),
+                )  # type: ignore[arg-type]
         # Parts that start lying on something start asleep: they are at rest, and the first
         # steps' gravity-versus-contact jitter is nothing to report. The others fall.
         for obj in self.objects.values():
@@ -165,26 +182,39 @@ class World:
         c = self.c
         shape = -1
         if box.collides:
-            shape = p.createCollisionShape(p.GEOM_BOX, halfExtents=list(box.half),
-                                           physicsClientId=c)
-        visual = p.createVisualShape(p.GEOM_BOX, halfExtents=list(box.half),
-                                     rgbaColor=list(box.rgba), physicsClientId=c)
-        body = p.createMultiBody(0.0, shape, visual, list(box.center), yaw_quat_deg(box.yaw_deg),
-                                 physicsClientId=c)
+            shape = p.createCollisionShape(
+                p.GEOM_BOX, halfExtents=list(box.half), physicsClientId=c
+            )
+        visual = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=list(box.half), rgbaColor=list(box.rgba), physicsClientId=c
+        )
+        body = p.createMultiBody(
+            0.0, shape, visual, list(box.center), yaw_quat_deg(box.yaw_deg), physicsClientId=c
+        )
         if box.collides:
-            p.changeDynamics(body, -1, lateralFriction=ob.FRICTION, restitution=0.0,
-                             physicsClientId=c)
+            p.changeDynamics(
+                body, -1, lateralFriction=ob.FRICTION, restitution=0.0, physicsClientId=c
+            )
         return body
 
-    def _add_object(self, oid: str, kind: str, owner: str, size: Vec3, pos: Vec3,
-                    rot: Quat) -> WorldObject:
+    def _add_object(
+        self, oid: str, kind: str, owner: str, size: Vec3, pos: Vec3, rot: Quat
+    ) -> WorldObject:
         mass = ob.mass_of(size)
         color = PART_COLORS.get(owner, DEFAULT_PART_COLOR)
         body = ob.create_box(self.c, size, pos, rot, mass, color)
         part = self.parts.get(oid)
         target = (tuple(part.target.xyz), part.target.yaw) if part is not None else None
-        obj = WorldObject(oid, kind, owner, size, mass, body, target,  # type: ignore[arg-type]
-                          pose=Pose(pos, rot))
+        obj = WorldObject(
+            oid,
+            kind,
+            owner,
+            size,
+            mass,
+            body,
+            target,  # type: ignore[arg-type]
+            pose=Pose(pos, rot),
+        )
         self.objects[oid] = obj
         return obj
 
@@ -216,8 +246,10 @@ class World:
             # A participant at rest sends no new state (states come on change): same message,
             # nothing to do.
             h = self._human_applied = self._human
-            for hand, pose, grip in ((self.hands["left"], h.left_hand, h.left_grip),
-                                     (self.hands["right"], h.right_hand, h.right_grip)):
+            for hand, pose, grip in (
+                (self.hands["left"], h.left_hand, h.left_grip),
+                (self.hands["right"], h.right_hand, h.right_grip),
+            ):
                 pos, rot = pose_from_pb(pose, unit=True)
                 if pose_hand(c, hand, pos, rot, grip):
                     self._contacts_stale = True
@@ -244,8 +276,10 @@ class World:
             if obj.frozen:
                 continue
             lin, ang = p.getBaseVelocity(obj.body, physicsClientId=c)
-            still = (lin[0] ** 2 + lin[1] ** 2 + lin[2] ** 2 < ob.STILL_SPEED ** 2
-                     and ang[0] ** 2 + ang[1] ** 2 + ang[2] ** 2 < ob.STILL_SPIN ** 2)
+            still = (
+                lin[0] ** 2 + lin[1] ** 2 + lin[2] ** 2 < ob.STILL_SPEED**2
+                and ang[0] ** 2 + ang[1] ** 2 + ang[2] ** 2 < ob.STILL_SPIN**2
+            )
             if not obj.awake:
                 if still:
                     continue
@@ -299,8 +333,11 @@ class World:
         obj = self._object(cmd.object, "attach")
         robot = self.robots.get(cmd.holder)
         if robot is None:
-            self._reject(cmd.object, f"attach {cmd.object!r}: holder {cmd.holder!r} is not a robot "
-                                     f"(robots: {', '.join(self.robots)})")
+            self._reject(
+                cmd.object,
+                f"attach {cmd.object!r}: holder {cmd.holder!r} is not a robot "
+                f"(robots: {', '.join(self.robots)})",
+            )
             return
         if obj.held_by:
             self._detach(obj)
@@ -410,8 +447,12 @@ class World:
     # ------------------------------------------------------------------ outputs
     def _event(self, kind: int, obj: WorldObject, holder: str) -> None:
         pos, rot = obj.pose
-        ev = pb.ObjectEvent(kind=kind, object=obj.id, holder=holder,  # type: ignore[arg-type]
-                            pose=pose_to_pb(obj.pose))
+        ev = pb.ObjectEvent(
+            kind=kind,
+            object=obj.id,
+            holder=holder,  # type: ignore[arg-type]
+            pose=pose_to_pb(obj.pose),
+        )
         if obj.target is not None:
             ev.target_distance_m = distance(pos, obj.target[0])
             ev.target_angle_deg = yaw_difference_deg(quat_yaw_deg(rot), obj.target[1])
@@ -427,9 +468,16 @@ class World:
         for obj in self.objects.values():
             moving = obj.moving or bool(obj.held_by)
             if full or obj.dirty or moving:
-                out.append(pb.ObjectState(id=obj.id, pose=pose_to_pb(obj.pose), held_by=obj.held_by,
-                                          grabbable=obj.grabbable, placed=obj.placed,
-                                          moving=moving))
+                out.append(
+                    pb.ObjectState(
+                        id=obj.id,
+                        pose=pose_to_pb(obj.pose),
+                        held_by=obj.held_by,
+                        grabbable=obj.grabbable,
+                        placed=obj.placed,
+                        moving=moving,
+                    )
+                )
                 obj.dirty = False
         return out
 
@@ -450,7 +498,8 @@ class World:
                         deepest = pt
                 if deepest is not None:
                     out[ContactKey(HAND_ROBOT, hand.name, rid)] = Touch(
-                        robot.link_name(deepest[4]), tuple(deepest[6]), deepest[8])
+                        robot.link_name(deepest[4]), tuple(deepest[6]), deepest[8]
+                    )
         for ra, rb in self.robot_pairs:
             a, b = self.robots[ra], self.robots[rb]
             # Each arm's volume is its link colliders inflated by its own margin: the two
@@ -465,18 +514,23 @@ class World:
             if nearest is not None:
                 mid = tuple(0.5 * (u + v) for u, v in zip(nearest[5], nearest[6]))
                 out[ContactKey(ROBOT_ROBOT, ra, rb)] = Touch(
-                    f"{a.link_name(nearest[3])}/{b.link_name(nearest[4])}", mid, nearest[8])  # type: ignore[arg-type]
+                    f"{a.link_name(nearest[3])}/{b.link_name(nearest[4])}", mid, nearest[8]
+                )  # type: ignore[arg-type]
         for hand in hands:
             x, y, z = hand.pos
             for i, (lo, hi) in enumerate(self.envelope):
                 if lo[0] <= x <= hi[0] and lo[1] <= y <= hi[1] and lo[2] <= z <= hi[2]:
                     out[ContactKey(HAND_ENVELOPE, hand.name, str(i))] = Touch(point=hand.pos)
             if self.button is not None and _overlap(hand_boxes[hand.name], self._button_box, 0.0):
-                touch = [pt for pt in p.getClosestPoints(hand.body, self.button, 0.0,
-                                                         physicsClientId=c) if pt[8] <= 0.0]
+                touch = [
+                    pt
+                    for pt in p.getClosestPoints(hand.body, self.button, 0.0, physicsClientId=c)
+                    if pt[8] <= 0.0
+                ]
                 if touch:
                     out[ContactKey(HAND_BUTTON, hand.name, BUTTON_ID)] = Touch(
-                        "", tuple(touch[0][6]), min(pt[8] for pt in touch))
+                        "", tuple(touch[0][6]), min(pt[8] for pt in touch)
+                    )
         return out
 
     def contact_events(self) -> list[pb.Contact]:
@@ -504,9 +558,14 @@ def _rests_on(client: int, body: int, support: int, gap: float = 0.002) -> bool:
 def _overlap(a: tuple, b: tuple, margin: float) -> bool:
     """Do two AABBs ((lo), (hi)) come within ``margin`` of each other (per axis)?"""
     (alo, ahi), (blo, bhi) = a, b
-    return (alo[0] <= bhi[0] + margin and blo[0] <= ahi[0] + margin
-            and alo[1] <= bhi[1] + margin and blo[1] <= ahi[1] + margin
-            and alo[2] <= bhi[2] + margin and blo[2] <= ahi[2] + margin)
+    return (
+        alo[0] <= bhi[0] + margin
+        and blo[0] <= ahi[0] + margin
+        and alo[1] <= bhi[1] + margin
+        and blo[1] <= ahi[1] + margin
+        and alo[2] <= bhi[2] + margin
+        and blo[2] <= ahi[2] + margin
+    )
 
 
 def _base_pose(client: int, body: int) -> Pose:

@@ -29,13 +29,21 @@ def world(minimal: sc.Scenario):
         yield w
 
 
-def human(left=(0.0, -0.6, 0.3), right=(0.3, -0.6, 0.3), left_grip=0.0, right_grip=0.0,
-          rot=(0.0, 0.0, 0.0, 1.0)) -> pb.HumanState:
+def human(
+    left=(0.0, -0.6, 0.3),
+    right=(0.3, -0.6, 0.3),
+    left_grip=0.0,
+    right_grip=0.0,
+    rot=(0.0, 0.0, 0.0, 1.0),
+) -> pb.HumanState:
     """A HumanState with both hands at the given positions (flat hands, fingers to +y)."""
-    return pb.HumanState(left_hand=pose_to_pb(Pose(left, rot)),
-                         right_hand=pose_to_pb(Pose(right, rot)),
-                         left_grip=left_grip, right_grip=right_grip,
-                         head=pose_to_pb(Pose((0.0, -0.7, 0.5))))
+    return pb.HumanState(
+        left_hand=pose_to_pb(Pose(left, rot)),
+        right_hand=pose_to_pb(Pose(right, rot)),
+        left_grip=left_grip,
+        right_grip=right_grip,
+        head=pose_to_pb(Pose((0.0, -0.7, 0.5))),
+    )
 
 
 def grabbable(obj: str, on: bool = True) -> pb.WorldCommand:
@@ -43,8 +51,9 @@ def grabbable(obj: str, on: bool = True) -> pb.WorldCommand:
 
 
 def snap(obj: str, pos, rot=IDENTITY) -> pb.WorldCommand:
-    return pb.WorldCommand(release=pb.Release(object=obj, snap=True,
-                                              pose=pose_to_pb(Pose(pos, rot))))
+    return pb.WorldCommand(
+        release=pb.Release(object=obj, snap=True, pose=pose_to_pb(Pose(pos, rot)))
+    )
 
 
 def attach(obj: str, holder: str) -> pb.WorldCommand:
@@ -52,9 +61,15 @@ def attach(obj: str, holder: str) -> pb.WorldCommand:
 
 
 def spawn(obj: str, pos, size, owner="r2") -> pb.WorldCommand:
-    return pb.WorldCommand(spawn=pb.Spawn(object=obj, pose=pose_to_pb(Pose(pos)),
-                                          size=pb.Vec3(x=size[0], y=size[1], z=size[2]),
-                                          kind="screw", owner=owner))
+    return pb.WorldCommand(
+        spawn=pb.Spawn(
+            object=obj,
+            pose=pose_to_pb(Pose(pos)),
+            size=pb.Vec3(x=size[0], y=size[1], z=size[2]),
+            kind="screw",
+            owner=owner,
+        )
+    )
 
 
 def run(world: World, ticks: int, msg: pb.HumanState | None = None) -> list[pb.ObjectEvent]:
@@ -71,10 +86,11 @@ def run(world: World, ticks: int, msg: pb.HumanState | None = None) -> list[pb.O
 @pytest.fixture
 def helpers():
     """The builders above, for test modules (importlib mode cannot import conftest)."""
+
     class H:
         pass
+
     h = H()
     for f in (human, grabbable, snap, attach, spawn, run):
         setattr(h, f.__name__, staticmethod(f))
     return h
-

@@ -17,8 +17,11 @@ AWAY = (0.0, -0.7, 0.3)  # in front of the participant's table: outside every bo
 def _events(world: World, helpers, left, right=AWAY, kinds=None) -> list[tuple]:
     world.set_human(helpers.human(left=left, right=right))
     world.step()
-    return [(c.kind, c.begin, c.a, c.b, c.link) for c in world.contact_events()
-            if kinds is None or c.kind in kinds]
+    return [
+        (c.kind, c.begin, c.a, c.b, c.link)
+        for c in world.contact_events()
+        if kinds is None or c.kind in kinds
+    ]
 
 
 def test_hand_touching_a_robot_link_begins_and_ends_once(world: World, helpers) -> None:
@@ -27,28 +30,35 @@ def test_hand_touching_a_robot_link_begins_and_ends_once(world: World, helpers) 
     # so its finger tips touch when its centre is at y = 0.55 - 0.05 - 0.09 = 0.41.
     assert _events(world, helpers, (0.45, 0.40, 0.40), kinds={HR}) == []
     assert _events(world, helpers, (0.45, 0.42, 0.40), kinds={HR}) == [
-        (HR, True, "left", "r1", "link2_upper_arm")]
+        (HR, True, "left", "r1", "link2_upper_arm")
+    ]
     assert _events(world, helpers, (0.45, 0.45, 0.45), kinds={HR}) == []  # still touching
     assert _events(world, helpers, (0.45, 0.30, 0.45), kinds={HR}) == [
-        (HR, False, "left", "r1", "link2_upper_arm")]
+        (HR, False, "left", "r1", "link2_upper_arm")
+    ]
     # The right hand on r2's forearm (z 0.62..1.02), from the side (-x).
     r2_x = -0.45
     assert _events(world, helpers, AWAY, (r2_x + 0.04 + 0.045 - 0.005, 0.55, 0.8), {HR}) == [
-        (HR, True, "right", "r2", "link3_forearm")]
+        (HR, True, "right", "r2", "link3_forearm")
+    ]
 
 
 def test_contact_follows_the_robot_pose(world: World, helpers) -> None:
     hand = (0.45, 0.42, 0.40)
     assert _events(world, helpers, hand, kinds={HR})[0][1] is True
     world.set_robot_state("r1", ["j1_base_yaw", "j2_shoulder"], [0.0, 1.2])  # leans away (-x)
-    assert _events(world, helpers, hand, kinds={HR}) == [(HR, False, "left", "r1", "link2_upper_arm")]
+    assert _events(world, helpers, hand, kinds={HR}) == [
+        (HR, False, "left", "r1", "link2_upper_arm")
+    ]
 
 
 def test_envelope_enter_and_leave(world: World, helpers) -> None:
     assert _events(world, helpers, AWAY, kinds={ENV}) == []
     assert _events(world, helpers, (0.0, 0.0, 0.2), kinds={ENV}) == [(ENV, True, "left", "0", "")]
     assert _events(world, helpers, (0.0, -0.3, 0.2), kinds={ENV}) == [
-        (ENV, False, "left", "0", ""), (ENV, True, "left", "1", "")]
+        (ENV, False, "left", "0", ""),
+        (ENV, True, "left", "1", ""),
+    ]
     assert _events(world, helpers, AWAY, kinds={ENV}) == [(ENV, False, "left", "1", "")]
 
 
@@ -56,9 +66,11 @@ def test_hand_on_the_continue_button(world: World, helpers) -> None:
     # Button: 4 cm radius, 2 cm high, centred at (0.40, -0.30, 0.02): top at z = 0.03.
     assert _events(world, helpers, AWAY, (0.40, -0.30, 0.06), {BUTTON}) == []
     assert _events(world, helpers, AWAY, (0.40, -0.30, 0.04), {BUTTON}) == [
-        (BUTTON, True, "right", "continue_button", "")]
+        (BUTTON, True, "right", "continue_button", "")
+    ]
     assert _events(world, helpers, AWAY, (0.40, -0.30, 0.06), {BUTTON}) == [
-        (BUTTON, False, "right", "continue_button", "")]
+        (BUTTON, False, "right", "continue_button", "")
+    ]
 
 
 def _link_distance(world: World) -> float:
@@ -82,7 +94,9 @@ def test_robots_leaning_together_near_collide_before_they_touch(world: World) ->
         d = _link_distance(world)
         events = [c for c in world.contact_events() if c.kind == RR]
         if events:
-            assert began_at is None and events[0].begin and (events[0].a, events[0].b) == ("r1", "r2")
+            assert (
+                began_at is None and events[0].begin and (events[0].a, events[0].b) == ("r1", "r2")
+            )
             assert events[0].distance == pytest.approx(d, abs=1e-6)
             began_at = i
             assert d <= margins
@@ -104,7 +118,8 @@ def test_tracker_reports_each_change_once() -> None:
     t = ContactTracker()
     key = ContactKey(HR, "left", "r1")
     assert [(e.begin, e.link) for e in t.update({key: Touch("link3_forearm")})] == [
-        (True, "link3_forearm")]
+        (True, "link3_forearm")
+    ]
     assert t.update({key: Touch("link4_wrist")}) == []  # same contact, other link: no event
     env = ContactKey(ENV, "left", "0")
     assert [(e.kind, e.begin) for e in t.update({env: Touch()})] == [(HR, False), (ENV, True)]

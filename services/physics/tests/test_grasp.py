@@ -132,7 +132,8 @@ def test_robot_attach_hangs_the_part_below_the_tool_and_snaps_it(world: World, h
     world.step()
     tool, _ = world.tool_pose("r1")
     assert world.objects["RA1"].pose[0] == pytest.approx(
-        (tool[0], tool[1], tool[2] - size_z / 2), abs=1e-6)
+        (tool[0], tool[1], tool[2] - size_z / 2), abs=1e-6
+    )
     assert {s.id: s for s in world.object_states()}["RA1"].held_by == "r1"
     target = (0.04, 0.16, 0.03)
     world.step([h.snap("RA1", target)])
@@ -161,17 +162,19 @@ def test_spawned_screw_rests_on_the_feeder(world: World, helpers) -> None:
 def test_bad_commands_are_rejected_naming_the_object(world: World, helpers) -> None:
     h = helpers
     nan_pose = pose_to_pb(Pose((math.nan, 0.0, 0.0)))
-    problems = world.step([
-        h.attach("X9", "r1"),
-        h.attach("H1", "left"),
-        pb.WorldCommand(release=pb.Release(object="H1", snap=True, pose=nan_pose)),
-        pb.WorldCommand(release=pb.Release(object="H1", snap=False)),
-        h.grabbable("nope"),
-        h.spawn("S9", (0.0, 0.0, math.inf), (0.01, 0.01, 0.01)),
-        h.spawn("S8", (0.0, 0.0, 0.1), (0.0, 0.01, 0.01)),
-        pb.WorldCommand(),
-        h.grabbable("H1"),  # a good one after the bad ones still applies
-    ])
+    problems = world.step(
+        [
+            h.attach("X9", "r1"),
+            h.attach("H1", "left"),
+            pb.WorldCommand(release=pb.Release(object="H1", snap=True, pose=nan_pose)),
+            pb.WorldCommand(release=pb.Release(object="H1", snap=False)),
+            h.grabbable("nope"),
+            h.spawn("S9", (0.0, 0.0, math.inf), (0.01, 0.01, 0.01)),
+            h.spawn("S8", (0.0, 0.0, 0.1), (0.0, 0.01, 0.01)),
+            pb.WorldCommand(),
+            h.grabbable("H1"),  # a good one after the bad ones still applies
+        ]
+    )
     assert len(problems) == 8
     assert "unknown object 'X9'" in problems[0]
     assert "holder 'left' is not a robot" in problems[1]

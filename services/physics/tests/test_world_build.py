@@ -32,8 +32,13 @@ def test_thesis_world_has_every_started_part_at_its_start(thesis: sc.Scenario) -
         # Robots at their bases, from the URDF, zero pose (pointing up) before any state.
         assert set(w.robots) == {"r1", "r2"}
         r1 = w.robots["r1"]
-        assert r1.joint_names == ["j1_base_yaw", "j2_shoulder", "j3_elbow", "j4_wrist_pitch",
-                                  "j5_wrist_roll"]
+        assert r1.joint_names == [
+            "j1_base_yaw",
+            "j2_shoulder",
+            "j3_elbow",
+            "j4_wrist_pitch",
+            "j5_wrist_roll",
+        ]
         assert set(r1.link_names.values()) >= {"base_link", "link3_forearm", "tool"}
         tool, _ = w.tool_pose("r1")
         assert tool == pytest.approx((0.45, 0.55, 1.12), abs=1e-6)
@@ -92,8 +97,10 @@ def test_minimal_world_and_wire_round_trip(minimal: sc.Scenario) -> None:
 
 def test_a_part_starting_in_the_air_falls_onto_the_table() -> None:
     text = (project_root() / "scenarios" / "minimal.toml").read_text()
-    text = text.replace("start = { xyz = [-0.20, -0.38, 0.02], yaw = 0 }",
-                        "start = { xyz = [-0.20, -0.38, 0.30], yaw = 0 }")
+    text = text.replace(
+        "start = { xyz = [-0.20, -0.38, 0.02], yaw = 0 }",
+        "start = { xyz = [-0.20, -0.38, 0.30], yaw = 0 }",
+    )
     scen = sc.loads(text, project_root() / "scenarios", project_root())
     with World(scen) as w:
         moved = False
@@ -108,6 +115,7 @@ def test_a_part_starting_in_the_air_falls_onto_the_table() -> None:
 
 def test_same_inputs_same_outputs(minimal: sc.Scenario, helpers) -> None:
     """Two worlds fed the same inputs end bit-identical (fixed step, fixed iterations)."""
+
     def trial() -> list[tuple]:
         with World(minimal) as w:
             w.step([helpers.grabbable("H1")])

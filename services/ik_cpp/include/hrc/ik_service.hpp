@@ -34,7 +34,7 @@ struct RobotSpec {
   std::string id;
   std::string urdf_path;
   Eigen::Isometry3d world_T_base = Eigen::Isometry3d::Identity();
-  double max_tcp_speed = 0.0;  // m/s
+  double max_tcp_speed = 0.0;                      // m/s
   Eigen::Vector3d home = Eigen::Vector3d::Zero();  // reached tool down, with kHomeYaw
 };
 
@@ -84,7 +84,7 @@ class IkEngine {
  private:
   struct Arm {
     RobotSpec spec;
-    std::unique_ptr<kin::RobotModel> model;       // owned here: the generators keep a reference
+    std::unique_ptr<kin::RobotModel> model;        // owned here: the generators keep a reference
     std::unique_ptr<kin::MotionGenerator> motion;  // the arm (tick thread only)
     std::unique_ptr<kin::MotionGenerator> probe;   // reach queries (under reach_mutex_)
     uint64_t command_id = 0;

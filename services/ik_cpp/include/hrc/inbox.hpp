@@ -33,7 +33,8 @@ class Inbox {
     {
       const std::lock_guard<std::mutex> lock(mutex_);
       index = handlers_.size();
-      handlers_.push_back([handler = std::move(handler)](const std::string& key, const google::protobuf::Message& m) {
+      handlers_.push_back([handler = std::move(handler)](const std::string& key,
+                                                         const google::protobuf::Message& m) {
         handler(key, static_cast<const M&>(m));
       });
       exprs_.push_back(key_expr);
@@ -50,7 +51,8 @@ class Inbox {
   /// The marks on keys we subscribe to whose messages have not all arrived yet.
   std::vector<v2::PublishedMark> missing(const std::vector<v2::PublishedMark>& marks);
   /// Waits until every mark (on our keys) is satisfied; returns what is still missing at timeout.
-  std::vector<v2::PublishedMark> wait_for(const std::vector<v2::PublishedMark>& marks, double timeout_s);
+  std::vector<v2::PublishedMark> wait_for(const std::vector<v2::PublishedMark>& marks,
+                                          double timeout_s);
   /// Hands every message of ticks < upto_tick to its handler (plus the messages of `master` of
   /// tick upto_tick when master is not empty), in deterministic order. Returns the count.
   std::size_t deliver(uint64_t upto_tick, const std::string& master = "");
@@ -81,7 +83,7 @@ class Inbox {
   std::vector<std::string> exprs_;
   std::vector<Pending> pending_;
   std::map<std::pair<std::string, std::string>, uint64_t> received_;  // (key, sender) -> max seq
-  std::map<std::string, bool> matches_;                                // key -> subscribed?
+  std::map<std::string, bool> matches_;                               // key -> subscribed?
 };
 
 }  // namespace hrc

@@ -37,8 +37,8 @@ struct Outcome {
 inline constexpr double kAbortWaitS = 2.0;
 
 struct LockstepOptions {
-  bool ack = true;                     // false: observer (follows the clock, never acks)
-  double input_timeout_s = 10.0;       // lockstep: how long a tick may wait for its inputs
+  bool ack = true;                // false: observer (follows the clock, never acks)
+  double input_timeout_s = 10.0;  // lockstep: how long a tick may wait for its inputs
   std::string clock_master = "physics";
   // Compute a tick right on the zenoh thread that delivered it when nothing is missing (saves a
   // thread hand-off). Off with zenoh's low-latency transport: a put from a zenoh runtime thread
@@ -59,7 +59,8 @@ class LockstepParticipant {
 
   /// Registers a typed input (delivered in deterministic order before the step of each tick).
   template <class M>
-  void input(const std::string& key_expr, Bus::Handler<M> handler, Bus::Validator<M> validate = {}) {
+  void input(const std::string& key_expr, Bus::Handler<M> handler,
+             Bus::Validator<M> validate = {}) {
     inbox_.add<M>(key_expr, std::move(handler), std::move(validate));
   }
   /// The step of each tick; it publishes the tick's outputs through the Bus.

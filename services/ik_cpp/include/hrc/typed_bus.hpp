@@ -27,7 +27,8 @@ namespace hrc {
 template <class M, class = void>
 struct has_header : std::false_type {};
 template <class M>
-struct has_header<M, std::void_t<decltype(std::declval<M&>().mutable_header())>> : std::true_type {};
+struct has_header<M, std::void_t<decltype(std::declval<M&>().mutable_header())>> : std::true_type {
+};
 
 /// Thread-safe counters of what a service received (source of ServiceStats).
 class InputStats {
@@ -123,7 +124,8 @@ class Bus {
   template <class M>
   void subscribe(const std::string& key_expr, Handler<M> handler, Validator<M> validate = {}) {
     stats_.add_subscribed(key_expr);
-    auto on_sample = [this, handler = std::move(handler), validate = std::move(validate)](const SampleView& s) {
+    auto on_sample = [this, handler = std::move(handler),
+                      validate = std::move(validate)](const SampleView& s) {
       M msg;
       std::string problem = check_payload(msg, s.payload);
       if (problem.empty() && validate) problem = validate(msg);
@@ -149,8 +151,8 @@ class Bus {
       Req req;
       if (!parse(req, q.payload)) {
         const uint64_t n = stats_.count_error(key);
-        log::warning("malformed query #" + std::to_string(n) + " on " + key + ": does not decode as " +
-                     Req::descriptor()->name());
+        log::warning("malformed query #" + std::to_string(n) + " on " + key +
+                     ": does not decode as " + Req::descriptor()->name());
         return QueryReply::error("request does not decode as " + Req::descriptor()->name());
       }
       try {

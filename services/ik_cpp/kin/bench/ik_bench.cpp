@@ -33,8 +33,8 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-constexpr double kPosTol = 1e-4;                  // 0.1 mm
-constexpr double kAngTol = 0.1 * M_PI / 180.0;    // 0.1 deg
+constexpr double kPosTol = 1e-4;                // 0.1 mm
+constexpr double kAngTol = 0.1 * M_PI / 180.0;  // 0.1 deg
 
 struct Options {
   int n = 10000;
@@ -59,23 +59,25 @@ double median(std::vector<double> v) {
 
 [[noreturn]] void usage(const std::string& err) {
   if (!err.empty()) std::cerr << "hrc-ik-bench: " << err << "\n";
-  std::cerr << "usage: hrc-ik-bench [--n N] [--gd-n M] [--seed S] [--robots-dir DIR] "
-               "[--tick-seconds T] [--json]\n"
-               "  --n N            targets per chain (default 10000)\n"
-               "  --gd-n M         targets for the (slow) gradient descent baseline, <= N "
-               "(default 1000)\n"
-               "  --seed S         random seed (default 1)\n"
-               "  --robots-dir DIR folder with arm5.urdf, ur5.urdf, panda.urdf (default: robots/ "
-               "found from the cwd or the executable upwards)\n"
-               "  --tick-seconds T simulated seconds of the 2-arm 1 kHz tick benchmark (default 30)\n"
-               "  --json           print one JSON object instead of a table\n";
+  std::cerr
+      << "usage: hrc-ik-bench [--n N] [--gd-n M] [--seed S] [--robots-dir DIR] "
+         "[--tick-seconds T] [--json]\n"
+         "  --n N            targets per chain (default 10000)\n"
+         "  --gd-n M         targets for the (slow) gradient descent baseline, <= N "
+         "(default 1000)\n"
+         "  --seed S         random seed (default 1)\n"
+         "  --robots-dir DIR folder with arm5.urdf, ur5.urdf, panda.urdf (default: robots/ "
+         "found from the cwd or the executable upwards)\n"
+         "  --tick-seconds T simulated seconds of the 2-arm 1 kHz tick benchmark (default 30)\n"
+         "  --json           print one JSON object instead of a table\n";
   std::exit(err.empty() ? 0 : 2);
 }
 
 long parseInt(const std::string& flag, const char* v, long lo) {
   char* end = nullptr;
   const long x = std::strtol(v, &end, 10);
-  if (!end || *end || x < lo) usage(flag + " expects an integer >= " + std::to_string(lo) + ", got '" + v + "'");
+  if (!end || *end || x < lo)
+    usage(flag + " expects an integer >= " + std::to_string(lo) + ", got '" + v + "'");
   return x;
 }
 
@@ -88,14 +90,23 @@ Options parse(int argc, char** argv) {
       if (i + 1 >= argc) usage(a + " needs a value");
       return argv[++i];
     };
-    if (a == "--n") o.n = static_cast<int>(parseInt(a, value(), 1));
-    else if (a == "--gd-n") { o.gd_n = static_cast<int>(parseInt(a, value(), 0)); gd_given = true; }
-    else if (a == "--seed") o.seed = static_cast<std::uint64_t>(parseInt(a, value(), 0));
-    else if (a == "--robots-dir") o.robots_dir = value();
-    else if (a == "--tick-seconds") o.tick_seconds = static_cast<int>(parseInt(a, value(), 1));
-    else if (a == "--json") o.json = true;
-    else if (a == "-h" || a == "--help") usage("");
-    else usage("unknown option '" + a + "'");
+    if (a == "--n")
+      o.n = static_cast<int>(parseInt(a, value(), 1));
+    else if (a == "--gd-n") {
+      o.gd_n = static_cast<int>(parseInt(a, value(), 0));
+      gd_given = true;
+    } else if (a == "--seed")
+      o.seed = static_cast<std::uint64_t>(parseInt(a, value(), 0));
+    else if (a == "--robots-dir")
+      o.robots_dir = value();
+    else if (a == "--tick-seconds")
+      o.tick_seconds = static_cast<int>(parseInt(a, value(), 1));
+    else if (a == "--json")
+      o.json = true;
+    else if (a == "-h" || a == "--help")
+      usage("");
+    else
+      usage("unknown option '" + a + "'");
   }
   if (gd_given && o.gd_n > o.n) usage("--gd-n must be <= --n");
   o.gd_n = std::min(o.gd_n, o.n);
@@ -131,7 +142,8 @@ Stats summarise(std::vector<double>& us, int successes) {
   for (double v : us) sum += v;
   s.mean_us = sum / us.size();
   std::sort(us.begin(), us.end());
-  const std::size_t idx = std::min(us.size() - 1, static_cast<std::size_t>(std::ceil(0.99 * us.size())) - 1);
+  const std::size_t idx =
+      std::min(us.size() - 1, static_cast<std::size_t>(std::ceil(0.99 * us.size())) - 1);
   s.p99_us = us[idx];
   s.success = static_cast<double>(successes) / us.size();
   return s;
@@ -155,7 +167,8 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
   Eigen::VectorXd q(dof);
   for (int k = 0; k < o.n; ++k) {
     for (int i = 0; i < dof; ++i)
-      q[i] = std::uniform_real_distribution<double>(model.sampleLower(i), model.sampleUpper(i))(rng);
+      q[i] =
+          std::uniform_real_distribution<double>(model.sampleLower(i), model.sampleUpper(i))(rng);
     targets.push_back(kin.fk(q));
   }
   const Eigen::VectorXd seed = model.midRange();
@@ -183,7 +196,8 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
     return std::make_pair(std::string(name), st);
   };
   const auto toTarget = [&](const Eigen::Isometry3d& T) {
-    return axis_only ? IkTarget::positionAxis(T.translation(), T.linear().col(2)) : IkTarget::pose(T);
+    return axis_only ? IkTarget::positionAxis(T.translation(), T.linear().col(2))
+                     : IkTarget::pose(T);
   };
 
   std::map<std::string, Stats> out;
@@ -219,17 +233,19 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
   }
   {
     hrc::kin::KdlNrJlSolver ik(model);
-    measure("kdl_nr_jl", targets.size(), asIs, [&](const Eigen::Isometry3d& T) -> const Eigen::VectorXd& {
-      ik.solve(T, seed, sol);
-      return sol;
-    });
+    measure("kdl_nr_jl", targets.size(), asIs,
+            [&](const Eigen::Isometry3d& T) -> const Eigen::VectorXd& {
+              ik.solve(T, seed, sol);
+              return sol;
+            });
   }
   {
     hrc::kin::KdlLmaSolver ik(model);
-    measure("kdl_lma", targets.size(), asIs, [&](const Eigen::Isometry3d& T) -> const Eigen::VectorXd& {
-      ik.solve(T, seed, sol);
-      return sol;
-    });
+    measure("kdl_lma", targets.size(), asIs,
+            [&](const Eigen::Isometry3d& T) -> const Eigen::VectorXd& {
+              ik.solve(T, seed, sol);
+              return sol;
+            });
   }
   {  // the thesis's gradient descent, on the first gd_n targets (it is slow)
     hrc::kin::GradientDescentSolver ik(model);
@@ -255,7 +271,8 @@ double tickBench(const RobotModel& arm5, const Options& o) {
   const auto base = [](double x, double y, double yaw_deg) {
     Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
     T.translation() = Eigen::Vector3d(x, y, 0.0);
-    T.linear() = Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+    T.linear() =
+        Eigen::AngleAxisd(yaw_deg * M_PI / 180.0, Eigen::Vector3d::UnitZ()).toRotationMatrix();
     return T;
   };
   const auto mv = [](double x, double y, double z, double yaw_deg, double app, double dep) {
@@ -337,10 +354,11 @@ int main(int argc, char** argv) {
       bool first = true;
       for (const char* s : solvers) {
         const Stats& st = results[c.name][s];
-        std::printf("%s\"%s\": {\"success\": %.6f, \"mean_us\": %.3f, \"p99_us\": %.3f, \"n\": %d, "
-                    "\"median_pos_mm\": %.6g, \"median_ang_deg\": %.6g}",
-                    first ? "" : ", ", s, st.success, st.mean_us, st.p99_us, st.n, st.median_pos_mm,
-                    st.median_ang_deg);
+        std::printf(
+            "%s\"%s\": {\"success\": %.6f, \"mean_us\": %.3f, \"p99_us\": %.3f, \"n\": %d, "
+            "\"median_pos_mm\": %.6g, \"median_ang_deg\": %.6g}",
+            first ? "" : ", ", s, st.success, st.mean_us, st.p99_us, st.n, st.median_pos_mm,
+            st.median_ang_deg);
         first = false;
       }
       std::printf("}");
@@ -354,7 +372,8 @@ int main(int argc, char** argv) {
       for (const char* s : solvers) {
         const Stats& st = results[c.name][s];
         std::printf("%-6s %-17s %8.2f%% %10.1f %10.1f %7d %12.2e %12.2e\n", c.name.c_str(), s,
-                    100.0 * st.success, st.mean_us, st.p99_us, st.n, st.median_pos_mm, st.median_ang_deg);
+                    100.0 * st.success, st.mean_us, st.p99_us, st.n, st.median_pos_mm,
+                    st.median_ang_deg);
       }
     std::printf("tick_p99_us (2 x arm5 motion generators at 1 kHz): %.1f\n", tick_p99);
   }

@@ -73,7 +73,8 @@ std::optional<Arm5Analytic> Arm5Analytic::detect(const RobotModel& model, const 
   for (int k = 0; k < kSamples; ++k) {
     double q[5], sol[5];
     for (int i = 0; i < 5; ++i)
-      q[i] = std::uniform_real_distribution<double>(model.sampleLower(i), model.sampleUpper(i))(rng);
+      q[i] =
+          std::uniform_real_distribution<double>(model.sampleLower(i), model.sampleUpper(i))(rng);
     Eigen::Matrix3d R, R2;
     Eigen::Vector3d p, p2;
     eval.fk(q, R, p);
@@ -120,7 +121,8 @@ bool Arm5Analytic::solve(const Eigen::Vector3d& p, const Eigen::Vector3d& axis_i
     D = std::min(1.0, std::max(-1.0, D));
     for (int elbow = 0; elbow < 2; ++elbow) {
       const double t3 = (elbow == 0 ? 1.0 : -1.0) * std::acos(D);
-      const double t2 = std::atan2(rw, zw) - std::atan2(l3_ * std::sin(t3), l2_ + l3_ * std::cos(t3));
+      const double t2 =
+          std::atan2(rw, zw) - std::atan2(l3_ * std::sin(t3), l2_ + l3_ * std::cos(t3));
       const double t4 = theta - t2 - t3;
       if (!fitAngle(s1_ * phi, lo[0], hi[0], seed[0], cand[0])) continue;
       if (!fitAngle(s2_ * t2, lo[1], hi[1], seed[1], cand[1])) continue;

@@ -84,7 +84,8 @@ IkSolver::IkSolver(const RobotModel& model, IkOptions options)
   if (!(options_.position_tolerance > 0) || !(options_.angle_tolerance > 0) ||
       options_.max_iterations < 1 || options_.max_restarts < 0 || !(options_.rotation_weight > 0) ||
       !(options_.max_step > 0))
-    throw std::invalid_argument("IkSolver: tolerances, weights and step must be > 0, iterations >= 1");
+    throw std::invalid_argument(
+        "IkSolver: tolerances, weights and step must be > 0, iterations >= 1");
   lower_ = model.lower();
   upper_ = model.upper();
   slo_.resize(n);
@@ -140,7 +141,9 @@ double IkSolver::cost(const IkTarget& target, const Eigen::Matrix3d& R, const Ei
 
 bool IkSolver::descend(const IkTarget& target, JointVec& q, int& iterations, double& best_cost) {
   const int n = model_.dof();
-  const int m = target.mode == TaskMode::Position ? 3 : target.mode == TaskMode::PositionAxis ? 5 : 6;
+  const int m = target.mode == TaskMode::Position       ? 3
+                : target.mode == TaskMode::PositionAxis ? 5
+                                                        : 6;
   const double w = options_.rotation_weight;
   Eigen::Matrix3d R, Rn;
   Eigen::Vector3d p, pn;

@@ -23,9 +23,8 @@ Eigen::Vector3d toEigen(const KDL::Vector& v) { return {v.x(), v.y(), v.z()}; }
 inline void axisRotation(const Eigen::Vector3d& a, double angle, Eigen::Matrix3d& R) {
   const double c = std::cos(angle), s = std::sin(angle), t = 1.0 - c;
   const double x = a.x(), y = a.y(), z = a.z();
-  R << t * x * x + c, t * x * y - s * z, t * x * z + s * y,
-       t * x * y + s * z, t * y * y + c, t * y * z - s * x,
-       t * x * z - s * y, t * y * z + s * x, t * z * z + c;
+  R << t * x * x + c, t * x * y - s * z, t * x * z + s * y, t * x * y + s * z, t * y * y + c,
+      t * y * z - s * x, t * x * z - s * y, t * y * z + s * x, t * z * z + c;
 }
 
 }  // namespace
@@ -77,8 +76,9 @@ ChainEval::ChainEval(const KDL::Chain& chain) {
     }
     Joint jt;
     const Eigen::Vector3d a = toEigen(j.JointAxis()).normalized();
-    const bool prismatic = j.getType() == KDL::Joint::TransAxis || j.getType() == KDL::Joint::TransX ||
-                           j.getType() == KDL::Joint::TransY || j.getType() == KDL::Joint::TransZ;
+    const bool prismatic = j.getType() == KDL::Joint::TransAxis ||
+                           j.getType() == KDL::Joint::TransX || j.getType() == KDL::Joint::TransY ||
+                           j.getType() == KDL::Joint::TransZ;
     const Eigen::Vector3d o = prismatic ? Eigen::Vector3d::Zero() : toEigen(j.JointOrigin());
     // Scale and offset are private in KDL::Joint: recover them from the motion at q = 0 and 1.
     const KDL::Frame m0 = j.pose(0.0), m1 = j.pose(1.0);

@@ -112,7 +112,8 @@ bool MotionGenerator::resetToPose(const Eigen::Vector3d& position, double yaw) {
   return true;
 }
 
-bool MotionGenerator::reachable(const Eigen::Vector3d& position, double yaw, double* position_error) {
+bool MotionGenerator::reachable(const Eigen::Vector3d& position, double yaw,
+                                double* position_error) {
   if (!position.allFinite() || !finite(yaw)) {
     if (position_error) *position_error = std::numeric_limits<double>::infinity();
     return false;
@@ -133,7 +134,8 @@ void MotionGenerator::updateTcp(double dt_for_speed) {
   T.translation() = p;
   const Eigen::Vector3d prev = state_.tcp.translation();
   state_.tcp = world_T_base_ * T;
-  state_.tcp_speed = dt_for_speed > 0 ? (state_.tcp.translation() - prev).norm() / dt_for_speed : 0.0;
+  state_.tcp_speed =
+      dt_for_speed > 0 ? (state_.tcp.translation() - prev).norm() / dt_for_speed : 0.0;
 }
 
 void MotionGenerator::brakeSegment(const ProfileLimits& lim) {
@@ -558,8 +560,8 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
              "invalid command: target/yaw must be finite, heights and max_speed >= 0");
     return state_.status;
   }
-  const double vmax = cmd.max_speed > 0 ? std::min(cmd.max_speed, limits_.max_tcp_speed)
-                                        : limits_.max_tcp_speed;
+  const double vmax =
+      cmd.max_speed > 0 ? std::min(cmd.max_speed, limits_.max_tcp_speed) : limits_.max_tcp_speed;
   const ProfileLimits lim{vmax, limits_.max_tcp_accel, limits_.max_tcp_jerk};
   const Eigen::Matrix3d goal_R = toolDownRotation(cmd.yaw);
   const auto yawDeg = [&] { return fmtNum(cmd.yaw * 180.0 / M_PI, 1); };
@@ -589,7 +591,8 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
   std::vector<Eigen::Vector3d> points;
   if (cmd.depart_height > 0)
     points.push_back(state_.tcp.translation() + Eigen::Vector3d(0, 0, cmd.depart_height));
-  if (cmd.approach_height > 0) points.push_back(cmd.target + Eigen::Vector3d(0, 0, cmd.approach_height));
+  if (cmd.approach_height > 0)
+    points.push_back(cmd.target + Eigen::Vector3d(0, 0, cmd.approach_height));
   points.push_back(cmd.target);
   const int rotate = static_cast<int>(points.size()) - (cmd.approach_height > 0 ? 2 : 1);
 
@@ -646,8 +649,8 @@ const MotionState& MotionGenerator::step() {
   Segment& seg = segments_.front();
   const Eigen::VectorXd& vlim = model_.maxVelocity();
   // Recover from a joint-limit slow-down no faster than the TCP acceleration limit allows.
-  double sigma = std::min(1.0, time_scale_ + seg.limits.max_accel * dt_ /
-                                                 std::max(seg.limits.max_speed, 1e-3));
+  double sigma = std::min(
+      1.0, time_scale_ + seg.limits.max_accel * dt_ / std::max(seg.limits.max_speed, 1e-3));
   double t_new = seg_t_, s = 0, vs = 0;
   bool clipped = false;
   constexpr int kTries = 5;

@@ -1,10 +1,10 @@
 #include "hrc/kin/robot_model.hpp"
 
+#include <urdf_model/model.h>
+#include <urdf_parser/urdf_parser.h>
 #include <kdl/frames.hpp>
 #include <kdl/joint.hpp>
 #include <kdl/segment.hpp>
-#include <urdf_model/model.h>
-#include <urdf_parser/urdf_parser.h>
 
 #include <cmath>
 #include <fstream>
@@ -73,17 +73,15 @@ RobotModel RobotModel::fromUrdfString(const std::string& xml, const std::string&
     const KDL::Vector axis = origin.M * axis_local;
     KDL::Joint kj;
     switch (j.type) {
-      case urdf::Joint::FIXED:
-        kj = KDL::Joint(j.name, KDL::Joint::None);
-        break;
+      case urdf::Joint::FIXED: kj = KDL::Joint(j.name, KDL::Joint::None); break;
       case urdf::Joint::REVOLUTE:
       case urdf::Joint::CONTINUOUS:
       case urdf::Joint::PRISMATIC: {
         if (axis_local.Norm() < 1e-9) fail(source, "joint '" + j.name + "' has a zero axis");
         const KDL::Vector unit = axis / axis.Norm();
-        kj = KDL::Joint(j.name, origin.p, unit,
-                        j.type == urdf::Joint::PRISMATIC ? KDL::Joint::TransAxis
-                                                         : KDL::Joint::RotAxis);
+        kj = KDL::Joint(
+            j.name, origin.p, unit,
+            j.type == urdf::Joint::PRISMATIC ? KDL::Joint::TransAxis : KDL::Joint::RotAxis);
         double l = -std::numeric_limits<double>::infinity();
         double u = std::numeric_limits<double>::infinity();
         double v = std::numeric_limits<double>::infinity();
@@ -102,12 +100,12 @@ RobotModel RobotModel::fromUrdfString(const std::string& xml, const std::string&
         m.revolute_.push_back(j.type != urdf::Joint::PRISMATIC);
         break;
       }
-      default:
-        fail(source, "joint '" + j.name + "' has an unsupported type (floating/planar)");
+      default: fail(source, "joint '" + j.name + "' has an unsupported type (floating/planar)");
     }
     m.chain_.addSegment(KDL::Segment(j.child_link_name, kj, origin));
   }
-  if (m.joint_names_.empty()) fail(source, "no movable joint between '" + base + "' and '" + tip + "'");
+  if (m.joint_names_.empty())
+    fail(source, "no movable joint between '" + base + "' and '" + tip + "'");
   const auto n = static_cast<Eigen::Index>(lo.size());
   m.lower_ = Eigen::Map<Eigen::VectorXd>(lo.data(), n);
   m.upper_ = Eigen::Map<Eigen::VectorXd>(hi.data(), n);

@@ -12,8 +12,8 @@ using namespace hrc::kin;
 
 namespace {
 const std::string kDir = HRC_KIN_ROBOTS_DIR;
-constexpr double kPos = 1e-4;               // 0.1 mm
-constexpr double kAng = 0.1 * M_PI / 180;   // 0.1 deg
+constexpr double kPos = 1e-4;              // 0.1 mm
+constexpr double kAng = 0.1 * M_PI / 180;  // 0.1 deg
 
 Eigen::VectorXd randomJoints(const RobotModel& m, std::mt19937_64& rng) {
   Eigen::VectorXd q(m.dof());
@@ -30,11 +30,13 @@ void roundTrip(const std::string& name, bool axis_only, bool numeric_only, int n
   int ok = 0;
   for (int k = 0; k < n; ++k) {
     const Eigen::Isometry3d T = kin.fk(randomJoints(m, rng));
-    const IkTarget t = axis_only ? IkTarget::positionAxis(T.translation(), T.linear().col(2))
-                                 : IkTarget::pose(T);
+    const IkTarget t =
+        axis_only ? IkTarget::positionAxis(T.translation(), T.linear().col(2)) : IkTarget::pose(T);
     IkResult r;
-    if (numeric_only) ik.solveNumeric(t, m.midRange(), r);
-    else ik.solve(t, m.midRange(), r);
+    if (numeric_only)
+      ik.solveNumeric(t, m.midRange(), r);
+    else
+      ik.solve(t, m.midRange(), r);
     ASSERT_TRUE(r.q.allFinite());
     EXPECT_TRUE(m.withinLimits(r.q, 1e-12)) << name << " target " << k;
     const Eigen::Isometry3d F = kin.fk(r.q);

@@ -28,14 +28,14 @@ MoveCommand moveTo(double x, double y, double z, double yaw_deg = 0) {
 struct RunStats {
   int ticks = 0;
   double max_speed = 0;
-  double max_joint_ratio = 0;   // max |dq| / (vmax dt)
-  double max_dv = 0;            // max change of TCP velocity between ticks (m/s)
-  double max_line_dev = 0;      // distance from the line start -> target
+  double max_joint_ratio = 0;  // max |dq| / (vmax dt)
+  double max_dv = 0;           // max change of TCP velocity between ticks (m/s)
+  double max_line_dev = 0;     // distance from the line start -> target
 };
 
 // Step until not moving (or max_ticks); collect bounds.
 RunStats runUntilDone(MotionGenerator& g, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                 int max_ticks, Eigen::Vector3d* v_last = nullptr) {
+                      int max_ticks, Eigen::Vector3d* v_last = nullptr) {
   RunStats r;
   const RobotModel& m = g.model();
   Eigen::Vector3d v_prev = v_last ? *v_last : Eigen::Vector3d::Zero();
@@ -51,8 +51,8 @@ RunStats runUntilDone(MotionGenerator& g, const Eigen::Vector3d& a, const Eigen:
     r.max_speed = std::max(r.max_speed, s.tcp_speed);
     r.max_dv = std::max(r.max_dv, (v - v_prev).norm());
     for (int i = 0; i < m.dof(); ++i)
-      r.max_joint_ratio = std::max(r.max_joint_ratio,
-                                   std::abs(s.q[i] - q_prev[i]) / (m.maxVelocity()[i] * g.dt()));
+      r.max_joint_ratio =
+          std::max(r.max_joint_ratio, std::abs(s.q[i] - q_prev[i]) / (m.maxVelocity()[i] * g.dt()));
     const Eigen::Vector3d d = p - a;
     r.max_line_dev = std::max(r.max_line_dev, (d - d.dot(u) * u).norm());
     p_prev = p;
@@ -178,8 +178,8 @@ TEST(Motion, HoldStopsSmoothly) {
   Eigen::Vector3d v = g.commandedVelocity();
   g.hold();
   EXPECT_EQ(g.state().status, MotionStatus::Holding);
-  const RunStats r = runUntilDone(g, g.state().tcp.translation(),
-                             g.state().tcp.translation() + v, 240 * 3, &v);
+  const RunStats r =
+      runUntilDone(g, g.state().tcp.translation(), g.state().tcp.translation() + v, 240 * 3, &v);
   (void)r;
   for (int k = 0; k < 240; ++k) g.step();
   EXPECT_EQ(g.state().status, MotionStatus::Holding);

@@ -51,7 +51,12 @@ fn panic_text(p: Box<dyn std::any::Any + Send>) -> String {
 }
 
 /// Runs `f`, turning an error or a panic into `on_fail` plus an error text.
-fn guarded<T>(err: *mut c_char, cap: usize, on_fail: T, f: impl FnOnce() -> Result<T, String>) -> T {
+fn guarded<T>(
+    err: *mut c_char,
+    cap: usize,
+    on_fail: T,
+    f: impl FnOnce() -> Result<T, String>,
+) -> T {
     match catch_unwind(AssertUnwindSafe(f)) {
         Ok(Ok(v)) => v,
         Ok(Err(e)) => {
@@ -122,7 +127,11 @@ pub struct HrczSession {
 
 /// Opens a zenoh session from a JSON5 configuration text. Returns NULL on failure.
 #[no_mangle]
-pub unsafe extern "C" fn hrcz_open(config_json5: *const c_char, err: *mut c_char, err_cap: usize) -> *mut HrczSession {
+pub unsafe extern "C" fn hrcz_open(
+    config_json5: *const c_char,
+    err: *mut c_char,
+    err_cap: usize,
+) -> *mut HrczSession {
     guarded(err, err_cap, std::ptr::null_mut(), || {
         let text = cstr(config_json5, "config_json5")?;
         // Zenoh's own logs only when RUST_LOG asks for them.
@@ -153,7 +162,8 @@ pub unsafe extern "C" fn hrcz_open_ex(
             Config::default()
         } else {
             let file = cstr(base_file, "base_file")?;
-            Config::from_file(file).map_err(|e| format!("invalid zenoh config file '{file}': {e}"))?
+            Config::from_file(file)
+                .map_err(|e| format!("invalid zenoh config file '{file}': {e}"))?
         };
         if n > 0 && (paths.is_null() || values_json5.is_null()) {
             return Err("paths or values_json5 is NULL".to_string());
@@ -211,7 +221,11 @@ pub unsafe extern "C" fn hrcz_declare_publisher(
     guarded(err, err_cap, std::ptr::null_mut(), || {
         let s = session_ref(session)?;
         let key = cstr(key, "key")?.to_string();
-        let cc = if congestion_block != 0 { CongestionControl::Block } else { CongestionControl::Drop };
+        let cc = if congestion_block != 0 {
+            CongestionControl::Block
+        } else {
+            CongestionControl::Drop
+        };
         let publisher = s
             .session
             .declare_publisher(key.clone())
@@ -294,8 +308,9 @@ pub type HrczSampleCallback = Option<
 >;
 
 /// Liveliness callback: key of the token (not NUL-terminated), alive = 1 (appeared) / 0 (dropped).
-pub type HrczLivelinessCallback =
-    Option<unsafe extern "C" fn(ctx: *mut c_void, key: *const c_char, key_len: usize, alive: c_int)>;
+pub type HrczLivelinessCallback = Option<
+    unsafe extern "C" fn(ctx: *mut c_void, key: *const c_char, key_len: usize, alive: c_int),
+>;
 
 /// Opaque subscriber handle (data or liveliness).
 pub struct HrczSubscriber {
@@ -333,7 +348,15 @@ pub unsafe extern "C" fn hrcz_declare_subscriber(
                 let payload = sample.payload().to_bytes();
                 let att = zbytes_cow(sample.attachment());
                 let c = ctx;
-                cb(c.0, k.as_ptr() as *const c_char, k.len(), payload.as_ptr(), payload.len(), att.as_ptr(), att.len());
+                cb(
+                    c.0,
+                    k.as_ptr() as *const c_char,
+                    k.len(),
+                    payload.as_ptr(),
+                    payload.len(),
+                    att.as_ptr(),
+                    att.len(),
+                );
             })
             .wait()
             .map_err(|e| format!("cannot declare subscriber on '{key}': {e}"))?;
@@ -371,7 +394,11 @@ pub unsafe extern "C" fn hrcz_declare_liveliness_subscriber(
                     return;
                 }
                 let k = sample.key_expr().as_str();
-                let alive = if sample.kind() == SampleKind::Put { 1 } else { 0 };
+                let alive = if sample.kind() == SampleKind::Put {
+                    1
+                } else {
+                    0
+                };
                 let c = ctx;
                 cb(c.0, k.as_ptr() as *const c_char, k.len(), alive);
             })
@@ -495,7 +522,10 @@ pub unsafe extern "C" fn hrcz_declare_queryable(
                 let k = query.key_expr().as_str().to_string();
                 let payload = zbytes_cow(query.payload()).into_owned();
                 let att = zbytes_cow(query.attachment()).into_owned();
-                let q = HrczQuery { query: &query, reply_key: &reply_key };
+                let q = HrczQuery {
+                    query: &query,
+                    reply_key: &reply_key,
+                };
                 let c = ctx;
                 cb(
                     c.0,
@@ -611,7 +641,10 @@ pub unsafe extern "C" fn hrcz_get(
         let data = bytes(payload, len, "payload")?;
         let att = bytes(attachment, att_len, "attachment")?;
         let cb = callback.ok_or("callback is NULL")?;
-        let mut get = s.session.get(sel.clone()).timeout(Duration::from_millis(timeout_ms));
+        let mut get = s
+            .session
+            .get(sel.clone())
+            .timeout(Duration::from_millis(timeout_ms));
         if !data.is_empty() {
             get = get.payload(data.to_vec());
         }
@@ -627,11 +660,29 @@ pub unsafe extern "C" fn hrcz_get(
                     let k = sample.key_expr().as_str();
                     let p = sample.payload().to_bytes();
                     let a = zbytes_cow(sample.attachment());
-                    cb(ctx, k.as_ptr() as *const c_char, k.len(), p.as_ptr(), p.len(), a.as_ptr(), a.len(), 0);
+                    cb(
+                        ctx,
+                        k.as_ptr() as *const c_char,
+                        k.len(),
+                        p.as_ptr(),
+                        p.len(),
+                        a.as_ptr(),
+                        a.len(),
+                        0,
+                    );
                 }
                 Err(e) => {
                     let p = e.payload().to_bytes();
-                    cb(ctx, "".as_ptr() as *const c_char, 0, p.as_ptr(), p.len(), std::ptr::null(), 0, 1);
+                    cb(
+                        ctx,
+                        "".as_ptr() as *const c_char,
+                        0,
+                        p.as_ptr(),
+                        p.len(),
+                        std::ptr::null(),
+                        0,
+                        1,
+                    );
                 }
             }
             n += 1;
@@ -654,8 +705,10 @@ pub unsafe extern "C" fn hrcz_keyexpr_intersects(
     guarded(err, err_cap, -1, || {
         let a_s = cstr(a, "a")?;
         let b_s = cstr(b, "b")?;
-        let ka = zenoh::key_expr::keyexpr::new(a_s).map_err(|e| format!("invalid key expression '{a_s}': {e}"))?;
-        let kb = zenoh::key_expr::keyexpr::new(b_s).map_err(|e| format!("invalid key expression '{b_s}': {e}"))?;
+        let ka = zenoh::key_expr::keyexpr::new(a_s)
+            .map_err(|e| format!("invalid key expression '{a_s}': {e}"))?;
+        let kb = zenoh::key_expr::keyexpr::new(b_s)
+            .map_err(|e| format!("invalid key expression '{b_s}': {e}"))?;
         Ok(if ka.intersects(kb) { 1 } else { 0 })
     })
 }
@@ -683,9 +736,18 @@ mod tests {
         let bad = CString::new("hrc//x").unwrap();
         let mut buf = [0 as c_char; 128];
         unsafe {
-            assert_eq!(hrcz_keyexpr_intersects(a.as_ptr(), b.as_ptr(), buf.as_mut_ptr(), buf.len()), 1);
-            assert_eq!(hrcz_keyexpr_intersects(a.as_ptr(), c.as_ptr(), buf.as_mut_ptr(), buf.len()), 0);
-            assert_eq!(hrcz_keyexpr_intersects(a.as_ptr(), bad.as_ptr(), buf.as_mut_ptr(), buf.len()), -1);
+            assert_eq!(
+                hrcz_keyexpr_intersects(a.as_ptr(), b.as_ptr(), buf.as_mut_ptr(), buf.len()),
+                1
+            );
+            assert_eq!(
+                hrcz_keyexpr_intersects(a.as_ptr(), c.as_ptr(), buf.as_mut_ptr(), buf.len()),
+                0
+            );
+            assert_eq!(
+                hrcz_keyexpr_intersects(a.as_ptr(), bad.as_ptr(), buf.as_mut_ptr(), buf.len()),
+                -1
+            );
         }
     }
 
@@ -696,7 +758,16 @@ mod tests {
         let pp: Vec<*const c_char> = paths.iter().map(|p| p.as_ptr()).collect();
         let vv: Vec<*const c_char> = values.iter().map(|p| p.as_ptr()).collect();
         let mut buf = [0 as c_char; 512];
-        let s = unsafe { hrcz_open_ex(std::ptr::null(), pp.as_ptr(), vv.as_ptr(), 1, buf.as_mut_ptr(), buf.len()) };
+        let s = unsafe {
+            hrcz_open_ex(
+                std::ptr::null(),
+                pp.as_ptr(),
+                vv.as_ptr(),
+                1,
+                buf.as_mut_ptr(),
+                buf.len(),
+            )
+        };
         assert!(s.is_null());
         let msg = unsafe { CStr::from_ptr(buf.as_ptr()) }.to_str().unwrap();
         assert!(msg.contains("'mode'"), "{msg}");
@@ -705,7 +776,16 @@ mod tests {
     #[test]
     fn null_arguments_are_errors_not_crashes() {
         let mut buf = [0 as c_char; 128];
-        let p = unsafe { hrcz_declare_publisher(std::ptr::null(), std::ptr::null(), 1, 1, buf.as_mut_ptr(), buf.len()) };
+        let p = unsafe {
+            hrcz_declare_publisher(
+                std::ptr::null(),
+                std::ptr::null(),
+                1,
+                1,
+                buf.as_mut_ptr(),
+                buf.len(),
+            )
+        };
         assert!(p.is_null());
         let msg = unsafe { CStr::from_ptr(buf.as_ptr()) }.to_str().unwrap();
         assert_eq!(msg, "session is NULL");

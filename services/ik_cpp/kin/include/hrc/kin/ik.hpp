@@ -37,9 +37,9 @@ const char* toString(IkStatus s);
 
 struct IkResult {
   IkStatus status = IkStatus::InvalidInput;
-  Eigen::VectorXd q;              // solution, or the best joints found (finite, within limits)
-  double position_error = 0.0;    // m
-  double angle_error = 0.0;       // rad (tool axis angle for PositionAxis, 0 for Position)
+  Eigen::VectorXd q;            // solution, or the best joints found (finite, within limits)
+  double position_error = 0.0;  // m
+  double angle_error = 0.0;     // rad (tool axis angle for PositionAxis, 0 for Position)
   int iterations = 0;
   int restarts = 0;
   bool analytic = false;

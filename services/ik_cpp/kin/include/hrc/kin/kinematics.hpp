@@ -1,6 +1,7 @@
 #pragma once
 // Forward kinematics and Jacobians with Eigen at the interface.
-//  - KdlKinematics: KDL's ChainFkSolverPos_recursive / ChainJntToJacSolver (reference, tests, bench).
+//  - KdlKinematics: KDL's ChainFkSolverPos_recursive / ChainJntToJacSolver (reference, tests,
+//  bench).
 //  - ChainEval: the same chain flattened into Eigen matrices (one pass gives pose and Jacobian,
 //    no allocation). IK inner loops call it thousands of times per solve.
 
@@ -47,12 +48,12 @@ class ChainEval {
 
  private:
   struct Joint {
-    Eigen::Matrix3d pre_R;   // fixed transform from the previous joint (after its motion) ...
-    Eigen::Vector3d pre_p;   // ... to this joint's axis point
-    Eigen::Vector3d axis;    // unit axis in the frame after pre
+    Eigen::Matrix3d pre_R;  // fixed transform from the previous joint (after its motion) ...
+    Eigen::Vector3d pre_p;  // ... to this joint's axis point
+    Eigen::Vector3d axis;   // unit axis in the frame after pre
     double scale, offset;
     bool prismatic;
-    int axis_index;          // 0/1/2 when axis is +x/+y/+z (fast path), -1 otherwise
+    int axis_index;  // 0/1/2 when axis is +x/+y/+z (fast path), -1 otherwise
     bool pre_R_identity;
   };
   // (R, p) = (R, p) * pre: the frame at the joint point, before its motion.

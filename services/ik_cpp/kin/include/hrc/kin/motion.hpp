@@ -54,9 +54,9 @@ struct MoveCommand {
 };
 
 struct MotionState {
-  Eigen::VectorXd q;                 // joint positions
+  Eigen::VectorXd q;                                      // joint positions
   Eigen::Isometry3d tcp = Eigen::Isometry3d::Identity();  // world frame
-  double tcp_speed = 0.0;            // m/s, from consecutive TCP positions
+  double tcp_speed = 0.0;                                 // m/s, from consecutive TCP positions
   MotionStatus status = MotionStatus::Idle;
   MotionKind kind = MotionKind::None;  // how the current/last move was planned
   std::string detail;                // why a target is unreachable, etc.
@@ -90,10 +90,10 @@ class MotionGenerator {
 
  private:
   struct Segment {
-    Eigen::Vector3d p0, u;          // start, unit direction
-    double lin_length = 0.0;        // m
-    double prof_length = 0.0;       // profile units (>= lin_length when rotation dominates)
-    Eigen::Quaterniond r0, r1;      // orientation at start / end (world)
+    Eigen::Vector3d p0, u;      // start, unit direction
+    double lin_length = 0.0;    // m
+    double prof_length = 0.0;   // profile units (>= lin_length when rotation dominates)
+    Eigen::Quaterniond r0, r1;  // orientation at start / end (world)
     SpeedProfile profile;
     ProfileLimits limits;
     // Joint segment: q(f) = q0 + f dq, f in [0, 1]; measure[k] = path measure (m) at f = k / n
@@ -145,8 +145,8 @@ class MotionGenerator {
 
   MotionState state_;
   std::deque<Segment> segments_;
-  double seg_t_ = 0.0;        // time into the current segment's profile
-  double time_scale_ = 1.0;   // < 1 while a joint velocity limit binds
+  double seg_t_ = 0.0;                               // time into the current segment's profile
+  double time_scale_ = 1.0;                          // < 1 while a joint velocity limit binds
   Eigen::Vector3d v_cmd_ = Eigen::Vector3d::Zero();  // commanded TCP velocity (world)
   Eigen::Vector3d target_ = Eigen::Vector3d::Zero();
   MotionStatus final_status_ = MotionStatus::Reached;

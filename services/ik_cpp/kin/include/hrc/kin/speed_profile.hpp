@@ -7,9 +7,9 @@
 namespace hrc::kin {
 
 struct ProfileLimits {
-  double max_speed = 0.5;   // m/s
-  double max_accel = 2.0;   // m/s^2
-  double max_jerk = 20.0;   // m/s^3
+  double max_speed = 0.5;  // m/s
+  double max_accel = 2.0;  // m/s^2
+  double max_jerk = 20.0;  // m/s^3
 };
 
 class SpeedProfile {
