@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 
 from hrc.bus import Bus, BusConfig
-from hrc.cli.runner import free_port  # noqa: F401 - tests import it from here
+from hrc.cli.runner import free_port  # tests import it from here too
 from hrc.paths import ik_binary, project_root
 from hrc.services import SERVICES
 from hrc.wire import pb

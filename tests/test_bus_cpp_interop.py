@@ -91,7 +91,7 @@ def test_cpp_to_python_delivers_every_field(probe: str, session_id: str) -> None
         key = bus.keys.robot_state("probe_robot")
         bus.subscribe(key, pb.RobotState, lambda _k, m: got.append(m))
 
-        def raw(sample) -> None:  # noqa: ANN001
+        def raw(sample) -> None:
             with lock:
                 senders.append(sample.attachment.to_bytes() if sample.attachment else b"")
 

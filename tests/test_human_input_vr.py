@@ -22,9 +22,9 @@ from pathlib import Path
 import pytest
 from websockets.sync.client import connect
 
-from hrc.cli.runner import free_port
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings
+from hrc.cli.runner import free_port
 from hrc.paths import project_root
 from hrc.wire import pb
 

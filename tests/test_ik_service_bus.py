@@ -146,7 +146,7 @@ class Session:
         except StopIteration:
             self._script = None
             self._request_stop("script done")
-        except BaseException as exc:  # noqa: BLE001 - reported by the test, not lost in a thread
+        except BaseException as exc:  # reported by the test, not lost in a thread
             self.error = exc
             self._script = None
             self._request_stop(f"script failed: {exc}")
@@ -211,7 +211,7 @@ class Session:
             yield
 
     # ------------------------------------------------------------------ running
-    def run(self, script: Callable[["Session"], Script], timeout: float = 240.0) -> pb.RunEnd:
+    def run(self, script: Callable[[Session], Script], timeout: float = 240.0) -> pb.RunEnd:
         self._script = script(self)
         result: dict[str, pb.RunEnd] = {}
         clock_thread = threading.Thread(

@@ -21,15 +21,15 @@ import pytest
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, Publisher
 from hrc.wire import pb
-from hrc_logger.rrd import summarize
 
 from .conftest import HRC, ROOT, free_port, wait_until
+from hrc_logger.rrd import summarize
 
 sys.path.insert(0, str(ROOT / "services" / "logger" / "tests"))
-from synthetic import ROLES, Outgoing, SyntheticTrial  # noqa: E402
+from synthetic import ROLES, Outgoing, SyntheticTrial
 
 
-def read_with_dataframe_api(rrd: Path):  # noqa: ANN201 - a pyarrow.Table
+def read_with_dataframe_api(rrd: Path):  # a pyarrow.Table
     """The recording through rerun's own dataframe API (0.41: a local catalog server and a
     DataFusion reader indexed by the tick timeline)."""
     import rerun as rr

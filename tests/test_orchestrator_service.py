@@ -17,9 +17,9 @@ from pathlib import Path
 
 import pytest
 
-from hrc.cli.runner import free_port
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings, LockstepParticipant
+from hrc.cli.runner import free_port
 from hrc.wire import pb
 
 ROOT = Path(__file__).resolve().parents[1]

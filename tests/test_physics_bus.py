@@ -16,19 +16,20 @@ import subprocess
 import sys
 import threading
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable
 
 import pybullet as p
 import pytest
 
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, LockstepParticipant
-from hrc.geometry import IDENTITY, Pose, pose_to_pb, yaw_quat_deg
 from hrc.cli.runner import free_port
+from hrc.geometry import IDENTITY, Pose, pose_to_pb, yaw_quat_deg
 from hrc.paths import project_root
 from hrc.wire import pb
+
 from hrc_physics.hands import HAND_SIZE
 
 pytestmark = pytest.mark.slow

@@ -6,9 +6,10 @@ import json
 import subprocess
 import threading
 
-from .conftest import HRC, ROOT, free_port, wait_until
 from hrc.bus import Bus, BusConfig
 from hrc.wire import pb
+
+from .conftest import HRC, ROOT, free_port, wait_until
 
 
 def test_two_trials_on_one_router_do_not_mix(tmp_path, ik_bin) -> None:

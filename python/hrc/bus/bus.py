@@ -11,7 +11,8 @@ import logging
 import threading
 import time
 from collections import Counter
-from typing import Callable, Generic, TypeVar
+from collections.abc import Callable
+from typing import Generic, TypeVar
 
 import zenoh
 from google.protobuf.message import DecodeError, Message
@@ -62,7 +63,7 @@ class InputStats:
 class Publisher(Generic[M]):
     """Publishes one message type on one key; fills the header (session, tick, time, sender, seq)."""
 
-    def __init__(self, bus: "Bus", key: str, *, express: bool, block: bool) -> None:
+    def __init__(self, bus: Bus, key: str, *, express: bool, block: bool) -> None:
         self.key = key
         self._bus = bus
         self.seq = 0
@@ -112,7 +113,7 @@ class Bus:
         self.session = zenoh.open(config.to_zenoh())
 
     # ------------------------------------------------------------------ lifecycle
-    def __enter__(self) -> "Bus":
+    def __enter__(self) -> Bus:
         return self
 
     def __exit__(self, *exc: object) -> None:

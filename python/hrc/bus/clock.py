@@ -13,8 +13,9 @@ import logging
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, Literal
+from typing import Literal
 
 from google.protobuf.message import Message
 
@@ -316,7 +317,7 @@ class ClockMaster:
                 end = self._apply_tick(k)
                 if end is None:
                     self._publish_tick(k + 1)
-            except BaseException as exc:  # noqa: BLE001 - raised again by run()
+            except BaseException as exc:  # raised again by run()
                 with self._cond:
                     self._crash = exc
                     self._claimed = False

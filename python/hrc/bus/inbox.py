@@ -12,8 +12,8 @@ from __future__ import annotations
 import heapq
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import zenoh
 from google.protobuf.message import Message

@@ -17,8 +17,8 @@ import logging
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from google.protobuf.message import Message
 
@@ -258,7 +258,7 @@ class ClockFollower:
             if self._step is not None:
                 self._step(tick)
             self._after_step(tick, t0)
-        except Exception as exc:  # noqa: BLE001 - any failure of the service ends the run
+        except Exception as exc:  # any failure of the service ends the run
             self._abort(tick, exc)
         self._compute_s += time.perf_counter() - t0
 
@@ -277,7 +277,7 @@ class ClockFollower:
                     k,
                     tick.header.sim_time,
                 )
-            except Exception:  # noqa: BLE001 - the bus itself may be what failed
+            except Exception:  # the bus itself may be what failed
                 log.exception("could not ask the clock master to abort")
         self._finish(Outcome(False, reason))
 

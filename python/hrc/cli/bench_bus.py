@@ -18,7 +18,6 @@ from hrc.bus import Bus, BusConfig
 from hrc.paths import bus_probe_binary, project_root
 from hrc.wire import pb
 
-
 LOCKSTEP_TICKS = 20000
 
 

@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
-from hrc.bus import Bus, BusConfig
 from hrc import services
+from hrc.bus import Bus, BusConfig
 from hrc.paths import build_dir
 from hrc.wire import pb
 

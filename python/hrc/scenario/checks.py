@@ -12,9 +12,9 @@ from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
+from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
 from hrc.scenario.errors import Problem
 from hrc.scenario.graph import Edge, find_cycles
-from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
 from hrc.scenario.models import HUMAN
 from hrc.scenario.paths import resolve_path
 

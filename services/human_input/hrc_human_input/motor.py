@@ -19,7 +19,6 @@ import numpy as np
 
 from hrc.geometry import Vec3, distance, lerp, lerp3
 
-
 # Peak speed of a minimum-jerk reach is this factor times the mean speed D / MT.
 MIN_JERK_PEAK_FACTOR = 1.875
 REACTION_LOG_SD = 0.25  # lognormal spread of reaction times (about +-25 % around the median)

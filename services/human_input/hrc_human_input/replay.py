@@ -139,7 +139,7 @@ class Recorder:
         header = {
             "format": FORMAT,
             "version": VERSION,
-            "created": dt.datetime.now(dt.timezone.utc).isoformat(timespec="seconds"),
+            "created": dt.datetime.now(dt.UTC).isoformat(timespec="seconds"),
         }
         header.update(metadata or {})
         self._write(header)
@@ -166,7 +166,7 @@ class Recorder:
             except OSError as exc:  # a write already failed (and ended the run): say, go on
                 log.warning("closing the recording %s: %s", self.path, exc)
 
-    def __enter__(self) -> "Recorder":
+    def __enter__(self) -> Recorder:
         return self
 
     def __exit__(self, *exc: object) -> None:

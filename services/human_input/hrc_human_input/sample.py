@@ -45,7 +45,7 @@ class Sample:
     def hand(self, name: str) -> Pose:
         return self.left if name == "left" else self.right
 
-    def same_as(self, other: "Sample") -> bool:
+    def same_as(self, other: Sample) -> bool:
         """Same poses and grips (the time aside)."""
         return (
             self.left == other.left
@@ -58,7 +58,7 @@ class Sample:
     def grip(self, name: str) -> float:
         return self.left_grip if name == "left" else self.right_grip
 
-    def at(self, t: float) -> "Sample":
+    def at(self, t: float) -> Sample:
         """The same sample stamped with another time."""
         return Sample(t, self.head, self.left, self.right, self.left_grip, self.right_grip)
 
@@ -73,7 +73,7 @@ class Sample:
         )
 
     @staticmethod
-    def from_proto(msg: pb.HumanState) -> "Sample":
+    def from_proto(msg: pb.HumanState) -> Sample:
         return Sample(
             msg.header.sim_time,
             pose_from_pb(msg.head),

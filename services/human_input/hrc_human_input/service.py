@@ -19,7 +19,7 @@ from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit, fetch_scen
 from hrc.wire import pb
 
 from hrc_human_input import facts as facts_mod
-from hrc_human_input.replay import Recorder, Recording, ReplayError, Replayer, load_recording
+from hrc_human_input.replay import Recorder, Recording, Replayer, ReplayError, load_recording
 from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource

@@ -118,7 +118,7 @@ class VrBridge:
             self._thread.join(timeout=5.0)
             self._thread = None
 
-    def __enter__(self) -> "VrBridge":
+    def __enter__(self) -> VrBridge:
         self.start()
         return self
 

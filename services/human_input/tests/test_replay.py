@@ -14,8 +14,8 @@ from hrc_human_input.replay import (
     FORMAT,
     VERSION,
     Recorder,
-    ReplayError,
     Replayer,
+    ReplayError,
     load_recording,
     parse_recording,
 )

@@ -20,7 +20,7 @@ from hrc_human_input.task_view import TaskView
 ROOT = project_root()
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _loaded(name: str) -> bytes:
     return sc.to_proto(sc.load(ROOT / "scenarios" / f"{name}.toml")).SerializeToString()
 

@@ -44,7 +44,7 @@ class LineFile:
                 os.close(self._fd)
                 self._fd = -1
 
-    def __enter__(self) -> "LineFile":
+    def __enter__(self) -> LineFile:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -21,8 +21,8 @@ from __future__ import annotations
 
 import datetime as dt
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 from hrc.wire import pb
 

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import math
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -135,7 +135,7 @@ class UrdfModel:
         self.movable = [j.name for j in joints if j.kind in MOVABLE]
 
     @classmethod
-    def from_file(cls, path: str | Path) -> "UrdfModel":
+    def from_file(cls, path: str | Path) -> UrdfModel:
         p = Path(path)
         try:
             text = p.read_text(encoding="utf-8")
@@ -144,7 +144,7 @@ class UrdfModel:
         return cls.from_string(text, str(p))
 
     @classmethod
-    def from_string(cls, text: str, source: str = "<string>") -> "UrdfModel":
+    def from_string(cls, text: str, source: str = "<string>") -> UrdfModel:
         try:
             robot = ET.fromstring(text)
         except ET.ParseError as exc:

@@ -5,11 +5,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from synthetic import Outgoing, SyntheticTrial
+
 from hrc.wire import pb
 
 from hrc_logger.recorder import TrialRecorder
 from hrc_logger.view import View, open_recording
-from synthetic import Outgoing, SyntheticTrial
 
 
 def run_offline(trial: SyntheticTrial, out: Path, session: str = "offline") -> TrialRecorder:

@@ -57,9 +57,8 @@ def test_a_line_break_inside_a_line_is_refused(tmp_path: Path) -> None:
 
 
 def test_jsonl_refuses_nan(tmp_path: Path) -> None:
-    with JsonlFile(tmp_path / "e.jsonl") as f:
-        with pytest.raises(ValueError):
-            f.write({"x": float("nan")})
+    with JsonlFile(tmp_path / "e.jsonl") as f, pytest.raises(ValueError):
+        f.write({"x": float("nan")})
 
 
 def test_atomic_json(tmp_path: Path) -> None:

@@ -14,6 +14,7 @@ from synthetic import SyntheticTrial
 from hrc import scenario as sc
 from hrc.paths import project_root
 from hrc.wire import pb
+
 from hrc_logger.records import event_record, metrics_record
 from hrc_logger.rrd import summarize
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from hrc.wire import pb
+
 from hrc_logger.textlog import LOG_KINDS, ThesisLog, kind_name, run_end_line, wall_clock
 
 K = pb.TaskEventKind

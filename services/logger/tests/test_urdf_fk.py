@@ -11,6 +11,7 @@ import pytest
 from rerun.urdf import UrdfTree
 
 from hrc.paths import project_root
+
 from hrc_logger.urdf_fk import (
     UrdfError,
     UrdfModel,

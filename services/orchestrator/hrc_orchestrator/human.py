@@ -23,6 +23,7 @@ from hrc.geometry import (
 )
 from hrc.scenario.conventions import HANDS
 from hrc.wire import pb
+
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
 from hrc_orchestrator.idle import IntervalClock

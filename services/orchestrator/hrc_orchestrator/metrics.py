@@ -10,6 +10,7 @@ from __future__ import annotations
 from google.protobuf.message import Message
 
 from hrc.wire import pb
+
 from hrc_orchestrator.task import Task
 
 

@@ -21,6 +21,7 @@ from hrc import scenario as sc
 from hrc.geometry import Vec3, pose_to_pb, vec3, vec3_from_pb, vec3_to_pb, yaw_pose_deg
 from hrc.scenario.conventions import APPROACH_HEIGHT_M, grasp_point
 from hrc.wire import pb
+
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
 from hrc_orchestrator.idle import IntervalClock
@@ -52,7 +53,7 @@ class Motion:
     depart: float = 0.0
 
     @staticmethod
-    def move(target: Vec3, yaw_deg: float, approach: float = 0.0, depart: float = 0.0) -> "Motion":
+    def move(target: Vec3, yaw_deg: float, approach: float = 0.0, depart: float = 0.0) -> Motion:
         return Motion(pb.RobotCommand.KIND_MOVE, target, yaw_deg, approach, depart)
 
     @property

@@ -23,6 +23,7 @@ from dataclasses import dataclass, field
 from hrc.geometry import distance, vec3
 from hrc.scenario import SafetyPolicy
 from hrc.wire import pb
+
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
 from hrc_orchestrator.robots import HOLD, Motion, RobotAgent

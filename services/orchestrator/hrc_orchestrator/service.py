@@ -20,6 +20,7 @@ from hrc.bus.bus import Validator
 from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit
 from hrc.validate import check_pose
 from hrc.wire import pb
+
 from hrc_orchestrator import metrics
 from hrc_orchestrator.metrics_file import write_json
 from hrc_orchestrator.task import Inputs as TaskInputs
@@ -202,7 +203,7 @@ class OrchestratorService(Service):
         if run_end is not None:
             try:  # best effort: the run is over, observers may already be leaving
                 self.metrics_pub.put(metrics.report(data, True), run_end.ticks, run_end.sim_time)
-            except Exception as exc:  # noqa: BLE001 - never lose metrics.json over this
+            except Exception as exc:  # never lose metrics.json over this
                 log.warning("could not publish the final metrics: %s", exc)
         if self.out_dir is not None:
             write_json(self.out_dir / "metrics.json", data)

@@ -27,6 +27,7 @@ from hrc.scenario.conventions import (
     waiting_cue_id,
 )
 from hrc.wire import pb
+
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
 from hrc_orchestrator.cues import HUMAN_COLOR, CueBoard

@@ -15,6 +15,7 @@ from pathlib import Path
 from hrc import scenario as sc
 from hrc.geometry import Vec3, add, distance, pose_to_pb, vec3, yaw_pose_deg
 from hrc.wire import pb
+
 from hrc_orchestrator.task import Inputs, Outputs, Task
 
 ROOT = Path(__file__).resolve().parents[3]
@@ -187,7 +188,7 @@ class Sim:
         self.k += 1
         return out
 
-    def run(self, until: Callable[["Sim"], bool], max_s: float = 300.0) -> None:
+    def run(self, until: Callable[[Sim], bool], max_s: float = 300.0) -> None:
         limit = self.k + int(max_s / self.dt)
         while not until(self):
             if self.k >= limit:

@@ -6,10 +6,11 @@ from __future__ import annotations
 import json
 
 import pytest
-from orch_fakes import K, FakeHuman, Sim, load
+from orch_fakes import FakeHuman, K, Sim, load
 
 from hrc import metrics as metrics_schema
 from hrc.wire import pb
+
 from hrc_orchestrator import metrics
 
 

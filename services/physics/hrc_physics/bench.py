@@ -18,6 +18,7 @@ import time
 from hrc import scenario as sc
 from hrc.paths import project_root
 from hrc.wire import pb
+
 from hrc_physics.world import World, WorldSettings
 
 WARMUP_TICKS = 240  # parts settle and fall asleep, as in a real trial's first second

@@ -10,9 +10,8 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-from hrc.wire import pb
-
 from hrc.geometry import Vec3
+from hrc.wire import pb
 
 
 class ContactKey(NamedTuple):

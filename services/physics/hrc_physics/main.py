@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from hrc.service import run_service
+
 from hrc_physics.service import PhysicsService
 
 SERVICE = PhysicsService

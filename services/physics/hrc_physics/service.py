@@ -17,6 +17,7 @@ from hrc.service import EXIT_BAD_INPUT, ClockMasterService, Inputs, ServiceExit,
 from hrc.services import OBSERVERS, PARTICIPANTS
 from hrc.validate import check_pose
 from hrc.wire import pb
+
 from hrc_physics.robots import RobotModelError
 from hrc_physics.world import CommandRejected, World, WorldSettings
 

@@ -21,8 +21,6 @@ from pathlib import Path
 import pybullet as p
 
 from hrc import scenario as sc
-from hrc.scenario.models import DEFAULT_TICK_HZ, ID_PATTERN
-from hrc.validate import check_pose
 from hrc.geometry import (
     Pose,
     Quat,
@@ -38,7 +36,10 @@ from hrc.geometry import (
     yaw_quat_deg,
 )
 from hrc.scenario.conventions import GRASP_DISTANCE_M, GRIP_CLOSED, HANDS
+from hrc.scenario.models import DEFAULT_TICK_HZ, ID_PATTERN
+from hrc.validate import check_pose
 from hrc.wire import pb
+
 from hrc_physics import objects as ob
 from hrc_physics.contacts import ContactKey, ContactTracker, Touch
 from hrc_physics.hands import Hand, create_hand, pose_hand
@@ -93,7 +94,7 @@ class World:
         self.steps = 0
 
     # ------------------------------------------------------------------ lifecycle
-    def __enter__(self) -> "World":
+    def __enter__(self) -> World:
         return self
 
     def __exit__(self, *_exc: object) -> None:

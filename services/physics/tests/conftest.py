@@ -5,9 +5,10 @@ from __future__ import annotations
 import pytest
 
 from hrc import scenario as sc
+from hrc.geometry import IDENTITY, Pose, pose_to_pb
 from hrc.paths import project_root
 from hrc.wire import pb
-from hrc.geometry import IDENTITY, Pose, pose_to_pb
+
 from hrc_physics.world import World
 
 ROOT = project_root()

@@ -6,6 +6,7 @@ import pybullet as p
 import pytest
 
 from hrc.wire import pb
+
 from hrc_physics.contacts import ContactKey, ContactTracker, Touch
 from hrc_physics.world import World
 

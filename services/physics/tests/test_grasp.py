@@ -7,8 +7,9 @@ import math
 import pybullet as p
 import pytest
 
-from hrc.wire import pb
 from hrc.geometry import Pose, pose_to_pb, rotate, yaw_quat_deg
+from hrc.wire import pb
+
 from hrc_physics.world import CommandRejected, World
 
 K = pb.ObjectEvent
