@@ -112,7 +112,8 @@ IkEngine::IkEngine(std::vector<RobotSpec> robots, double dt) : dt_(dt) {
       throw std::invalid_argument("robot '" + spec.id + "' is listed twice");
     Arm arm;
     try {
-      arm.model = std::make_unique<kin::RobotModel>(kin::RobotModel::fromUrdfFile(spec.urdf_path));
+      arm.model =
+          std::make_unique<kin::RobotModel>(kin::RobotModel::from_urdf_file(spec.urdf_path));
     } catch (const std::exception& e) {
       throw std::runtime_error("robot '" + spec.id + "': " + e.what());
     }
@@ -120,7 +121,7 @@ IkEngine::IkEngine(std::vector<RobotSpec> robots, double dt) : dt_(dt) {
     limits.max_tcp_speed = spec.max_tcp_speed;
     arm.motion = std::make_unique<kin::MotionGenerator>(*arm.model, spec.world_T_base, dt, limits);
     arm.probe = std::make_unique<kin::MotionGenerator>(*arm.model, spec.world_T_base, dt, limits);
-    if (!arm.motion->resetToPose(spec.home, kHomeYaw)) {
+    if (!arm.motion->reset_to_pose(spec.home, kHomeYaw)) {
       throw std::runtime_error("robot '" + spec.id + "': home " + fmt_point(spec.home) +
                                " is not reachable with the tool pointing down (URDF " +
                                spec.urdf_path + ")");
@@ -188,7 +189,7 @@ uint64_t IkEngine::command_id(std::size_t index) const { return arms_.at(index).
 void IkEngine::fill_state(std::size_t index, v2::RobotState& out) const {
   const Arm& arm = arms_.at(index);
   const kin::MotionState& s = arm.motion->state();
-  const auto& names = arm.model->jointNames();
+  const auto& names = arm.model->joint_names();
   const int n = static_cast<int>(names.size());
   if (out.robot() != arm.spec.id) out.set_robot(arm.spec.id);
   if (out.joint_names_size() != n) {
@@ -386,7 +387,7 @@ void IkService::on_command(const std::string& key, const v2::RobotCommand& comma
     return;
   }
   ++commands_received_;
-  if (log::enabled(log::Level::debug)) {
+  if (log::enabled(log::Level::Debug)) {
     log::debug("command " + std::to_string(command.command_id()) + " on " + key + " applied");
   }
 }
@@ -428,13 +429,13 @@ uint64_t IkService::run_standalone(double hz, const std::function<bool()>& keep_
                              [this](const std::string&, const v2::RunEnd&) { run_ended_ = true; });
   bus_.serve_stats();
   bus_.declare_token();
-  using clock = std::chrono::steady_clock;
+  using Clock = std::chrono::steady_clock;
   const auto period =
-      std::chrono::duration_cast<clock::duration>(std::chrono::duration<double>(1.0 / hz));
+      std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / hz));
   v2::ClockTick tick;  // synthesized, reused: only header.tick / sim_time / dt change
   tick.set_dt(1.0 / hz);
   uint64_t k = 0;
-  auto next = clock::now();
+  auto next = Clock::now();
   while (keep_going() && !run_ended_) {
     // No clock: every command that has arrived is due now (still in deterministic order).
     participant_.inbox().deliver(std::numeric_limits<uint64_t>::max());
@@ -444,7 +445,7 @@ uint64_t IkService::run_standalone(double hz, const std::function<bool()>& keep_
     step(tick);
     ++k;
     next += period;
-    const auto now = clock::now();
+    const auto now = Clock::now();
     if (now > next + period) {
       // More than a period behind: count it and restart the schedule rather than burst.
       ++overruns_;

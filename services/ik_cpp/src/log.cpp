@@ -13,11 +13,11 @@ namespace {
 
 Level level_from_env() {
   const char* v = std::getenv("HRC_LOG_LEVEL");
-  if (v == nullptr) return Level::info;
-  if (std::strcmp(v, "debug") == 0 || std::strcmp(v, "DEBUG") == 0) return Level::debug;
-  if (std::strcmp(v, "warning") == 0 || std::strcmp(v, "WARNING") == 0) return Level::warning;
-  if (std::strcmp(v, "error") == 0 || std::strcmp(v, "ERROR") == 0) return Level::error;
-  return Level::info;
+  if (v == nullptr) return Level::Info;
+  if (std::strcmp(v, "debug") == 0 || std::strcmp(v, "DEBUG") == 0) return Level::Debug;
+  if (std::strcmp(v, "warning") == 0 || std::strcmp(v, "WARNING") == 0) return Level::Warning;
+  if (std::strcmp(v, "error") == 0 || std::strcmp(v, "ERROR") == 0) return Level::Error;
+  return Level::Info;
 }
 
 std::mutex& name_mutex() {
@@ -35,10 +35,10 @@ std::atomic<int>& level_storage() {
 
 const char* label(Level level) {
   switch (level) {
-    case Level::debug: return "DEBUG";
-    case Level::info: return "INFO";
-    case Level::warning: return "WARNING";
-    case Level::error: return "ERROR";
+    case Level::Debug: return "DEBUG";
+    case Level::Info: return "INFO";
+    case Level::Warning: return "WARNING";
+    case Level::Error: return "ERROR";
   }
   return "?";
 }

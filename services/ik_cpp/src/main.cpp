@@ -24,7 +24,7 @@
 
 namespace {
 
-const char* kUsage =
+constexpr const char* kUsage =
     "usage: hrc-ik [--name NAME] [--input-timeout S] [--start-timeout S] [--standalone-hz HZ]\n"
     "              [bus options]\n"
     "\n"
@@ -86,17 +86,17 @@ struct Options {
 // answers (like the Python services' Bus.get_one) or `timeout_s` passes.
 std::optional<hrc::v2::Scenario> fetch_scenario(const hrc::Bus& bus, double timeout_s,
                                                 const std::atomic<bool>& stop) {
-  using clock = std::chrono::steady_clock;
-  const auto deadline = clock::now() + std::chrono::duration_cast<clock::duration>(
+  using Clock = std::chrono::steady_clock;
+  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
                                            std::chrono::duration<double>(timeout_s));
   while (!stop) {
     const auto left =
-        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - clock::now());
+        std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now());
     const auto wait =
         std::clamp(left, std::chrono::milliseconds(50), std::chrono::milliseconds(1000));
     auto replies = bus.get<hrc::v2::Scenario>(bus.keys().scenario(), nullptr, wait);
     if (!replies.empty()) return std::move(replies.front());
-    if (clock::now() >= deadline) break;
+    if (Clock::now() >= deadline) break;
     std::this_thread::sleep_for(std::chrono::milliseconds(200));
   }
   return std::nullopt;

@@ -61,17 +61,17 @@ Eigen::Vector3d tcp_of(const RobotState& s) {
 
 class Engine : public ::testing::Test {
  protected:
-  Engine() : engine(hrc::robots_from_scenario(minimal_scenario()), kDt) {}
+  Engine() : engine_(hrc::robots_from_scenario(minimal_scenario()), kDt) {}
   // Steps until r1 is no longer MOVING; returns the ticks and the highest measured TCP speed.
   int run_r1(int max_ticks, double* max_speed = nullptr) {
     RobotState st;
-    engine.fill_state(0, st);
+    engine_.fill_state(0, st);
     Eigen::Vector3d prev = tcp_of(st);
     double vmax = 0;
     int k = 0;
     for (; k < max_ticks; ++k) {
-      engine.step();
-      engine.fill_state(0, st);
+      engine_.step();
+      engine_.fill_state(0, st);
       vmax = std::max(vmax, (tcp_of(st) - prev).norm() / kDt);
       prev = tcp_of(st);
       if (st.status() != hrc::v2::MOTION_STATUS_MOVING) break;
@@ -79,7 +79,7 @@ class Engine : public ::testing::Test {
     if (max_speed != nullptr) *max_speed = vmax;
     return k;
   }
-  hrc::IkEngine engine;
+  hrc::IkEngine engine_;
 };
 
 TEST(IkScenario, ReadsRobotsAndRejectsBadOnes) {
@@ -132,11 +132,11 @@ TEST(IkScenario, UnloadableUrdfOrUnreachableHomeNameTheRobot) {
 }
 
 TEST_F(Engine, StartsIdleAtHomeToolDownInSortedOrder) {
-  ASSERT_EQ(engine.robot_ids(), (std::vector<std::string>{"r1", "r2"}));
-  EXPECT_EQ(engine.index_of("r2"), 1);
-  EXPECT_EQ(engine.index_of("r3"), -1);
+  ASSERT_EQ(engine_.robot_ids(), (std::vector<std::string>{"r1", "r2"}));
+  EXPECT_EQ(engine_.index_of("r2"), 1);
+  EXPECT_EQ(engine_.index_of("r3"), -1);
   RobotState st;
-  engine.fill_state(0, st);
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.robot(), "r1");
   EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_IDLE);
   EXPECT_EQ(st.command_id(), 0u);
@@ -146,26 +146,26 @@ TEST_F(Engine, StartsIdleAtHomeToolDownInSortedOrder) {
   EXPECT_NEAR(std::abs(r.norm() - 1.0), 0.0, 1e-9);
   EXPECT_LT((r * Eigen::Vector3d::UnitZ() - Eigen::Vector3d(0, 0, -1)).norm(), 1e-3);  // tool down
   // joint names in URDF order, one position per joint
-  const auto& names = engine.model(0).jointNames();
+  const auto& names = engine_.model(0).joint_names();
   ASSERT_EQ(st.joint_names_size(), static_cast<int>(names.size()));
   ASSERT_EQ(st.joint_positions_size(), static_cast<int>(names.size()));
   for (int i = 0; i < st.joint_names_size(); ++i) {
     EXPECT_EQ(st.joint_names(i), names[static_cast<std::size_t>(i)]);
-    EXPECT_DOUBLE_EQ(st.joint_positions(i), engine.state(0).q[i]);
+    EXPECT_DOUBLE_EQ(st.joint_positions(i), engine_.state(0).q[i]);
   }
   EXPECT_EQ(st.joint_names(0), "j1_base_yaw");
 }
 
 TEST_F(Engine, MoveReachesTheTargetAtTheCappedSpeedAndEchoesTheId) {
   // max_speed above the robot's limit is capped at max_tcp_speed (0.5 m/s)
-  EXPECT_EQ(engine.apply("r1", move(0.20, 0.25, 0.25, 7, 30, 5.0)), "");
+  EXPECT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 7, 30, 5.0)), "");
   RobotState st;
-  engine.fill_state(0, st);
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_MOVING);
   EXPECT_EQ(st.command_id(), 7u);
   double vmax = 0;
   const int ticks = run_r1(2000, &vmax);
-  engine.fill_state(0, st);
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED) << st.detail();
   EXPECT_EQ(st.command_id(), 7u);
   EXPECT_LT((tcp_of(st) - Eigen::Vector3d(0.20, 0.25, 0.25)).norm(), 0.005);
@@ -173,90 +173,90 @@ TEST_F(Engine, MoveReachesTheTargetAtTheCappedSpeedAndEchoesTheId) {
   EXPECT_GT(vmax, 0.3);  // it did cruise, not crawl
   EXPECT_GT(ticks, 10);
   // r2 was not commanded: still idle
-  engine.fill_state(1, st);
+  engine_.fill_state(1, st);
   EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_IDLE);
 }
 
 TEST_F(Engine, CommandSpeedBelowTheCapIsHonoured) {
-  ASSERT_EQ(engine.apply("r1", move(0.20, 0.25, 0.25, 1, 0, 0.1)), "");
+  ASSERT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 1, 0, 0.1)), "");
   double vmax = 0;
   run_r1(4000, &vmax);
   EXPECT_LE(vmax, 0.1 * 1.02);
   EXPECT_GT(vmax, 0.08);
   RobotState st;
-  engine.fill_state(0, st);
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED);
   EXPECT_NEAR(st.tcp_speed(), 0.0, 1e-3);  // the last tick ends the ramp-down
-  engine.step();
-  engine.fill_state(0, st);
+  engine_.step();
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.tcp_speed(), 0.0);  // then it stands still
 }
 
 TEST_F(Engine, BadCommandsChangeNothing) {
-  ASSERT_EQ(engine.apply("r1", move(0.20, 0.25, 0.25, 3)), "");
-  for (int k = 0; k < 20; ++k) engine.step();
-  const Eigen::VectorXd q_before = engine.state(0).q;
+  ASSERT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 3)), "");
+  for (int k = 0; k < 20; ++k) engine_.step();
+  const Eigen::VectorXd q_before = engine_.state(0).q;
 
   auto nan_target = move(std::nan(""), 0.25, 0.25, 4);
-  EXPECT_NE(engine.apply("r1", nan_target).find("NaN"), std::string::npos);
+  EXPECT_NE(engine_.apply("r1", nan_target).find("NaN"), std::string::npos);
   auto inf_yaw = move(0.2, 0.25, 0.25, 5, std::numeric_limits<double>::infinity());
-  EXPECT_NE(engine.apply("r1", inf_yaw), "");
+  EXPECT_NE(engine_.apply("r1", inf_yaw), "");
   auto neg = move(0.2, 0.25, 0.25, 6);
   neg.set_approach_height(-0.1);
-  EXPECT_NE(engine.apply("r1", neg), "");
+  EXPECT_NE(engine_.apply("r1", neg), "");
   auto slow = move(0.2, 0.25, 0.25, 7);
   slow.set_max_speed(-1);
-  EXPECT_NE(engine.apply("r1", slow).find("max_speed"), std::string::npos);
+  EXPECT_NE(engine_.apply("r1", slow).find("max_speed"), std::string::npos);
   RobotCommand nan_hold;  // every kind's numbers are checked
   nan_hold.set_kind(RobotCommand::KIND_HOLD);
   nan_hold.mutable_target()->set_y(std::nan(""));
-  EXPECT_NE(engine.apply("r1", nan_hold).find("NaN"), std::string::npos);
+  EXPECT_NE(engine_.apply("r1", nan_hold).find("NaN"), std::string::npos);
   auto unspecified = move(0.2, 0.25, 0.25, 8);
   unspecified.set_kind(RobotCommand::KIND_UNSPECIFIED);
-  EXPECT_NE(engine.apply("r1", unspecified).find("neither MOVE nor HOLD"), std::string::npos);
-  const std::string unknown = engine.apply("r9", move(0.2, 0.25, 0.25, 9));
+  EXPECT_NE(engine_.apply("r1", unspecified).find("neither MOVE nor HOLD"), std::string::npos);
+  const std::string unknown = engine_.apply("r9", move(0.2, 0.25, 0.25, 9));
   EXPECT_NE(unknown.find("unknown robot 'r9'"), std::string::npos) << unknown;
 
   // r1 still follows command 3 from where it was
-  EXPECT_EQ(engine.command_id(0), 3u);
-  EXPECT_TRUE(engine.state(0).q.isApprox(q_before));
-  EXPECT_EQ(engine.state(0).status, hrc::kin::MotionStatus::Moving);
+  EXPECT_EQ(engine_.command_id(0), 3u);
+  EXPECT_TRUE(engine_.state(0).q.isApprox(q_before));
+  EXPECT_EQ(engine_.state(0).status, hrc::kin::MotionStatus::Moving);
   run_r1(2000);
   RobotState st;
-  engine.fill_state(0, st);
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED);
   EXPECT_EQ(st.command_id(), 3u);
 }
 
 TEST_F(Engine, HoldStopsSmoothlyAndReportsHolding) {
-  ASSERT_EQ(engine.apply("r1", move(0.20, 0.25, 0.25, 1)), "");
-  for (int k = 0; k < 40; ++k) engine.step();
-  ASSERT_GT(engine.state(0).tcp_speed, 0.05);
+  ASSERT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 1)), "");
+  for (int k = 0; k < 40; ++k) engine_.step();
+  ASSERT_GT(engine_.state(0).tcp_speed, 0.05);
   RobotCommand hold;
   hold.set_robot("r1");
   hold.set_command_id(2);
   hold.set_kind(RobotCommand::KIND_HOLD);
-  ASSERT_EQ(engine.apply("r1", hold), "");
-  double prev = engine.state(0).tcp_speed;
+  ASSERT_EQ(engine_.apply("r1", hold), "");
+  double prev = engine_.state(0).tcp_speed;
   for (int k = 0; k < 240; ++k) {
-    engine.step();
+    engine_.step();
     // smooth: the measured speed changes by at most the 2 m/s^2 acceleration limit per tick
-    EXPECT_NEAR(engine.state(0).tcp_speed, prev, 2.0 * kDt * 1.05 + 1e-4) << "tick " << k;
-    prev = engine.state(0).tcp_speed;
+    EXPECT_NEAR(engine_.state(0).tcp_speed, prev, 2.0 * kDt * 1.05 + 1e-4) << "tick " << k;
+    prev = engine_.state(0).tcp_speed;
   }
   RobotState st;
-  engine.fill_state(0, st);
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_HOLDING);
   EXPECT_EQ(st.command_id(), 2u);
   EXPECT_NEAR(st.tcp_speed(), 0.0, 1e-9);
 }
 
 TEST_F(Engine, UnreachableTargetIsReportedAndNothingBecomesNaN) {
-  ASSERT_EQ(engine.apply("r1", move(2.0, 2.0, 0.3, 11)), "");  // applied: the arm reports it
+  ASSERT_EQ(engine_.apply("r1", move(2.0, 2.0, 0.3, 11)), "");  // applied: the arm reports it
   RobotState st;
   for (int k = 0; k < 50; ++k) {
-    engine.step();
-    engine.fill_state(0, st);
+    engine_.step();
+    engine_.fill_state(0, st);
     for (const double q : st.joint_positions()) ASSERT_TRUE(std::isfinite(q));
     ASSERT_TRUE(tcp_of(st).allFinite());
     ASSERT_TRUE(std::isfinite(st.tcp_speed()));
@@ -266,20 +266,20 @@ TEST_F(Engine, UnreachableTargetIsReportedAndNothingBecomesNaN) {
   EXPECT_NE(st.detail().find("unreachable"), std::string::npos) << st.detail();
   EXPECT_LT((tcp_of(st) - Eigen::Vector3d(0.35, 0.30, 0.35)).norm(), 1e-3);  // stayed home
   // a reachable command afterwards clears the detail
-  ASSERT_EQ(engine.apply("r1", move(0.30, 0.30, 0.30, 12)), "");
+  ASSERT_EQ(engine_.apply("r1", move(0.30, 0.30, 0.30, 12)), "");
   run_r1(2000);
-  engine.fill_state(0, st);
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED);
   EXPECT_EQ(st.detail(), "");
 }
 
 TEST_F(Engine, FillStateReusesTheMessage) {
   RobotState st;
-  engine.fill_state(1, st);
-  engine.fill_state(1, st);
+  engine_.fill_state(1, st);
+  engine_.fill_state(1, st);
   EXPECT_EQ(st.robot(), "r2");
-  EXPECT_EQ(st.joint_names_size(), engine.model(1).dof());
-  EXPECT_EQ(st.joint_positions_size(), engine.model(1).dof());
+  EXPECT_EQ(st.joint_names_size(), engine_.model(1).dof());
+  EXPECT_EQ(st.joint_positions_size(), engine_.model(1).dof());
 }
 
 TEST_F(Engine, ReachAnswersEveryItem) {
@@ -297,7 +297,7 @@ TEST_F(Engine, ReachAnswersEveryItem) {
   add("nobody", "r7", 0.0, 0.0, 0.1);
   add("nan", "r2", 0.0, std::nan(""), 0.1);
   add("good2", "r2", -0.60, 0.35, 0.05);  // r2's feeder
-  const auto rep = engine.reach(req);
+  const auto rep = engine_.reach(req);
   ASSERT_EQ(rep.results_size(), 5);
   EXPECT_EQ(rep.results(0).id(), "good");
   EXPECT_TRUE(rep.results(0).reachable()) << rep.results(0).detail();

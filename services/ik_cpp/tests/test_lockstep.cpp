@@ -80,35 +80,36 @@ class Lockstep : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto cfg = hrc::test::peer_pair();
-    physics = std::make_unique<FakePhysics>(cfg.a, "ls");
-    bus = std::make_unique<hrc::Bus>(cfg.b, "ls", "ik_cpp");
+    physics_ = std::make_unique<FakePhysics>(cfg.a, "ls");
+    bus_ = std::make_unique<hrc::Bus>(cfg.b, "ls", "ik_cpp");
   }
   void TearDown() override {
-    bus.reset();
-    physics.reset();
+    bus_.reset();
+    physics_.reset();
   }
-  std::unique_ptr<FakePhysics> physics;
-  std::unique_ptr<hrc::Bus> bus;
+  std::unique_ptr<FakePhysics> physics_;
+  std::unique_ptr<hrc::Bus> bus_;
 };
 
 TEST_F(Lockstep, TicksAreSteppedAndAckedThenRunEndOkReturnsZero) {
-  hrc::LockstepParticipant p(*bus);
+  hrc::LockstepParticipant p(*bus_);
   std::vector<uint64_t> stepped;
   p.on_tick([&](const hrc::v2::ClockTick& t) {
     stepped.push_back(t.header().tick());
     hrc::v2::RobotState s;
     s.set_robot("r1");
-    bus->publisher(bus->keys().robot_state("r1")).put(s, t.header().tick(), t.header().sim_time());
+    bus_->publisher(bus_->keys().robot_state("r1"))
+        .put(s, t.header().tick(), t.header().sim_time());
   });
   p.start();
-  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  ASSERT_TRUE(wait_until([&] { return physics_->sees_alive("ik_cpp"); }));
   auto result = std::async(std::launch::async, [&] { return p.run(); });
   constexpr uint64_t kTicks = 50;
   for (uint64_t k = 1; k <= kTicks; ++k) {
-    physics->tick(k);
-    ASSERT_TRUE(wait_until([&] { return physics->ack_count() == k; })) << "no ack for tick " << k;
+    physics_->tick(k);
+    ASSERT_TRUE(wait_until([&] { return physics_->ack_count() == k; })) << "no ack for tick " << k;
   }
-  physics->end(true, "ticks");
+  physics_->end(true, "ticks");
   const hrc::Outcome o = result.get();
   EXPECT_TRUE(o.ok);
   EXPECT_EQ(o.exit_code(), 0);
@@ -116,9 +117,9 @@ TEST_F(Lockstep, TicksAreSteppedAndAckedThenRunEndOkReturnsZero) {
   ASSERT_TRUE(o.run_end.has_value());
   ASSERT_EQ(stepped.size(), kTicks);
   for (uint64_t k = 1; k <= kTicks; ++k) EXPECT_EQ(stepped[k - 1], k);
-  const std::lock_guard<std::mutex> lock(physics->mutex);
+  const std::lock_guard<std::mutex> lock(physics_->mutex);
   for (uint64_t k = 1; k <= kTicks; ++k) {
-    const auto& a = physics->acks[k - 1];
+    const auto& a = physics_->acks[k - 1];
     EXPECT_EQ(a.header().tick(), k);
     EXPECT_EQ(a.header().sender(), "ik_cpp");
     EXPECT_EQ(a.header().seq(), k);
@@ -128,27 +129,27 @@ TEST_F(Lockstep, TicksAreSteppedAndAckedThenRunEndOkReturnsZero) {
     EXPECT_EQ(a.published(0).key(), "hrc/ls/robot/r1/state");
     EXPECT_EQ(a.published(0).seq(), k);
   }
-  EXPECT_EQ(bus->stats().ticks_seen(), kTicks);
-  EXPECT_EQ(bus->stats().last_tick(), kTicks);
+  EXPECT_EQ(bus_->stats().ticks_seen(), kTicks);
+  EXPECT_EQ(bus_->stats().last_tick(), kTicks);
 }
 
 TEST_F(Lockstep, RunEndNotOkReturnsOne) {
-  hrc::LockstepParticipant p(*bus);
+  hrc::LockstepParticipant p(*bus_);
   p.start();
-  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  ASSERT_TRUE(wait_until([&] { return physics_->sees_alive("ik_cpp"); }));
   auto result = std::async(std::launch::async, [&] { return p.run(); });
-  physics->end(false, "participant orchestrator missed the barrier");
+  physics_->end(false, "participant orchestrator missed the barrier");
   const hrc::Outcome o = result.get();
   EXPECT_FALSE(o.ok);
   EXPECT_EQ(o.exit_code(), 1);
 }
 
 TEST_F(Lockstep, LosingTheClockMasterEndsTheRunWithAnError) {
-  hrc::LockstepParticipant p(*bus);
+  hrc::LockstepParticipant p(*bus_);
   p.start();
-  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  ASSERT_TRUE(wait_until([&] { return physics_->sees_alive("ik_cpp"); }));
   auto result = std::async(std::launch::async, [&] { return p.run(); });
-  physics.reset();  // its session closes, its token disappears
+  physics_.reset();  // its session closes, its token disappears
   ASSERT_EQ(result.wait_for(std::chrono::seconds(10)), std::future_status::ready);
   const hrc::Outcome o = result.get();
   EXPECT_FALSE(o.ok);
@@ -156,10 +157,10 @@ TEST_F(Lockstep, LosingTheClockMasterEndsTheRunWithAnError) {
 }
 
 TEST_F(Lockstep, StepWaitsForInputsTheClockSaysWerePublished) {
-  hrc::LockstepParticipant p(*bus);
+  hrc::LockstepParticipant p(*bus_);
   std::vector<std::string> log;
   std::mutex m;
-  p.input<hrc::v2::RobotCommand>(bus->keys().robot_commands(),
+  p.input<hrc::v2::RobotCommand>(bus_->keys().robot_commands(),
                                  [&](const std::string&, const hrc::v2::RobotCommand& c) {
                                    const std::lock_guard<std::mutex> lock(m);
                                    log.push_back("command " + std::to_string(c.command_id()));
@@ -169,15 +170,15 @@ TEST_F(Lockstep, StepWaitsForInputsTheClockSaysWerePublished) {
     log.push_back("step " + std::to_string(t.header().tick()));
   });
   p.start();
-  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  ASSERT_TRUE(wait_until([&] { return physics_->sees_alive("ik_cpp"); }));
   auto result = std::async(std::launch::async, [&] { return p.run(); });
   // The clock says the orchestrator published command #1, but it is slower than the clock.
-  const std::string key = bus->keys().robot_command("r1");
+  const std::string key = bus_->keys().robot_command("r1");
   hrc::v2::PublishedMark mk;
   mk.set_key(key);
   mk.set_sender("orchestrator");
   mk.set_seq(1);
-  physics->tick(1, {mk});
+  physics_->tick(1, {mk});
   std::this_thread::sleep_for(std::chrono::milliseconds(50));
   {
     const std::lock_guard<std::mutex> lock(m);
@@ -189,16 +190,16 @@ TEST_F(Lockstep, StepWaitsForInputsTheClockSaysWerePublished) {
   c.mutable_header()->set_sender("orchestrator");
   c.mutable_header()->set_seq(1);
   c.mutable_header()->set_tick(0);
-  physics->bus.publisher(key).put_raw(c.SerializeAsString());
-  ASSERT_TRUE(wait_until([&] { return physics->ack_count() == 1; }));
-  physics->end(true, "ticks");
+  physics_->bus.publisher(key).put_raw(c.SerializeAsString());
+  ASSERT_TRUE(wait_until([&] { return physics_->ack_count() == 1; }));
+  physics_->end(true, "ticks");
   EXPECT_TRUE(result.get().ok);
   const std::lock_guard<std::mutex> lock(m);
   EXPECT_EQ(log, (std::vector<std::string>{"command 77", "step 1"}));
 }
 
 TEST_F(Lockstep, AStepThatThrowsAbortsTheRunAtOnceNamingTheParticipant) {
-  hrc::LockstepParticipant p(*bus);
+  hrc::LockstepParticipant p(*bus_);
   std::chrono::steady_clock::time_point thrown_at;
   p.on_tick([&](const hrc::v2::ClockTick& t) {
     if (t.header().tick() == 3) {
@@ -207,9 +208,9 @@ TEST_F(Lockstep, AStepThatThrowsAbortsTheRunAtOnceNamingTheParticipant) {
     }
   });
   p.start();
-  ASSERT_TRUE(wait_until([&] { return physics->sees_alive("ik_cpp"); }));
+  ASSERT_TRUE(wait_until([&] { return physics_->sees_alive("ik_cpp"); }));
   auto result = std::async(std::launch::async, [&] { return p.run(); });
-  for (uint64_t k = 1; k <= 3; ++k) physics->tick(k);
+  for (uint64_t k = 1; k <= 3; ++k) physics_->tick(k);
   ASSERT_EQ(result.wait_for(std::chrono::seconds(2)), std::future_status::ready);
   const hrc::Outcome o = result.get();
   const double took_ms =
@@ -222,16 +223,16 @@ TEST_F(Lockstep, AStepThatThrowsAbortsTheRunAtOnceNamingTheParticipant) {
   EXPECT_EQ(o.reason, "tick 3 failed: bad value in tick 3");
   ASSERT_TRUE(o.run_end.has_value()) << "run() returned before the clock master ended the run";
   EXPECT_EQ(o.run_end->failed_participant(), "ik_cpp");
-  const std::lock_guard<std::mutex> lock(physics->mutex);
-  ASSERT_EQ(physics->aborts.size(), 1U);
-  EXPECT_EQ(physics->aborts[0].header().sender(), "ik_cpp");
-  EXPECT_EQ(physics->aborts[0].header().tick(), 3U);
-  EXPECT_EQ(physics->aborts[0].reason(), "tick 3 failed: bad value in tick 3");
-  EXPECT_EQ(physics->acks.size(), 2U) << "the failed tick must not be acked";
+  const std::lock_guard<std::mutex> lock(physics_->mutex);
+  ASSERT_EQ(physics_->aborts.size(), 1U);
+  EXPECT_EQ(physics_->aborts[0].header().sender(), "ik_cpp");
+  EXPECT_EQ(physics_->aborts[0].header().tick(), 3U);
+  EXPECT_EQ(physics_->aborts[0].reason(), "tick 3 failed: bad value in tick 3");
+  EXPECT_EQ(physics_->acks.size(), 2U) << "the failed tick must not be acked";
 }
 
 TEST_F(Lockstep, NoTickWithinTheTimeoutIsAnError) {
-  hrc::LockstepParticipant p(*bus);
+  hrc::LockstepParticipant p(*bus_);
   p.start();
   const hrc::Outcome o = p.run(0.1);
   EXPECT_FALSE(o.ok);
@@ -239,7 +240,7 @@ TEST_F(Lockstep, NoTickWithinTheTimeoutIsAnError) {
 }
 
 TEST_F(Lockstep, StopEndsTheRun) {
-  hrc::LockstepParticipant p(*bus);
+  hrc::LockstepParticipant p(*bus_);
   p.start();
   auto result = std::async(std::launch::async, [&] { return p.run(); });
   p.stop("stopped by signal SIGTERM");

@@ -26,15 +26,15 @@ class TwoPeers : public ::testing::Test {
  protected:
   void SetUp() override {
     const auto cfg = hrc::test::peer_pair();
-    a = std::make_unique<hrc::Bus>(cfg.a, "t1", "alpha");
-    b = std::make_unique<hrc::Bus>(cfg.b, "t1", "beta");
+    a_ = std::make_unique<hrc::Bus>(cfg.a, "t1", "alpha");
+    b_ = std::make_unique<hrc::Bus>(cfg.b, "t1", "beta");
   }
   void TearDown() override {
-    b.reset();
-    a.reset();
+    b_.reset();
+    a_.reset();
   }
-  std::unique_ptr<hrc::Bus> a;
-  std::unique_ptr<hrc::Bus> b;
+  std::unique_ptr<hrc::Bus> a_;
+  std::unique_ptr<hrc::Bus> b_;
 };
 
 TEST(HeaderSeq, PerKeyStartingAtOneWithSessionTickTimeSender) {
@@ -82,17 +82,17 @@ TEST(HeaderSeq, PerKeyStartingAtOneWithSessionTickTimeSender) {
 TEST_F(TwoPeers, TypedRoundTripCarriesSenderAttachmentAndHeader) {
   Received got;
   std::atomic<int> attachments_ok{0};
-  b->subscribe<hrc::v2::HumanState>(b->keys().human_state(),
-                                    [&](const std::string& k, const hrc::v2::HumanState& m) {
-                                      const std::lock_guard<std::mutex> lock(got.mutex);
-                                      got.msgs.emplace_back(k, m);
-                                    });
+  b_->subscribe<hrc::v2::HumanState>(b_->keys().human_state(),
+                                     [&](const std::string& k, const hrc::v2::HumanState& m) {
+                                       const std::lock_guard<std::mutex> lock(got.mutex);
+                                       got.msgs.emplace_back(k, m);
+                                     });
   // A raw subscriber on the same key sees the attachment (the sender name).
   hrc::Subscriber raw =
-      b->session().declare_subscriber(a->keys().human_state(), [&](const hrc::SampleView& s) {
+      b_->session().declare_subscriber(a_->keys().human_state(), [&](const hrc::SampleView& s) {
         if (s.attachment == "alpha") ++attachments_ok;
       });
-  auto& pub = a->publisher(a->keys().human_state());
+  auto& pub = a_->publisher(a_->keys().human_state());
   ASSERT_TRUE(wait_until([&] { return pub.has_subscribers(); }));
   for (int i = 1; i <= 3; ++i) {
     hrc::v2::HumanState h;
@@ -113,17 +113,17 @@ TEST_F(TwoPeers, TypedRoundTripCarriesSenderAttachmentAndHeader) {
     EXPECT_DOUBLE_EQ(m.head().position().x(), 0.5 * i);
     EXPECT_EQ(m.source(), hrc::v2::INPUT_SOURCE_SCRIPTED);
   }
-  EXPECT_EQ(b->stats().total_decode_errors(), 0u);
+  EXPECT_EQ(b_->stats().total_decode_errors(), 0u);
 }
 
 TEST_F(TwoPeers, GarbageIsCountedPerKeyAndNeverDelivered) {
   Received got;
-  const std::string key = b->keys().human_state();
-  b->subscribe<hrc::v2::HumanState>(key, [&](const std::string& k, const hrc::v2::HumanState& m) {
+  const std::string key = b_->keys().human_state();
+  b_->subscribe<hrc::v2::HumanState>(key, [&](const std::string& k, const hrc::v2::HumanState& m) {
     const std::lock_guard<std::mutex> lock(got.mutex);
     got.msgs.emplace_back(k, m);
   });
-  auto& pub = a->publisher(key);
+  auto& pub = a_->publisher(key);
   ASSERT_TRUE(wait_until([&] { return pub.has_subscribers(); }));
   // 0xff... is an invalid tag/varint: no protobuf parser accepts it.
   pub.put_raw(std::string(8, '\xff'));
@@ -137,20 +137,20 @@ TEST_F(TwoPeers, GarbageIsCountedPerKeyAndNeverDelivered) {
   good.set_source(hrc::v2::INPUT_SOURCE_VR);
   pub.put(good, 1, 0.01);
   ASSERT_TRUE(wait_until([&] { return got.size() == 1; }));
-  EXPECT_EQ(b->stats().decode_errors(key), 3u);
-  EXPECT_EQ(b->stats().total_decode_errors(), 3u);
+  EXPECT_EQ(b_->stats().decode_errors(key), 3u);
+  EXPECT_EQ(b_->stats().total_decode_errors(), 3u);
   const std::lock_guard<std::mutex> lock(got.mutex);
   EXPECT_EQ(got.msgs[0].second.source(), hrc::v2::INPUT_SOURCE_VR);
 }
 
 TEST_F(TwoPeers, HandlerExceptionsStayInsideTheService) {
   std::atomic<int> calls{0};
-  const std::string key = b->keys().task_events();
-  b->subscribe<hrc::v2::TaskEvent>(key, [&](const std::string&, const hrc::v2::TaskEvent&) {
+  const std::string key = b_->keys().task_events();
+  b_->subscribe<hrc::v2::TaskEvent>(key, [&](const std::string&, const hrc::v2::TaskEvent&) {
     ++calls;
     throw std::runtime_error("handler bug");
   });
-  auto& pub = a->publisher(key);
+  auto& pub = a_->publisher(key);
   ASSERT_TRUE(wait_until([&] { return pub.has_subscribers(); }));
   hrc::v2::TaskEvent e;
   pub.put(e, 1, 0.0);
@@ -161,11 +161,11 @@ TEST_F(TwoPeers, HandlerExceptionsStayInsideTheService) {
 TEST_F(TwoPeers, LivelinessTokensAppearAndDisappear) {
   std::mutex m;
   std::vector<std::pair<std::string, bool>> events;
-  b->watch_liveliness([&](const std::string& service, bool alive) {
+  b_->watch_liveliness([&](const std::string& service, bool alive) {
     const std::lock_guard<std::mutex> lock(m);
     events.emplace_back(service, alive);
   });
-  a->declare_token();
+  a_->declare_token();
   const auto seen = [&](const std::string& s, bool alive) {
     const std::lock_guard<std::mutex> lock(m);
     for (const auto& e : events) {
@@ -174,19 +174,19 @@ TEST_F(TwoPeers, LivelinessTokensAppearAndDisappear) {
     return false;
   };
   ASSERT_TRUE(wait_until([&] { return seen("alpha", true); }));
-  a.reset();  // session closes: the token goes away
+  a_.reset();  // session closes: the token goes away
   ASSERT_TRUE(wait_until([&] { return seen("alpha", false); }));
 }
 
 TEST_F(TwoPeers, StatsQueryableAndTypedQueryable) {
-  b->subscribe<hrc::v2::HumanState>(b->keys().human_state(),
-                                    [](const std::string&, const hrc::v2::HumanState&) {});
-  b->stats().count_error("hrc/t1/human/state");
-  b->stats().tick(41);
-  b->stats().tick(42);
-  b->serve_stats();
-  b->queryable<hrc::v2::ReachRequest, hrc::v2::ReachReply>(
-      b->keys().robot_reach(), [](const hrc::v2::ReachRequest& req) {
+  b_->subscribe<hrc::v2::HumanState>(b_->keys().human_state(),
+                                     [](const std::string&, const hrc::v2::HumanState&) {});
+  b_->stats().count_error("hrc/t1/human/state");
+  b_->stats().tick(41);
+  b_->stats().tick(42);
+  b_->serve_stats();
+  b_->queryable<hrc::v2::ReachRequest, hrc::v2::ReachReply>(
+      b_->keys().robot_reach(), [](const hrc::v2::ReachRequest& req) {
         hrc::v2::ReachReply rep;
         for (const auto& item : req.items()) {
           auto* r = rep.add_results();
@@ -197,8 +197,8 @@ TEST_F(TwoPeers, StatsQueryableAndTypedQueryable) {
       });
   std::vector<hrc::v2::ServiceStats> stats;
   ASSERT_TRUE(wait_until([&] {
-    stats = a->get<hrc::v2::ServiceStats>(a->keys().stats("beta"), nullptr,
-                                          std::chrono::milliseconds(500));
+    stats = a_->get<hrc::v2::ServiceStats>(a_->keys().stats("beta"), nullptr,
+                                           std::chrono::milliseconds(500));
     return !stats.empty();
   }));
   EXPECT_EQ(stats[0].service(), "beta");
@@ -212,25 +212,25 @@ TEST_F(TwoPeers, StatsQueryableAndTypedQueryable) {
   auto* item = req.add_items();
   item->set_id("p1");
   item->mutable_target()->set_z(0.3);
-  const auto replies = a->get<hrc::v2::ReachReply>(a->keys().robot_reach(), &req);
+  const auto replies = a_->get<hrc::v2::ReachReply>(a_->keys().robot_reach(), &req);
   ASSERT_EQ(replies.size(), 1u);
   ASSERT_EQ(replies[0].results_size(), 1);
   EXPECT_EQ(replies[0].results(0).id(), "p1");
   EXPECT_TRUE(replies[0].results(0).reachable());
 
   // A request that does not decode gets an error reply and is counted on the queryable's key.
-  const auto raw = a->session().get(a->keys().robot_reach(), std::string(8, '\xff'));
+  const auto raw = a_->session().get(a_->keys().robot_reach(), std::string(8, '\xff'));
   ASSERT_EQ(raw.size(), 1u);
   EXPECT_TRUE(raw[0].is_error);
-  EXPECT_EQ(b->stats().decode_errors(b->keys().robot_reach()), 1u);
+  EXPECT_EQ(b_->stats().decode_errors(b_->keys().robot_reach()), 1u);
 }
 
 TEST_F(TwoPeers, NoCallbackAfterUndeclare) {
   std::atomic<int> calls{0};
-  const std::string key = b->keys().bench("undeclare");
+  const std::string key = b_->keys().bench("undeclare");
   auto sub = std::make_unique<hrc::Subscriber>(
-      b->session().declare_subscriber(key, [&](const hrc::SampleView&) { ++calls; }));
-  auto& pub = a->publisher(key);
+      b_->session().declare_subscriber(key, [&](const hrc::SampleView&) { ++calls; }));
+  auto& pub = a_->publisher(key);
   ASSERT_TRUE(wait_until([&] { return pub.has_subscribers(); }));
   pub.put_raw("x");
   ASSERT_TRUE(wait_until([&] { return calls == 1; }));

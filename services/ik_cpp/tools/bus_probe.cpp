@@ -24,7 +24,7 @@ namespace {
 
 using hrc::cli::UsageError;
 
-const char* kUsage =
+constexpr const char* kUsage =
     "usage:\n"
     "  hrc-bus-probe echo --in KEY --out KEY [--type TYPE] [--count N] [--timeout-s S] [--name "
     "NAME] [bus options]\n"

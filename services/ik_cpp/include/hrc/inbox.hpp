@@ -28,7 +28,7 @@ class Inbox {
   /// deliver(), on the thread that calls it.
   template <class M>
   void add(const std::string& key_expr, Bus::Handler<M> handler, Bus::Validator<M> validate = {}) {
-    static_assert(has_header<M>::value, "Inbox inputs need a Header (tick, sender, seq)");
+    static_assert(HasHeader<M>::value, "Inbox inputs need a Header (tick, sender, seq)");
     std::size_t index = 0;
     {
       const std::lock_guard<std::mutex> lock(mutex_);

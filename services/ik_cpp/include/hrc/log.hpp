@@ -6,7 +6,7 @@
 
 namespace hrc::log {
 
-enum class Level { debug = 0, info = 1, warning = 2, error = 3 };
+enum class Level { Debug = 0, Info = 1, Warning = 2, Error = 3 };
 
 /// Name shown in every line (default "hrc").
 void set_name(std::string_view name);
@@ -15,9 +15,9 @@ void set_level(Level level);
 bool enabled(Level level);
 void write(Level level, std::string_view message);
 
-inline void debug(std::string_view m) { write(Level::debug, m); }
-inline void info(std::string_view m) { write(Level::info, m); }
-inline void warning(std::string_view m) { write(Level::warning, m); }
-inline void error(std::string_view m) { write(Level::error, m); }
+inline void debug(std::string_view m) { write(Level::Debug, m); }
+inline void info(std::string_view m) { write(Level::Info, m); }
+inline void warning(std::string_view m) { write(Level::Warning, m); }
+inline void error(std::string_view m) { write(Level::Error, m); }
 
 }  // namespace hrc::log

@@ -25,10 +25,9 @@ namespace hrc {
 
 /// True for message types with a `Header header = 1` field.
 template <class M, class = void>
-struct has_header : std::false_type {};
+struct HasHeader : std::false_type {};
 template <class M>
-struct has_header<M, std::void_t<decltype(std::declval<M&>().mutable_header())>> : std::true_type {
-};
+struct HasHeader<M, std::void_t<decltype(std::declval<M&>().mutable_header())>> : std::true_type {};
 
 /// Thread-safe counters of what a service received (source of ServiceStats).
 class InputStats {
@@ -64,7 +63,7 @@ class TypedPublisher {
   uint64_t put(M& msg, uint64_t tick = 0, double sim_time = 0.0) {
     const std::lock_guard<std::mutex> lock(mutex_);
     uint64_t seq = 0;
-    if constexpr (has_header<M>::value) {
+    if constexpr (HasHeader<M>::value) {
       seq = ++seq_;
       stamp(*msg.mutable_header(), tick, sim_time, seq);
     }
@@ -200,7 +199,7 @@ class Bus {
   template <class M>
   std::string check_payload(M& msg, std::string_view payload) const {
     if (!parse(msg, payload)) return "does not decode as " + M::descriptor()->name();
-    if constexpr (has_header<M>::value) {
+    if constexpr (HasHeader<M>::value) {
       if (msg.header().session() != keys_.session()) {
         return "header session '" + msg.header().session() + "' is not '" + keys_.session() + "'";
       }

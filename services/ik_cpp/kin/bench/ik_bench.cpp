@@ -73,7 +73,7 @@ double median(std::vector<double> v) {
   std::exit(err.empty() ? 0 : 2);
 }
 
-long parseInt(const std::string& flag, const char* v, long lo) {
+long parse_int(const std::string& flag, const char* v, long lo) {
   char* end = nullptr;
   const long x = std::strtol(v, &end, 10);
   if (!end || *end || x < lo)
@@ -91,16 +91,16 @@ Options parse(int argc, char** argv) {
       return argv[++i];
     };
     if (a == "--n")
-      o.n = static_cast<int>(parseInt(a, value(), 1));
+      o.n = static_cast<int>(parse_int(a, value(), 1));
     else if (a == "--gd-n") {
-      o.gd_n = static_cast<int>(parseInt(a, value(), 0));
+      o.gd_n = static_cast<int>(parse_int(a, value(), 0));
       gd_given = true;
     } else if (a == "--seed")
-      o.seed = static_cast<std::uint64_t>(parseInt(a, value(), 0));
+      o.seed = static_cast<std::uint64_t>(parse_int(a, value(), 0));
     else if (a == "--robots-dir")
       o.robots_dir = value();
     else if (a == "--tick-seconds")
-      o.tick_seconds = static_cast<int>(parseInt(a, value(), 1));
+      o.tick_seconds = static_cast<int>(parse_int(a, value(), 1));
     else if (a == "--json")
       o.json = true;
     else if (a == "-h" || a == "--help")
@@ -113,7 +113,7 @@ Options parse(int argc, char** argv) {
   return o;
 }
 
-std::string findRobotsDir(const std::string& given) {
+std::string find_robots_dir(const std::string& given) {
   const auto ok = [](const fs::path& d) { return fs::exists(d / "arm5.urdf"); };
   if (!given.empty()) {
     if (!ok(given)) usage("--robots-dir '" + given + "' has no arm5.urdf");
@@ -158,7 +158,8 @@ struct Chain {
   bool axis_only;  // arm5: position + tool axis
 };
 
-std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only, const Options& o) {
+std::map<std::string, Stats> bench_chain(const RobotModel& model, bool axis_only,
+                                         const Options& o) {
   const int dof = model.dof();
   hrc::kin::KdlKinematics kin(model);
   std::mt19937_64 rng(o.seed);
@@ -168,10 +169,10 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
   for (int k = 0; k < o.n; ++k) {
     for (int i = 0; i < dof; ++i)
       q[i] =
-          std::uniform_real_distribution<double>(model.sampleLower(i), model.sampleUpper(i))(rng);
+          std::uniform_real_distribution<double>(model.sample_lower(i), model.sample_upper(i))(rng);
     targets.push_back(kin.fk(q));
   }
-  const Eigen::VectorXd seed = model.midRange();
+  const Eigen::VectorXd seed = model.mid_range();
   std::vector<double> pos_res, ang_res;
   const auto success = [&](const Eigen::VectorXd& sol, const Eigen::Isometry3d& T) {
     if (!sol.allFinite()) {
@@ -181,11 +182,11 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
     }
     const Eigen::Isometry3d F = kin.fk(sol);
     const double pos = (F.translation() - T.translation()).norm();
-    const double ang = axis_only ? hrc::kin::axisAngle(F.linear().col(2), T.linear().col(2))
-                                 : hrc::kin::rotationAngle(F.linear(), T.linear());
+    const double ang = axis_only ? hrc::kin::axis_angle(F.linear().col(2), T.linear().col(2))
+                                 : hrc::kin::rotation_angle(F.linear(), T.linear());
     pos_res.push_back(pos * 1e3);
     ang_res.push_back(ang * 180.0 / M_PI);
-    return model.withinLimits(sol, 1e-9) && pos <= kPosTol && ang <= kAngTol;
+    return model.within_limits(sol, 1e-9) && pos <= kPosTol && ang <= kAngTol;
   };
   const auto finish = [&](const char* name, std::vector<double>& times, int good) {
     Stats st = summarise(times, good);
@@ -195,8 +196,8 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
     ang_res.clear();
     return std::make_pair(std::string(name), st);
   };
-  const auto toTarget = [&](const Eigen::Isometry3d& T) {
-    return axis_only ? IkTarget::positionAxis(T.translation(), T.linear().col(2))
+  const auto to_target = [&](const Eigen::Isometry3d& T) {
+    return axis_only ? IkTarget::position_axis(T.translation(), T.linear().col(2))
                      : IkTarget::pose(T);
   };
 
@@ -220,20 +221,20 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
     }
     out.insert(finish(name, us, good));
   };
-  const auto asIs = [](const Eigen::Isometry3d& T) { return T; };
+  const auto as_is = [](const Eigen::Isometry3d& T) { return T; };
 
   {
     hrc::kin::IkSolver ik(model);
     hrc::kin::IkResult res;
     res.q.resize(dof);
-    measure("service", targets.size(), toTarget, [&](const IkTarget& t) -> const Eigen::VectorXd& {
+    measure("service", targets.size(), to_target, [&](const IkTarget& t) -> const Eigen::VectorXd& {
       ik.solve(t, seed, res);
       return res.q;
     });
   }
   {
     hrc::kin::KdlNrJlSolver ik(model);
-    measure("kdl_nr_jl", targets.size(), asIs,
+    measure("kdl_nr_jl", targets.size(), as_is,
             [&](const Eigen::Isometry3d& T) -> const Eigen::VectorXd& {
               ik.solve(T, seed, sol);
               return sol;
@@ -241,7 +242,7 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
   }
   {
     hrc::kin::KdlLmaSolver ik(model);
-    measure("kdl_lma", targets.size(), asIs,
+    measure("kdl_lma", targets.size(), as_is,
             [&](const Eigen::Isometry3d& T) -> const Eigen::VectorXd& {
               ik.solve(T, seed, sol);
               return sol;
@@ -249,7 +250,7 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
   }
   {  // the thesis's gradient descent, on the first gd_n targets (it is slow)
     hrc::kin::GradientDescentSolver ik(model);
-    measure("gradient_descent", static_cast<std::size_t>(o.gd_n), toTarget,
+    measure("gradient_descent", static_cast<std::size_t>(o.gd_n), to_target,
             [&](const IkTarget& t) -> const Eigen::VectorXd& {
               ik.solve(t, seed, sol);
               return sol;
@@ -260,7 +261,7 @@ std::map<std::string, Stats> benchChain(const RobotModel& model, bool axis_only,
 
 // Two arm5 robots placed as in the default scenario, stepping at 1 kHz through pick/place-like
 // moves (vertical approach/depart, yaw changes, a retarget mid-move every few moves).
-double tickBench(const RobotModel& arm5, const Options& o) {
+double tick_bench(const RobotModel& arm5, const Options& o) {
   struct Arm {
     std::unique_ptr<hrc::kin::MotionGenerator> gen;
     std::vector<hrc::kin::MoveCommand> moves;
@@ -296,7 +297,7 @@ double tickBench(const RobotModel& arm5, const Options& o) {
                    mv(-0.35, 0.30, 0.35, 0, 0, 0)};
   for (auto& a : arms) {
     const auto& home = a.moves.back();
-    if (!a.gen->resetToPose(home.target, home.yaw)) {
+    if (!a.gen->reset_to_pose(home.target, home.yaw)) {
       std::cerr << "hrc-ik-bench: tick benchmark home pose unreachable\n";
       std::exit(1);
     }
@@ -328,22 +329,22 @@ double tickBench(const RobotModel& arm5, const Options& o) {
 
 int main(int argc, char** argv) {
   const Options o = parse(argc, argv);
-  const std::string dir = findRobotsDir(o.robots_dir);
+  const std::string dir = find_robots_dir(o.robots_dir);
   const std::vector<Chain> chains{{"arm5", true}, {"ur5", false}, {"panda", false}};
   std::map<std::string, std::map<std::string, Stats>> results;
   std::unique_ptr<RobotModel> arm5;
   try {
     for (const auto& c : chains) {
-      const RobotModel model = RobotModel::fromUrdfFile(dir + "/" + c.name + ".urdf");
+      const RobotModel model = RobotModel::from_urdf_file(dir + "/" + c.name + ".urdf");
       if (!o.json) std::cerr << "benchmarking " << c.name << " (" << model.dof() << " DOF)...\n";
-      results[c.name] = benchChain(model, c.axis_only, o);
+      results[c.name] = bench_chain(model, c.axis_only, o);
       if (c.name == "arm5") arm5 = std::make_unique<RobotModel>(model);
     }
   } catch (const std::exception& e) {
     std::cerr << "hrc-ik-bench: " << e.what() << "\n";
     return 1;
   }
-  const double tick_p99 = tickBench(*arm5, o);
+  const double tick_p99 = tick_bench(*arm5, o);
   const char* solvers[] = {"service", "kdl_nr_jl", "kdl_lma", "gradient_descent"};
   if (o.json) {
     std::printf("{\"chains\": {");

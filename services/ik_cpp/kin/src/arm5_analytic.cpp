@@ -10,7 +10,7 @@ constexpr double kGeomTol = 1e-7;
 constexpr double kTwoPi = 2.0 * M_PI;
 }  // namespace
 
-bool Arm5Analytic::fitAngle(double angle, double lo, double hi, double ref, double& out) {
+bool Arm5Analytic::fit_angle(double angle, double lo, double hi, double ref, double& out) {
   if (!std::isfinite(lo) || !std::isfinite(hi)) {
     out = angle + kTwoPi * std::round((ref - angle) / kTwoPi);
     return true;
@@ -38,19 +38,19 @@ std::optional<Arm5Analytic> Arm5Analytic::detect(const RobotModel& model, const 
     if (!model.revolute(i)) return std::nullopt;
   const double q0[5] = {0, 0, 0, 0, 0};
   Eigen::Vector3d o[5], a[5];
-  for (int i = 0; i < 5; ++i) eval.jointFrame(q0, i, o[i], a[i]);
+  for (int i = 0; i < 5; ++i) eval.joint_frame(q0, i, o[i], a[i]);
   Eigen::Matrix3d Rt;
   Eigen::Vector3d pt;
   eval.fk(q0, Rt, pt);
   const Eigen::Vector3d X = Eigen::Vector3d::UnitX(), Y = Eigen::Vector3d::UnitY(),
                         Z = Eigen::Vector3d::UnitZ();
-  const auto onZ = [](const Eigen::Vector3d& v) { return std::hypot(v.x(), v.y()) < kGeomTol; };
+  const auto on_z = [](const Eigen::Vector3d& v) { return std::hypot(v.x(), v.y()) < kGeomTol; };
   if (a[0].cross(Z).norm() > kGeomTol || a[4].cross(Z).norm() > kGeomTol) return std::nullopt;
   for (int i = 1; i < 4; ++i)
     if (a[i].cross(Y).norm() > kGeomTol) return std::nullopt;
   for (int i = 0; i < 5; ++i)
-    if (!onZ(o[i])) return std::nullopt;
-  if (!onZ(pt) || Rt.col(2).dot(Z) < 1.0 - kGeomTol) return std::nullopt;
+    if (!on_z(o[i])) return std::nullopt;
+  if (!on_z(pt) || Rt.col(2).dot(Z) < 1.0 - kGeomTol) return std::nullopt;
   (void)X;
 
   Arm5Analytic s(model, eval);
@@ -67,20 +67,20 @@ std::optional<Arm5Analytic> Arm5Analytic::detect(const RobotModel& model, const 
 
   // Verify on FK samples: the detection above is necessary, this makes it sufficient.
   std::mt19937_64 rng(12345);
-  const Eigen::VectorXd mid = model.midRange();
+  const Eigen::VectorXd mid = model.mid_range();
   int ok = 0;
   constexpr int kSamples = 50;
   for (int k = 0; k < kSamples; ++k) {
     double q[5], sol[5];
     for (int i = 0; i < 5; ++i)
       q[i] =
-          std::uniform_real_distribution<double>(model.sampleLower(i), model.sampleUpper(i))(rng);
+          std::uniform_real_distribution<double>(model.sample_lower(i), model.sample_upper(i))(rng);
     Eigen::Matrix3d R, R2;
     Eigen::Vector3d p, p2;
     eval.fk(q, R, p);
     if (!s.solve(p, R.col(2), &R, mid.data(), sol)) continue;
     eval.fk(sol, R2, p2);
-    if ((p2 - p).norm() < 1e-9 && rotationAngle(R, R2) < 1e-9) ++ok;
+    if ((p2 - p).norm() < 1e-9 && rotation_angle(R, R2) < 1e-9) ++ok;
   }
   if (ok < kSamples * 9 / 10) return std::nullopt;
   return s;
@@ -124,10 +124,10 @@ bool Arm5Analytic::solve(const Eigen::Vector3d& p, const Eigen::Vector3d& axis_i
       const double t2 =
           std::atan2(rw, zw) - std::atan2(l3_ * std::sin(t3), l2_ + l3_ * std::cos(t3));
       const double t4 = theta - t2 - t3;
-      if (!fitAngle(s1_ * phi, lo[0], hi[0], seed[0], cand[0])) continue;
-      if (!fitAngle(s2_ * t2, lo[1], hi[1], seed[1], cand[1])) continue;
-      if (!fitAngle(s3_ * t3, lo[2], hi[2], seed[2], cand[2])) continue;
-      if (!fitAngle(s4_ * t4, lo[3], hi[3], seed[3], cand[3])) continue;
+      if (!fit_angle(s1_ * phi, lo[0], hi[0], seed[0], cand[0])) continue;
+      if (!fit_angle(s2_ * t2, lo[1], hi[1], seed[1], cand[1])) continue;
+      if (!fit_angle(s3_ * t3, lo[2], hi[2], seed[2], cand[2])) continue;
+      if (!fit_angle(s4_ * t4, lo[3], hi[3], seed[3], cand[3])) continue;
       if (R) {
         cand[4] = 0.0;
         Eigen::Matrix3d R0;
@@ -136,7 +136,7 @@ bool Arm5Analytic::solve(const Eigen::Vector3d& p, const Eigen::Vector3d& axis_i
         const Eigen::Matrix3d rel = R0.transpose() * (*R);
         if (rel(2, 2) < 1.0 - 1e-9) continue;  // target axis not reachable in this branch
         const double gamma = std::atan2(rel(1, 0), rel(0, 0));
-        if (!fitAngle(s5_ * gamma, lo[4], hi[4], seed[4], cand[4])) continue;
+        if (!fit_angle(s5_ * gamma, lo[4], hi[4], seed[4], cand[4])) continue;
       } else {
         cand[4] = std::min(std::max(seed[4], lo[4]), hi[4]);
       }

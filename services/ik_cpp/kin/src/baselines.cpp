@@ -7,14 +7,14 @@
 namespace hrc::kin {
 namespace {
 
-KDL::Frame toKdl(const Eigen::Isometry3d& T) {
+KDL::Frame to_kdl(const Eigen::Isometry3d& T) {
   const Eigen::Matrix3d& R = T.linear();
   return KDL::Frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0),
                                   R(2, 1), R(2, 2)),
                     KDL::Vector(T.translation().x(), T.translation().y(), T.translation().z()));
 }
 
-KDL::JntArray limitArray(const Eigen::VectorXd& v) {
+KDL::JntArray limit_array(const Eigen::VectorXd& v) {
   KDL::JntArray a(static_cast<unsigned>(v.size()));
   for (Eigen::Index i = 0; i < v.size(); ++i)
     a(static_cast<unsigned>(i)) = std::isfinite(v[i]) ? v[i] : (v[i] > 0 ? 1e9 : -1e9);
@@ -26,15 +26,15 @@ KDL::JntArray limitArray(const Eigen::VectorXd& v) {
 KdlNrJlSolver::KdlNrJlSolver(const RobotModel& model)
     : fk_(std::make_unique<KDL::ChainFkSolverPos_recursive>(model.chain())),
       vel_(std::make_unique<KDL::ChainIkSolverVel_pinv>(model.chain())),
-      ik_(std::make_unique<KDL::ChainIkSolverPos_NR_JL>(model.chain(), limitArray(model.lower()),
-                                                        limitArray(model.upper()), *fk_, *vel_)),
+      ik_(std::make_unique<KDL::ChainIkSolverPos_NR_JL>(model.chain(), limit_array(model.lower()),
+                                                        limit_array(model.upper()), *fk_, *vel_)),
       q_init_(model.chain().getNrOfJoints()),
       q_out_(model.chain().getNrOfJoints()) {}
 
 int KdlNrJlSolver::solve(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed,
                          Eigen::VectorXd& q_out) {
   q_init_.data = seed;
-  const int rc = ik_->CartToJnt(q_init_, toKdl(target), q_out_);
+  const int rc = ik_->CartToJnt(q_init_, to_kdl(target), q_out_);
   q_out = q_out_.data;
   return rc;
 }
@@ -48,9 +48,9 @@ KdlLmaSolver::KdlLmaSolver(const RobotModel& model)
 int KdlLmaSolver::solve(const Eigen::Isometry3d& target, const Eigen::VectorXd& seed,
                         Eigen::VectorXd& q_out) {
   q_init_.data = seed;
-  const int rc = ik_->CartToJnt(q_init_, toKdl(target), q_out_);
+  const int rc = ik_->CartToJnt(q_init_, to_kdl(target), q_out_);
   q_out = q_out_.data;
-  wrapIntoLimits(model_, q_out);
+  wrap_into_limits(model_, q_out);
   return rc;
 }
 
@@ -73,21 +73,21 @@ double GradientDescentSolver::error(const IkTarget& target, const double* sol_de
   eval_.fk(q, R, p);
   double f = (p - target.position).norm();  // DistanceFromTarget
   if (target.mode == TaskMode::PositionAxis)
-    f += options_.orientation_weight * axisAngle(R.col(2), target.axis);
+    f += options_.orientation_weight * axis_angle(R.col(2), target.axis);
   else if (target.mode == TaskMode::Pose)
-    f += options_.orientation_weight * rotationAngle(R, target.rotation);
+    f += options_.orientation_weight * rotation_angle(R, target.rotation);
   return f;
 }
 
 bool GradientDescentSolver::solve(const IkTarget& target, const Eigen::VectorXd& seed,
                                   Eigen::VectorXd& q_out) {
   const int n = model_.dof();
-  const auto toDeg = [&](int i, double v) { return model_.revolute(i) ? v * 180.0 / M_PI : v; };
+  const auto to_deg = [&](int i, double v) { return model_.revolute(i) ? v * 180.0 / M_PI : v; };
   Eigen::Matrix<double, kMaxDof, 1> lo, hi;
   for (int i = 0; i < n; ++i) {
-    sol_deg_[i] = toDeg(i, seed[i]);
-    lo[i] = toDeg(i, model_.lower()[i]);
-    hi[i] = toDeg(i, model_.upper()[i]);
+    sol_deg_[i] = to_deg(i, seed[i]);
+    lo[i] = to_deg(i, model_.lower()[i]);
+    hi[i] = to_deg(i, model_.upper()[i]);
   }
   double* sol = sol_deg_.data();
   bool done = error(target, sol) <= options_.stop_threshold;

@@ -16,8 +16,8 @@ using MatNN = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxDof, 
 bool finite(const Eigen::Vector3d& v) { return v.allFinite(); }
 
 // Rotation vector (axis * angle) taking the current tool axis z onto the goal axis g.
-Eigen::Vector3d axisError(const Eigen::Vector3d& z, const Eigen::Vector3d& g,
-                          const Eigen::Matrix3d& R) {
+Eigen::Vector3d axis_error(const Eigen::Vector3d& z, const Eigen::Vector3d& g,
+                           const Eigen::Matrix3d& R) {
   const Eigen::Vector3d c = z.cross(g);
   const double s = c.norm();
   const double angle = std::atan2(s, z.dot(g));
@@ -27,7 +27,7 @@ Eigen::Vector3d axisError(const Eigen::Vector3d& z, const Eigen::Vector3d& g,
 }
 
 // Rotation vector of Rg * R^T (world frame).
-Eigen::Vector3d poseError(const Eigen::Matrix3d& R, const Eigen::Matrix3d& Rg) {
+Eigen::Vector3d pose_error(const Eigen::Matrix3d& R, const Eigen::Matrix3d& Rg) {
   const Eigen::Matrix3d d = Rg * R.transpose();
   const Eigen::Vector3d w(d(2, 1) - d(1, 2), d(0, 2) - d(2, 0), d(1, 0) - d(0, 1));
   const double s = 0.5 * w.norm();
@@ -51,7 +51,7 @@ IkTarget IkTarget::pose(const Eigen::Isometry3d& T) {
   return t;
 }
 
-IkTarget IkTarget::positionAxis(const Eigen::Vector3d& p, const Eigen::Vector3d& axis) {
+IkTarget IkTarget::position_axis(const Eigen::Vector3d& p, const Eigen::Vector3d& axis) {
   IkTarget t;
   t.mode = TaskMode::PositionAxis;
   t.position = p;
@@ -59,14 +59,14 @@ IkTarget IkTarget::positionAxis(const Eigen::Vector3d& p, const Eigen::Vector3d&
   return t;
 }
 
-IkTarget IkTarget::positionOnly(const Eigen::Vector3d& p) {
+IkTarget IkTarget::position_only(const Eigen::Vector3d& p) {
   IkTarget t;
   t.mode = TaskMode::Position;
   t.position = p;
   return t;
 }
 
-const char* toString(IkStatus s) {
+const char* to_string(IkStatus s) {
   switch (s) {
     case IkStatus::Ok: return "ok";
     case IkStatus::Unreachable: return "unreachable";
@@ -91,8 +91,8 @@ IkSolver::IkSolver(const RobotModel& model, IkOptions options)
   slo_.resize(n);
   shi_.resize(n);
   for (int i = 0; i < n; ++i) {
-    slo_[i] = model.sampleLower(i);
-    shi_[i] = model.sampleUpper(i);
+    slo_[i] = model.sample_lower(i);
+    shi_[i] = model.sample_upper(i);
   }
   if (options_.use_analytic) analytic_ = Arm5Analytic::detect(model_, eval_);
 }
@@ -105,8 +105,8 @@ void IkSolver::errors(const IkTarget& target, const double* q, double& pos_err,
   pos_err = (target.position - p).norm();
   switch (target.mode) {
     case TaskMode::Position: ang_err = 0.0; break;
-    case TaskMode::PositionAxis: ang_err = axisAngle(R.col(2), target.axis); break;
-    case TaskMode::Pose: ang_err = rotationAngle(R, target.rotation); break;
+    case TaskMode::PositionAxis: ang_err = axis_angle(R.col(2), target.axis); break;
+    case TaskMode::Pose: ang_err = rotation_angle(R, target.rotation); break;
   }
 }
 
@@ -121,7 +121,7 @@ double IkSolver::cost(const IkTarget& target, const Eigen::Matrix3d& R, const Ei
       e.tail<3>().setZero();
       break;
     case TaskMode::PositionAxis: {
-      const Eigen::Vector3d r = axisError(R.col(2), target.axis, R);
+      const Eigen::Vector3d r = axis_error(R.col(2), target.axis, R);
       ang_err = r.norm();
       // Express in the plane perpendicular to the tool axis (rotation about it is free).
       e[3] = w * R.col(0).dot(r);
@@ -130,7 +130,7 @@ double IkSolver::cost(const IkTarget& target, const Eigen::Matrix3d& R, const Ei
       break;
     }
     case TaskMode::Pose: {
-      const Eigen::Vector3d r = poseError(R, target.rotation);
+      const Eigen::Vector3d r = pose_error(R, target.rotation);
       ang_err = r.norm();
       e.tail<3>() = w * r;
       break;
@@ -155,7 +155,7 @@ bool IkSolver::descend(const IkTarget& target, JointVec& q, int& iterations, dou
   Eigen::LLT<MatNN> llt(n);
   double pos_err = 0, ang_err = 0, pe = 0, ae = 0;
 
-  eval_.fkJacobian(q.data(), R, p, J);
+  eval_.fk_jacobian(q.data(), R, p, J);
   double c = cost(target, R, p, e, pos_err, ang_err);
   int slow = 0;
   for (int it = 0; it < options_.max_iterations; ++it) {
@@ -200,7 +200,7 @@ bool IkSolver::descend(const IkTarget& target, JointVec& q, int& iterations, dou
     bool accepted = false;
     for (int halving = 0; halving < 4; ++halving) {
       qn = (q + dq).cwiseMax(lower_).cwiseMin(upper_);
-      eval_.fkJacobian(qn.data(), Rn, pn, Jn);
+      eval_.fk_jacobian(qn.data(), Rn, pn, Jn);
       const double cn = cost(target, Rn, pn, en, pe, ae);
       if (cn < c) {
         slow = (c - cn) < options_.stall_ratio * c ? slow + 1 : 0;
@@ -226,7 +226,7 @@ bool IkSolver::descend(const IkTarget& target, JointVec& q, int& iterations, dou
   return pos_err <= options_.position_tolerance && ang_err <= options_.angle_tolerance;
 }
 
-bool IkSolver::solveNumeric(const IkTarget& target, const Eigen::VectorXd& seed, IkResult& out) {
+bool IkSolver::solve_numeric(const IkTarget& target, const Eigen::VectorXd& seed, IkResult& out) {
   const int n = model_.dof();
   out.analytic = false;
   out.iterations = 0;
@@ -265,7 +265,7 @@ bool IkSolver::solve(const IkTarget& target, const Eigen::VectorXd& seed, IkResu
       !target.rotation.allFinite() || !finite(target.axis) ||
       (target.mode == TaskMode::PositionAxis && std::abs(target.axis.norm() - 1.0) > 1e-6)) {
     out.status = IkStatus::InvalidInput;
-    out.q = seed.size() == n && seed.allFinite() ? model_.clamp(seed) : model_.midRange();
+    out.q = seed.size() == n && seed.allFinite() ? model_.clamp(seed) : model_.mid_range();
     out.position_error = std::numeric_limits<double>::infinity();
     out.angle_error = std::numeric_limits<double>::infinity();
     out.iterations = out.restarts = 0;
@@ -290,7 +290,7 @@ bool IkSolver::solve(const IkTarget& target, const Eigen::VectorXd& seed, IkResu
       }
     }
   }
-  return solveNumeric(target, seed, out);
+  return solve_numeric(target, seed, out);
 }
 
 IkResult IkSolver::solve(const IkTarget& target, const Eigen::VectorXd& seed) {
@@ -299,7 +299,7 @@ IkResult IkSolver::solve(const IkTarget& target, const Eigen::VectorXd& seed) {
   return r;
 }
 
-void wrapIntoLimits(const RobotModel& model, Eigen::VectorXd& q) {
+void wrap_into_limits(const RobotModel& model, Eigen::VectorXd& q) {
   for (int i = 0; i < model.dof(); ++i) {
     if (!model.revolute(i) || !model.bounded(i) || !std::isfinite(q[i])) continue;
     const double lo = model.lower()[i], hi = model.upper()[i];

@@ -11,16 +11,16 @@
 namespace hrc::kin {
 namespace {
 
-Eigen::Matrix3d toEigen(const KDL::Rotation& r) {
+Eigen::Matrix3d to_eigen(const KDL::Rotation& r) {
   Eigen::Matrix3d m;
   for (int i = 0; i < 3; ++i)
     for (int j = 0; j < 3; ++j) m(i, j) = r(i, j);
   return m;
 }
-Eigen::Vector3d toEigen(const KDL::Vector& v) { return {v.x(), v.y(), v.z()}; }
+Eigen::Vector3d to_eigen(const KDL::Vector& v) { return {v.x(), v.y(), v.z()}; }
 
 // Rotation by angle about a unit axis (Rodrigues), specialised for the coordinate axes.
-inline void axisRotation(const Eigen::Vector3d& a, double angle, Eigen::Matrix3d& R) {
+inline void axis_rotation(const Eigen::Vector3d& a, double angle, Eigen::Matrix3d& R) {
   const double c = std::cos(angle), s = std::sin(angle), t = 1.0 - c;
   const double x = a.x(), y = a.y(), z = a.z();
   R << t * x * x + c, t * x * y - s * z, t * x * z + s * y, t * x * y + s * z, t * y * y + c,
@@ -43,8 +43,8 @@ Eigen::Isometry3d KdlKinematics::fk(const Eigen::VectorXd& q) const {
   KDL::Frame f;
   if (fk_->JntToCart(q_, f) < 0) throw std::runtime_error("fk: KDL FK solver failed");
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
-  T.linear() = toEigen(f.M);
-  T.translation() = toEigen(f.p);
+  T.linear() = to_eigen(f.M);
+  T.translation() = to_eigen(f.p);
   return T;
 }
 
@@ -67,31 +67,31 @@ ChainEval::ChainEval(const KDL::Chain& chain) {
     const KDL::Segment& seg = chain.getSegment(s);
     const KDL::Joint& j = seg.getJoint();
     const KDL::Frame tip = seg.getFrameToTip();
-    const Eigen::Matrix3d tip_R = toEigen(tip.M);
-    const Eigen::Vector3d tip_p = toEigen(tip.p);
+    const Eigen::Matrix3d tip_R = to_eigen(tip.M);
+    const Eigen::Vector3d tip_p = to_eigen(tip.p);
     if (j.getType() == KDL::Joint::None) {
       acc_p = acc_p + acc_R * tip_p;
       acc_R = acc_R * tip_R;
       continue;
     }
     Joint jt;
-    const Eigen::Vector3d a = toEigen(j.JointAxis()).normalized();
+    const Eigen::Vector3d a = to_eigen(j.JointAxis()).normalized();
     const bool prismatic = j.getType() == KDL::Joint::TransAxis ||
                            j.getType() == KDL::Joint::TransX || j.getType() == KDL::Joint::TransY ||
                            j.getType() == KDL::Joint::TransZ;
-    const Eigen::Vector3d o = prismatic ? Eigen::Vector3d::Zero() : toEigen(j.JointOrigin());
+    const Eigen::Vector3d o = prismatic ? Eigen::Vector3d::Zero() : to_eigen(j.JointOrigin());
     // Scale and offset are private in KDL::Joint: recover them from the motion at q = 0 and 1.
     const KDL::Frame m0 = j.pose(0.0), m1 = j.pose(1.0);
     if (prismatic) {
-      jt.offset = toEigen(m0.p).dot(a);
-      jt.scale = toEigen(m1.p).dot(a) - jt.offset;
+      jt.offset = to_eigen(m0.p).dot(a);
+      jt.scale = to_eigen(m1.p).dot(a) - jt.offset;
     } else {
-      const auto signedAngle = [&](const KDL::Rotation& r) {
-        const Eigen::AngleAxisd aa(toEigen(r));
+      const auto signed_angle = [&](const KDL::Rotation& r) {
+        const Eigen::AngleAxisd aa(to_eigen(r));
         return aa.axis().dot(a) >= 0 ? aa.angle() : -aa.angle();
       };
-      jt.offset = signedAngle(m0.M);
-      jt.scale = std::remainder(signedAngle(m1.M) - jt.offset, 2.0 * M_PI);
+      jt.offset = signed_angle(m0.M);
+      jt.scale = std::remainder(signed_angle(m1.M) - jt.offset, 2.0 * M_PI);
     }
     jt.prismatic = prismatic;
     jt.axis = a;
@@ -113,12 +113,12 @@ ChainEval::ChainEval(const KDL::Chain& chain) {
   post_p_ = acc_p;
 }
 
-void ChainEval::applyPre(const Joint& j, Eigen::Matrix3d& R, Eigen::Vector3d& p) {
+void ChainEval::apply_pre(const Joint& j, Eigen::Matrix3d& R, Eigen::Vector3d& p) {
   p.noalias() += R * j.pre_p;
   if (!j.pre_R_identity) R = (R * j.pre_R).eval();
 }
 
-void ChainEval::applyMotion(const Joint& j, double v, Eigen::Matrix3d& R, Eigen::Vector3d& p) {
+void ChainEval::apply_motion(const Joint& j, double v, Eigen::Matrix3d& R, Eigen::Vector3d& p) {
   if (j.prismatic) {
     p.noalias() += R * (j.axis * v);
     return;
@@ -133,7 +133,7 @@ void ChainEval::applyMotion(const Joint& j, double v, Eigen::Matrix3d& R, Eigen:
     return;
   }
   Eigen::Matrix3d M;
-  axisRotation(j.axis, v, M);
+  axis_rotation(j.axis, v, M);
   R = (R * M).eval();
 }
 
@@ -142,15 +142,15 @@ void ChainEval::fk(const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& p) cons
   p.setZero();
   for (std::size_t i = 0; i < joints_.size(); ++i) {
     const Joint& j = joints_[i];
-    applyPre(j, R, p);
-    applyMotion(j, j.scale * q[i] + j.offset, R, p);
+    apply_pre(j, R, p);
+    apply_motion(j, j.scale * q[i] + j.offset, R, p);
   }
   p.noalias() += R * post_p_;
   R = (R * post_R_).eval();
 }
 
-void ChainEval::fkJacobian(const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& p,
-                           Jacobian6& J) const {
+void ChainEval::fk_jacobian(const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& p,
+                            Jacobian6& J) const {
   const int n = dof();
   J.resize(6, n);
   R.setIdentity();
@@ -159,11 +159,11 @@ void ChainEval::fkJacobian(const double* q, Eigen::Matrix3d& R, Eigen::Vector3d&
   for (int i = 0; i < n; ++i) {
     const Joint& j = joints_[static_cast<std::size_t>(i)];
     // Joint point and axis: the frame after `pre`, before the joint's own motion.
-    applyPre(j, R, p);
+    apply_pre(j, R, p);
     J.col(i).head<3>() = p;
     J.col(i).tail<3>() =
         j.axis_index >= 0 ? Eigen::Vector3d(R.col(j.axis_index)) : Eigen::Vector3d(R * j.axis);
-    applyMotion(j, j.scale * q[i] + j.offset, R, p);
+    apply_motion(j, j.scale * q[i] + j.offset, R, p);
   }
   p.noalias() += R * post_p_;
   R = (R * post_R_).eval();
@@ -181,32 +181,32 @@ void ChainEval::fkJacobian(const double* q, Eigen::Matrix3d& R, Eigen::Vector3d&
   }
 }
 
-void ChainEval::jointFrame(const double* q, int idx, Eigen::Vector3d& origin,
-                           Eigen::Vector3d& axis) const {
+void ChainEval::joint_frame(const double* q, int idx, Eigen::Vector3d& origin,
+                            Eigen::Vector3d& axis) const {
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   Eigen::Vector3d p = Eigen::Vector3d::Zero();
   for (int i = 0; i <= idx; ++i) {
     const Joint& j = joints_[static_cast<std::size_t>(i)];
-    applyPre(j, R, p);
+    apply_pre(j, R, p);
     if (i == idx) break;
-    applyMotion(j, j.scale * q[i] + j.offset, R, p);
+    apply_motion(j, j.scale * q[i] + j.offset, R, p);
   }
   origin = p;
   axis = R * joints_[static_cast<std::size_t>(idx)].axis;
 }
 
-double rotationAngle(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
+double rotation_angle(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b) {
   const Eigen::Matrix3d d = a.transpose() * b;
   // atan2 form is accurate for small and large angles alike.
   const Eigen::Vector3d w(d(2, 1) - d(1, 2), d(0, 2) - d(2, 0), d(1, 0) - d(0, 1));
   return std::atan2(0.5 * w.norm(), 0.5 * (d.trace() - 1.0));
 }
 
-double axisAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+double axis_angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return std::atan2(a.cross(b).norm(), a.dot(b));
 }
 
-Eigen::Matrix3d toolDownRotation(double yaw) {
+Eigen::Matrix3d tool_down_rotation(double yaw) {
   return (Eigen::AngleAxisd(yaw, Eigen::Vector3d::UnitZ()) *
           Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()))
       .toRotationMatrix();

@@ -9,7 +9,7 @@
 namespace hrc::kin {
 namespace {
 
-std::string fmtPoint(const Eigen::Vector3d& p) {
+std::string fmt_point(const Eigen::Vector3d& p) {
   char buf[96];
   std::snprintf(buf, sizeof buf, "(%.3f, %.3f, %.3f)", p.x(), p.y(), p.z());
   return buf;
@@ -31,7 +31,7 @@ std::string closest(const IkResult& r) {
 
 }  // namespace
 
-const char* toString(MotionStatus s) {
+const char* to_string(MotionStatus s) {
   switch (s) {
     case MotionStatus::Idle: return "idle";
     case MotionStatus::Moving: return "moving";
@@ -68,7 +68,7 @@ MotionGenerator::MotionGenerator(const RobotModel& model, const Eigen::Isometry3
         "rotation_length and check_step must be > 0");
   if (!world_T_base.matrix().allFinite())
     throw std::invalid_argument("MotionGenerator: base pose is not finite");
-  reset(model.midRange());
+  reset(model.mid_range());
 }
 
 void MotionGenerator::reset(const Eigen::VectorXd& q) {
@@ -84,12 +84,12 @@ void MotionGenerator::reset(const Eigen::VectorXd& q) {
   state_.status = MotionStatus::Idle;
   state_.kind = MotionKind::None;
   state_.detail.clear();
-  updateTcp(0.0);
+  update_tcp(0.0);
   target_ = state_.tcp.translation();
 }
 
-bool MotionGenerator::solvePose(const Eigen::Vector3d& p_world, const Eigen::Matrix3d& R_world,
-                                const Eigen::VectorXd& seed, IkResult& res) {
+bool MotionGenerator::solve_pose(const Eigen::Vector3d& p_world, const Eigen::Matrix3d& R_world,
+                                 const Eigen::VectorXd& seed, IkResult& res) {
   IkTarget t;
   t.mode = TaskMode::Pose;
   t.position = base_T_world_ * p_world;
@@ -104,10 +104,10 @@ bool MotionGenerator::solvePose(const Eigen::Vector3d& p_world, const Eigen::Mat
   return false;
 }
 
-bool MotionGenerator::resetToPose(const Eigen::Vector3d& position, double yaw) {
+bool MotionGenerator::reset_to_pose(const Eigen::Vector3d& position, double yaw) {
   if (!position.allFinite() || !finite(yaw)) return false;
   IkResult res;
-  if (!solvePose(position, toolDownRotation(yaw), model_.midRange(), res)) return false;
+  if (!solve_pose(position, tool_down_rotation(yaw), model_.mid_range(), res)) return false;
   reset(res.q);
   return true;
 }
@@ -119,13 +119,13 @@ bool MotionGenerator::reachable(const Eigen::Vector3d& position, double yaw,
     return false;
   }
   IkResult res;
-  bool ok = solvePose(position, toolDownRotation(yaw), state_.q, res);
-  if (!ok) ok = solvePose(position, toolDownRotation(yaw), model_.midRange(), res);
+  bool ok = solve_pose(position, tool_down_rotation(yaw), state_.q, res);
+  if (!ok) ok = solve_pose(position, tool_down_rotation(yaw), model_.mid_range(), res);
   if (position_error) *position_error = res.position_error;
   return ok;
 }
 
-void MotionGenerator::updateTcp(double dt_for_speed) {
+void MotionGenerator::update_tcp(double dt_for_speed) {
   Eigen::Matrix3d R;
   Eigen::Vector3d p;
   ik_.eval().fk(state_.q.data(), R, p);
@@ -163,24 +163,24 @@ void MotionGenerator::brakeSegment(const ProfileLimits& lim) {
   s.p0 = state_.tcp.translation();
   s.u = v_cmd_ / speed;
   s.limits = lim;
-  s.profile.planBrake(speed, lim);
+  s.profile.plan_brake(speed, lim);
   s.lin_length = s.prof_length = s.profile.length();
   s.r0 = s.r1 = Eigen::Quaterniond(state_.tcp.linear());
   segments_.push_back(s);
 }
 
-void MotionGenerator::stopWith(MotionStatus status, const std::string& detail) {
+void MotionGenerator::stop_with(MotionStatus status, const std::string& detail) {
   ProfileLimits lim{limits_.max_tcp_speed, limits_.max_tcp_accel, limits_.max_tcp_jerk};
-  brakeSegment(lim);
+  brake_segment(lim);
   final_status_ = status;
   state_.status = status;
   state_.detail = detail;
 }
 
-void MotionGenerator::hold() { stopWith(MotionStatus::Holding, ""); }
+void MotionGenerator::hold() { stop_with(MotionStatus::Holding, ""); }
 
-void MotionGenerator::planTo(const std::vector<Eigen::Vector3d>& points, int rotate_segment,
-                             const Eigen::Matrix3d& goal_R, const ProfileLimits& lim) {
+void MotionGenerator::plan_to(const std::vector<Eigen::Vector3d>& points, int rotate_segment,
+                              const Eigen::Matrix3d& goal_R, const ProfileLimits& lim) {
   Eigen::Vector3d p = state_.tcp.translation();
   Eigen::Quaterniond R(state_.tcp.linear());
   const Eigen::Quaterniond G(goal_R);
@@ -226,7 +226,7 @@ void MotionGenerator::planTo(const std::vector<Eigen::Vector3d>& points, int rot
         b.p0 = p;
         b.u = v_cmd_ / speed;
         b.limits = lim;
-        b.profile.planBrake(speed, lim);
+        b.profile.plan_brake(speed, lim);
         b.lin_length = b.prof_length = b.profile.length();
         b.r0 = b.r1 = R;
         segments_.push_back(b);
@@ -279,7 +279,7 @@ bool MotionGenerator::checkSegments(const std::deque<Segment>& segs, Eigen::Vect
       // or singularity in the way): the arm could not follow the straight line.
       const double jump = (res.q - seed).cwiseAbs().maxCoeff();
       if (jump > 0.35) {
-        why = "path needs a joint reconfiguration near " + fmtPoint(p);
+        why = "path needs a joint reconfiguration near " + fmt_point(p);
         return false;
       }
       seed = res.q;
@@ -647,7 +647,7 @@ const MotionState& MotionGenerator::step() {
     return state_;
   }
   Segment& seg = segments_.front();
-  const Eigen::VectorXd& vlim = model_.maxVelocity();
+  const Eigen::VectorXd& vlim = model_.max_velocity();
   // Recover from a joint-limit slow-down no faster than the TCP acceleration limit allows.
   double sigma = std::min(
       1.0, time_scale_ + seg.limits.max_accel * dt_ / std::max(seg.limits.max_speed, 1e-3));

@@ -19,7 +19,7 @@ namespace {
   throw std::runtime_error("URDF " + source + ": " + what);
 }
 
-KDL::Frame toKdl(const urdf::Pose& pose) {
+KDL::Frame to_kdl(const urdf::Pose& pose) {
   const auto& r = pose.rotation;
   const auto& p = pose.position;
   return KDL::Frame(KDL::Rotation::Quaternion(r.x, r.y, r.z, r.w), KDL::Vector(p.x, p.y, p.z));
@@ -27,17 +27,17 @@ KDL::Frame toKdl(const urdf::Pose& pose) {
 
 }  // namespace
 
-RobotModel RobotModel::fromUrdfFile(const std::string& path, const std::string& base,
-                                    const std::string& tip) {
+RobotModel RobotModel::from_urdf_file(const std::string& path, const std::string& base,
+                                      const std::string& tip) {
   std::ifstream in(path);
   if (!in) fail(path, "cannot open file");
   std::stringstream ss;
   ss << in.rdbuf();
-  return fromUrdfString(ss.str(), base, tip, path);
+  return from_urdf_string(ss.str(), base, tip, path);
 }
 
-RobotModel RobotModel::fromUrdfString(const std::string& xml, const std::string& base,
-                                      const std::string& tip, const std::string& source) {
+RobotModel RobotModel::from_urdf_string(const std::string& xml, const std::string& base,
+                                        const std::string& tip, const std::string& source) {
   if (xml.empty()) fail(source, "empty document");
   urdf::ModelInterfaceSharedPtr urdf_model;
   try {
@@ -66,7 +66,7 @@ RobotModel RobotModel::fromUrdfString(const std::string& xml, const std::string&
   std::vector<double> lo, hi, vel;
   for (auto it = joints.rbegin(); it != joints.rend(); ++it) {
     const urdf::Joint& j = **it;
-    const KDL::Frame origin = toKdl(j.parent_to_joint_origin_transform);
+    const KDL::Frame origin = to_kdl(j.parent_to_joint_origin_transform);
     const KDL::Vector axis_local(j.axis.x, j.axis.y, j.axis.z);
     // Joint axis and origin expressed in the parent link frame, as KDL's Joint(origin, axis)
     // expects; the segment's tip frame is the joint origin (URDF: T = origin * motion(q)).
@@ -113,7 +113,7 @@ RobotModel RobotModel::fromUrdfString(const std::string& xml, const std::string&
   return m;
 }
 
-bool RobotModel::withinLimits(const Eigen::VectorXd& q, double tol) const {
+bool RobotModel::within_limits(const Eigen::VectorXd& q, double tol) const {
   if (q.size() != dof()) return false;
   for (int i = 0; i < dof(); ++i) {
     if (!std::isfinite(q[i])) return false;
@@ -126,13 +126,13 @@ Eigen::VectorXd RobotModel::clamp(const Eigen::VectorXd& q) const {
   return q.cwiseMax(lower_).cwiseMin(upper_);
 }
 
-Eigen::VectorXd RobotModel::midRange() const {
+Eigen::VectorXd RobotModel::mid_range() const {
   Eigen::VectorXd m(dof());
   for (int i = 0; i < dof(); ++i) m[i] = bounded(i) ? 0.5 * (lower_[i] + upper_[i]) : 0.0;
   return m;
 }
 
-double RobotModel::sampleLower(int i) const { return bounded(i) ? lower_[i] : -M_PI; }
-double RobotModel::sampleUpper(int i) const { return bounded(i) ? upper_[i] : M_PI; }
+double RobotModel::sample_lower(int i) const { return bounded(i) ? lower_[i] : -M_PI; }
+double RobotModel::sample_upper(int i) const { return bounded(i) ? upper_[i] : M_PI; }
 
 }  // namespace hrc::kin

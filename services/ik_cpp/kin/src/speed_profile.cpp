@@ -7,29 +7,29 @@ namespace hrc::kin {
 namespace {
 
 // Distance covered by a cosine ramp from va to vb lasting T: the mean speed times T.
-double rampDistance(double va, double vb, double T) { return 0.5 * (va + vb) * T; }
+double ramp_distance(double va, double vb, double T) { return 0.5 * (va + vb) * T; }
 
 // Position within a cosine ramp at time t in [0, T].
-double rampPosition(double va, double vb, double T, double t) {
+double ramp_position(double va, double vb, double T, double t) {
   if (T <= 0) return 0.0;
   return va * t + 0.5 * (vb - va) * (t - T / M_PI * std::sin(M_PI * t / T));
 }
 
-double rampSpeed(double va, double vb, double T, double t) {
+double ramp_speed(double va, double vb, double T, double t) {
   if (T <= 0) return vb;
   return va + 0.5 * (vb - va) * (1.0 - std::cos(M_PI * t / T));
 }
 
 }  // namespace
 
-double SpeedProfile::rampTime(double dv, const ProfileLimits& lim) {
+double SpeedProfile::ramp_time(double dv, const ProfileLimits& lim) {
   const double a = std::abs(dv);
   // Peak accel of the cosine ramp is pi dv / (2T); peak jerk is pi^2 dv / (2T^2).
   return std::max(M_PI * a / (2.0 * lim.max_accel), M_PI * std::sqrt(a / (2.0 * lim.max_jerk)));
 }
 
-double SpeedProfile::brakingDistance(double v0, const ProfileLimits& lim) {
-  return rampDistance(v0, 0.0, rampTime(v0, lim));
+double SpeedProfile::braking_distance(double v0, const ProfileLimits& lim) {
+  return ramp_distance(v0, 0.0, ramp_time(v0, lim));
 }
 
 bool SpeedProfile::plan(double length, double v0, const ProfileLimits& lim) {
@@ -38,7 +38,8 @@ bool SpeedProfile::plan(double length, double v0, const ProfileLimits& lim) {
   const double vmax = lim.max_speed;
   // Distance needed to go v0 -> vp -> 0 with no cruise.
   const auto needed = [&](double vp) {
-    return rampDistance(v0, vp, rampTime(vp - v0, lim)) + rampDistance(vp, 0.0, rampTime(vp, lim));
+    return ramp_distance(v0, vp, ramp_time(vp - v0, lim)) +
+           ramp_distance(vp, 0.0, ramp_time(vp, lim));
   };
   double vp;
   if (v0 <= vmax) {
@@ -61,21 +62,21 @@ bool SpeedProfile::plan(double length, double v0, const ProfileLimits& lim) {
   v0_ = v0;
   vp_ = vp;
   length_ = length;
-  t1_ = rampTime(vp - v0, lim);
-  t3_ = rampTime(vp, lim);
-  d1_ = rampDistance(v0, vp, t1_);
-  const double d3 = rampDistance(vp, 0.0, t3_);
+  t1_ = ramp_time(vp - v0, lim);
+  t3_ = ramp_time(vp, lim);
+  d1_ = ramp_distance(v0, vp, t1_);
+  const double d3 = ramp_distance(vp, 0.0, t3_);
   d2_ = std::max(0.0, length - d1_ - d3);
   t2_ = vp > 1e-12 ? d2_ / vp : 0.0;
   return true;
 }
 
-void SpeedProfile::planBrake(double v0, const ProfileLimits& lim) {
+void SpeedProfile::plan_brake(double v0, const ProfileLimits& lim) {
   v0_ = vp_ = std::max(0.0, v0);
   t1_ = t2_ = 0.0;
   d1_ = d2_ = 0.0;
-  t3_ = rampTime(v0_, lim);
-  length_ = rampDistance(v0_, 0.0, t3_);
+  t3_ = ramp_time(v0_, lim);
+  length_ = ramp_distance(v0_, 0.0, t3_);
 }
 
 void SpeedProfile::eval(double t, double& s, double& v) const {
@@ -83,15 +84,15 @@ void SpeedProfile::eval(double t, double& s, double& v) const {
     s = 0;
     v = v0_;
   } else if (t < t1_) {
-    s = rampPosition(v0_, vp_, t1_, t);
-    v = rampSpeed(v0_, vp_, t1_, t);
+    s = ramp_position(v0_, vp_, t1_, t);
+    v = ramp_speed(v0_, vp_, t1_, t);
   } else if (t < t1_ + t2_) {
     s = d1_ + vp_ * (t - t1_);
     v = vp_;
   } else if (t < t1_ + t2_ + t3_) {
     const double tt = t - t1_ - t2_;
-    s = d1_ + d2_ + rampPosition(vp_, 0.0, t3_, tt);
-    v = rampSpeed(vp_, 0.0, t3_, tt);
+    s = d1_ + d2_ + ramp_position(vp_, 0.0, t3_, tt);
+    v = ramp_speed(vp_, 0.0, t3_, tt);
   } else {
     s = length_;
     v = 0;

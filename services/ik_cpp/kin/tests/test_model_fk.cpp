@@ -14,7 +14,7 @@ namespace {
 const std::string kDir = HRC_KIN_ROBOTS_DIR;
 
 // Independent standard-DH product for the UR5: T = prod Rz(q) Tz(d) Tx(a) Rx(alpha).
-Eigen::Isometry3d ur5Dh(const Eigen::VectorXd& q) {
+Eigen::Isometry3d ur5_dh(const Eigen::VectorXd& q) {
   const double d[6] = {0.089159, 0, 0, 0.10915, 0.09465, 0.0823};
   const double a[6] = {0, -0.425, -0.39225, 0, 0, 0};
   const double al[6] = {M_PI / 2, 0, 0, M_PI / 2, -M_PI / 2, 0};
@@ -28,55 +28,56 @@ Eigen::Isometry3d ur5Dh(const Eigen::VectorXd& q) {
 }  // namespace
 
 TEST(RobotModel, Arm5NamesAndLimits) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   ASSERT_EQ(m.dof(), 5);
-  EXPECT_EQ(m.jointNames()[0], "j1_base_yaw");
-  EXPECT_EQ(m.jointNames()[4], "j5_wrist_roll");
+  EXPECT_EQ(m.joint_names()[0], "j1_base_yaw");
+  EXPECT_EQ(m.joint_names()[4], "j5_wrist_roll");
   EXPECT_DOUBLE_EQ(m.lower()[2], -2.7);
   EXPECT_DOUBLE_EQ(m.upper()[2], 2.7);
-  EXPECT_DOUBLE_EQ(m.maxVelocity()[0], 2.0);
-  EXPECT_TRUE(m.withinLimits(m.midRange()));
-  Eigen::VectorXd q = m.midRange();
+  EXPECT_DOUBLE_EQ(m.max_velocity()[0], 2.0);
+  EXPECT_TRUE(m.within_limits(m.mid_range()));
+  Eigen::VectorXd q = m.mid_range();
   q[1] = 2.5;
-  EXPECT_FALSE(m.withinLimits(q));
+  EXPECT_FALSE(m.within_limits(q));
   EXPECT_DOUBLE_EQ(m.clamp(q)[1], 2.0);
 }
 
 TEST(RobotModel, OtherChainsLoad) {
-  EXPECT_EQ(RobotModel::fromUrdfFile(kDir + "/ur5.urdf").dof(), 6);
-  EXPECT_EQ(RobotModel::fromUrdfFile(kDir + "/panda.urdf").dof(), 7);
+  EXPECT_EQ(RobotModel::from_urdf_file(kDir + "/ur5.urdf").dof(), 6);
+  EXPECT_EQ(RobotModel::from_urdf_file(kDir + "/panda.urdf").dof(), 7);
 }
 
 TEST(RobotModel, BadInputNamesTheProblem) {
   try {
-    RobotModel::fromUrdfFile(kDir + "/does_not_exist.urdf");
+    RobotModel::from_urdf_file(kDir + "/does_not_exist.urdf");
     FAIL() << "expected an error";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("cannot open"), std::string::npos);
   }
   try {
-    RobotModel::fromUrdfFile(kDir + "/arm5.urdf", "base_link", "no_such_link");
+    RobotModel::from_urdf_file(kDir + "/arm5.urdf", "base_link", "no_such_link");
     FAIL() << "expected an error";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("no_such_link"), std::string::npos);
   }
-  EXPECT_THROW(RobotModel::fromUrdfString("<robot name='x'><link name='a'/>"), std::runtime_error);
+  EXPECT_THROW(RobotModel::from_urdf_string("<robot name='x'><link name='a'/>"),
+               std::runtime_error);
   const std::string no_limit =
       "<robot name='r'><link name='base_link'/><link name='tool'/>"
       "<joint name='j' type='revolute'><parent link='base_link'/><child link='tool'/>"
       "<axis xyz='0 0 1'/></joint></robot>";
-  EXPECT_THROW(RobotModel::fromUrdfString(no_limit), std::runtime_error);
+  EXPECT_THROW(RobotModel::from_urdf_string(no_limit), std::runtime_error);
 }
 
 TEST(ForwardKinematics, Arm5HandComputed) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   KdlKinematics kin(m);
   ChainEval ev(m.chain());
   // Zero: straight up, tool at 0.20 + 0.42 + 0.40 + 0.10 = 1.12 m.
   Eigen::VectorXd q = Eigen::VectorXd::Zero(5);
   Eigen::Isometry3d T = kin.fk(q);
   EXPECT_NEAR((T.translation() - Eigen::Vector3d(0, 0, 1.12)).norm(), 0, 1e-12);
-  EXPECT_NEAR(rotationAngle(T.linear(), Eigen::Matrix3d::Identity()), 0, 1e-12);
+  EXPECT_NEAR(rotation_angle(T.linear(), Eigen::Matrix3d::Identity()), 0, 1e-12);
   // Shoulder at 90 deg: the arm lies along +x at shoulder height.
   q << 0, M_PI / 2, 0, 0, 0;
   T = kin.fk(q);
@@ -86,17 +87,17 @@ TEST(ForwardKinematics, Arm5HandComputed) {
   q << M_PI / 2, 0, M_PI / 2, M_PI / 2, 0;
   T = kin.fk(q);
   EXPECT_NEAR((T.translation() - Eigen::Vector3d(0, 0.40, 0.62 - 0.10)).norm(), 0, 1e-12);
-  EXPECT_NEAR(axisAngle(T.linear().col(2), -Eigen::Vector3d::UnitZ()), 0, 1e-12);
+  EXPECT_NEAR(axis_angle(T.linear().col(2), -Eigen::Vector3d::UnitZ()), 0, 1e-12);
   // The flattened evaluator agrees with KDL.
   Eigen::Matrix3d R;
   Eigen::Vector3d p;
   ev.fk(q.data(), R, p);
   EXPECT_NEAR((p - T.translation()).norm(), 0, 1e-12);
-  EXPECT_NEAR(rotationAngle(R, T.linear()), 0, 1e-12);
+  EXPECT_NEAR(rotation_angle(R, T.linear()), 0, 1e-12);
 }
 
 TEST(ForwardKinematics, Ur5MatchesPublishedDh) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/ur5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/ur5.urdf");
   KdlKinematics kin(m);
   // Zero configuration: x = a2 + a3, y = -(d4 + d6), z = d1 - d5.
   const Eigen::Isometry3d T0 = kin.fk(Eigen::VectorXd::Zero(6));
@@ -108,26 +109,26 @@ TEST(ForwardKinematics, Ur5MatchesPublishedDh) {
   for (int k = 0; k < 50; ++k) {
     Eigen::VectorXd q(6);
     for (int i = 0; i < 6; ++i) q[i] = u(rng);
-    const Eigen::Isometry3d T = kin.fk(q), D = ur5Dh(q);
+    const Eigen::Isometry3d T = kin.fk(q), D = ur5_dh(q);
     EXPECT_NEAR((T.translation() - D.translation()).norm(), 0, 1e-12);
-    EXPECT_NEAR(rotationAngle(T.linear(), D.linear()), 0, 1e-9);
+    EXPECT_NEAR(rotation_angle(T.linear(), D.linear()), 0, 1e-9);
   }
 }
 
 TEST(ForwardKinematics, JacobianMatchesKdlAndFiniteDifferences) {
   for (const char* name : {"arm5", "ur5", "panda"}) {
-    const RobotModel m = RobotModel::fromUrdfFile(kDir + "/" + name + ".urdf");
+    const RobotModel m = RobotModel::from_urdf_file(kDir + "/" + name + ".urdf");
     KdlKinematics kin(m);
     ChainEval ev(m.chain());
     std::mt19937_64 rng(3);
     for (int k = 0; k < 20; ++k) {
       Eigen::VectorXd q(m.dof());
       for (int i = 0; i < m.dof(); ++i)
-        q[i] = std::uniform_real_distribution<double>(m.sampleLower(i), m.sampleUpper(i))(rng);
+        q[i] = std::uniform_real_distribution<double>(m.sample_lower(i), m.sample_upper(i))(rng);
       Eigen::Matrix3d R;
       Eigen::Vector3d p;
       Jacobian6 J;
-      ev.fkJacobian(q.data(), R, p, J);
+      ev.fk_jacobian(q.data(), R, p, J);
       const Eigen::MatrixXd Jk = kin.jacobian(q);
       EXPECT_LT((J - Jk).cwiseAbs().maxCoeff(), 1e-12) << name;
       // Linear part by central differences.

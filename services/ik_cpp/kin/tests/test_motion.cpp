@@ -11,14 +11,14 @@ using namespace hrc::kin;
 namespace {
 const std::string kDir = HRC_KIN_ROBOTS_DIR;
 
-Eigen::Isometry3d baseR1() {
+Eigen::Isometry3d base_r1() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();
   T.translation() = Eigen::Vector3d(0.45, 0.55, 0.0);
   T.linear() = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitZ()).toRotationMatrix();
   return T;
 }
 
-MoveCommand moveTo(double x, double y, double z, double yaw_deg = 0) {
+MoveCommand move_to(double x, double y, double z, double yaw_deg = 0) {
   MoveCommand c;
   c.target = Eigen::Vector3d(x, y, z);
   c.yaw = yaw_deg * M_PI / 180.0;
@@ -34,8 +34,8 @@ struct RunStats {
 };
 
 // Step until not moving (or max_ticks); collect bounds.
-RunStats runUntilDone(MotionGenerator& g, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
-                      int max_ticks, Eigen::Vector3d* v_last = nullptr) {
+RunStats run_until_done(MotionGenerator& g, const Eigen::Vector3d& a, const Eigen::Vector3d& b,
+                        int max_ticks, Eigen::Vector3d* v_last = nullptr) {
   RunStats r;
   const RobotModel& m = g.model();
   Eigen::Vector3d v_prev = v_last ? *v_last : Eigen::Vector3d::Zero();
@@ -45,14 +45,14 @@ RunStats runUntilDone(MotionGenerator& g, const Eigen::Vector3d& a, const Eigen:
   for (; r.ticks < max_ticks; ++r.ticks) {
     const MotionState& s = g.step();
     EXPECT_TRUE(s.q.allFinite());
-    EXPECT_TRUE(m.withinLimits(s.q));
+    EXPECT_TRUE(m.within_limits(s.q));
     const Eigen::Vector3d p = s.tcp.translation();
     const Eigen::Vector3d v = (p - p_prev) / g.dt();
     r.max_speed = std::max(r.max_speed, s.tcp_speed);
     r.max_dv = std::max(r.max_dv, (v - v_prev).norm());
     for (int i = 0; i < m.dof(); ++i)
-      r.max_joint_ratio =
-          std::max(r.max_joint_ratio, std::abs(s.q[i] - q_prev[i]) / (m.maxVelocity()[i] * g.dt()));
+      r.max_joint_ratio = std::max(r.max_joint_ratio,
+                                   std::abs(s.q[i] - q_prev[i]) / (m.max_velocity()[i] * g.dt()));
     const Eigen::Vector3d d = p - a;
     r.max_line_dev = std::max(r.max_line_dev, (d - d.dot(u) * u).norm());
     p_prev = p;
@@ -66,15 +66,15 @@ RunStats runUntilDone(MotionGenerator& g, const Eigen::Vector3d& a, const Eigen:
 }  // namespace
 
 TEST(Motion, StraightLineCappedSpeedReachesTarget) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   MotionLimits lim;
   lim.max_tcp_speed = 0.5;
-  MotionGenerator g(m, baseR1(), 1.0 / 240.0, lim);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0, lim);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
   const Eigen::Vector3d a = g.state().tcp.translation();
   const Eigen::Vector3d b(-0.05, 0.10, 0.05);
-  ASSERT_EQ(g.move(moveTo(b.x(), b.y(), b.z(), 90)), MotionStatus::Moving);
-  const RunStats r = runUntilDone(g, a, b, 240 * 10);
+  ASSERT_EQ(g.move(move_to(b.x(), b.y(), b.z(), 90)), MotionStatus::Moving);
+  const RunStats r = run_until_done(g, a, b, 240 * 10);
   EXPECT_EQ(g.state().status, MotionStatus::Reached) << g.state().detail;
   EXPECT_LT((g.state().tcp.translation() - b).norm(), 0.005);
   EXPECT_LE(r.max_speed, 0.5 * 1.02);
@@ -83,7 +83,7 @@ TEST(Motion, StraightLineCappedSpeedReachesTarget) {
   EXPECT_LT(r.max_line_dev, 1e-4);
   // Tool points down with the commanded yaw.
   const Eigen::Matrix3d R = g.state().tcp.linear();
-  EXPECT_NEAR(axisAngle(R.col(2), -Eigen::Vector3d::UnitZ()), 0, 1e-6);
+  EXPECT_NEAR(axis_angle(R.col(2), -Eigen::Vector3d::UnitZ()), 0, 1e-6);
   EXPECT_NEAR(std::atan2(R(1, 0), R(0, 0)), M_PI / 2, 1e-6);
   // Next tick: holds still, status stays reached.
   g.step();
@@ -92,24 +92,24 @@ TEST(Motion, StraightLineCappedSpeedReachesTarget) {
 }
 
 TEST(Motion, LowerCommandSpeedIsRespected) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
-  MotionGenerator g(m, baseR1(), 1.0 / 240.0);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
-  MoveCommand c = moveTo(0.05, 0.15, 0.10);
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
+  MoveCommand c = move_to(0.05, 0.15, 0.10);
   c.max_speed = 0.2;
   const Eigen::Vector3d a = g.state().tcp.translation();
   g.move(c);
-  const RunStats r = runUntilDone(g, a, c.target, 240 * 20);
+  const RunStats r = run_until_done(g, a, c.target, 240 * 20);
   EXPECT_EQ(g.state().status, MotionStatus::Reached);
   EXPECT_LE(r.max_speed, 0.2 * 1.02);
 }
 
 TEST(Motion, VerticalDepartAndApproach) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
-  MotionGenerator g(m, baseR1(), 1.0 / 240.0);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.30, 0.25, 0.10), 0.0));
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.30, 0.25, 0.10), 0.0));
   const Eigen::Vector3d start = g.state().tcp.translation();
-  MoveCommand c = moveTo(0.05, 0.10, 0.04, 30);
+  MoveCommand c = move_to(0.05, 0.10, 0.04, 30);
   c.approach_height = 0.06;
   c.depart_height = 0.05;
   ASSERT_EQ(g.move(c), MotionStatus::Moving);
@@ -135,21 +135,21 @@ TEST(Motion, VerticalDepartAndApproach) {
 }
 
 TEST(Motion, RetargetMidMoveBlendsWithoutJumps) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   MotionLimits lim;
   const double dt = 1.0 / 240.0;
-  MotionGenerator g(m, baseR1(), dt, lim);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
+  MotionGenerator g(m, base_r1(), dt, lim);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
   const Eigen::Vector3d a = g.state().tcp.translation();
-  g.move(moveTo(-0.05, 0.10, 0.05));
-  RunStats r1 = runUntilDone(g, a, Eigen::Vector3d(-0.05, 0.10, 0.05), 120);  // ~0.5 s: at speed
+  g.move(move_to(-0.05, 0.10, 0.05));
+  RunStats r1 = run_until_done(g, a, Eigen::Vector3d(-0.05, 0.10, 0.05), 120);  // ~0.5 s: at speed
   ASSERT_EQ(g.state().status, MotionStatus::Moving);
-  ASSERT_GT(g.commandedVelocity().norm(), 0.2);
-  Eigen::Vector3d v = g.commandedVelocity();
+  ASSERT_GT(g.commanded_velocity().norm(), 0.2);
+  Eigen::Vector3d v = g.commanded_velocity();
   // Retreat: a target off to the side and up (collision retreat).
   const Eigen::Vector3d b(0.45, 0.45, 0.40);
-  ASSERT_EQ(g.move(moveTo(b.x(), b.y(), b.z())), MotionStatus::Moving);
-  const RunStats r2 = runUntilDone(g, g.state().tcp.translation(), b, 240 * 10, &v);
+  ASSERT_EQ(g.move(move_to(b.x(), b.y(), b.z())), MotionStatus::Moving);
+  const RunStats r2 = run_until_done(g, g.state().tcp.translation(), b, 240 * 10, &v);
   EXPECT_EQ(g.state().status, MotionStatus::Reached);
   EXPECT_LE(r1.max_joint_ratio, 1.0 + 1e-9);
   EXPECT_LE(r2.max_joint_ratio, 1.0 + 1e-9);
@@ -158,28 +158,28 @@ TEST(Motion, RetargetMidMoveBlendsWithoutJumps) {
   EXPECT_LE(r2.max_dv, lim.max_tcp_accel * dt * 1.05);
   EXPECT_LE(r2.max_speed, lim.max_tcp_speed * 1.02);
   // Aligned retarget (same direction, further on): continues without braking to zero.
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.35, 0.30, 0.30), 0.0));
-  g.move(moveTo(0.05, 0.30, 0.30));
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.35, 0.30, 0.30), 0.0));
+  g.move(move_to(0.05, 0.30, 0.30));
   for (int k = 0; k < 60; ++k) g.step();
-  const double speed_before = g.commandedVelocity().norm();
-  g.move(moveTo(-0.05, 0.30, 0.30));
+  const double speed_before = g.commanded_velocity().norm();
+  g.move(move_to(-0.05, 0.30, 0.30));
   g.step();
-  EXPECT_GT(g.commandedVelocity().norm(), speed_before - lim.max_tcp_accel * dt * 1.01);
+  EXPECT_GT(g.commanded_velocity().norm(), speed_before - lim.max_tcp_accel * dt * 1.01);
 }
 
 TEST(Motion, HoldStopsSmoothly) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   MotionLimits lim;
   const double dt = 1.0 / 240.0;
-  MotionGenerator g(m, baseR1(), dt, lim);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
-  g.move(moveTo(-0.05, 0.10, 0.05));
+  MotionGenerator g(m, base_r1(), dt, lim);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
+  g.move(move_to(-0.05, 0.10, 0.05));
   for (int k = 0; k < 120; ++k) g.step();
-  Eigen::Vector3d v = g.commandedVelocity();
+  Eigen::Vector3d v = g.commanded_velocity();
   g.hold();
   EXPECT_EQ(g.state().status, MotionStatus::Holding);
   const RunStats r =
-      runUntilDone(g, g.state().tcp.translation(), g.state().tcp.translation() + v, 240 * 3, &v);
+      run_until_done(g, g.state().tcp.translation(), g.state().tcp.translation() + v, 240 * 3, &v);
   (void)r;
   for (int k = 0; k < 240; ++k) g.step();
   EXPECT_EQ(g.state().status, MotionStatus::Holding);
@@ -188,39 +188,39 @@ TEST(Motion, HoldStopsSmoothly) {
 }
 
 TEST(Motion, UnreachableTargetIsReportedAndArmHolds) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
-  MotionGenerator g(m, baseR1(), 1.0 / 240.0);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
   const Eigen::VectorXd q0 = g.state().q;
-  EXPECT_EQ(g.move(moveTo(-1.5, -0.5, 0.05)), MotionStatus::Unreachable);
+  EXPECT_EQ(g.move(move_to(-1.5, -0.5, 0.05)), MotionStatus::Unreachable);
   EXPECT_FALSE(g.state().detail.empty());
   for (int k = 0; k < 10; ++k) g.step();
   EXPECT_EQ(g.state().status, MotionStatus::Unreachable);
   EXPECT_TRUE(g.state().q.allFinite());
   EXPECT_EQ(g.state().q, q0);
   // Invalid numbers are refused the same way.
-  MoveCommand bad = moveTo(0.1, 0.1, 0.1);
+  MoveCommand bad = move_to(0.1, 0.1, 0.1);
   bad.target.z() = std::nan("");
   EXPECT_EQ(g.move(bad), MotionStatus::Unreachable);
   EXPECT_NE(g.state().detail.find("invalid"), std::string::npos);
   // And a reachable target afterwards works.
-  EXPECT_EQ(g.move(moveTo(0.20, 0.25, 0.25)), MotionStatus::Moving);
+  EXPECT_EQ(g.move(move_to(0.20, 0.25, 0.25)), MotionStatus::Moving);
 }
 
 TEST(Motion, JointVelocityLimitsSlowThePath) {
   // A large yaw change over a short move needs the wrist roll to turn fast: the generator must
   // slow down rather than exceed the wrist's velocity limit.
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   MotionLimits lim;
   lim.max_tcp_speed = 1.5;
   lim.max_tcp_accel = 10.0;
   lim.max_tcp_jerk = 200.0;
-  MotionGenerator g(m, baseR1(), 1e-3, lim);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.20, 0.25, 0.25), 0.0));
+  MotionGenerator g(m, base_r1(), 1e-3, lim);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.20, 0.25, 0.25), 0.0));
   const Eigen::Vector3d a = g.state().tcp.translation();
   const Eigen::Vector3d b(0.20, 0.15, 0.25);
-  ASSERT_EQ(g.move(moveTo(b.x(), b.y(), b.z(), 175)), MotionStatus::Moving);
-  const RunStats r = runUntilDone(g, a, b, 20000);
+  ASSERT_EQ(g.move(move_to(b.x(), b.y(), b.z(), 175)), MotionStatus::Moving);
+  const RunStats r = run_until_done(g, a, b, 20000);
   EXPECT_EQ(g.state().status, MotionStatus::Reached);
   EXPECT_LE(r.max_joint_ratio, 1.0 + 1e-9);
   EXPECT_LT(r.max_line_dev, 1e-4);

@@ -10,7 +10,7 @@ using hrc::kin::SpeedProfile;
 
 namespace {
 // Sample the profile at dt and check speed/acceleration/jerk bounds and monotonic progress.
-void checkProfile(const SpeedProfile& p, const ProfileLimits& lim, double v0) {
+void check_profile(const SpeedProfile& p, const ProfileLimits& lim, double v0) {
   const double dt = 1e-4;
   double s_prev = 0, v_prev = v0, a_prev = 0, peak = 0;
   double s, v;
@@ -34,7 +34,7 @@ void checkProfile(const SpeedProfile& p, const ProfileLimits& lim, double v0) {
   }
   EXPECT_NEAR(s, p.length(), 1e-12);
   EXPECT_EQ(v, 0.0);
-  EXPECT_NEAR(peak, std::max(v0, p.peakSpeed()), 1e-3);
+  EXPECT_NEAR(peak, std::max(v0, p.peak_speed()), 1e-3);
 }
 }  // namespace
 
@@ -42,8 +42,8 @@ TEST(SpeedProfile, LongMoveCruisesAtTheCap) {
   const ProfileLimits lim{0.5, 2.0, 20.0};
   SpeedProfile p;
   ASSERT_TRUE(p.plan(1.0, 0.0, lim));
-  EXPECT_DOUBLE_EQ(p.peakSpeed(), 0.5);
-  checkProfile(p, lim, 0.0);
+  EXPECT_DOUBLE_EQ(p.peak_speed(), 0.5);
+  check_profile(p, lim, 0.0);
   // Ramps take pi v / (2 a) each; the rest cruises: duration = 2 T_ramp + (L - ramp distances) / v.
   const double tr = M_PI * 0.5 / (2 * 2.0);
   EXPECT_NEAR(p.duration(), 2 * tr + (1.0 - 0.5 * 0.5 * tr * 2) / 0.5, 1e-9);
@@ -53,33 +53,33 @@ TEST(SpeedProfile, ShortMoveStaysBelowTheCap) {
   const ProfileLimits lim{0.5, 2.0, 20.0};
   SpeedProfile p;
   ASSERT_TRUE(p.plan(0.02, 0.0, lim));
-  EXPECT_LT(p.peakSpeed(), 0.5);
-  EXPECT_GT(p.peakSpeed(), 0.0);
-  checkProfile(p, lim, 0.0);
+  EXPECT_LT(p.peak_speed(), 0.5);
+  EXPECT_GT(p.peak_speed(), 0.0);
+  check_profile(p, lim, 0.0);
 }
 
 TEST(SpeedProfile, StartsFromTheCurrentSpeed) {
   const ProfileLimits lim{0.5, 2.0, 20.0};
   SpeedProfile p;
   ASSERT_TRUE(p.plan(0.4, 0.3, lim));
-  checkProfile(p, lim, 0.3);
+  check_profile(p, lim, 0.3);
   // Faster than a lowered cap: slows down to it smoothly.
   const ProfileLimits slow{0.1, 2.0, 20.0};
   ASSERT_TRUE(p.plan(0.4, 0.3, slow));
-  EXPECT_DOUBLE_EQ(p.peakSpeed(), 0.1);
-  checkProfile(p, slow, 0.3);
+  EXPECT_DOUBLE_EQ(p.peak_speed(), 0.1);
+  check_profile(p, slow, 0.3);
 }
 
 TEST(SpeedProfile, TooShortToStopIsRefusedAndBrakingWorks) {
   const ProfileLimits lim{0.5, 2.0, 20.0};
   SpeedProfile p;
-  const double d = SpeedProfile::brakingDistance(0.5, lim);
+  const double d = SpeedProfile::braking_distance(0.5, lim);
   EXPECT_GT(d, 0.0);
   EXPECT_FALSE(p.plan(0.5 * d, 0.5, lim));
   EXPECT_TRUE(p.plan(1.01 * d, 0.5, lim));
-  p.planBrake(0.5, lim);
+  p.plan_brake(0.5, lim);
   EXPECT_NEAR(p.length(), d, 1e-12);
-  checkProfile(p, lim, 0.5);
+  check_profile(p, lim, 0.5);
 }
 
 TEST(SpeedProfile, ZeroLengthIsInstant) {

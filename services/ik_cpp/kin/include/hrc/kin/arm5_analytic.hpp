@@ -29,15 +29,15 @@ class Arm5Analytic {
   bool solve(const Eigen::Vector3d& p, const Eigen::Vector3d& axis, const Eigen::Matrix3d* R,
              const double* seed, double* q_out) const;
 
-  double shoulderHeight() const { return h_; }
-  double upperArm() const { return l2_; }
+  double shoulder_height() const { return h_; }
+  double upper_arm() const { return l2_; }
   double forearm() const { return l3_; }
-  double wristToTool() const { return l4_; }
+  double wrist_to_tool() const { return l4_; }
 
  private:
   Arm5Analytic(const RobotModel& model, const ChainEval& eval) : model_(&model), eval_(&eval) {}
   // Closest value to `ref` of angle + 2*pi*k within [lo, hi]; false if none.
-  static bool fitAngle(double angle, double lo, double hi, double ref, double& out);
+  static bool fit_angle(double angle, double lo, double hi, double ref, double& out);
 
   const RobotModel* model_;
   const ChainEval* eval_;

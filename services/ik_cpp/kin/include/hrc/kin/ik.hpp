@@ -28,12 +28,12 @@ struct IkTarget {
   Eigen::Vector3d axis = -Eigen::Vector3d::UnitZ();        // PositionAxis (unit)
 
   static IkTarget pose(const Eigen::Isometry3d& T);
-  static IkTarget positionAxis(const Eigen::Vector3d& p, const Eigen::Vector3d& axis);
-  static IkTarget positionOnly(const Eigen::Vector3d& p);
+  static IkTarget position_axis(const Eigen::Vector3d& p, const Eigen::Vector3d& axis);
+  static IkTarget position_only(const Eigen::Vector3d& p);
 };
 
 enum class IkStatus { Ok, Unreachable, InvalidInput };
-const char* toString(IkStatus s);
+const char* to_string(IkStatus s);
 
 struct IkResult {
   IkStatus status = IkStatus::InvalidInput;
@@ -69,11 +69,11 @@ class IkSolver {
   IkResult solve(const IkTarget& target, const Eigen::VectorXd& seed);
 
   // Numeric path only (tests compare it with the closed form).
-  bool solveNumeric(const IkTarget& target, const Eigen::VectorXd& seed, IkResult& out);
+  bool solve_numeric(const IkTarget& target, const Eigen::VectorXd& seed, IkResult& out);
 
   const RobotModel& model() const { return model_; }
   const ChainEval& eval() const { return eval_; }
-  bool hasAnalytic() const { return analytic_.has_value(); }
+  bool has_analytic() const { return analytic_.has_value(); }
   const IkOptions& options() const { return options_; }
 
   // Task errors of configuration q for target (position m, angle rad).
@@ -95,6 +95,6 @@ class IkSolver {
 
 // Map revolute angles by multiples of 2*pi into the limits where possible (closest to the range
 // middle otherwise untouched). Used to normalise solutions of limit-unaware solvers.
-void wrapIntoLimits(const RobotModel& model, Eigen::VectorXd& q);
+void wrap_into_limits(const RobotModel& model, Eigen::VectorXd& q);
 
 }  // namespace hrc::kin

@@ -42,9 +42,9 @@ class ChainEval {
   // Tip pose in the base frame.
   void fk(const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& p) const;
   // Tip pose and geometric Jacobian (same layout as KdlKinematics::jacobian).
-  void fkJacobian(const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& p, Jacobian6& J) const;
+  void fk_jacobian(const double* q, Eigen::Matrix3d& R, Eigen::Vector3d& p, Jacobian6& J) const;
   // Joint origin and world axis of joint i at configuration q (used by the analytic solver).
-  void jointFrame(const double* q, int i, Eigen::Vector3d& origin, Eigen::Vector3d& axis) const;
+  void joint_frame(const double* q, int i, Eigen::Vector3d& origin, Eigen::Vector3d& axis) const;
 
  private:
   struct Joint {
@@ -57,9 +57,9 @@ class ChainEval {
     bool pre_R_identity;
   };
   // (R, p) = (R, p) * pre: the frame at the joint point, before its motion.
-  static void applyPre(const Joint& j, Eigen::Matrix3d& R, Eigen::Vector3d& p);
+  static void apply_pre(const Joint& j, Eigen::Matrix3d& R, Eigen::Vector3d& p);
   // (R, p) = (R, p) * motion(v): rotation about / translation along the joint axis.
-  static void applyMotion(const Joint& j, double v, Eigen::Matrix3d& R, Eigen::Vector3d& p);
+  static void apply_motion(const Joint& j, double v, Eigen::Matrix3d& R, Eigen::Vector3d& p);
   std::vector<Joint> joints_;
   Eigen::Matrix3d post_R_;
   Eigen::Vector3d post_p_;
@@ -67,11 +67,11 @@ class ChainEval {
 
 // Helpers shared by solvers, tests and the motion generator.
 // Rotation angle (rad) between two rotation matrices.
-double rotationAngle(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
+double rotation_angle(const Eigen::Matrix3d& a, const Eigen::Matrix3d& b);
 // Angle (rad) between two directions (normalised internally).
-double axisAngle(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
+double axis_angle(const Eigen::Vector3d& a, const Eigen::Vector3d& b);
 // Tool pointing down (tool z = world -z) with yaw `yaw` (rad) of the tool x axis about world z:
 // R = Rz(yaw) * Rx(pi).
-Eigen::Matrix3d toolDownRotation(double yaw);
+Eigen::Matrix3d tool_down_rotation(double yaw);
 
 }  // namespace hrc::kin

@@ -26,7 +26,7 @@
 namespace hrc::kin {
 
 enum class MotionStatus { Idle, Moving, Reached, Holding, Unreachable };
-const char* toString(MotionStatus s);
+const char* to_string(MotionStatus s);
 
 // How the current (or last) move was planned; None before the first move and for a hold.
 enum class MotionKind { None, Linear, Joint, Via };
@@ -71,7 +71,7 @@ class MotionGenerator {
   // Set the joints (clamped into the limits), stop, status Idle.
   void reset(const Eigen::VectorXd& q);
   // Put the arm at a tool-down pose (world) with no motion; false (unchanged) if unreachable.
-  bool resetToPose(const Eigen::Vector3d& position, double yaw);
+  bool reset_to_pose(const Eigen::Vector3d& position, double yaw);
 
   // Start a move. Returns the new status: Moving, Reached (already there) or Unreachable
   // (target or path not reachable, or invalid command; detail says why; the arm stops smoothly).
@@ -83,7 +83,7 @@ class MotionGenerator {
 
   const MotionState& state() const { return state_; }
   double dt() const { return dt_; }
-  const Eigen::Vector3d& commandedVelocity() const { return v_cmd_; }
+  const Eigen::Vector3d& commanded_velocity() const { return v_cmd_; }
   const RobotModel& model() const { return model_; }
   // Can the arm reach `position` (world) tool-down with `yaw`? Fills the position error.
   bool reachable(const Eigen::Vector3d& position, double yaw, double* position_error = nullptr);
@@ -111,11 +111,11 @@ class MotionGenerator {
     Eigen::Quaterniond r;
   };
 
-  void planTo(const std::vector<Eigen::Vector3d>& points, int rotate_segment,
-              const Eigen::Matrix3d& goal_R, const ProfileLimits& lim);
-  void brakeSegment(const ProfileLimits& lim);
-  bool solvePose(const Eigen::Vector3d& p_world, const Eigen::Matrix3d& R_world,
-                 const Eigen::VectorXd& seed, IkResult& res);
+  void plan_to(const std::vector<Eigen::Vector3d>& points, int rotate_segment,
+               const Eigen::Matrix3d& goal_R, const ProfileLimits& lim);
+  void brake_segment(const ProfileLimits& lim);
+  bool solve_pose(const Eigen::Vector3d& p_world, const Eigen::Matrix3d& R_world,
+                  const Eigen::VectorXd& seed, IkResult& res);
   // IK along the planned segments every check_step: false (and why) if the arm cannot follow.
   bool checkPath(std::string& why);
   bool checkSegments(const std::deque<Segment>& segs, Eigen::VectorXd seed, std::string& why);

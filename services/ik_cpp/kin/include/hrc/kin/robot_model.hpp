@@ -14,34 +14,34 @@ class RobotModel {
   // Parse a URDF file (urdfdom) and extract the chain from `base` to `tip`.
   // Throws std::runtime_error naming the file and what is wrong (unreadable, bad XML, unknown link,
   // tip not below base, unsupported joint type, missing limits).
-  static RobotModel fromUrdfFile(const std::string& path, const std::string& base = "base_link",
-                                 const std::string& tip = "tool");
-  static RobotModel fromUrdfString(const std::string& xml, const std::string& base = "base_link",
-                                   const std::string& tip = "tool",
-                                   const std::string& source = "<string>");
+  static RobotModel from_urdf_file(const std::string& path, const std::string& base = "base_link",
+                                   const std::string& tip = "tool");
+  static RobotModel from_urdf_string(const std::string& xml, const std::string& base = "base_link",
+                                     const std::string& tip = "tool",
+                                     const std::string& source = "<string>");
 
   const std::string& name() const { return name_; }
-  const std::string& baseLink() const { return base_; }
-  const std::string& tipLink() const { return tip_; }
+  const std::string& base_link() const { return base_; }
+  const std::string& tip_link() const { return tip_; }
   const KDL::Chain& chain() const { return chain_; }
   int dof() const { return static_cast<int>(joint_names_.size()); }
-  const std::vector<std::string>& jointNames() const { return joint_names_; }
+  const std::vector<std::string>& joint_names() const { return joint_names_; }
 
   // Position limits; unbounded (continuous) joints have -inf / +inf.
   const Eigen::VectorXd& lower() const { return lower_; }
   const Eigen::VectorXd& upper() const { return upper_; }
   // Velocity limits (rad/s or m/s); +inf where the URDF gives none.
-  const Eigen::VectorXd& maxVelocity() const { return max_velocity_; }
+  const Eigen::VectorXd& max_velocity() const { return max_velocity_; }
   bool bounded(int i) const { return bounded_[static_cast<std::size_t>(i)]; }
   bool revolute(int i) const { return revolute_[static_cast<std::size_t>(i)]; }
 
-  bool withinLimits(const Eigen::VectorXd& q, double tol = 1e-9) const;
+  bool within_limits(const Eigen::VectorXd& q, double tol = 1e-9) const;
   Eigen::VectorXd clamp(const Eigen::VectorXd& q) const;
   // Middle of each joint range (0 for unbounded joints): the benchmark's seed.
-  Eigen::VectorXd midRange() const;
+  Eigen::VectorXd mid_range() const;
   // Bounds used for random sampling: the limits, or [-pi, pi] for unbounded joints.
-  double sampleLower(int i) const;
-  double sampleUpper(int i) const;
+  double sample_lower(int i) const;
+  double sample_upper(int i) const;
 
  private:
   std::string name_, base_, tip_;

@@ -18,16 +18,16 @@ class SpeedProfile {
   // stopping within L is impossible from v0: the caller must brake first (see brakingDistance).
   bool plan(double length, double v0, const ProfileLimits& limits);
   // A braking profile: from v0 to rest as fast as the limits allow; length = brakingDistance.
-  void planBrake(double v0, const ProfileLimits& limits);
+  void plan_brake(double v0, const ProfileLimits& limits);
 
   // Distance and speed at time t >= 0 (t beyond the end: length, 0).
   void eval(double t, double& s, double& v) const;
   double duration() const { return t1_ + t2_ + t3_; }
   double length() const { return length_; }
-  double peakSpeed() const { return vp_; }
+  double peak_speed() const { return vp_; }
 
-  static double rampTime(double dv, const ProfileLimits& limits);
-  static double brakingDistance(double v0, const ProfileLimits& limits);
+  static double ramp_time(double dv, const ProfileLimits& limits);
+  static double braking_distance(double v0, const ProfileLimits& limits);
 
  private:
   double length_ = 0, v0_ = 0, vp_ = 0;
