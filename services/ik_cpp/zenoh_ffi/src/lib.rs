@@ -126,6 +126,11 @@ pub struct HrczSession {
 }
 
 /// Opens a zenoh session from a JSON5 configuration text. Returns NULL on failure.
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_open(
     config_json5: *const c_char,
@@ -147,6 +152,11 @@ pub unsafe extern "C" fn hrcz_open(
 /// Opens a session the way the Python services do: start from the zenoh config file `base_file`
 /// (NULL or "" = zenoh defaults), then apply `n` insertions `paths[i]` = `values_json5[i]`
 /// (e.g. "mode" = "\"peer\""). Returns NULL on failure, naming the offending path.
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_open_ex(
     base_file: *const c_char,
@@ -184,6 +194,10 @@ pub unsafe extern "C" fn hrcz_open_ex(
 
 /// Closes and frees a session. Entities still declared on it stop working but must still be
 /// freed with their own undeclare function. NULL is a no-op.
+///
+/// # Safety
+/// The handle is NULL or one this library returned and not yet freed; it is invalid
+/// afterwards.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_close(session: *mut HrczSession) {
     if session.is_null() {
@@ -209,6 +223,11 @@ pub struct HrczPublisher {
 
 /// Declares a publisher on `key`. `congestion_block` != 0: block when the queue is full instead
 /// of dropping (reliable delivery); `express` != 0: do not batch (lower latency).
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_declare_publisher(
     session: *const HrczSession,
@@ -238,6 +257,11 @@ pub unsafe extern "C" fn hrcz_declare_publisher(
 }
 
 /// Publishes `payload` with `attachment` (may be empty). Returns 0 on success, -1 on error.
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_publisher_put(
     publisher: *const HrczPublisher,
@@ -263,6 +287,11 @@ pub unsafe extern "C" fn hrcz_publisher_put(
 }
 
 /// 1 if at least one subscriber currently matches the publisher's key, 0 if none, -1 on error.
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_publisher_has_subscribers(
     publisher: *const HrczPublisher,
@@ -281,6 +310,10 @@ pub unsafe extern "C" fn hrcz_publisher_has_subscribers(
 }
 
 /// Undeclares and frees a publisher. NULL is a no-op.
+///
+/// # Safety
+/// The handle is NULL or one this library returned and not yet freed; it is invalid
+/// afterwards.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_undeclare_publisher(publisher: *mut HrczPublisher) {
     if publisher.is_null() {
@@ -320,6 +353,11 @@ pub struct HrczSubscriber {
 
 /// Declares a subscriber on a key expression; `callback(ctx, ...)` runs on a zenoh thread for
 /// every sample until `hrcz_undeclare_subscriber` returns.
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_declare_subscriber(
     session: *const HrczSession,
@@ -366,6 +404,11 @@ pub unsafe extern "C" fn hrcz_declare_subscriber(
 
 /// Subscribes to liveliness changes of tokens matching `key_expr`. `history` != 0: tokens that are
 /// already alive are reported (alive = 1) right after declaration.
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_declare_liveliness_subscriber(
     session: *const HrczSession,
@@ -411,6 +454,10 @@ pub unsafe extern "C" fn hrcz_declare_liveliness_subscriber(
 /// Undeclares and frees a (data or liveliness) subscriber. When it returns, the callback is not
 /// running and will never run again. Must not be called from that subscriber's own callback.
 /// NULL is a no-op.
+///
+/// # Safety
+/// The handle is NULL or one this library returned and not yet freed; it is invalid
+/// afterwards. Not from inside the handle's own callback.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_undeclare_subscriber(subscriber: *mut HrczSubscriber) {
     if subscriber.is_null() {
@@ -431,6 +478,11 @@ pub struct HrczToken {
 }
 
 /// Declares a liveliness token on `key` (a concrete key, no wildcards).
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_declare_token(
     session: *const HrczSession,
@@ -452,6 +504,10 @@ pub unsafe extern "C" fn hrcz_declare_token(
 }
 
 /// Undeclares and frees a liveliness token. NULL is a no-op.
+///
+/// # Safety
+/// The handle is NULL or one this library returned and not yet freed; it is invalid
+/// afterwards.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_undeclare_token(token: *mut HrczToken) {
     if token.is_null() {
@@ -494,6 +550,11 @@ pub struct HrczQueryable {
 
 /// Declares a queryable on `key`; replies are sent on `key` itself (so a wildcard query such as
 /// `.../stats/*` gets concrete reply keys).
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_declare_queryable(
     session: *const HrczSession,
@@ -545,6 +606,11 @@ pub unsafe extern "C" fn hrcz_declare_queryable(
 }
 
 /// Sends one reply to `query` (only inside the query callback). Returns 0 on success, -1 on error.
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_query_reply(
     query: *const HrczQuery,
@@ -571,6 +637,11 @@ pub unsafe extern "C" fn hrcz_query_reply(
 }
 
 /// Sends an error reply to `query` (only inside the query callback). 0 on success, -1 on error.
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_query_reply_err(
     query: *const HrczQuery,
@@ -591,6 +662,10 @@ pub unsafe extern "C" fn hrcz_query_reply_err(
 }
 
 /// Undeclares and frees a queryable; afterwards its callback never runs again. NULL is a no-op.
+///
+/// # Safety
+/// The handle is NULL or one this library returned and not yet freed; it is invalid
+/// afterwards. Not from inside the handle's own callback.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_undeclare_queryable(queryable: *mut HrczQueryable) {
     if queryable.is_null() {
@@ -621,6 +696,11 @@ pub type HrczReplyCallback = Option<
 /// Sends a query on `selector` with an optional payload and attachment, blocks until all replies
 /// arrived or `timeout_ms` passed, and calls `callback` on the calling thread for each reply.
 /// Returns the number of replies delivered, or -1 on error.
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_get(
     session: *const HrczSession,
@@ -695,6 +775,11 @@ pub unsafe extern "C" fn hrcz_get(
 
 /// 1 if the key expressions `a` and `b` intersect (share at least one key), 0 if not, -1 if either
 /// is not a valid canonical key expression (error text in `err`).
+///
+/// # Safety
+/// Each pointer argument is NULL where the header allows it, or valid for the call:
+/// strings NUL-terminated, buffers at least as long as their length argument, handles
+/// returned by this library and not yet freed.
 #[no_mangle]
 pub unsafe extern "C" fn hrcz_keyexpr_intersects(
     a: *const c_char,
