@@ -7,8 +7,9 @@
 #   1. apt packages (only when one is missing; sudo only when not root)
 #   2. toolchains: cargo/rustc (+ rustfmt, clippy) for the Rust crate, go for process-compose
 #      (optional)
-#   3. wire contract: proto/hrc/v2/hrc.proto -> python/hrc/wire/hrc_pb2.py{,i}
-#   4. .venv with the pinned Python dependencies and the editable project packages
+#   3. wire contract: proto/hrc/v2/hrc.proto -> python/hrc/wire/hrc_pb2.py
+#   4. .venv with the pinned Python dependencies and the editable project packages, then the
+#      wire contract's type stubs hrc_pb2.pyi (protoc-gen-mypy comes from the venv)
 #   5. C++ build (CMake, which also builds the Rust crate with cargo) in build/ik_cpp
 #   6. process-compose, built from the Go module proxy into tools/bin/
 #
@@ -255,10 +256,11 @@ case "$protoc_v" in
   3.21.*) ;;
   *) warn "protoc $protoc_v: the Python runtime is pinned to protobuf 4.21.12 (made for protoc 3.21.x); generated code may not load" ;;
 esac
-if [ -f "$PB_PY" ] && [ -f "$PB_PYI" ] && [ "$PB_PY" -nt "$PROTO" ] && [ "$PB_PYI" -nt "$PROTO" ]; then
+# The .pyi is made after the venv (step 4): mypy-protobuf writes stubs mypy can read.
+if [ -f "$PB_PY" ] && [ "$PB_PY" -nt "$PROTO" ]; then
   done_step "up to date"
 else
-  run_logged protoc protoc -I proto/hrc/v2 --python_out=python/hrc/wire --pyi_out=python/hrc/wire "$PROTO"
+  run_logged protoc protoc -I proto/hrc/v2 --python_out=python/hrc/wire "$PROTO"
   done_step "generated with protoc $protoc_v"
 fi
 
@@ -338,6 +340,16 @@ PYEOF
   done_step "installed requirements.lock + ${EDITABLES[*]}"
 fi
 "$VPY" -c 'from hrc.wire import pb' 2>/dev/null || die "the venv cannot import hrc.wire.pb"
+
+# Type stubs of the wire contract: mypy-protobuf (pinned in requirements.lock) instead of
+# protoc's --pyi_out, whose enums mypy cannot read. Remade when the .proto or the pins change.
+PB_GEN="$VENV/bin/protoc-gen-mypy"
+[ -x "$PB_GEN" ] || die "$PB_GEN is missing (mypy-protobuf in requirements.lock)"
+if ! { [ -f "$PB_PYI" ] && [ "$PB_PYI" -nt "$PROTO" ] && [ "$PB_PYI" -nt requirements.lock ]; }; then
+  run_logged protoc-mypy protoc -I proto/hrc/v2 --plugin=protoc-gen-mypy="$PB_GEN" \
+    --mypy_out=python/hrc/wire "$PROTO"
+  say "  wire contract stubs: $PB_PYI (mypy-protobuf)"
+fi
 
 # --- 5. C++ (+ Rust crate) --------------------------------------------------
 step "C++ build (build/ik_cpp)"
