@@ -42,7 +42,7 @@ def test_the_five_services_are_separate_processes_that_all_take_part(trial_facto
         assert s.service == name
         assert s.ticks_seen > 0 or name == "physics", name
     trial.stop()
-    code, out, err = trial.communicate()
+    code, _out, err = trial.communicate()
     assert code == 0, err
     m = json.loads((trial.out / "metrics.json").read_text())
     assert m["run"]["ticks"] > 0 and "stopped by tester" in m["run"]["end_reason"]

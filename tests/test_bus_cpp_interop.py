@@ -72,7 +72,7 @@ def test_python_to_cpp_and_back_is_byte_identical(probe: str, session_id: str) -
                 pub.put(msg, tick=i, sim_time=i / 240)
                 sent.append(msg.SerializeToString())
             assert wait_until(lambda: len(back) == 5, 10)
-            out, err = proc.communicate(timeout=20)
+            _out, err = proc.communicate(timeout=20)
             assert proc.returncode == 0, err
         finally:
             if proc.poll() is None:

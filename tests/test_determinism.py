@@ -49,7 +49,7 @@ def test_two_runs_of_the_thesis_trial_are_identical(tmp_path: Path, ik_bin: Path
     assert m1["task"]["completion_s"] is not None, "the task did not finish"
     assert m1["seed"] == 7
     assert len(e1) == len(e2)
-    for i, (a, b) in enumerate(zip(e1, e2)):
+    for i, (a, b) in enumerate(zip(e1, e2, strict=True)):
         assert a == b, f"event {i} differs"
     assert m1 == m2
     assert (tmp_path / "a" / "log.txt").read_text().splitlines()[1:] == (

@@ -26,6 +26,6 @@ def test_a_golden_trial_gives_the_committed_outputs(
     for file in ("metrics.json", "log.txt"):
         assert got[file] == want[file], f"{file} differs from tests/golden/{name}/{file}"
     events_got, events_want = got["events.jsonl"], want["events.jsonl"]
-    for i, (a, b) in enumerate(zip(events_got, events_want)):
+    for i, (a, b) in enumerate(zip(events_got, events_want, strict=False)):
         assert a == b, f"events.jsonl line {i + 1} differs from tests/golden/{name}/"
     assert len(events_got) == len(events_want), "events.jsonl has a different number of lines"

@@ -4,6 +4,7 @@ scenario) and the clock master (as physics does), so these tests need no other s
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import shutil
@@ -158,7 +159,7 @@ def test_websocket_client_streams_a_reach_onto_the_bus() -> None:
             for i in range(n + 1):
                 tau = i / n
                 s = tau**3 * (10 - 15 * tau + 6 * tau**2)
-                p = [a + (b - a) * s for a, b in zip(start, goal)]
+                p = [a + (b - a) * s for a, b in zip(start, goal, strict=True)]
                 ws.send(
                     json.dumps(
                         {
@@ -181,7 +182,7 @@ def test_websocket_client_streams_a_reach_onto_the_bus() -> None:
         xs = [x for x, *_ in got]
         moving = [x for x in xs if start[0] - 1e-9 >= x >= goal[0] - 1e-9]
         assert len(set(moving)) >= 5, "too few intermediate samples relayed"
-        assert all(b <= a + 1e-9 for a, b in zip(moving, moving[1:]))
+        assert all(b <= a + 1e-9 for a, b in itertools.pairwise(moving))
         last = got[-1]
         assert last[:3] == pytest.approx(goal) and last[3] == 1.0
         with r.lock:

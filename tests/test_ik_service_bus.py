@@ -14,6 +14,8 @@ robot/reach queryable.
 
 from __future__ import annotations
 
+import contextlib
+import itertools
 import math
 import subprocess
 import threading
@@ -228,10 +230,8 @@ class Session:
             f"the run did not end within {timeout} s; {self.log_tail()}"
         )
         part_thread.join(10)
-        try:
+        with contextlib.suppress(subprocess.TimeoutExpired):
             self.proc.wait(15)
-        except subprocess.TimeoutExpired:
-            pass
         return result["end"]
 
     def log_tail(self) -> str:
@@ -366,7 +366,7 @@ def test_run_completes_and_every_robot_reports_every_change(run: tuple[Session, 
         assert [st.header.seq for st in states] == list(range(1, len(states) + 1))
         # a keyframe every simulated second (the last tick's state may come after the stop)
         assert set(range(0, end.ticks - 1, keyframe)) <= set(ticks), robot
-        for a, b in zip(states, states[1:]):
+        for a, b in itertools.pairwise(states):
             # sent because it changed (or as a keyframe) ...
             assert _content(b) != _content(a) or b.header.tick % keyframe == 0, b
             # ... and a silence only while the arm stood still
@@ -423,7 +423,7 @@ def test_measured_tcp_speed_never_exceeds_the_limit_by_more_than_2_percent(
     for robot, states in s.record.states.items():
         vmax = s.robots[robot].max_tcp_speed
         fastest = 0.0
-        for a, b in zip(states, states[1:]):
+        for a, b in itertools.pairwise(states):
             v = math.dist(vec3_from_pb(a.tcp.position), vec3_from_pb(b.tcp.position)) / s.dt
             fastest = max(fastest, v)
             assert v <= vmax * SPEED_TOL, f"{robot} tick {b.header.tick}: {v:.4f} m/s > {vmax} m/s"
@@ -441,8 +441,8 @@ def test_retarget_mid_move_has_no_joint_jump(run: tuple[Session, pb.RunEnd]) -> 
     assert states[k0].tcp_speed > 0.4  # it really was moving fast when the new command came
     # the whole run, and in particular around the retarget
     worst = 0.0
-    for a, b in zip(states, states[1:]):
-        for name, qa, qb in zip(b.joint_names, a.joint_positions, b.joint_positions):
+    for a, b in itertools.pairwise(states):
+        for name, qa, qb in zip(b.joint_names, a.joint_positions, b.joint_positions, strict=True):
             ratio = abs(qb - qa) / (limits[name] * s.dt)
             worst = max(worst, ratio)
             assert ratio <= 1.0 + 1e-6, (
@@ -451,10 +451,10 @@ def test_retarget_mid_move_has_no_joint_jump(run: tuple[Session, pb.RunEnd]) -> 
             )
     # the new target's line points elsewhere: the TCP velocity turns without a step (the motion
     # brakes along the old direction first, at most max_tcp_accel = 2 m/s^2 per tick)
-    for a, b, c in zip(states[k0 - 1 : k1], states[k0:k1], states[k0 + 1 : k1 + 1]):
+    for a, b, c in zip(states[k0 - 1 : k1], states[k0:k1], states[k0 + 1 : k1 + 1], strict=False):
         pa, pb_, pc = (vec3_from_pb(x.tcp.position) for x in (a, b, c))
-        v1 = [(y - x) / s.dt for x, y in zip(pa, pb_)]
-        v2 = [(y - x) / s.dt for x, y in zip(pb_, pc)]
+        v1 = [(y - x) / s.dt for x, y in zip(pa, pb_, strict=True)]
+        v2 = [(y - x) / s.dt for x, y in zip(pb_, pc, strict=True)]
         dv = math.dist(v1, v2)
         assert dv <= 2.0 * s.dt * 1.1 + 2e-3, (
             f"tick {c.header.tick}: TCP velocity jumped by {dv:.4f} m/s"
@@ -629,7 +629,7 @@ def test_standalone_timer_mode(tmp_path: Path) -> None:
     assert len(moving) > 10 and moving == list(range(moving[0], moving[0] + len(moving)))
     assert all(s.header.sim_time == pytest.approx(s.header.tick / hz) for s in got)
     # speed measured with dt = 1/HZ stays within the limit
-    for a, b in zip(got, got[1:]):
+    for a, b in itertools.pairwise(got):
         step_m = math.dist(vec3_from_pb(a.tcp.position), vec3_from_pb(b.tcp.position))
         assert step_m * hz <= 0.5 * SPEED_TOL
     text = log_path.read_text()

@@ -185,23 +185,25 @@ def test_logger_exits_cleanly_and_reports_its_lag(synthetic_run) -> None:
 
 
 def test_log_txt_order_and_counts_match_the_metrics(synthetic_run) -> None:
-    out, trial, _ = synthetic_run
+    out, _trial, _ = synthetic_run
     lines = (out / "log.txt").read_text().splitlines()
     metrics = [
-        json.loads(l)
-        for l in (out / "events.jsonl").read_text().splitlines()
-        if json.loads(l)["type"] == "metrics"
+        json.loads(line)
+        for line in (out / "events.jsonl").read_text().splitlines()
+        if json.loads(line)["type"] == "metrics"
     ]
     assert len(metrics) == 1 and metrics[0]["final"], "the final metrics (last tick) were drained"
     m = metrics[0]
     assert lines[0].endswith(" - TASK STARTED.")
-    assert sum(" : Collision " in l for l in lines) == m["collisions"]["human_robot_count"] == 2
-    assert sum(" : Near-collision " in l for l in lines) == m["collisions"]["near_count"] == 1
-    finishes = [i for i, l in enumerate(lines) if "task FINISHED" in l]
+    assert (
+        sum(" : Collision " in line for line in lines) == m["collisions"]["human_robot_count"] == 2
+    )
+    assert sum(" : Near-collision " in line for line in lines) == m["collisions"]["near_count"] == 1
+    finishes = [i for i, line in enumerate(lines) if "task FINISHED" in line]
     robot_finishes = [i for i in finishes if " : r1 " in lines[i] or " : r2 " in lines[i]]
     human = [i for i in finishes if " : Human " in lines[i]]
     collisions = [
-        i for i, l in enumerate(lines) if " : Collision " in l or " : Near-collision " in l
+        i for i, line in enumerate(lines) if " : Collision " in line or " : Near-collision " in line
     ]
     assert len(robot_finishes) == 2 and len(human) == 1
     assert max(collisions) < min(robot_finishes) < max(robot_finishes) < human[0] < len(lines) - 1
@@ -212,7 +214,7 @@ def test_log_txt_order_and_counts_match_the_metrics(synthetic_run) -> None:
 
 def test_events_jsonl_parses_line_by_line_with_the_same_counts(synthetic_run) -> None:
     out, trial, _ = synthetic_run
-    records = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()]
+    records = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
     kinds = Counter(r["kind"] for r in records if r["type"] == "event")
     assert kinds == trial.expected.event_kinds
     m = next(r for r in records if r["type"] == "metrics")
@@ -248,7 +250,7 @@ def test_recording_opens_with_reruns_reader_and_covers_the_trial(synthetic_run) 
 
 
 def test_a_sequence_gap_is_reported_and_counted(tmp_path: Path) -> None:
-    out, trial, done = run_synthetic(tmp_path, gap_tick=300)
+    out, _trial, done = run_synthetic(tmp_path, gap_tick=300)
     assert done.returncode == 0, done.stdout
     stats = json.loads((out / "logger_stats.json").read_text())
     assert stats["seq_gaps"] == 1 and stats["lost_messages"] == 1
@@ -259,13 +261,13 @@ def test_a_sequence_gap_is_reported_and_counted(tmp_path: Path) -> None:
 
 
 def test_sigterm_mid_trial_closes_every_file_readable(tmp_path: Path) -> None:
-    out, trial, done = run_synthetic(tmp_path, term_tick=320)
+    out, _trial, done = run_synthetic(tmp_path, term_tick=320)
     assert done.returncode == 1, done.stdout  # the run did not end normally
     lines = (out / "log.txt").read_text().splitlines()
     assert lines[0].endswith(" - TASK STARTED.")
-    assert sum(" : Collision " in l for l in lines) == 1  # the one at tick 250
+    assert sum(" : Collision " in line for line in lines) == 1  # the one at tick 250
     assert "RUN ENDED WITH AN ERROR: terminated by SIGTERM" in lines[-1]
-    records = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()]
+    records = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
     assert Counter(r["kind"] for r in records if r["type"] == "event")["COLLISION"] == 1
     s = summarize(out / "recording.rrd")
     assert 200 <= s["/robot_r1/joints/j1_base_yaw"].last_tick < 320
@@ -291,13 +293,13 @@ def test_full_thesis_trial_logger_outputs(tmp_path: Path) -> None:
         f"{metrics['task']['completion_s']:.2f} sec : TASK FINISHED"
     ) or lines[-1].endswith("total collisions."), lines[-1]
     col = metrics["collisions"]
-    assert sum(" : Collision " in l for l in lines) == col["human_robot_count"]
-    assert sum(" : Near-collision " in l for l in lines) == col["near_count"]
-    assert sum("task FINISHED" in l and " : Human " not in l for l in lines) == len(
+    assert sum(" : Collision " in line for line in lines) == col["human_robot_count"]
+    assert sum(" : Near-collision " in line for line in lines) == col["near_count"]
+    assert sum("task FINISHED" in line and " : Human " not in line for line in lines) == len(
         metrics["robots"]
     )
-    assert sum(" : Human - task FINISHED" in l for l in lines) == 1
-    records = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()]
+    assert sum(" : Human - task FINISHED" in line for line in lines) == 1
+    records = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
     kinds = Counter(r["kind"] for r in records if r["type"] == "event")
     assert kinds["COLLISION"] == col["human_robot_count"]
     assert kinds["NEAR_COLLISION"] == col["near_count"]

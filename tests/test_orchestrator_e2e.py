@@ -194,7 +194,7 @@ def test_policy_retreat_both_retreat_then_resume(tmp_path: Path) -> None:
 
 def test_policy_retreat_button_no_resume_before_the_button(tmp_path: Path) -> None:
     scen = policy_scenario(tmp_path, "retreat_button")
-    data, lines = run_trial(scen, tmp_path / "trial")
+    _data, lines = run_trial(scen, tmp_path / "trial")
     col = first(lines, "COLLISION")
     assert col is not None, "the scripted participant caused no collision"
     reached = [ln for ln in lines if ln.kind == "RETREAT_REACHED" and ln.index > col.index]

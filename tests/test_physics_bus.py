@@ -11,6 +11,7 @@ so the world they produce is published with tick k + 1.
 
 from __future__ import annotations
 
+import itertools
 import math
 import subprocess
 import sys
@@ -370,10 +371,10 @@ def _path(points: list[tuple[int, tuple, float]]):
     """Piecewise-linear hand path: (tick, position, grip) keys; hold the last one."""
 
     def at(k: int) -> tuple[tuple[float, float, float], float]:
-        for (k0, p0, g0), (k1, p1, _g1) in zip(points, points[1:]):
+        for (k0, p0, g0), (k1, p1, _g1) in itertools.pairwise(points):
             if k0 <= k < k1:
                 s = (k - k0) / (k1 - k0)
-                return tuple(a + (b - a) * s for a, b in zip(p0, p1)), g0  # type: ignore[return-value]
+                return tuple(a + (b - a) * s for a, b in zip(p0, p1, strict=True)), g0  # type: ignore[return-value]
         return points[-1][1], points[-1][2]
 
     return at

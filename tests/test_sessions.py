@@ -58,7 +58,7 @@ def test_two_trials_on_one_router_do_not_mix(tmp_path, ik_bin) -> None:
                     text=True,
                 )
             for tag, p in procs.items():
-                out, err = p.communicate(timeout=300)
+                _out, err = p.communicate(timeout=300)
                 assert p.returncode == 0, f"{tag}: {err}"
             assert wait_until(lambda: seen["A"] and seen["B"], 5)
         # each spy saw only its own session's clock (other sessions' headers are rejected as

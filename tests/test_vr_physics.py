@@ -67,7 +67,7 @@ def test_a_vr_reach_moves_the_hand_in_physics(tmp_path, ik_bin) -> None:
                 start, goal = (0.25, -0.75, 0.10), (0.10, -0.10, 0.10)  # outside -> inside
                 for i in range(41):
                     s = i / 40
-                    p = [a + (b - a) * s for a, b in zip(start, goal)]
+                    p = [a + (b - a) * s for a, b in zip(start, goal, strict=True)]
                     ws.send(
                         json.dumps(
                             {

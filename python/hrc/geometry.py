@@ -242,7 +242,7 @@ def point_box_distance(point: Sequence[float], box: Pose, half_extents: Sequence
     center, rot = box
     local = rotate(quat_conj(rot), sub(point, center))
     d2 = 0.0
-    for c, h in zip(local, half_extents):
+    for c, h in zip(local, half_extents, strict=True):
         excess = abs(c) - h
         if excess > 0.0:
             d2 += excess * excess

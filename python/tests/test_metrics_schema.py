@@ -67,7 +67,7 @@ def check_field_for_field(msg: Message, data: dict[str, Any]) -> None:
                     assert got[k] == value[k] and type(got[k]) is int
         elif f.label == FieldDescriptor.LABEL_REPEATED:
             assert len(got) == len(value)
-            for v, g in zip(value, got):
+            for v, g in zip(value, got, strict=True):
                 check_field_for_field(v, g)
         elif f.type == FieldDescriptor.TYPE_MESSAGE:
             check_field_for_field(value, got)

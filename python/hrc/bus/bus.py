@@ -7,6 +7,7 @@ it is counted per key, logged with key and sender, and never reaches service cod
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -61,7 +62,10 @@ class InputStats:
 
 
 class Publisher(Generic[M]):
-    """Publishes one message type on one key; fills the header (session, tick, time, sender, seq)."""
+    """Publishes one message type on one key.
+
+    Fills the header: session, tick, time, sender, seq.
+    """
 
     def __init__(self, bus: Bus, key: str, *, express: bool, block: bool) -> None:
         self.key = key
@@ -121,15 +125,12 @@ class Bus:
 
     def close(self) -> None:
         for d in reversed(self._declared):
-            try:
+            # Already gone with the session: nothing to release.
+            with contextlib.suppress(Exception):
                 d.undeclare()  # type: ignore[attr-defined]
-            except Exception:  # already gone with the session; nothing to release
-                pass
         self._declared.clear()
-        try:
+        with contextlib.suppress(Exception):
             self.session.close()
-        except Exception:
-            pass
 
     # ------------------------------------------------------------------ publish
     def publisher(self, key: str, *, express: bool = True, block: bool = True) -> Publisher:
@@ -224,7 +225,8 @@ class Bus:
         )
 
     def watch_liveliness(self, on_change: Callable[[str, bool], None]) -> None:
-        """``on_change(service, alive)`` for every service token of this session, past and future."""
+        """Calls ``on_change(service, alive)`` for every service token of this session, past and
+        future."""
 
         def on_sample(sample: zenoh.Sample) -> None:
             service = self.keys.last_segment(str(sample.key_expr))
@@ -247,7 +249,8 @@ class Bus:
     def queryable(
         self, key: str, request_type: type[M] | None, handler: Callable[[M | None], Message]
     ) -> None:
-        """Answers queries on ``key`` with ``handler(request)``; a malformed request gets an error."""
+        """Answers queries on ``key`` with ``handler(request)``; a malformed request gets an
+        error."""
 
         def on_query(query: zenoh.Query) -> None:
             req = None

@@ -176,7 +176,8 @@ class ClockMaster:
                 if left <= 0:
                     missing = ", ".join(sorted(expected - self._alive))
                     raise RunFailed(
-                        f"services never came up within {self.settings.start_timeout_s:g} s: {missing}",
+                        f"services never came up within {self.settings.start_timeout_s:g} s: "
+                        f"{missing}",
                         sorted(expected - self._alive)[0],
                     )
                 self._cond.wait(min(left, 0.5))

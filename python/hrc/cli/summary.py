@@ -6,6 +6,7 @@ schema's fields and cannot drift from it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 from pathlib import Path
 from typing import Any
@@ -74,9 +75,7 @@ def print_summary(trial_dir: Path, result: Any) -> None:
     logger: dict[str, Any] | None = None
     stats = trial_dir / "logger_stats.json"  # written by the logger, which measures its own lag
     if stats.exists():
-        try:
+        with contextlib.suppress(OSError, json.JSONDecodeError):
             logger = json.loads(stats.read_text())
-        except (OSError, json.JSONDecodeError):
-            pass
     print("\n".join(format_summary(m, logger)))
     print(f"files: {trial_dir}")

@@ -8,6 +8,7 @@ the problems of the others.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
@@ -185,7 +186,7 @@ def _deadlocks(
             if dep in parts and dep != pid:
                 edges.append(Edge(dep, pid, "after"))
     for agent, seq in sequences.items():
-        for a, b in zip(seq, seq[1:]):
+        for a, b in itertools.pairwise(seq):
             edges.append(Edge(a, b, agent))
     problems: list[Problem] = []
     for cycle in find_cycles(order, edges):
@@ -256,7 +257,9 @@ def check_workspace(raw: dict[str, Any]) -> list[Problem]:
         lo, hi = _vec3(_table(box).get("min")), _vec3(_table(box).get("max"))
         if lo is None or hi is None:
             continue  # the schema check reports it
-        bad = [f"{axis}: {a:g} >= {b:g}" for axis, a, b in zip("xyz", lo, hi) if a >= b]
+        bad = [
+            f"{axis}: {a:g} >= {b:g}" for axis, a, b in zip("xyz", lo, hi, strict=True) if a >= b
+        ]
         if bad:
             problems.append(
                 Problem(

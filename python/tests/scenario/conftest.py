@@ -16,10 +16,11 @@ from hrc.scenario import Problem, ScenarioError, load
 REPO = Path(__file__).resolve().parents[3]
 SCENARIOS = REPO / "scenarios"
 
-# ---------------------------------------------------------------- a 5-joint arm like robots/arm5.urdf
+# ------------------------------------------------------------- a 5-joint arm like robots/arm5.urdf
 
 _LINK = """  <link name="{name}">
-    <visual><origin xyz="0 0 {half}"/><geometry><cylinder radius="0.04" length="{length}"/></geometry></visual>
+    <visual><origin xyz="0 0 {half}"/>
+      <geometry><cylinder radius="0.04" length="{length}"/></geometry></visual>
     <inertial><origin xyz="0 0 {half}"/><mass value="1.0"/>
       <inertia ixx="0.01" ixy="0" ixz="0" iyy="0.01" iyz="0" izz="0.01"/></inertial>
   </link>
@@ -85,7 +86,7 @@ def write_arm(folder: Path, name: str = "arm5.urdf") -> Path:
     return path
 
 
-# ---------------------------------------------------------------- a TOML writer (enough for scenarios)
+# ------------------------------------------------------------- a TOML writer (enough for scenarios)
 
 
 def _value(v: Any) -> str:

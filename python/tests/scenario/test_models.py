@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import pytest
@@ -25,7 +26,7 @@ def test_accessors(thesis) -> None:
     assert thesis.sequence_of("r1")[:2] == ["RA1", "RA2"]
     with pytest.raises(KeyError, match="r9"):
         thesis.sequence_of("r9")
-    assert [p.id for p in thesis.parts_in_sequence(HUMAN)][0] == "H1"
+    assert next(p.id for p in thesis.parts_in_sequence(HUMAN)) == "H1"
     assert list(thesis.robots_by_role("screwing")) == ["r2"]
     with pytest.raises(ValueError):
         thesis.robots_by_role("painting")
@@ -48,7 +49,7 @@ def test_validate_sees_changes_made_in_code(thesis) -> None:
 
 def test_find_cycles_handles_long_chains_without_recursion() -> None:
     nodes = [f"P{i}" for i in range(5000)]
-    edges = [Edge(a, b, "human") for a, b in zip(nodes, nodes[1:])]
+    edges = [Edge(a, b, "human") for a, b in itertools.pairwise(nodes)]
     assert find_cycles(nodes, edges) == []
     edges.append(Edge(nodes[-1], nodes[0], "after"))
     (cycle,) = find_cycles(nodes, edges)

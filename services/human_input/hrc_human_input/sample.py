@@ -109,7 +109,7 @@ def interpolate(a: Sample, b: Sample, t: float) -> Sample:
     )
 
 
-# ---------------------------------------------------------------- JSON parsing with every problem named
+# ------------------------------------------------------------ JSON parsing with every problem named
 
 
 def _number(value: Any) -> bool:

@@ -325,7 +325,7 @@ class ScriptedParticipant:
         )
         if self.phase in (Phase.REACH, Phase.CARRY):
             interruptible = self.hand.segment is not None and self.hand.pending_grip_change()
-        if interruptible and self._start_provoke(t, view, "at task time %.2f s" % tt):
+        if interruptible and self._start_provoke(t, view, f"at task time {tt:.2f} s"):
             self.provoke_times.pop(0)
 
     def _start_provoke(self, t: float, view: TaskView, why: str) -> bool:
@@ -397,9 +397,8 @@ class ScriptedParticipant:
                 self._set(Phase.IDLE, t, "part dropped while carrying")
         elif ph == Phase.RELEASE_CHECK:
             self._release_check(t, view)
-        elif ph == Phase.WITHDRAW:
-            if not hand.busy:
-                self._set(Phase.IDLE, t)
+        elif ph == Phase.WITHDRAW and not hand.busy:
+            self._set(Phase.IDLE, t)
 
     def _idle(self, t: float, view: TaskView) -> None:
         hand = self.hand
@@ -420,9 +419,13 @@ class ScriptedParticipant:
             self.go_t = t + self._rt()
             self._set(Phase.REACT, t, f"{pid} is grabbable")
             return
-        if not hand.busy and distance(hand.pos, REST[self.active]) > 0.01:
-            if t - self.phase_since > 1.0:  # nothing to do for a while: hands down
-                hand.do(Move(REST[self.active], 0.0, GROSS_WIDTH, "rest"))
+        # Nothing to do for a while: hands down.
+        if (
+            not hand.busy
+            and distance(hand.pos, REST[self.active]) > 0.01
+            and t - self.phase_since > 1.0
+        ):
+            hand.do(Move(REST[self.active], 0.0, GROSS_WIDTH, "rest"))
 
     def _react(self, t: float, view: TaskView) -> None:
         pid = self.part
@@ -437,9 +440,10 @@ class ScriptedParticipant:
             return
         if pid not in self.provoked_parts and self.facts.provoke_probability > 0.0:
             self.provoked_parts.add(pid)
-            if self.rng_provoke.random() < self.facts.provoke_probability:
-                if self._start_provoke(t, view, f"before reaching for {pid}"):
-                    return
+            if self.rng_provoke.random() < self.facts.provoke_probability and self._start_provoke(
+                t, view, f"before reaching for {pid}"
+            ):
+                return
         hand = self.hand
         hand.cancel()
         obj_yaw_rad = (
@@ -471,12 +475,13 @@ class ScriptedParticipant:
             return
         if hand.busy:
             # the part moved (e.g. still rolling after a missed release): aim again
-            if hand.pending_grip_change() and any(
-                isinstance(s, Grip) and s.value >= GRIP_CLOSED for s in hand.plan
+            if (
+                hand.pending_grip_change()
+                and any(isinstance(s, Grip) and s.value >= GRIP_CLOSED for s in hand.plan)
+                and distance(self.grasp_point(view, pid), self._planned_grasp(hand)) > 0.02
             ):
-                if distance(self.grasp_point(view, pid), self._planned_grasp(hand)) > 0.02:
-                    self.go_t = t
-                    self._set(Phase.REACT, t, f"{pid} moved")
+                self.go_t = t
+                self._set(Phase.REACT, t, f"{pid} moved")
             return
         if view.held_by(pid) == self.active:
             self._grasped(t, view)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -32,7 +33,7 @@ def count_peaks(speed: np.ndarray, rel: float = 0.01) -> int:
     top = float(speed.max())
     low = float(speed[0])
     rising = True
-    for a, b in zip(speed[:-1], speed[1:]):
+    for a, b in itertools.pairwise(speed):
         if rising and b < a - 1e-12:
             if a - low > rel * top:
                 peaks += 1

@@ -4,6 +4,7 @@ synthetic task state."""
 from __future__ import annotations
 
 import functools
+import itertools
 
 import numpy as np
 import pytest
@@ -59,7 +60,7 @@ def hand_positions(world: MiniWorld, hand: str = "right") -> np.ndarray:
 def count_peaks(speed: np.ndarray, rel: float = 0.02) -> int:
     top = float(speed.max())
     peaks, low, rising = 0, float(speed[0]), True
-    for a, b in zip(speed[:-1], speed[1:]):
+    for a, b in itertools.pairwise(speed):
         if rising and b < a - 1e-12:
             if a - low > rel * top:
                 peaks += 1

@@ -27,26 +27,28 @@ def wait_for(pred, timeout: float = 5.0) -> bool:
 
 
 def test_accepts_samples_and_answers_malformed_frames() -> None:
-    with VrBridge("127.0.0.1", 0, hello={"scenario": "x"}) as bridge:
-        with connect(f"ws://127.0.0.1:{bridge.bound_port}/ws") as ws:
-            hello = json.loads(ws.recv(timeout=5))
-            assert hello["type"] == "hello" and hello["scenario"] == "x"
-            assert hello["auth_required"] is False
-            ws.send(json.dumps(SAMPLE))
-            assert wait_for(lambda: bridge.latest() is not None)
-            assert bridge.latest().right_grip == 1.0
-            good = bridge.latest()
-            for frame, words in [
-                ("{nope", "not valid JSON"),
-                (json.dumps({**SAMPLE, "left_grip": 2}), "left_grip"),
-                (json.dumps({"head": POSE}), "left is missing"),
-                (b"\x00\x01", "binary frames"),
-            ]:
-                ws.send(frame)
-                reply = json.loads(ws.recv(timeout=5))
-                assert reply["type"] == "error" and words in reply["error"], reply
-            assert bridge.latest() is good  # malformed frames change nothing
-            assert bridge.stats.rejected == 4 and bridge.stats.accepted == 1
+    with (
+        VrBridge("127.0.0.1", 0, hello={"scenario": "x"}) as bridge,
+        connect(f"ws://127.0.0.1:{bridge.bound_port}/ws") as ws,
+    ):
+        hello = json.loads(ws.recv(timeout=5))
+        assert hello["type"] == "hello" and hello["scenario"] == "x"
+        assert hello["auth_required"] is False
+        ws.send(json.dumps(SAMPLE))
+        assert wait_for(lambda: bridge.latest() is not None)
+        assert bridge.latest().right_grip == 1.0
+        good = bridge.latest()
+        for frame, words in [
+            ("{nope", "not valid JSON"),
+            (json.dumps({**SAMPLE, "left_grip": 2}), "left_grip"),
+            (json.dumps({"head": POSE}), "left is missing"),
+            (b"\x00\x01", "binary frames"),
+        ]:
+            ws.send(frame)
+            reply = json.loads(ws.recv(timeout=5))
+            assert reply["type"] == "error" and words in reply["error"], reply
+        assert bridge.latest() is good  # malformed frames change nothing
+        assert bridge.stats.rejected == 4 and bridge.stats.accepted == 1
 
 
 def test_token_in_query_or_first_message() -> None:
@@ -97,6 +99,8 @@ def test_non_loopback_bind_needs_a_token() -> None:
 
 
 def test_port_in_use_is_a_clear_error() -> None:
-    with VrBridge("127.0.0.1", 0) as first:
-        with pytest.raises(BridgeConfigError, match="cannot serve"):
-            VrBridge("127.0.0.1", first.bound_port).start()
+    with (
+        VrBridge("127.0.0.1", 0) as first,
+        pytest.raises(BridgeConfigError, match="cannot serve"),
+    ):
+        VrBridge("127.0.0.1", first.bound_port).start()

@@ -6,15 +6,18 @@ One line per event, task time in seconds, in the words of the thesis's Unity log
     12.35 sec : Near-collision 1 between the robots.
     20.10 sec : Collision 1 occurred between r1 and left hand.
     23.42 sec : Continuing after robot-hand collision 1. Delayed 3.32 sec.
-    61.00 sec : r1 - task FINISHED. Max speed reached : 0.500 m/s, average speed : 0.231 m/s. Waited human for 4.20 sec.
+    61.00 sec : r1 - task FINISHED. Max speed reached : 0.500 m/s, average speed : 0.231 m/s.
+        Waited human for 4.20 sec.
     70.25 sec : Human - task FINISHED. Idle (hands outside the workspace) for 2.10 sec.
     75.40 sec : TASK FINISHED. 1 total collisions.
 
+(The r1 line is one line in log.txt, wrapped here.)
+
 The orchestrator writes the line into ``TaskEvent.text``; when present it is used as is (line
 breaks folded into spaces, so each event stays one line), except the start line, always built
-from ``wall_time`` when that is set (the thesis dates each trial). Otherwise the formatter of the kind below
-writes it, so log.txt never lacks a line. Only the kinds in ``LOG_KINDS`` go to log.txt (the
-thesis's log); every event goes to events.jsonl.
+from ``wall_time`` when that is set (the thesis dates each trial). Otherwise the formatter of
+the kind below writes it, so log.txt never lacks a line. Only the kinds in ``LOG_KINDS`` go to
+log.txt (the thesis's log); every event goes to events.jsonl.
 """
 
 from __future__ import annotations
@@ -171,5 +174,6 @@ def run_end_line(
         )
         return f"{secs(last_task_time)} sec : RUN ENDED WITH AN ERROR{who}: {why}"
     if not task_finished:
-        return f"{secs(last_task_time)} sec : RUN ENDED before the task finished ({end.reason or 'stopped'})."
+        why = end.reason or "stopped"
+        return f"{secs(last_task_time)} sec : RUN ENDED before the task finished ({why})."
     return None

@@ -151,7 +151,7 @@ class UrdfModel:
             raise UrdfError(f"URDF {source}: not XML: {exc}") from None
         if robot.tag != "robot":
             raise UrdfError(f"URDF {source}: root element is <{robot.tag}>, not <robot>")
-        links = [l.get("name", "") for l in robot.findall("link")]
+        links = [link.get("name", "") for link in robot.findall("link")]
         joints: list[Joint] = []
         for j in robot.findall("joint"):
             name = j.get("name") or ""
@@ -191,7 +191,7 @@ class UrdfModel:
                 )
             )  # type: ignore[arg-type]
         children = {j.child for j in joints}
-        roots = [l for l in links if l not in children]
+        roots = [link for link in links if link not in children]
         if len(roots) != 1:
             raise UrdfError(f"URDF {source}: expected one root link, found {roots or 'none'}")
         # Parent-before-child order, so a single pass computes every link's pose.
@@ -228,7 +228,7 @@ class UrdfModel:
         """Origins of the links in tree order (root first): the arm's skeleton, N x 3."""
         poses = self.link_poses(q, base)
         order = [self.root] + [j.child for j in self.joints]
-        return np.array([poses[l][:3, 3] for l in order])
+        return np.array([poses[link][:3, 3] for link in order])
 
 
 def point_polyline_distance(p: np.ndarray, pts: np.ndarray) -> float:

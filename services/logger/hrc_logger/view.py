@@ -376,9 +376,9 @@ class View:
         if rv is None:  # a robot the scenario did not announce: TCP only
             rv = self.robots[st.robot] = RobotView(st.robot, UNKNOWN_COLOR, np.eye(4))
         if st.joint_names and len(st.joint_names) == len(st.joint_positions):
-            q = dict(zip(st.joint_names, st.joint_positions))
+            q = dict(zip(st.joint_names, st.joint_positions, strict=True))
         elif rv.model is not None and len(st.joint_positions) == len(rv.model.movable):
-            q = dict(zip(rv.model.movable, st.joint_positions))
+            q = dict(zip(rv.model.movable, st.joint_positions, strict=True))
         else:
             q = {}
         if finite(q.values()):
@@ -614,7 +614,7 @@ class View:
     def tick(self, k: int, sim_time: float) -> None:
         """Blinks the flashing cues on the sim timeline (on for the first half of each period)."""
         self.clock = (k, sim_time)
-        phase = int(math.floor(sim_time * self.s.flash_hz * 2.0))
+        phase = math.floor(sim_time * self.s.flash_hz * 2.0)
         if phase == self._flash_phase:
             return
         self._flash_phase = phase

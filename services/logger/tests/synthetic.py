@@ -35,7 +35,8 @@ ROLES = {"physics": "physics", "ik": "ik_cpp", "human": "human_input", "orch": "
 @dataclass
 class Outgoing:
     role: str  # physics | ik | human | orch
-    key: str  # key name: world_objects, world_contacts, robot_state:<id>, human_state, task_events, ...
+    # key name: world_objects, world_contacts, robot_state:<id>, human_state, task_events, ...
+    key: str
     msg: Message
 
 
@@ -126,8 +127,10 @@ class SyntheticTrial:
         r = self.robots[rid]
         q = self.q(rid, k)
         base = yaw_transform([r.base.xyz.x, r.base.xyz.y, r.base.xyz.z], r.base.yaw_deg)
-        tool = model.link_poses(dict(zip(model.movable, q)), base)[model.joints[-1].child]
-        prev = model.link_poses(dict(zip(model.movable, self.q(rid, k - 1))), base)[
+        tool = model.link_poses(dict(zip(model.movable, q, strict=True)), base)[
+            model.joints[-1].child
+        ]
+        prev = model.link_poses(dict(zip(model.movable, self.q(rid, k - 1), strict=True)), base)[
             model.joints[-1].child
         ]
         speed = float(np.linalg.norm(tool[:3, 3] - prev[:3, 3]) / self.dt)
@@ -151,7 +154,7 @@ class SyntheticTrial:
         grip = 1.0 if 50 <= k < 200 else 0.0
         return pb.HumanState(
             head=pb.Pose(position=vec3_to_pb((0.0, -0.6, 0.5)), orientation=pb.Quat(w=1.0)),
-            left_hand=pb.Pose(position=vec3_to_pb(left + [0, 0, 0.03]), orientation=pb.Quat(w=1.0)),
+            left_hand=pb.Pose(position=vec3_to_pb([*left, 0, 0, 0.03]), orientation=pb.Quat(w=1.0)),
             right_hand=pb.Pose(position=vec3_to_pb(right), orientation=pb.Quat(w=1.0)),
             left_grip=grip,
             right_grip=0.0,
@@ -198,7 +201,10 @@ class SyntheticTrial:
                     K.TASK_EVENT_KIND_COLLISION,
                     robot="r1",
                     hand="left",
-                    text=f"{self.task_time(k):.2f} sec : Collision 1 occurred between r1 and left hand.",
+                    text=(
+                        f"{self.task_time(k):.2f} sec : "
+                        "Collision 1 occurred between r1 and left hand."
+                    ),
                 )
             )
         if k == 300:

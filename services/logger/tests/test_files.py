@@ -44,7 +44,7 @@ def test_kill_9_mid_run_leaves_every_written_line_parseable(tmp_path: Path) -> N
         child.wait()
     lines = path.read_text().splitlines()
     assert len(lines) >= reported  # nothing it had written before reporting was lost
-    numbers = [json.loads(l)["i"] for l in lines]  # every line is complete JSON
+    numbers = [json.loads(line)["i"] for line in lines]  # every line is complete JSON
     assert numbers == list(range(1, len(lines) + 1))
 
 

@@ -33,10 +33,10 @@ def test_log_txt_in_thesis_order(trial_dir: tuple[Path, SyntheticTrial]) -> None
     lines = (out / "log.txt").read_text().splitlines()
     assert lines[0] == "2024-05-02 14:03:11 - TASK STARTED."
     assert lines[-1].endswith("TASK FINISHED. 2 total collisions.")
-    assert sum(" : Collision " in l for l in lines) == trial.expected.collisions == 2
-    assert sum(" : Near-collision " in l for l in lines) == trial.expected.near == 1
-    assert sum("Continuing after robot-hand collision" in l for l in lines) == 2
-    order = [l.split(" sec : ")[1].split(" ")[0] for l in lines[1:]]
+    assert sum(" : Collision " in line for line in lines) == trial.expected.collisions == 2
+    assert sum(" : Near-collision " in line for line in lines) == trial.expected.near == 1
+    assert sum("Continuing after robot-hand collision" in line for line in lines) == 2
+    order = [line.split(" sec : ")[1].split(" ")[0] for line in lines[1:]]
     assert order == [
         "Collision",
         "Continuing",
@@ -48,13 +48,13 @@ def test_log_txt_in_thesis_order(trial_dir: tuple[Path, SyntheticTrial]) -> None
         "Human",
         "TASK",
     ]
-    times = [float(l.split(" sec : ")[0]) for l in lines[1:]]
+    times = [float(line.split(" sec : ")[0]) for line in lines[1:]]
     assert times == sorted(times)
 
 
 def test_events_jsonl_counts(trial_dir: tuple[Path, SyntheticTrial]) -> None:
     out, trial = trial_dir
-    records = [json.loads(l) for l in (out / "events.jsonl").read_text().splitlines()]
+    records = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
     kinds = Counter(r["kind"] for r in records if r["type"] == "event")
     assert kinds == trial.expected.event_kinds
     assert sum(r["type"] == "cue" for r in records) == trial.expected.cue_changes
@@ -95,7 +95,8 @@ def test_recording_holds_robots_parts_cues_over_the_trial(
     for cid in trial.expected.cue_ids:
         ent = "/world/cues/" + cid.replace(":", "/")
         assert "Clear:is_recursive" in s[ent].components, cid  # turned off again (or blinking)
-    # flashing: the H1 target cue is on for ticks 50..200 (0.6 s at 2 Hz blink) -> shown, hidden, shown...
+    # flashing: the H1 target cue is on for ticks 50..200 (0.6 s at 2 Hz blink) -> shown, hidden,
+    # shown...
     assert len(s["/world/cues/target/H1"].ticks) >= 4
     assert sorted(s["/world/contacts/hand_robot/left_r1_link3_forearm"].ticks) == [250, 262]
     assert "/world/contacts/hand_envelope" not in " ".join(s)

@@ -167,7 +167,8 @@ def test_closing_line_only_when_the_task_did_not_finish() -> None:
     )
     assert (
         run_end_line(bad, "", False, 4.0)
-        == "4.00 sec : RUN ENDED WITH AN ERROR (service 'ik_cpp'): participant 'ik_cpp' missed the barrier"
+        == "4.00 sec : RUN ENDED WITH AN ERROR (service 'ik_cpp'): "
+        "participant 'ik_cpp' missed the barrier"
     )
     assert (
         run_end_line(None, "terminated by SIGTERM", False, 1.0)

@@ -1,4 +1,5 @@
-"""Our URDF FK (used by the view) agrees with rerun's own URDF joint transforms and with geometry."""
+"""Our URDF FK (used by the view) agrees with rerun's own URDF joint transforms and with
+geometry."""
 
 from __future__ import annotations
 
@@ -97,17 +98,20 @@ def test_point_polyline_distance() -> None:
         ("<robot", "not XML"),
         ("<model/>", "not <robot>"),
         (
-            '<robot name="a"><link name="a"/><link name="b"/><joint name="j" type="ball"><parent link="a"/>'
+            '<robot name="a"><link name="a"/><link name="b"/>'
+            '<joint name="j" type="ball"><parent link="a"/>'
             '<child link="b"/></joint></robot>',
             "type 'ball'",
         ),
         (
-            '<robot name="a"><link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a"/>'
+            '<robot name="a"><link name="a"/><link name="b"/>'
+            '<joint name="j" type="revolute"><parent link="a"/>'
             '<child link="b"/><origin xyz="0 0"/></joint></robot>',
             "expected 3 numbers",
         ),
         (
-            '<robot name="a"><link name="a"/><link name="b"/><joint name="j" type="revolute"><parent link="a"/>'
+            '<robot name="a"><link name="a"/><link name="b"/>'
+            '<joint name="j" type="revolute"><parent link="a"/>'
             '<child link="b"/><axis xyz="0 0 0"/></joint></robot>',
             "axis is zero",
         ),
@@ -120,5 +124,5 @@ def test_bad_urdf_is_named(text: str, match: str) -> None:
 
 
 def test_missing_file_is_named(tmp_path: Path) -> None:
-    with pytest.raises(UrdfError, match="nope.urdf"):
+    with pytest.raises(UrdfError, match=r"nope\.urdf"):
         UrdfModel.from_file(tmp_path / "nope.urdf")

@@ -147,9 +147,8 @@ class Task:
                 self._start(e.object)
             if self.running:
                 self.human.grabbed(e, self.now())
-        elif e.kind == pb.ObjectEvent.KIND_RELEASED:
-            if self.running:
-                self.human.released(e, self.now())
+        elif e.kind == pb.ObjectEvent.KIND_RELEASED and self.running:
+            self.human.released(e, self.now())
         # SPAWNED / SNAPPED / RESTED and robot grabs confirm what this task commanded.
 
     def _contact(self, c: pb.Contact) -> None:

@@ -69,7 +69,7 @@ class FakeRobot:
                 self.waypoints.pop(0)
             else:
                 f = budget / d
-                self.tcp = tuple(a + (b - a) * f for a, b in zip(self.tcp, wp))  # type: ignore
+                self.tcp = tuple(a + (b - a) * f for a, b in zip(self.tcp, wp, strict=True))  # type: ignore
                 moved, budget = moved + budget, 0.0
         if self.cmd is not None and self.cmd.kind == pb.RobotCommand.KIND_MOVE:
             target = (self.cmd.target.x, self.cmd.target.y, self.cmd.target.z)

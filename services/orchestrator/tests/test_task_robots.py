@@ -76,7 +76,7 @@ def test_transport_robot_phases_commands_and_world_commands() -> None:
     assert (rel[0].pose.position.x, rel[0].pose.position.y, rel[0].pose.position.z) == tuple(
         part.target.xyz
     )
-    fin = [e for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_FINISHED) if e.robot == "r1"][0]
+    fin = next(e for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_FINISHED) if e.robot == "r1")
     assert fin.robot_finished.max_tcp_speed_mps == pytest.approx(0.5)
     assert 0 < fin.robot_finished.avg_tcp_speed_mps <= 0.5
     assert "task FINISHED" in fin.text

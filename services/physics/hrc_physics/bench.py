@@ -55,7 +55,7 @@ def measure(n: int) -> dict[str, float]:
 
         def tick(k: int) -> None:
             nonlocal contacts
-            for rid, q in zip(robots, joints[k]):
+            for rid, q in zip(robots, joints[k], strict=True):
                 world.set_robot_state(rid, [], q)
             world.set_human(humans[k])
             world.step()

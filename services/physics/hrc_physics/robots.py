@@ -109,7 +109,7 @@ class KinematicRobot:
             if isinstance(order, str):
                 return order
             new = list(self.positions)
-            for i, v in zip(order, positions):
+            for i, v in zip(order, positions, strict=True):
                 new[i] = float(v)
         else:
             if len(positions) != len(self.movable):
@@ -135,8 +135,8 @@ class KinematicRobot:
     def aabb(self) -> tuple[Vec3, Vec3]:
         """World AABB of all link colliders (cheap prefilter for the distance queries)."""
         boxes = [p.getAABB(self.body, link, physicsClientId=self._c) for link in self._links]
-        lo = tuple(map(min, zip(*(b[0] for b in boxes))))
-        hi = tuple(map(max, zip(*(b[1] for b in boxes))))
+        lo = tuple(map(min, zip(*(b[0] for b in boxes), strict=True)))
+        hi = tuple(map(max, zip(*(b[1] for b in boxes), strict=True)))
         return lo, hi  # type: ignore[return-value]
 
     def tool_pose(self) -> Pose:

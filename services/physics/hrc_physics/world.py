@@ -235,7 +235,10 @@ class World:
 
     # ------------------------------------------------------------------ the tick
     def step(self, commands: list[pb.WorldCommand] | None = None) -> list[str]:
-        """Advances to the next tick (see the module doc). Returns the rejected commands' reasons."""
+        """Advances to the next tick (see the module doc).
+
+        Returns the rejected commands' reasons.
+        """
         c = self.c
         p.stepSimulation(physicsClientId=c)
         self.steps += 1
@@ -513,7 +516,7 @@ class World:
                 if pt[8] <= reach and (nearest is None or pt[8] < nearest[8]):
                     nearest = pt
             if nearest is not None:
-                mid = tuple(0.5 * (u + v) for u, v in zip(nearest[5], nearest[6]))
+                mid = tuple(0.5 * (u + v) for u, v in zip(nearest[5], nearest[6], strict=True))
                 out[ContactKey(ROBOT_ROBOT, ra, rb)] = Touch(
                     f"{a.link_name(nearest[3])}/{b.link_name(nearest[4])}", mid, nearest[8]
                 )  # type: ignore[arg-type]
@@ -550,9 +553,8 @@ def _rests_on(client: int, body: int, support: int, gap: float = 0.002) -> bool:
     """Is ``body`` within ``gap`` above ``support``, touching it from above?"""
     for pt in p.getClosestPoints(body, support, gap, physicsClientId=client):
         # contact normal points from B (support) to A (body): up means it lies on top
-        if pt[7][2] < -0.9 or pt[7][2] > 0.9:
-            if pt[5][2] >= pt[6][2] - 1e-6:
-                return True
+        if (pt[7][2] < -0.9 or pt[7][2] > 0.9) and pt[5][2] >= pt[6][2] - 1e-6:
+            return True
     return False
 
 

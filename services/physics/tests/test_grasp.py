@@ -147,7 +147,7 @@ def test_robot_attach_hangs_the_part_below_the_tool_and_snaps_it(world: World, h
 def test_spawned_screw_rests_on_the_feeder(world: World, helpers) -> None:
     h = helpers
     feeder = (-0.60, 0.35, 0.05)
-    with pytest.raises(CommandRejected, match="S1.*not been spawned"):
+    with pytest.raises(CommandRejected, match=r"S1.*not been spawned"):
         world.apply(h.attach("S1", "r2"))
     world.step([h.spawn("S1", feeder, (0.012, 0.012, 0.02))])
     events = world.take_events()

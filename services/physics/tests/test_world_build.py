@@ -56,7 +56,7 @@ def test_thesis_world_has_every_started_part_at_its_start(thesis: sc.Scenario) -
         feeder = thesis.robots["r2"].feeder
         lo, hi = _aabb(w, w.furniture["r2_feeder"])
         assert hi[2] == pytest.approx(feeder[2] - 0.01, abs=1e-6)  # a 2 cm screw centred there
-        wall_lo, wall_hi = _aabb(w, w.furniture["r2_feeder_wall"])
+        _wall_lo, wall_hi = _aabb(w, w.furniture["r2_feeder_wall"])
         assert wall_hi[1] < feeder[1] and wall_hi[2] > hi[2]  # on the participant's side, higher
         assert w.button is not None and len(w.envelope) == 2
 
