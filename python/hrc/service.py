@@ -25,10 +25,9 @@ import contextlib
 import logging
 import signal
 import sys
+from collections.abc import Callable
 from types import FrameType
 from typing import ClassVar, Protocol
-
-from google.protobuf.message import Message
 
 from hrc import services
 from hrc.bus import (
@@ -42,8 +41,7 @@ from hrc.bus import (
     add_bus_arguments,
     bus_config_from_args,
 )
-from hrc.bus.bus import Validator
-from hrc.bus.inbox import Handler
+from hrc.bus.bus import M
 from hrc.logsetup import setup_logging
 from hrc.services import Role
 from hrc.wire import pb
@@ -68,7 +66,11 @@ class Inputs(Protocol):
     """What :meth:`Service.register_inputs` gets: the role's input registration."""
 
     def input(
-        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+        self,
+        key: str,
+        msg_type: type[M],
+        handler: Callable[[str, M], None],
+        validate: Callable[[M], str | None] | None = None,
     ) -> None: ...
 
 

@@ -13,7 +13,7 @@ import threading
 import time
 from collections import Counter
 from collections.abc import Callable
-from typing import Generic, TypeVar
+from typing import Any, Generic, TypeVar
 
 import zenoh
 from google.protobuf.message import DecodeError, Message
@@ -113,7 +113,7 @@ class Bus:
         self.sender_bytes = sender.encode()
         self.stats = InputStats()
         self._declared: list[object] = []
-        self._publishers: dict[str, Publisher] = {}
+        self._publishers: dict[str, Publisher[Any]] = {}
         self.session = zenoh.open(config.to_zenoh())
 
     # ------------------------------------------------------------------ lifecycle
@@ -133,7 +133,7 @@ class Bus:
             self.session.close()
 
     # ------------------------------------------------------------------ publish
-    def publisher(self, key: str, *, express: bool = True, block: bool = True) -> Publisher:
+    def publisher(self, key: str, *, express: bool = True, block: bool = True) -> Publisher[Any]:
         """A publisher for ``key`` (one per key and service; asking twice returns the same one).
 
         Express (unbatched) by default: every tick waits on these messages, so latency beats
@@ -173,7 +173,7 @@ class Bus:
         key: str,
         msg_type: type[M],
         callback: Callable[[str, M], None],
-        validate: Validator | None = None,
+        validate: Callable[[M], str | None] | None = None,
     ) -> None:
         """Calls ``callback(key, msg)`` for each well-formed message on ``key``.
 
@@ -282,10 +282,11 @@ class Bus:
         out: list[R] = []
         for reply in self.session.get(key, payload=payload, timeout=timeout):
             if reply.ok is None:
+                err = reply.err
                 log.warning(
                     "query %s answered with an error: %s",
                     key,
-                    reply.err.payload.to_bytes().decode(errors="replace"),
+                    err.payload.to_bytes().decode(errors="replace") if err is not None else "?",
                 )
                 continue
             msg = reply_type()

@@ -12,22 +12,23 @@ from __future__ import annotations
 import logging
 import threading
 import time
-from collections import Counter
+from collections import Counter, defaultdict
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Literal
 
-from google.protobuf.message import Message
-
-from hrc.bus.bus import Bus, Validator
-from hrc.bus.inbox import Handler, Inbox
+from hrc.bus.bus import Bus, M
+from hrc.bus.inbox import Inbox
 from hrc.services import OBSERVERS, PARTICIPANTS
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
 
 ClockModeName = Literal["lockstep", "realtime"]
-MODES: dict[str, int] = {"lockstep": pb.CLOCK_MODE_LOCKSTEP, "realtime": pb.CLOCK_MODE_REALTIME}
+MODES: dict[str, pb.ClockMode.ValueType] = {
+    "lockstep": pb.CLOCK_MODE_LOCKSTEP,
+    "realtime": pb.CLOCK_MODE_REALTIME,
+}
 
 
 @dataclass
@@ -89,12 +90,18 @@ class ClockMaster:
         self.misses: Counter[str] = Counter()
         self.compute_us: dict[str, int] = {}
         self._compute_total: Counter[str] = Counter()
-        self._own_s: Counter[str] = Counter()  # physics's own time per phase of the tick
+        self._own_s: defaultdict[str, float] = defaultdict(
+            float
+        )  # physics's own time per phase of the tick
         self._clock_pub = bus.publisher(bus.keys.clock(), express=True)
         self._end_pub = bus.publisher(bus.keys.run_end())
 
     def input(
-        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+        self,
+        key: str,
+        msg_type: type[M],
+        handler: Callable[[str, M], None],
+        validate: Callable[[M], str | None] | None = None,
     ) -> None:
         self.inbox.add(key, msg_type, handler, validate)
 

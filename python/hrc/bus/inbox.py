@@ -14,11 +14,12 @@ import threading
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import cast
 
 import zenoh
 from google.protobuf.message import Message
 
-from hrc.bus.bus import Bus, Validator
+from hrc.bus.bus import Bus, M
 from hrc.wire import pb
 
 Handler = Callable[[str, Message], None]
@@ -50,13 +51,18 @@ class Inbox:
         self._matches: dict[str, bool] = {}
 
     def add(
-        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+        self,
+        key: str,
+        msg_type: type[M],
+        handler: Callable[[str, M], None],
+        validate: Callable[[M], str | None] | None = None,
     ) -> None:
         index = len(self._handlers)
-        self._handlers.append(handler)
+        # Each handler gets only messages of its own type (the key's subscription decodes them).
+        self._handlers.append(cast(Handler, handler))
         self._exprs.append(zenoh.KeyExpr(key))
 
-        def on_msg(k: str, msg: Message) -> None:
+        def on_msg(k: str, msg: M) -> None:
             h = msg.header  # type: ignore[attr-defined]
             # A message that fails validation still counts as received: its sender published
             # it (and says so in its marks), so nobody may wait for it forever.

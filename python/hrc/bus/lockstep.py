@@ -20,10 +20,8 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from google.protobuf.message import Message
-
-from hrc.bus.bus import Bus, Publisher, Validator
-from hrc.bus.inbox import Handler, Inbox
+from hrc.bus.bus import Bus, M, Publisher
+from hrc.bus.inbox import Inbox
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
@@ -100,7 +98,11 @@ class ClockFollower:
 
     # ------------------------------------------------------------------ setup
     def input(
-        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+        self,
+        key: str,
+        msg_type: type[M],
+        handler: Callable[[str, M], None],
+        validate: Callable[[M], str | None] | None = None,
     ) -> None:
         """``handler(key, msg)`` for each message on ``key``, before the step of its tick."""
         self.inbox.add(key, msg_type, handler, validate)

@@ -17,12 +17,10 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 
-from google.protobuf.message import Message
-
-from hrc.bus.bus import Bus, Validator
-from hrc.bus.inbox import Handler
+from hrc.bus.bus import Bus, M
 from hrc.bus.lockstep import ClockFollower, Outcome, describe_marks
 from hrc.bus.sequence import SeqChecker
 from hrc.wire import pb
@@ -77,11 +75,15 @@ class Observer(ClockFollower):
         self._hurry = False  # stop waiting for inputs (stopped, or the run failed)
 
     def input(
-        self, key: str, msg_type: type[Message], handler: Handler, validate: Validator | None = None
+        self,
+        key: str,
+        msg_type: type[M],
+        handler: Callable[[str, M], None],
+        validate: Callable[[M], str | None] | None = None,
     ) -> None:
         """``handler(key, msg)`` on the run thread, in tick order, after the sequence check."""
 
-        def checked(k: str, msg: Message) -> None:
+        def checked(k: str, msg: M) -> None:
             h = msg.header  # type: ignore[attr-defined]
             self.seq.check(k, h.sender, h.seq)
             handler(k, msg)

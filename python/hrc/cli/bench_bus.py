@@ -98,7 +98,7 @@ def measure_lockstep(ticks: int) -> float:
         if not result.ok:
             raise RuntimeError(f"lockstep run failed: {result.message}")
         run = json.loads((trial / "metrics.json").read_text())["run"]
-    return run["ticks"] / run["wall_s"]
+    return float(run["ticks"] / run["wall_s"])
 
 
 def run(args: argparse.Namespace) -> int:

@@ -36,7 +36,7 @@ def _names(items: Iterable[str]) -> str:
 
 def check_references(raw: dict[str, Any]) -> list[Problem]:
     problems: list[Problem] = []
-    raw_robots = raw.get("robots") if isinstance(raw.get("robots"), dict) else {}
+    raw_robots: dict[str, Any] = r if isinstance(r := raw.get("robots"), dict) else {}
     roles: dict[str, RobotRole | None] = {}
     for rid, rrobot in raw_robots.items():
         roles[rid] = RobotRole.parse(rrobot.get("role")) if isinstance(rrobot, dict) else None
@@ -49,7 +49,7 @@ def check_references(raw: dict[str, Any]) -> list[Problem]:
             )
     agents = [HUMAN, *[r for r in raw_robots if r != HUMAN]]
 
-    raw_parts = raw.get("parts") if isinstance(raw.get("parts"), list) else []
+    raw_parts: list[Any] = r if isinstance(r := raw.get("parts"), list) else []
     # id -> (key, owner or None, after list); the first part with an id wins for references
     parts: dict[str, tuple[str, str | None, list[str]]] = {}
     seen_at: dict[str, int] = {}
@@ -118,7 +118,7 @@ def check_references(raw: dict[str, Any]) -> list[Problem]:
             seen.add(dep)
 
     # sequences: known agents, known parts, each part once, in its owner's sequence
-    raw_seq = raw.get("sequence") if isinstance(raw.get("sequence"), dict) else {}
+    raw_seq: dict[str, Any] = r if isinstance(r := raw.get("sequence"), dict) else {}
     listed_by: dict[str, list[str]] = {}
     clean_seq: dict[str, list[str]] = {}
     for agent, entries in raw_seq.items():

@@ -52,16 +52,16 @@ class SafetyPolicy(WireEnum):
     RETREAT_BUTTON = "retreat_button"
     STOP_COLLIDING = "stop_colliding"
 
-    def to_proto(self) -> pb.SafetyPolicy:
-        return cast(pb.SafetyPolicy, super().to_proto())
+    def to_proto(self) -> pb.SafetyPolicy.ValueType:
+        return cast("pb.SafetyPolicy.ValueType", super().to_proto())
 
 
 class RobotRole(WireEnum):
     TRANSPORT = "transport"
     SCREWING = "screwing"
 
-    def to_proto(self) -> pb.RobotRole:
-        return cast(pb.RobotRole, super().to_proto())
+    def to_proto(self) -> pb.RobotRole.ValueType:
+        return cast("pb.RobotRole.ValueType", super().to_proto())
 
 
 class InputSource(WireEnum):
@@ -71,8 +71,8 @@ class InputSource(WireEnum):
     REPLAY = "replay"
     VR = "vr"
 
-    def to_proto(self) -> pb.InputSource:
-        return cast(pb.InputSource, super().to_proto())
+    def to_proto(self) -> pb.InputSource.ValueType:
+        return cast("pb.InputSource.ValueType", super().to_proto())
 
 
 _DESCRIPTORS: dict[type[WireEnum], EnumDescriptor] = {

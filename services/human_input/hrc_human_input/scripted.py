@@ -264,14 +264,14 @@ class ScriptedParticipant:
             if e.object == self.part and e.kind == pb.ObjectEvent.KIND_RESTED:
                 self.rested = True
         collision_begins = False
-        for e in task_events:
-            if e.kind == pb.TASK_EVENT_KIND_COLLISION:
+        for ev in task_events:
+            if ev.kind == pb.TASK_EVENT_KIND_COLLISION:
                 self.collision_confirmed = True
                 collision_begins = True
-            elif e.kind == pb.TASK_EVENT_KIND_CONTINUED:
+            elif ev.kind == pb.TASK_EVENT_KIND_CONTINUED:
                 self._collision_over(t, "robots continue")
             elif (
-                e.kind == pb.TASK_EVENT_KIND_COLLISION_END
+                ev.kind == pb.TASK_EVENT_KIND_COLLISION_END
                 and self.facts.safety_policy == SafetyPolicy.STOP_COLLIDING
             ):
                 self._collision_over(t, "collision ended")

@@ -195,7 +195,9 @@ class VrBridge:
     async def _handler(self, ws: ServerConnection) -> None:
         peer = _peer(ws)
         query = parse_qs(urlsplit(ws.request.path).query) if ws.request else {}
-        authed = self.token is None or self._token_ok((query.get("token") or [None])[0])
+        authed = self.token is None or self._token_ok(
+            query["token"][0] if query.get("token") else None
+        )
         self.stats.clients += 1
         log.info("VR client %s connected%s", peer, "" if authed else " (must authenticate)")
         try:

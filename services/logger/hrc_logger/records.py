@@ -31,7 +31,7 @@ def num(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
-def cue_kind_name(kind: int) -> str:
+def cue_kind_name(kind: pb.CueKind.ValueType) -> str:
     try:
         return pb.CueKind.Name(kind).removeprefix("CUE_KIND_")
     except ValueError:

@@ -11,13 +11,12 @@ import argparse
 import contextlib
 import logging
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from google.protobuf.message import Message
-
 from hrc.bus import Bus, Observer, Outcome
-from hrc.bus.inbox import Handler
+from hrc.bus.bus import M
 from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit
 from hrc.wire import pb
 
@@ -160,9 +159,9 @@ class LoggerService(Service):
         self.recorder = TrialRecorder(self.out, self.view)
         log.info("observing session %s; writing %s", bus.keys.session, self.out)
 
-    def _guarded(self, handler: Handler) -> Handler:
+    def _guarded(self, handler: Callable[[str, M], None]) -> Callable[[str, M], None]:
         # A failing view update must not cost the text logs anything: log, count, go on.
-        def call(key: str, msg: Message) -> None:
+        def call(key: str, msg: M) -> None:
             try:
                 handler(key, msg)
             except Exception:
@@ -186,7 +185,11 @@ class LoggerService(Service):
         if self._first and self.scenario is None and tick.dt > 0:
             self.view.set_tick_hz(1.0 / tick.dt)
         self._first = False
-        self._guarded(lambda _k, t: self.recorder.on_tick(t))(self.bus.keys.clock(), tick)
+
+        def on_tick(_key: str, t: pb.ClockTick) -> None:
+            self.recorder.on_tick(t)
+
+        self._guarded(on_tick)(self.bus.keys.clock(), tick)
 
     def finish(self, outcome: Outcome) -> int | None:
         self.recorder.finish(outcome.run_end, outcome.reason)

@@ -32,7 +32,7 @@ from hrc.wire import pb
 K = pb.TaskEventKind
 
 
-def kind_name(kind: int) -> str:
+def kind_name(kind: pb.TaskEventKind.ValueType) -> str:
     """``TASK_EVENT_KIND_COLLISION`` -> ``COLLISION`` (unknown numbers stay readable)."""
     try:
         return K.Name(kind).removeprefix("TASK_EVENT_KIND_")

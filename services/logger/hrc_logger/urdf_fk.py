@@ -16,6 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hrc.geometry import vec3
+
 MOVABLE = ("revolute", "continuous", "prismatic")
 KNOWN_TYPES = (*MOVABLE, "fixed")
 
@@ -79,7 +81,7 @@ def matrix_to_quat_xyzw(r: np.ndarray) -> tuple[float, float, float, float]:
     return float(q[0]), float(q[1]), float(q[2]), float(q[3])
 
 
-def transform(rot: np.ndarray, xyz: Sequence[float]) -> np.ndarray:
+def transform(rot: np.ndarray, xyz: Sequence[float] | np.ndarray) -> np.ndarray:
     t = np.eye(4)
     t[:3, :3] = rot
     t[:3, 3] = xyz
@@ -170,8 +172,10 @@ class UrdfModel:
                 origin.get("rpy") if origin is not None else None, 3, 0.0, f"{where} origin rpy"
             )
             axis_el = j.find("axis")
-            axis = _floats(
-                axis_el.get("xyz") if axis_el is not None else None, 3, 0.0, f"{where} axis"
+            axis = vec3(
+                _floats(
+                    axis_el.get("xyz") if axis_el is not None else None, 3, 0.0, f"{where} axis"
+                )
             )
             if axis_el is None:
                 axis = (1.0, 0.0, 0.0)  # the URDF default
@@ -179,7 +183,7 @@ class UrdfModel:
             if kind in MOVABLE and norm < 1e-12:
                 raise UrdfError(f"{where}: axis is zero")
             if norm > 0:
-                axis = tuple(a / norm for a in axis)
+                axis = (axis[0] / norm, axis[1] / norm, axis[2] / norm)
             joints.append(
                 Joint(
                     name,
@@ -189,7 +193,7 @@ class UrdfModel:
                     transform(rpy_matrix(*rpy), xyz),
                     axis,
                 )
-            )  # type: ignore[arg-type]
+            )
         children = {j.child for j in joints}
         roots = [link for link in links if link not in children]
         if len(roots) != 1:
@@ -205,10 +209,10 @@ class UrdfModel:
                     f"URDF {source}: joints not connected to the root: "
                     f"{', '.join(j.name for j in pending)}"
                 )
-            for j in ready:
-                ordered.append(j)
-                known.add(j.child)
-                pending.remove(j)
+            for joint in ready:
+                ordered.append(joint)
+                known.add(joint.child)
+                pending.remove(joint)
         return cls(robot.get("name", ""), roots[0], ordered)
 
     def joint_transforms(self, q: Mapping[str, float]) -> dict[str, np.ndarray]:

@@ -36,6 +36,7 @@ from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 import numpy as np
+import numpy.typing as npt
 import rerun as rr
 from rerun.urdf import UrdfTree
 
@@ -233,7 +234,7 @@ class View:
         self.hands: dict[str, np.ndarray] = {}
         self.human: StateStream[pb.HumanState] = StateStream()
         self.clock: tuple[int, float] | None = None  # the latest clock tick (tick, sim time)
-        self.button = np.zeros(3)
+        self.button: npt.NDArray[np.float64] = np.zeros(3)
         self._flash_phase: int | None = None
         self.logged = 0  # rerun log calls, for the service's summary
 
@@ -345,7 +346,7 @@ class View:
             f"{ent}/base",
             rr.Transform3D(
                 translation=rv.base[:3, 3],
-                quaternion=matrix_to_quat_xyzw(q),
+                quaternion=rr.Quaternion(xyzw=matrix_to_quat_xyzw(q)),
                 parent_frame=ROOT_FRAME,
                 child_frame=f"{r.id}/{rv.model.root}",
             ),
@@ -363,7 +364,7 @@ class View:
             f"robot_{part(rv.rid)}/joints/{part(name)}",
             rr.Transform3D(
                 translation=t[:3, 3],
-                quaternion=matrix_to_quat_xyzw(t[:3, :3]),
+                quaternion=rr.Quaternion(xyzw=matrix_to_quat_xyzw(t[:3, :3])),
                 parent_frame=f"{rv.rid}/{j.parent}",
                 child_frame=f"{rv.rid}/{j.child}",
             ),
@@ -466,9 +467,10 @@ class View:
             changed_state = o.held_by != ov.held_by or o.placed != ov.placed
             moved = (
                 ov.pos is None
+                or ov.quat is None
                 or float(np.linalg.norm(pos - ov.pos)) > 5e-4
                 or abs(float(np.dot(quat, ov.quat))) < 0.99999
-            )  # type: ignore[arg-type]
+            )
             if not (moved or changed_state or not ov.shown):
                 continue
             if ov.shown and not (o.id in forced or changed_state) and tick < ov.next_due:
@@ -493,7 +495,7 @@ class View:
                     ),
                 )
                 ov.shown = True
-            self._log(ent, rr.Transform3D(translation=pos, quaternion=quat))
+            self._log(ent, rr.Transform3D(translation=pos, quaternion=rr.Quaternion(xyzw=quat)))
             ov.pos, ov.quat, ov.held_by, ov.placed = pos, quat, o.held_by, o.placed
             ov.next_due = tick + self.every
 
@@ -563,7 +565,8 @@ class View:
             or (p is not None and p.start_given)
         ):
             ov = self.objects.get(c.part)
-            if ov is not None and ov.pos is not None:
+            # pos and quat are set together (on the object's first world/objects pose)
+            if ov is not None and ov.pos is not None and ov.quat is not None:
                 size, center, quat = np.array(ov.size), ov.pos, ov.quat
             else:  # not seen on world/objects yet: where the scenario puts it
                 assert p is not None

@@ -26,7 +26,7 @@ def line(t: float, body: str) -> str:
 
 
 def make(
-    kind: int,
+    kind: pb.TaskEventKind.ValueType,
     t: float,
     body: str,
     *,

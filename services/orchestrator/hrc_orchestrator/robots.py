@@ -46,7 +46,7 @@ class Phase(str, enum.Enum):
 class Motion:
     """A robot command without its id; equal motions are not sent twice."""
 
-    kind: int  # pb.RobotCommand.KIND_MOVE | KIND_HOLD
+    kind: pb.RobotCommand.Kind.ValueType  # KIND_MOVE | KIND_HOLD
     target: Vec3 = (0.0, 0.0, 0.0)
     yaw_deg: float = 0.0
     approach: float = 0.0

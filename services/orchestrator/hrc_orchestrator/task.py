@@ -120,8 +120,8 @@ class Task:
                 self._positions[obj.id] = vec3_from_pb(obj.pose.position)
             for e in msg.events:
                 self._object_event(e)
-        for msg in inputs.contacts:
-            for c in msg.contacts:
+        for contacts in inputs.contacts:
+            for c in contacts.contacts:
                 self._contact(c)
         t = self.now()
         self.human.update_idle(t, self.running)

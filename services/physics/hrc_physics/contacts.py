@@ -15,7 +15,7 @@ from hrc.wire import pb
 
 
 class ContactKey(NamedTuple):
-    kind: int
+    kind: pb.ContactKind.ValueType
     a: str
     b: str
 
@@ -35,7 +35,7 @@ def _contact(key: ContactKey, touch: Touch, begin: bool) -> pb.Contact:
         begin=begin,
         a=key.a,
         b=key.b,
-        link=touch.link,  # type: ignore[arg-type]
+        link=touch.link,
         point=pb.Vec3(x=x, y=y, z=z),
         distance=touch.distance,
     )

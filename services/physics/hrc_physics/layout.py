@@ -97,12 +97,12 @@ def furniture(scenario: sc.Scenario) -> list[StaticBox]:
     )
 
     for rid, robot in scenario.robots.items():
-        own = [p for p in scenario.parts if p.owner == rid and p.start is not None]
+        own = [(p, p.start) for p in scenario.parts if p.owner == rid and p.start is not None]
         if own:
             bounds = _union(
-                [_footprint((p.start.xyz[0], p.start.xyz[1]), p.size, p.start.yaw) for p in own]
-            )  # type: ignore[union-attr]
-            top = min(p.start.xyz[2] - p.size[2] / 2 for p in own)  # type: ignore[union-attr]
+                [_footprint((s.xyz[0], s.xyz[1]), p.size, s.yaw) for p, s in own if s is not None]
+            )
+            top = min(s.xyz[2] - p.size[2] / 2 for p, s in own if s is not None)
             boxes.append(
                 _slab(f"{rid}_picking_table", bounds, top, PICKING_MARGIN, (0.5, 0.5, 0.55, 1.0))
             )

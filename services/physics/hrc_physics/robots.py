@@ -5,10 +5,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import cast
 
 import pybullet as p
 
-from hrc.geometry import Pose, Vec3, yaw_quat_deg
+from hrc.geometry import Pose, Quat, Vec3, vec3, yaw_quat_deg
 
 TOOL_LINK = "tool"
 BASE = -1  # pybullet's link index of a body's base
@@ -137,13 +138,13 @@ class KinematicRobot:
         boxes = [p.getAABB(self.body, link, physicsClientId=self._c) for link in self._links]
         lo = tuple(map(min, zip(*(b[0] for b in boxes), strict=True)))
         hi = tuple(map(max, zip(*(b[1] for b in boxes), strict=True)))
-        return lo, hi  # type: ignore[return-value]
+        return vec3(lo), vec3(hi)
 
     def tool_pose(self) -> Pose:
         s = p.getLinkState(
             self.body, self.tool, computeForwardKinematics=True, physicsClientId=self._c
         )
-        return Pose(tuple(s[4]), tuple(s[5]))  # type: ignore[arg-type]
+        return Pose(vec3(s[4]), cast(Quat, tuple(s[5])))
 
     def link_name(self, index: int) -> str:
         return self.link_names.get(index, str(index))

@@ -17,6 +17,7 @@ import re
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
+from typing import cast
 
 import pybullet as p
 
@@ -32,6 +33,7 @@ from hrc.geometry import (
     pose_to_pb,
     quat_yaw_deg,
     relative,
+    vec3,
     yaw_difference_deg,
     yaw_quat_deg,
 )
@@ -168,10 +170,10 @@ class World:
                     part.id,
                     part.kind,
                     part.owner,
-                    tuple(part.size),  # type: ignore[arg-type]
-                    tuple(part.start.xyz),
+                    vec3(part.size),
+                    vec3(part.start.xyz),
                     yaw_quat_deg(part.start.yaw),
-                )  # type: ignore[arg-type]
+                )
         # Parts that start lying on something start asleep: they are at rest, and the first
         # steps' gravity-versus-contact jitter is nothing to report. The others fall.
         for obj in self.objects.values():
@@ -449,12 +451,12 @@ class World:
                 self._hold(obj, hand.name, relative(Pose(hand.pos, hand.rot), obj.pose))
 
     # ------------------------------------------------------------------ outputs
-    def _event(self, kind: int, obj: WorldObject, holder: str) -> None:
+    def _event(self, kind: pb.ObjectEvent.Kind.ValueType, obj: WorldObject, holder: str) -> None:
         pos, rot = obj.pose
         ev = pb.ObjectEvent(
             kind=kind,
             object=obj.id,
-            holder=holder,  # type: ignore[arg-type]
+            holder=holder,
             pose=pose_to_pb(obj.pose),
         )
         if obj.target is not None:
@@ -516,10 +518,10 @@ class World:
                 if pt[8] <= reach and (nearest is None or pt[8] < nearest[8]):
                     nearest = pt
             if nearest is not None:
-                mid = tuple(0.5 * (u + v) for u, v in zip(nearest[5], nearest[6], strict=True))
+                mid = vec3([0.5 * (u + v) for u, v in zip(nearest[5], nearest[6], strict=True)])
                 out[ContactKey(ROBOT_ROBOT, ra, rb)] = Touch(
                     f"{a.link_name(nearest[3])}/{b.link_name(nearest[4])}", mid, nearest[8]
-                )  # type: ignore[arg-type]
+                )
         for hand in hands:
             x, y, z = hand.pos
             for i, (lo, hi) in enumerate(self.envelope):
@@ -573,4 +575,4 @@ def _overlap(a: tuple, b: tuple, margin: float) -> bool:
 
 def _base_pose(client: int, body: int) -> Pose:
     pos, rot = p.getBasePositionAndOrientation(body, physicsClientId=client)
-    return Pose(tuple(pos), tuple(rot))  # type: ignore[arg-type]
+    return Pose(vec3(pos), cast(Quat, tuple(rot)))
