@@ -208,8 +208,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     v = sub.add_parser("validate", help="check a scenario file and report every problem")
     v.add_argument("scenario")
-    v.add_argument("--no-reach", action="store_true",
-                   help="skip the motion check (every robot move planned by the IK service)")
+    v.add_argument(
+        "--no-reach",
+        action="store_true",
+        help="skip the motion check (every robot move planned by the IK service)",
+    )
     v.set_defaults(func=_cmd_validate)
 
     from hrc.bus import add_bus_arguments

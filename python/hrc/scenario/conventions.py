@@ -21,10 +21,12 @@ GRASP_DISTANCE_M = 0.03  # a closed hand grasps a grabbable part this close to i
 APPROACH_HEIGHT_M = 0.05
 
 
-def grasp_point(centre: tuple[float, float, float], size: list[float]
-                ) -> tuple[float, float, float]:
+def grasp_point(
+    centre: tuple[float, float, float], size: list[float]
+) -> tuple[float, float, float]:
     """The TCP for a part whose box centre is `centre`: the centre of its top face."""
     return (centre[0], centre[1], centre[2] + size[2] / 2.0)
+
 
 # ---------------------------------------------------------------- cues (task/indicators)
 

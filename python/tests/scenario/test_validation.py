@@ -396,8 +396,9 @@ def test_provoke_collisions_shapes(
     minimal_raw: Data, write_scenario, arm_root, value: Any, times: list[float], probability: float
 ) -> None:
     minimal_raw["participant"]["provoke_collisions"] = value
-    participant = load(write_scenario(minimal_raw), project_root=arm_root,
-                       motion_check=False).participant
+    participant = load(
+        write_scenario(minimal_raw), project_root=arm_root, motion_check=False
+    ).participant
     assert participant.provoke_times_s == times
     assert participant.provoke_probability == probability
 

@@ -179,7 +179,9 @@ void IkEngine::step() {
   for (Arm& arm : arms_) arm.motion->step();
 }
 
-const kin::MotionState& IkEngine::state(std::size_t index) const { return arms_.at(index).motion->state(); }
+const kin::MotionState& IkEngine::state(std::size_t index) const {
+  return arms_.at(index).motion->state();
+}
 void IkEngine::reset(std::size_t index, const Eigen::VectorXd& q) {
   arms_.at(index).motion->reset(q);
 }
@@ -303,7 +305,7 @@ v2::MotionCheckReply check_moves(const v2::MotionCheckRequest& request, double m
     if (s.status == kin::MotionStatus::Moving) {
       r->set_detail("still moving after " + fmt(max_move_s) + " s");
     } else if (!r->feasible()) {
-      r->set_detail(s.detail.empty() ? std::string(kin::toString(s.status)) : s.detail);
+      r->set_detail(s.detail.empty() ? std::string(kin::to_string(s.status)) : s.detail);
     }
     last[k] = s.q;
     if (!move.label().empty()) after[k][move.label()] = s.q;

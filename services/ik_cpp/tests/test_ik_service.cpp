@@ -487,9 +487,9 @@ TEST(IkCheck, PlansEachMoveFromItsStartAndReportsKindAndWhy) {
 
 TEST_F(Engine, StateReportsTheMotionKind) {
   RobotState st;
-  engine.fill_state(0, st);
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.motion_kind(), hrc::v2::MOTION_KIND_UNSPECIFIED);
-  ASSERT_EQ(engine.apply("r1", move(0.20, 0.25, 0.25, 1)), "");
-  engine.fill_state(0, st);
+  ASSERT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 1)), "");
+  engine_.fill_state(0, st);
   EXPECT_EQ(st.motion_kind(), hrc::v2::MOTION_KIND_LINEAR);
 }

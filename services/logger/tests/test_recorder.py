@@ -21,7 +21,9 @@ from hrc_logger.rrd import summarize
 
 @pytest.fixture(scope="module")
 def trial_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, SyntheticTrial]:
-    scenario = sc.to_proto(sc.load(project_root() / "scenarios" / "thesis.toml", motion_check=False))
+    scenario = sc.to_proto(
+        sc.load(project_root() / "scenarios" / "thesis.toml", motion_check=False)
+    )
     trial = SyntheticTrial(scenario, n_ticks=600)
     out = tmp_path_factory.mktemp("trial")
     run_offline(trial, out)

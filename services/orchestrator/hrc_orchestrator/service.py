@@ -69,20 +69,29 @@ class OrchestratorService(Service):
         p.add_argument("--scenario", required=True, help="scenario TOML file")
         p.add_argument("--out", default=None, help="trial folder for metrics.json (default: none)")
         p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
-        p.add_argument("--metrics-every", type=float, default=1.0, metavar="S",
-                       help="publish interim metrics every S seconds of task time (0: only final)")
-        p.add_argument("--keep-running", action="store_true",
-                       help="do not ask the clock to stop when the task finishes "
-                            "(fixed-length runs)")
-        p.add_argument("--no-reach-check", action="store_true",
-                       help="skip the motion check when loading the scenario")
+        p.add_argument(
+            "--metrics-every",
+            type=float,
+            default=1.0,
+            metavar="S",
+            help="publish interim metrics every S seconds of task time (0: only final)",
+        )
+        p.add_argument(
+            "--keep-running",
+            action="store_true",
+            help="do not ask the clock to stop when the task finishes (fixed-length runs)",
+        )
+        p.add_argument(
+            "--no-reach-check",
+            action="store_true",
+            help="skip the motion check when loading the scenario",
+        )
 
     def __init__(self, args: argparse.Namespace) -> None:
         """Loads and checks the scenario before joining the bus."""
         super().__init__(args)
         try:
-            self.scenario = scenario_mod.load(args.scenario,
-                                              motion_check=not args.no_reach_check)
+            self.scenario = scenario_mod.load(args.scenario, motion_check=not args.no_reach_check)
         except scenario_mod.ScenarioError as exc:
             raise ServiceExit(f"scenario rejected:\n{exc}", EXIT_BAD_INPUT) from exc
         except OSError as exc:

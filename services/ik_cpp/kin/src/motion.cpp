@@ -17,7 +17,7 @@ std::string fmt_point(const Eigen::Vector3d& p) {
 
 bool finite(double v) { return std::isfinite(v); }
 
-std::string fmtNum(double v, int decimals) {
+std::string fmt_num(double v, int decimals) {
   char buf[48];
   std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
   return buf;
@@ -25,8 +25,8 @@ std::string fmtNum(double v, int decimals) {
 
 // Why the closest IK solution is not one: how far the tool is off in position and pointing.
 std::string closest(const IkResult& r) {
-  return "(closest: " + fmtNum(r.position_error * 1000.0, 1) + " mm away, tool axis " +
-         fmtNum(r.angle_error * 180.0 / M_PI, 1) + " deg off)";
+  return "(closest: " + fmt_num(r.position_error * 1000.0, 1) + " mm away, tool axis " +
+         fmt_num(r.angle_error * 180.0 / M_PI, 1) + " deg off)";
 }
 
 }  // namespace
@@ -42,7 +42,7 @@ const char* to_string(MotionStatus s) {
   return "?";
 }
 
-const char* toString(MotionKind k) {
+const char* to_string(MotionKind k) {
   switch (k) {
     case MotionKind::None: return "none";
     case MotionKind::Linear: return "linear";
@@ -138,13 +138,13 @@ void MotionGenerator::update_tcp(double dt_for_speed) {
       dt_for_speed > 0 ? (state_.tcp.translation() - prev).norm() / dt_for_speed : 0.0;
 }
 
-void MotionGenerator::brakeSegment(const ProfileLimits& lim) {
+void MotionGenerator::brake_segment(const ProfileLimits& lim) {
   if (!segments_.empty() && segments_.front().joint) {
     // Brake along the joint path itself: the arm never leaves its planned path.
     std::deque<Segment> out;
     Cursor c;
     std::string why;
-    brakePrefix(lim, out, c, why);
+    brake_prefix(lim, out, c, why);
     segments_ = std::move(out);
     seg_t_ = 0.0;
     time_scale_ = 1.0;
@@ -190,7 +190,7 @@ void MotionGenerator::plan_to(const std::vector<Eigen::Vector3d>& points, int ro
     // Mid joint move: stop along it first, then the lines start at rest.
     Cursor c;
     std::string why;
-    brakePrefix(lim, prefix, c, why);
+    brake_prefix(lim, prefix, c, why);
     p = c.p;
     R = c.r;
     speed = 0.0;
@@ -254,16 +254,16 @@ void MotionGenerator::plan_to(const std::vector<Eigen::Vector3d>& points, int ro
   }
 }
 
-bool MotionGenerator::checkPath(std::string& why) {
-  return checkSegments(segments_, state_.q, why);
+bool MotionGenerator::check_path(std::string& why) {
+  return check_segments(segments_, state_.q, why);
 }
 
-bool MotionGenerator::checkSegments(const std::deque<Segment>& segs, Eigen::VectorXd seed,
-                                    std::string& why) {
+bool MotionGenerator::check_segments(const std::deque<Segment>& segs, Eigen::VectorXd seed,
+                                     std::string& why) {
   IkResult res;
   for (const Segment& s : segs) {
     if (s.joint) {  // checked when it was built: continue from where it ends
-      seed = jointAt(s, s.m_start + s.profile.length());
+      seed = joint_at(s, s.m_start + s.profile.length());
       continue;
     }
     const int n = std::max(1, static_cast<int>(std::ceil(s.prof_length / limits_.check_step)));
@@ -271,8 +271,8 @@ bool MotionGenerator::checkSegments(const std::deque<Segment>& segs, Eigen::Vect
       const double f = static_cast<double>(k) / n;
       const Eigen::Vector3d p = s.p0 + s.u * (f * s.lin_length);
       const Eigen::Matrix3d R = s.r0.slerp(f, s.r1).toRotationMatrix();
-      if (!solvePose(p, R, seed, res)) {
-        why = "path leaves the workspace near " + fmtPoint(p) + " " + closest(res);
+      if (!solve_pose(p, R, seed, res)) {
+        why = "path leaves the workspace near " + fmt_point(p) + " " + closest(res);
         return false;
       }
       // A jump between neighbouring samples means the solution switches branch (a joint limit
@@ -290,8 +290,8 @@ bool MotionGenerator::checkSegments(const std::deque<Segment>& segs, Eigen::Vect
 
 // ---------------------------------------------------------------- planning helpers
 
-void MotionGenerator::fkWorld(const Eigen::VectorXd& q, Eigen::Vector3d& p,
-                              Eigen::Quaterniond& r) const {
+void MotionGenerator::fk_world(const Eigen::VectorXd& q, Eigen::Vector3d& p,
+                               Eigen::Quaterniond& r) const {
   Eigen::Matrix3d R;
   Eigen::Vector3d pb;
   ik_.eval().fk(q.data(), R, pb);
@@ -299,7 +299,7 @@ void MotionGenerator::fkWorld(const Eigen::VectorXd& q, Eigen::Vector3d& p,
   r = Eigen::Quaterniond(world_T_base_.linear() * R);
 }
 
-Eigen::VectorXd MotionGenerator::jointAt(const Segment& s, double m) const {
+Eigen::VectorXd MotionGenerator::joint_at(const Segment& s, double m) const {
   const std::vector<double>& meas = s.measure;
   const int n = static_cast<int>(meas.size()) - 1;
   if (n <= 0 || m >= meas.back()) return s.q0 + s.dq;
@@ -312,8 +312,8 @@ Eigen::VectorXd MotionGenerator::jointAt(const Segment& s, double m) const {
   return s.q0 + f * s.dq;
 }
 
-bool MotionGenerator::brakePrefix(const ProfileLimits& lim, std::deque<Segment>& out, Cursor& c,
-                                  std::string& why) {
+bool MotionGenerator::brake_prefix(const ProfileLimits& lim, std::deque<Segment>& out, Cursor& c,
+                                   std::string& why) {
   c.q = state_.q;
   c.p = state_.tcp.translation();
   c.r = Eigen::Quaterniond(state_.tcp.linear());
@@ -326,9 +326,9 @@ bool MotionGenerator::brakePrefix(const ProfileLimits& lim, std::deque<Segment>&
     Segment b = front;
     b.m_start = front.m_start + s;
     b.limits = lim;
-    b.profile.planBrake(meas_speed_, lim);
-    c.q = jointAt(b, b.m_start + b.profile.length());
-    fkWorld(c.q, c.p, c.r);
+    b.profile.plan_brake(meas_speed_, lim);
+    c.q = joint_at(b, b.m_start + b.profile.length());
+    fk_world(c.q, c.p, c.r);
     out.push_back(std::move(b));
     return true;
   }
@@ -338,7 +338,7 @@ bool MotionGenerator::brakePrefix(const ProfileLimits& lim, std::deque<Segment>&
   b.p0 = c.p;
   b.u = v_cmd_ / speed;
   b.limits = lim;
-  b.profile.planBrake(speed, lim);
+  b.profile.plan_brake(speed, lim);
   b.lin_length = b.prof_length = b.profile.length();
   b.r0 = b.r1 = c.r;
   Eigen::VectorXd seed = c.q;
@@ -346,8 +346,8 @@ bool MotionGenerator::brakePrefix(const ProfileLimits& lim, std::deque<Segment>&
   const int n = std::max(1, static_cast<int>(std::ceil(b.lin_length / limits_.check_step)));
   for (int k = 1; k <= n; ++k) {
     const Eigen::Vector3d p = b.p0 + b.u * (b.lin_length * k / n);
-    if (!solvePose(p, b.r0.toRotationMatrix(), seed, res)) {
-      why = "braking leaves the workspace near " + fmtPoint(p);
+    if (!solve_pose(p, b.r0.toRotationMatrix(), seed, res)) {
+      why = "braking leaves the workspace near " + fmt_point(p);
       return false;
     }
     seed = res.q;
@@ -358,9 +358,9 @@ bool MotionGenerator::brakePrefix(const ProfileLimits& lim, std::deque<Segment>&
   return true;
 }
 
-bool MotionGenerator::appendLine(std::deque<Segment>& out, Cursor& c, const Eigen::Vector3d& p,
-                                 const Eigen::Quaterniond& r1, const ProfileLimits& lim,
-                                 std::string& why) {
+bool MotionGenerator::append_line(std::deque<Segment>& out, Cursor& c, const Eigen::Vector3d& p,
+                                  const Eigen::Quaterniond& r1, const ProfileLimits& lim,
+                                  std::string& why) {
   const Eigen::Vector3d d = p - c.p;
   const double L = d.norm();
   const double prof = std::max(L, limits_.rotation_length * c.r.angularDistance(r1));
@@ -381,12 +381,12 @@ bool MotionGenerator::appendLine(std::deque<Segment>& out, Cursor& c, const Eige
   for (int k = 1; k <= n; ++k) {
     const double f = static_cast<double>(k) / n;
     const Eigen::Vector3d q_p = s.p0 + s.u * (f * L);
-    if (!solvePose(q_p, s.r0.slerp(f, s.r1).toRotationMatrix(), seed, res)) {
-      why = "line leaves the workspace near " + fmtPoint(q_p) + " " + closest(res);
+    if (!solve_pose(q_p, s.r0.slerp(f, s.r1).toRotationMatrix(), seed, res)) {
+      why = "line leaves the workspace near " + fmt_point(q_p) + " " + closest(res);
       return false;
     }
     if ((res.q - seed).cwiseAbs().maxCoeff() > 0.35) {
-      why = "line needs a joint reconfiguration near " + fmtPoint(q_p);
+      why = "line needs a joint reconfiguration near " + fmt_point(q_p);
       return false;
     }
     seed = res.q;
@@ -398,8 +398,8 @@ bool MotionGenerator::appendLine(std::deque<Segment>& out, Cursor& c, const Eige
   return true;
 }
 
-bool MotionGenerator::appendJoint(std::deque<Segment>& out, Cursor& c, const Eigen::VectorXd& q1,
-                                  const ProfileLimits& lim, std::string& why) {
+bool MotionGenerator::append_joint(std::deque<Segment>& out, Cursor& c, const Eigen::VectorXd& q1,
+                                   const ProfileLimits& lim, std::string& why) {
   constexpr double kJointStep = 0.01;     // rad: spacing of the FK samples of the path
   constexpr double kJointMeasure = 0.02;  // m per rad: a pure joint motion still takes time
   Segment s;
@@ -410,7 +410,7 @@ bool MotionGenerator::appendJoint(std::deque<Segment>& out, Cursor& c, const Eig
   const int n = std::max(8, static_cast<int>(std::ceil(span / kJointStep)));
   Eigen::Vector3d p_end;
   Eigen::Quaterniond r_end;
-  fkWorld(q1, p_end, r_end);
+  fk_world(q1, p_end, r_end);
   // The TCP may go no lower than the table clearance, or than an endpoint that is itself lower.
   const double tcp_floor =
       std::min({limits_.table_z + limits_.table_clearance, c.p.z(), p_end.z()}) - 1e-6;
@@ -421,19 +421,19 @@ bool MotionGenerator::appendJoint(std::deque<Segment>& out, Cursor& c, const Eig
     const Eigen::VectorXd q = s.q0 + (static_cast<double>(k) / n) * s.dq;
     Eigen::Vector3d p;
     Eigen::Quaterniond r;
-    fkWorld(q, p, r);
+    fk_world(q, p, r);
     if (p.z() < tcp_floor) {
-      why = "joint path takes the tool down to z " + fmtNum(p.z(), 3) + " m near " + fmtPoint(p) +
-            " (table at z " + fmtNum(limits_.table_z, 3) + " m)";
+      why = "joint path takes the tool down to z " + fmt_num(p.z(), 3) + " m near " + fmt_point(p) +
+            " (table at z " + fmt_num(limits_.table_z, 3) + " m)";
       return false;
     }
     for (int i = 2; i < model_.dof(); ++i) {
       Eigen::Vector3d origin, axis;
-      ik_.eval().jointFrame(q.data(), i, origin, axis);
+      ik_.eval().joint_frame(q.data(), i, origin, axis);
       const Eigen::Vector3d o = world_T_base_ * origin;
       if (o.z() < limits_.table_z) {
-        why = "joint path takes joint " + model_.jointNames()[static_cast<std::size_t>(i)] +
-              " below the table near " + fmtPoint(o);
+        why = "joint path takes joint " + model_.joint_names()[static_cast<std::size_t>(i)] +
+              " below the table near " + fmt_point(o);
         return false;
       }
     }
@@ -460,14 +460,14 @@ bool MotionGenerator::appendJoint(std::deque<Segment>& out, Cursor& c, const Eig
   return true;
 }
 
-bool MotionGenerator::planJoint(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R,
-                                const ProfileLimits& lim, std::deque<Segment>& out,
-                                std::string& why) {
+bool MotionGenerator::plan_joint(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R,
+                                 const ProfileLimits& lim, std::deque<Segment>& out,
+                                 std::string& why) {
   out.clear();
   Cursor c;
-  if (!brakePrefix(lim, out, c, why)) return false;
+  if (!brake_prefix(lim, out, c, why)) return false;
   if (cmd.depart_height > 0 &&
-      !appendLine(out, c, c.p + Eigen::Vector3d(0, 0, cmd.depart_height), c.r, lim, why)) {
+      !append_line(out, c, c.p + Eigen::Vector3d(0, 0, cmd.depart_height), c.r, lim, why)) {
     why = "depart: " + why;
     return false;
   }
@@ -475,7 +475,7 @@ bool MotionGenerator::planJoint(const MoveCommand& cmd, const Eigen::Matrix3d& g
   const Eigen::Quaterniond G(goal_R);
   // Candidate configurations at the approach point: the branch nearest the arm first, then the
   // other branches (elbow flipped, base turned half a turn, the middle of the ranges).
-  std::vector<Eigen::VectorXd> seeds{c.q, model_.midRange()};
+  std::vector<Eigen::VectorXd> seeds{c.q, model_.mid_range()};
   if (model_.dof() >= 3) {
     Eigen::VectorXd e = c.q;
     e[2] = -e[2];
@@ -487,13 +487,13 @@ bool MotionGenerator::planJoint(const MoveCommand& cmd, const Eigen::Matrix3d& g
   std::vector<Eigen::VectorXd> goals;
   IkResult res;
   for (const Eigen::VectorXd& seed : seeds) {
-    if (!solvePose(pre, goal_R, seed, res)) continue;
+    if (!solve_pose(pre, goal_R, seed, res)) continue;
     bool seen = false;
     for (const auto& g : goals) seen = seen || (g - res.q).cwiseAbs().maxCoeff() < 1e-3;
     if (!seen) goals.push_back(res.q);
   }
   if (goals.empty()) {
-    why = "no joint solution at " + fmtPoint(pre);
+    why = "no joint solution at " + fmt_point(pre);
     return false;
   }
   std::string first_why;
@@ -501,9 +501,9 @@ bool MotionGenerator::planJoint(const MoveCommand& cmd, const Eigen::Matrix3d& g
     std::deque<Segment> tmp = out;
     Cursor tc = c;
     std::string w;
-    bool ok = appendJoint(tmp, tc, q1, lim, w);
+    bool ok = append_joint(tmp, tc, q1, lim, w);
     if (ok && cmd.approach_height > 0) {
-      ok = appendLine(tmp, tc, cmd.target, G, lim, w);
+      ok = append_line(tmp, tc, cmd.target, G, lim, w);
       if (!ok) w = "approach: " + w;
     }
     if (ok) {
@@ -516,14 +516,14 @@ bool MotionGenerator::planJoint(const MoveCommand& cmd, const Eigen::Matrix3d& g
   return false;
 }
 
-bool MotionGenerator::planVia(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R,
-                              const ProfileLimits& lim, std::deque<Segment>& out,
-                              std::string& why) {
+bool MotionGenerator::plan_via(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R,
+                               const ProfileLimits& lim, std::deque<Segment>& out,
+                               std::string& why) {
   out.clear();
   Cursor c;
-  if (!brakePrefix(lim, out, c, why)) return false;
+  if (!brake_prefix(lim, out, c, why)) return false;
   if (cmd.depart_height > 0 &&
-      !appendLine(out, c, c.p + Eigen::Vector3d(0, 0, cmd.depart_height), c.r, lim, why)) {
+      !append_line(out, c, c.p + Eigen::Vector3d(0, 0, cmd.depart_height), c.r, lim, why)) {
     why = "depart: " + why;
     return false;
   }
@@ -535,15 +535,15 @@ bool MotionGenerator::planVia(const MoveCommand& cmd, const Eigen::Matrix3d& goa
     std::deque<Segment> tmp = out;
     Cursor tc = c;
     std::string w;
-    const bool ok = appendLine(tmp, tc, Eigen::Vector3d(c.p.x(), c.p.y(), z), c.r, lim, w) &&
-                    appendLine(tmp, tc, Eigen::Vector3d(pre.x(), pre.y(), z), G, lim, w) &&
-                    appendLine(tmp, tc, pre, G, lim, w) &&
-                    appendLine(tmp, tc, cmd.target, G, lim, w);
+    const bool ok = append_line(tmp, tc, Eigen::Vector3d(c.p.x(), c.p.y(), z), c.r, lim, w) &&
+                    append_line(tmp, tc, Eigen::Vector3d(pre.x(), pre.y(), z), G, lim, w) &&
+                    append_line(tmp, tc, pre, G, lim, w) &&
+                    append_line(tmp, tc, cmd.target, G, lim, w);
     if (ok) {
       out = std::move(tmp);
       return true;
     }
-    if (first_why.empty()) first_why = "at height " + fmtNum(z, 3) + " m: " + w;
+    if (first_why.empty()) first_why = "at height " + fmt_num(z, 3) + " m: " + w;
   }
   why = first_why;
   return false;
@@ -556,34 +556,34 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
       !finite(cmd.depart_height) || !finite(cmd.max_speed) || cmd.approach_height < 0 ||
       cmd.depart_height < 0 || cmd.max_speed < 0) {
     state_.kind = MotionKind::None;
-    stopWith(MotionStatus::Unreachable,
-             "invalid command: target/yaw must be finite, heights and max_speed >= 0");
+    stop_with(MotionStatus::Unreachable,
+              "invalid command: target/yaw must be finite, heights and max_speed >= 0");
     return state_.status;
   }
   const double vmax =
       cmd.max_speed > 0 ? std::min(cmd.max_speed, limits_.max_tcp_speed) : limits_.max_tcp_speed;
   const ProfileLimits lim{vmax, limits_.max_tcp_accel, limits_.max_tcp_jerk};
-  const Eigen::Matrix3d goal_R = toolDownRotation(cmd.yaw);
-  const auto yawDeg = [&] { return fmtNum(cmd.yaw * 180.0 / M_PI, 1); };
+  const Eigen::Matrix3d goal_R = tool_down_rotation(cmd.yaw);
+  const auto yaw_deg = [&] { return fmt_num(cmd.yaw * 180.0 / M_PI, 1); };
 
   IkResult res;
-  if (!solvePose(cmd.target, goal_R, state_.q, res) &&
-      !solvePose(cmd.target, goal_R, model_.midRange(), res)) {
+  if (!solve_pose(cmd.target, goal_R, state_.q, res) &&
+      !solve_pose(cmd.target, goal_R, model_.mid_range(), res)) {
     state_.kind = MotionKind::None;
-    stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() +
-                                            " deg unreachable " + closest(res));
+    stop_with(MotionStatus::Unreachable, "target " + fmt_point(cmd.target) + " yaw " + yaw_deg() +
+                                             " deg unreachable " + closest(res));
     return state_.status;
   }
   if (cmd.approach_height > 0) {
     // The vertical approach starts there whatever the kind of move: without it nothing can work.
     const Eigen::Vector3d pre = cmd.target + Eigen::Vector3d(0, 0, cmd.approach_height);
     const Eigen::VectorXd seed = res.q;  // the target's solution: the nearest approach branch
-    if (!solvePose(pre, goal_R, seed, res) && !solvePose(pre, goal_R, model_.midRange(), res)) {
+    if (!solve_pose(pre, goal_R, seed, res) && !solve_pose(pre, goal_R, model_.mid_range(), res)) {
       state_.kind = MotionKind::None;
-      stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() +
-                                              " deg: approach point " + fmtPoint(pre) + " (" +
-                                              fmtNum(cmd.approach_height, 3) +
-                                              " m above) unreachable " + closest(res));
+      stop_with(MotionStatus::Unreachable, "target " + fmt_point(cmd.target) + " yaw " + yaw_deg() +
+                                               " deg: approach point " + fmt_point(pre) + " (" +
+                                               fmt_num(cmd.approach_height, 3) +
+                                               " m above) unreachable " + closest(res));
       return state_.status;
     }
   }
@@ -599,26 +599,26 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
   // Plan into the live queue, but keep the old one to restore if the path is refused.
   std::deque<Segment> old = segments_;
   const double old_t = seg_t_, old_scale = time_scale_;
-  planTo(points, rotate, goal_R, lim);
+  plan_to(points, rotate, goal_R, lim);
   std::string why_line;
   MotionKind kind = MotionKind::Linear;
-  if (!checkPath(why_line)) {
+  if (!check_path(why_line)) {
     // The straight line is not feasible: a joint-space transfer, else via points.
     segments_ = std::move(old);
     seg_t_ = old_t;
     time_scale_ = old_scale;
     std::deque<Segment> alt;
     std::string why_joint, why_via;
-    if (planJoint(cmd, goal_R, lim, alt, why_joint)) {
+    if (plan_joint(cmd, goal_R, lim, alt, why_joint)) {
       kind = MotionKind::Joint;
-    } else if (planVia(cmd, goal_R, lim, alt, why_via)) {
+    } else if (plan_via(cmd, goal_R, lim, alt, why_via)) {
       kind = MotionKind::Via;
     } else {
       state_.kind = MotionKind::None;
-      stopWith(MotionStatus::Unreachable, "target " + fmtPoint(cmd.target) + " yaw " + yawDeg() +
-                                              " deg: no feasible move: straight line: " + why_line +
-                                              "; joint move: " + why_joint +
-                                              "; via points: " + why_via);
+      stop_with(MotionStatus::Unreachable,
+                "target " + fmt_point(cmd.target) + " yaw " + yaw_deg() +
+                    " deg: no feasible move: straight line: " + why_line +
+                    "; joint move: " + why_joint + "; via points: " + why_via);
       return state_.status;
     }
     segments_ = std::move(alt);
@@ -643,7 +643,7 @@ const MotionState& MotionGenerator::step() {
   if (segments_.empty()) {
     v_cmd_.setZero();
     meas_speed_ = 0.0;
-    updateTcp(dt_);
+    update_tcp(dt_);
     return state_;
   }
   Segment& seg = segments_.front();
@@ -659,18 +659,18 @@ const MotionState& MotionGenerator::step() {
     seg.profile.eval(t_new, s, vs);
     if (seg.joint) {
       // The planned joint path itself: no IK, nothing to re-decide.
-      ik_res_.q = jointAt(seg, seg.m_start + s);
+      ik_res_.q = joint_at(seg, seg.m_start + s);
     } else {
       const double f = seg.prof_length > 0 ? s / seg.prof_length : 1.0;
       const Eigen::Vector3d p = seg.p0 + seg.u * (f * seg.lin_length);
       const Eigen::Matrix3d R = seg.r0.slerp(f, seg.r1).toRotationMatrix();
-      if (!solvePose(p, R, state_.q, ik_res_)) {
+      if (!solve_pose(p, R, state_.q, ik_res_)) {
         v_cmd_.setZero();
         meas_speed_ = 0.0;
         segments_.clear();
         state_.status = MotionStatus::Unreachable;
-        state_.detail = "waypoint " + fmtPoint(p) + " unreachable during the move; holding";
-        updateTcp(dt_);
+        state_.detail = "waypoint " + fmt_point(p) + " unreachable during the move; holding";
+        update_tcp(dt_);
         return state_;
       }
     }
@@ -708,7 +708,7 @@ const MotionState& MotionGenerator::step() {
       state_.status = final_status_;
     }
   }
-  updateTcp(dt_);
+  update_tcp(dt_);
   if (joint && !segments_.empty() && segments_.front().joint && meas_speed_ > 0) {
     v_cmd_ = (state_.tcp.translation() - p_before) / dt_;  // the TCP's velocity along the FK path
   } else if (joint) {

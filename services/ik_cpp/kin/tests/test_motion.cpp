@@ -229,20 +229,20 @@ TEST(Motion, JointVelocityLimitsSlowThePath) {
 // A straight line from one side of the base to the other passes over the base, where the tool
 // cannot point down: the planner replaces it by a joint-space move that reaches the target.
 TEST(Motion, LineOverTheBaseBecomesAFeasibleJointMove) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   for (const double cap : {0.5, 0.2}) {
     MotionLimits lim;
     lim.max_tcp_speed = cap;
-    MotionGenerator g(m, baseR1(), 1.0 / 240.0, lim);
-    ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
+    MotionGenerator g(m, base_r1(), 1.0 / 240.0, lim);
+    ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
     const Eigen::Vector3d a = g.state().tcp.translation();
     const Eigen::Vector3d b(0.65, 0.55, 0.15);
-    ASSERT_EQ(g.move(moveTo(b.x(), b.y(), b.z(), 30)), MotionStatus::Moving) << g.state().detail;
+    ASSERT_EQ(g.move(move_to(b.x(), b.y(), b.z(), 30)), MotionStatus::Moving) << g.state().detail;
     EXPECT_EQ(g.state().kind, MotionKind::Joint);
     double min_z = 1.0;
     int ticks = 0;
     for (; ticks < 240 * 20 && g.state().status == MotionStatus::Moving; ++ticks) {
-      const RunStats r = runUntilDone(g, a, b, 1);  // one tick: joint limits checked inside
+      const RunStats r = run_until_done(g, a, b, 1);  // one tick: joint limits checked inside
       min_z = std::min(min_z, g.state().tcp.translation().z());
       EXPECT_LE(r.max_speed, cap * 1.02);
       EXPECT_LE(r.max_joint_ratio, 1.0 + 1e-9);
@@ -252,16 +252,16 @@ TEST(Motion, LineOverTheBaseBecomesAFeasibleJointMove) {
     EXPECT_LT((g.state().tcp.translation() - b).norm(), 0.005);
     EXPECT_GE(min_z, lim.table_z + lim.table_clearance - 1e-6);
     const Eigen::Matrix3d R = g.state().tcp.linear();
-    EXPECT_NEAR(axisAngle(R.col(2), -Eigen::Vector3d::UnitZ()), 0, 1e-6);
+    EXPECT_NEAR(axis_angle(R.col(2), -Eigen::Vector3d::UnitZ()), 0, 1e-6);
   }
 }
 
 TEST(Motion, JointMoveKeepsDepartAndApproachVertical) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
-  MotionGenerator g(m, baseR1(), 1.0 / 240.0);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.25, 0.55, 0.10), 0.0));
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.25, 0.55, 0.10), 0.0));
   const Eigen::Vector3d start = g.state().tcp.translation();
-  MoveCommand c = moveTo(0.65, 0.55, 0.05);
+  MoveCommand c = move_to(0.65, 0.55, 0.05);
   c.approach_height = 0.05;
   c.depart_height = 0.05;
   ASSERT_EQ(g.move(c), MotionStatus::Moving) << g.state().detail;
@@ -284,25 +284,25 @@ TEST(Motion, JointMoveKeepsDepartAndApproachVertical) {
 }
 
 TEST(Motion, HoldAndRetargetMidJointMoveStaySmooth) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   MotionLimits lim;
   const double dt = 1.0 / 240.0;
   for (const bool retarget : {false, true}) {
-    MotionGenerator g(m, baseR1(), dt, lim);
-    ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
-    ASSERT_EQ(g.move(moveTo(0.65, 0.55, 0.15)), MotionStatus::Moving);
+    MotionGenerator g(m, base_r1(), dt, lim);
+    ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
+    ASSERT_EQ(g.move(move_to(0.65, 0.55, 0.15)), MotionStatus::Moving);
     Eigen::Vector3d v;
     RunStats r0 =
-        runUntilDone(g, g.state().tcp.translation(), Eigen::Vector3d(0.65, 0.55, 0.15), 120, &v);
+        run_until_done(g, g.state().tcp.translation(), Eigen::Vector3d(0.65, 0.55, 0.15), 120, &v);
     ASSERT_EQ(g.state().status, MotionStatus::Moving);
     ASSERT_GT(g.state().tcp_speed, 0.05);
     if (retarget) {
-      ASSERT_EQ(g.move(moveTo(0.45, 0.30, 0.30)), MotionStatus::Moving) << g.state().detail;
+      ASSERT_EQ(g.move(move_to(0.45, 0.30, 0.30)), MotionStatus::Moving) << g.state().detail;
     } else {
       g.hold();
     }
-    const RunStats r =
-        runUntilDone(g, g.state().tcp.translation(), g.state().tcp.translation() + v, 240 * 10, &v);
+    const RunStats r = run_until_done(g, g.state().tcp.translation(),
+                                      g.state().tcp.translation() + v, 240 * 10, &v);
     EXPECT_LE(r0.max_joint_ratio, 1.0 + 1e-9);
     EXPECT_LE(r.max_joint_ratio, 1.0 + 1e-9);
     EXPECT_LE(r.max_speed, lim.max_tcp_speed * 1.02);
@@ -317,14 +317,14 @@ TEST(Motion, HoldAndRetargetMidJointMoveStaySmooth) {
 // Every way is blocked (a table above the arm's shoulder, no crossing height in reach): the move
 // is refused before it starts, the arm does not move, and the message names where and why.
 TEST(Motion, MoveInfeasibleInEveryWayIsRefusedBeforeItStarts) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   MotionLimits lim;
   lim.table_z = 0.3;
   lim.via_height = 2.0;
-  MotionGenerator g(m, baseR1(), 1.0 / 240.0, lim);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0, lim);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.25, 0.55, 0.15), 0.0));
   const Eigen::VectorXd q0 = g.state().q;
-  EXPECT_EQ(g.move(moveTo(0.65, 0.55, 0.15)), MotionStatus::Unreachable);
+  EXPECT_EQ(g.move(move_to(0.65, 0.55, 0.15)), MotionStatus::Unreachable);
   const std::string& d = g.state().detail;
   EXPECT_NE(d.find("target (0.650, 0.550, 0.150)"), std::string::npos) << d;
   EXPECT_NE(d.find("straight line: path leaves the workspace near ("), std::string::npos) << d;
@@ -336,29 +336,29 @@ TEST(Motion, MoveInfeasibleInEveryWayIsRefusedBeforeItStarts) {
 }
 
 TEST(Motion, FeasibleLinesStayLinear) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
-  MotionGenerator g(m, baseR1(), 1.0 / 240.0);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
-  ASSERT_EQ(g.move(moveTo(-0.05, 0.10, 0.05)), MotionStatus::Moving);
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
+  ASSERT_EQ(g.move(move_to(-0.05, 0.10, 0.05)), MotionStatus::Moving);
   EXPECT_EQ(g.state().kind, MotionKind::Linear);
 }
 
 // Neither the line nor a joint move (a raised table keeps the wrist too high for it) but via
 // points: up to the crossing height, across, down; limits and the speed cap hold throughout.
 TEST(Motion, ViaPointsWhenLineAndJointMoveAreBlocked) {
-  const RobotModel m = RobotModel::fromUrdfFile(kDir + "/arm5.urdf");
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   MotionLimits lim;
   lim.table_z = 0.15;
-  MotionGenerator g(m, baseR1(), 1.0 / 240.0, lim);
-  ASSERT_TRUE(g.resetToPose(Eigen::Vector3d(0.491, 0.964, 0.089), 0.0));
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0, lim);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.491, 0.964, 0.089), 0.0));
   const Eigen::Vector3d a = g.state().tcp.translation();
   const Eigen::Vector3d b(0.683, 0.003, 0.194);
-  ASSERT_EQ(g.move(moveTo(b.x(), b.y(), b.z())), MotionStatus::Moving) << g.state().detail;
+  ASSERT_EQ(g.move(move_to(b.x(), b.y(), b.z())), MotionStatus::Moving) << g.state().detail;
   EXPECT_EQ(g.state().kind, MotionKind::Via);
   double max_z = 0.0;
   int ticks = 0;
   for (; ticks < 240 * 20 && g.state().status == MotionStatus::Moving; ++ticks) {
-    const RunStats r = runUntilDone(g, a, b, 1);
+    const RunStats r = run_until_done(g, a, b, 1);
     max_z = std::max(max_z, g.state().tcp.translation().z());
     EXPECT_LE(r.max_speed, lim.max_tcp_speed * 1.02);
     EXPECT_LE(r.max_joint_ratio, 1.0 + 1e-9);

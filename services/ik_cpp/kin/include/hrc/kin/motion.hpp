@@ -30,19 +30,19 @@ const char* to_string(MotionStatus s);
 
 // How the current (or last) move was planned; None before the first move and for a hold.
 enum class MotionKind { None, Linear, Joint, Via };
-const char* toString(MotionKind k);
+const char* to_string(MotionKind k);
 
 struct MotionLimits {
-  double max_tcp_speed = 0.5;     // m/s, default for commands with max_speed = 0
-  double max_tcp_accel = 2.0;     // m/s^2
-  double max_tcp_jerk = 20.0;     // m/s^3
-  double reach_tolerance = 0.005; // m: "reached" radius
-  double rotation_length = 0.1;   // m per rad: how much path a pure reorientation counts for
-  double check_step = 0.01;       // m: spacing of the reachability check along a new path
-  double table_z = 0.0;           // m, world: the table top; joint and via moves stay above it
-  double table_clearance = 0.02;  // m: TCP clearance over the table on joint moves (unless an
-                                  //   endpoint is lower); elbow and wrist stay above table_z
-  double via_height = 0.25;       // m, world: lowest crossing height of a VIA move
+  double max_tcp_speed = 0.5;      // m/s, default for commands with max_speed = 0
+  double max_tcp_accel = 2.0;      // m/s^2
+  double max_tcp_jerk = 20.0;      // m/s^3
+  double reach_tolerance = 0.005;  // m: "reached" radius
+  double rotation_length = 0.1;    // m per rad: how much path a pure reorientation counts for
+  double check_step = 0.01;        // m: spacing of the reachability check along a new path
+  double table_z = 0.0;            // m, world: the table top; joint and via moves stay above it
+  double table_clearance = 0.02;   // m: TCP clearance over the table on joint moves (unless an
+                                   //   endpoint is lower); elbow and wrist stay above table_z
+  double via_height = 0.25;        // m, world: lowest crossing height of a VIA move
 };
 
 struct MoveCommand {
@@ -59,7 +59,7 @@ struct MotionState {
   double tcp_speed = 0.0;                                 // m/s, from consecutive TCP positions
   MotionStatus status = MotionStatus::Idle;
   MotionKind kind = MotionKind::None;  // how the current/last move was planned
-  std::string detail;                // why a target is unreachable, etc.
+  std::string detail;                  // why a target is unreachable, etc.
 };
 
 class MotionGenerator {
@@ -117,25 +117,26 @@ class MotionGenerator {
   bool solve_pose(const Eigen::Vector3d& p_world, const Eigen::Matrix3d& R_world,
                   const Eigen::VectorXd& seed, IkResult& res);
   // IK along the planned segments every check_step: false (and why) if the arm cannot follow.
-  bool checkPath(std::string& why);
-  bool checkSegments(const std::deque<Segment>& segs, Eigen::VectorXd seed, std::string& why);
+  bool check_path(std::string& why);
+  bool check_segments(const std::deque<Segment>& segs, Eigen::VectorXd seed, std::string& why);
   // The fallbacks: a plan of the given kind from the current state into `out`, or why not.
-  bool planJoint(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R, const ProfileLimits& lim,
-                 std::deque<Segment>& out, std::string& why);
-  bool planVia(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R, const ProfileLimits& lim,
-               std::deque<Segment>& out, std::string& why);
+  bool plan_joint(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R, const ProfileLimits& lim,
+                  std::deque<Segment>& out, std::string& why);
+  bool plan_via(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R, const ProfileLimits& lim,
+                std::deque<Segment>& out, std::string& why);
   // Stops the current motion along its own path (no-op at rest); the cursor after it.
-  bool brakePrefix(const ProfileLimits& lim, std::deque<Segment>& out, Cursor& c, std::string& why);
+  bool brake_prefix(const ProfileLimits& lim, std::deque<Segment>& out, Cursor& c,
+                    std::string& why);
   // A checked straight line from the cursor to p (rotating to r1); advances the cursor.
-  bool appendLine(std::deque<Segment>& out, Cursor& c, const Eigen::Vector3d& p,
-                  const Eigen::Quaterniond& r1, const ProfileLimits& lim, std::string& why);
+  bool append_line(std::deque<Segment>& out, Cursor& c, const Eigen::Vector3d& p,
+                   const Eigen::Quaterniond& r1, const ProfileLimits& lim, std::string& why);
   // A checked joint interpolation from the cursor to q1; advances the cursor.
-  bool appendJoint(std::deque<Segment>& out, Cursor& c, const Eigen::VectorXd& q1,
-                   const ProfileLimits& lim, std::string& why);
-  Eigen::VectorXd jointAt(const Segment& s, double m) const;
-  void fkWorld(const Eigen::VectorXd& q, Eigen::Vector3d& p, Eigen::Quaterniond& r) const;
-  void updateTcp(double dt_for_speed);
-  void stopWith(MotionStatus status, const std::string& detail);
+  bool append_joint(std::deque<Segment>& out, Cursor& c, const Eigen::VectorXd& q1,
+                    const ProfileLimits& lim, std::string& why);
+  Eigen::VectorXd joint_at(const Segment& s, double m) const;
+  void fk_world(const Eigen::VectorXd& q, Eigen::Vector3d& p, Eigen::Quaterniond& r) const;
+  void update_tcp(double dt_for_speed);
+  void stop_with(MotionStatus status, const std::string& detail);
 
   const RobotModel& model_;
   Eigen::Isometry3d world_T_base_, base_T_world_;

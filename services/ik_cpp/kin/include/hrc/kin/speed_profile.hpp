@@ -15,9 +15,9 @@ struct ProfileLimits {
 class SpeedProfile {
  public:
   // Plan from speed v0 >= 0 to rest at distance L >= 0. Returns false (profile unchanged) when
-  // stopping within L is impossible from v0: the caller must brake first (see brakingDistance).
+  // stopping within L is impossible from v0: the caller must brake first (see braking_distance).
   bool plan(double length, double v0, const ProfileLimits& limits);
-  // A braking profile: from v0 to rest as fast as the limits allow; length = brakingDistance.
+  // A braking profile: from v0 to rest as fast as the limits allow; length = braking_distance.
   void plan_brake(double v0, const ProfileLimits& limits);
 
   // Distance and speed at time t >= 0 (t beyond the end: length, 0).
