@@ -23,8 +23,10 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import os
 import signal
 import sys
+import threading
 from collections.abc import Callable
 from types import FrameType
 from typing import ClassVar, Protocol
@@ -164,14 +166,27 @@ def parse_args(cls: type[Service], argv: list[str] | None = None) -> argparse.Na
     return p.parse_args(argv)
 
 
+STOP_GRACE_S = 2.0  # after SIGTERM / SIGINT an observer has this long to write its files
+
+
 def _stop_on_signals(role: ClockFollower) -> None:
-    """SIGTERM / SIGINT end an observer's run cleanly: it still writes its files."""
+    """SIGTERM / SIGINT end an observer's run cleanly: it still writes its files, within
+    STOP_GRACE_S (it may be far behind the clock); then it exits anyway, so that it never
+    outlives the trial (hrc run sends SIGTERM when it stops, and when it dies)."""
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:
         role.stop(f"terminated by {signal.Signals(signum).name}")
+        timer = threading.Timer(STOP_GRACE_S, _exit_now)
+        timer.daemon = True
+        timer.start()
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)
+
+
+def _exit_now() -> None:
+    log.error("still writing %.0f s after the stop signal: exiting", STOP_GRACE_S)
+    os._exit(EXIT_FAILED)
 
 
 def _run_role(service: Service, bus: Bus) -> Outcome:

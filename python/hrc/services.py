@@ -56,6 +56,7 @@ class Settings:
     seed: str | None = None
     no_reach_check: bool = False  # the caller has just run the motion check
     keep_running: bool = False  # the orchestrator does not stop the run at the task's end
+    stall_timeout: str | None = None  # the watchdog's timeout (None: the scenario's)
     record: str | None = None
     replay: str | None = None
     viewer: bool = False
@@ -152,6 +153,7 @@ SERVICES: tuple[Service, ...] = (
             Option("--no-reach-check", "no_reach_check"),
             Option("--seed", "seed"),
             Option("--keep-running", "keep_running"),
+            Option("--stall-timeout", "stall_timeout"),
         ),
     ),
     Service(

@@ -72,6 +72,8 @@ class ClockMaster:
         self._fresh: dict[tuple[str, str], int] = {}  # marks that moved since the last barrier
         self._announce: dict[tuple[str, str], int] = {}  # ... not yet listed by a clock tick
         self._barrier_tick = 0  # the tick whose acks are awaited
+        # realtime: participant -> wall time (monotonic) since when it has been missing barriers
+        self._late_since: dict[str, float] = {}
         # The lockstep transition (apply k, step, publish k + 1) runs on whichever thread claims
         # it: the ack thread inline, or the run() thread. See run().
         self._inline = False
@@ -232,6 +234,23 @@ class ClockMaster:
             late[0],
         )
 
+    def _check_late(self, k: int, late: list[str], now: float) -> None:
+        """Realtime: a participant that keeps missing the barrier for longer than the barrier
+        timeout (alive, but not answering) ends the run, as in lockstep. Under the lock."""
+        for p in list(self._late_since):
+            if p not in late:
+                del self._late_since[p]
+        for p in late:
+            since = self._late_since.setdefault(p, now)
+            if now - since >= self.settings.barrier_timeout_s:
+                raise RunFailed(
+                    f"participant '{p}' missed every barrier for "
+                    f"{now - since:.1f} s up to tick {k} (realtime; last ack: tick "
+                    f"{self._acked[p]}; barrier timeout "
+                    f"{self.settings.barrier_timeout_s:g} s)",
+                    p,
+                )
+
     def _await_acks(self, k: int, deadline: float | None) -> None:
         parts = self.settings.participants
         timeout_at = time.monotonic() + self.settings.barrier_timeout_s
@@ -240,11 +259,13 @@ class ClockMaster:
                 self._check_lost()
                 late = [p for p in parts if self._acked[p] < k]
                 if not late:
+                    self._late_since.clear()
                     return
                 now = time.monotonic()
                 if deadline is not None:
                     if now >= deadline:
                         self.misses.update(late)
+                        self._check_late(k, late, now)
                         return
                     wait = deadline - now
                 else:

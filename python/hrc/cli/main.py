@@ -30,11 +30,17 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from hrc import scenario as sc
-    from hrc.cli.runner import TrialOptions, default_trial_dir, run_trial
+    from hrc.cli.runner import (
+        Terminated,
+        TrialOptions,
+        default_trial_dir,
+        run_trial,
+        stop_on_signals,
+    )
     from hrc.cli.summary import print_summary
 
     try:
-        s = sc.load(args.scenario)
+        s = sc.load(args.scenario, motion_check=not args.no_reach_check)
     except sc.ScenarioError as exc:
         print(str(exc), file=sys.stderr)
         print(
@@ -70,6 +76,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         unix_socket=not args.tcp,
         lowlatency=False if args.no_lowlatency else None,
         barrier_timeout_s=args.barrier_timeout,
+        stall_timeout_s=args.stall_timeout,
         connect=args.connect or [],
         validated=True,
         viewer=args.viewer,
@@ -79,10 +86,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     )
     print(f"trial {s.scenario.name!r} ({args.mode}) -> {trial_dir}", flush=True)
     try:
+        stop_on_signals()
         result = run_trial(opts, trial_dir)
     except KeyboardInterrupt:  # run_trial has stopped the services on its way out
         print(f"trial interrupted; files so far in {trial_dir}", file=sys.stderr)
         return 130
+    except Terminated as exc:  # likewise
+        print(f"trial stopped by {exc}; files so far in {trial_dir}", file=sys.stderr)
+        return 128 + exc.signum
     if not result.ok:
         print(f"trial FAILED: {result.message}", file=sys.stderr)
         return result.exit_code
@@ -202,7 +213,22 @@ def build_parser() -> argparse.ArgumentParser:
         "--barrier-timeout",
         type=float,
         default=10.0,
-        help="lockstep: seconds a participant may take for one tick",
+        help="seconds a participant may take for one tick (realtime: may go on "
+        "missing its deadlines)",
+    )
+    r.add_argument(
+        "--stall-timeout",
+        type=float,
+        default=None,
+        metavar="S",
+        help="end the trial after S simulated seconds without progress (default: "
+        "the scenario's stall_timeout_s, 60; 0: never)",
+    )
+    r.add_argument(
+        "--no-reach-check",
+        action="store_true",
+        help="skip the motion check of the scenario (a move may then fail at run "
+        "time: the watchdog ends the trial naming it)",
     )
     r.set_defaults(func=_cmd_run)
 

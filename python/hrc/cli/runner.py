@@ -45,6 +45,7 @@ class TrialOptions:
     unix_socket: bool = True  # the services meet on a Unix socket (else on the TCP port)
     lowlatency: bool | None = None  # Zenoh's low-latency transport; None: if the scenario fits
     barrier_timeout_s: float = 10.0
+    stall_timeout_s: float | None = None  # None: the scenario's stall_timeout_s
     start_timeout_s: float = 60.0
     viewer: bool = False
     web: bool = False
@@ -64,6 +65,47 @@ class TrialResult:
     failed_service: str = ""
     run_end: pb.RunEnd | None = None
     wall_s: float = 0.0
+
+
+class Terminated(Exception):
+    """``hrc run`` got SIGTERM or SIGHUP (or its parent died): stop the trial like Ctrl-C."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def _raise_terminated(signum: int, _frame: object) -> None:
+    for sig in (signal.SIGTERM, signal.SIGHUP):  # a second signal must not cut the cleanup short
+        signal.signal(sig, signal.SIG_IGN)
+    raise Terminated(signum)
+
+
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def die_with_parent(signum: int = signal.SIGTERM) -> None:
+    """Asks Linux to send ``signum`` to this process when its parent dies (no-op elsewhere)."""
+    if not sys.platform.startswith("linux"):
+        return
+    try:
+        import ctypes
+
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, int(signum), 0, 0, 0)
+    except (OSError, AttributeError):  # no prctl: the services still leave on lost liveliness
+        pass
+
+
+def stop_on_signals() -> None:
+    """SIGTERM and SIGHUP (a process manager, a CI timeout, a closed terminal) and the death of
+    our own parent end ``hrc run`` as Ctrl-C does: run_trial's cleanup stops every service."""
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        signal.signal(sig, _raise_terminated)
+    parent = os.getppid()
+    die_with_parent(signal.SIGTERM)
+    if os.getppid() != parent:  # it died before prctl took effect
+        raise Terminated(signal.SIGTERM)
 
 
 def _ephemeral_range() -> tuple[int, int]:
@@ -136,8 +178,14 @@ class ServiceGroup:
         self._files.append(f)
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         log.debug("starting %s: %s", name, " ".join(argv))
+        # die_with_parent: a service never outlives hrc run, even one killed with SIGKILL
         self.procs[name] = subprocess.Popen(
-            argv, stdout=f, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL, env=env
+            argv,
+            stdout=f,
+            stderr=subprocess.STDOUT,
+            stdin=subprocess.DEVNULL,
+            env=env,
+            preexec_fn=die_with_parent,
         )
 
     def poll(self) -> dict[str, int | None]:
@@ -224,6 +272,7 @@ def trial_settings(
         seed=None if opts.seed is None else str(opts.seed),
         no_reach_check=opts.validated,
         keep_running=bool(opts.ticks),
+        stall_timeout=None if opts.stall_timeout_s is None else str(opts.stall_timeout_s),
         record=str(opts.record) if opts.record else None,
         replay=str(opts.replay) if opts.replay else None,
         viewer=opts.viewer,

@@ -17,7 +17,7 @@ from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
 from hrc.scenario.errors import Problem
 from hrc.scenario.graph import Edge, find_cycles
 from hrc.scenario.models import HUMAN
-from hrc.scenario.paths import resolve_path
+from hrc.scenario.paths import installed_root, resolve_path
 
 
 def part_key(index: int, raw_part: Any) -> str:
@@ -286,7 +286,7 @@ def check_files(raw: dict[str, Any], folder: Path | None, root: Path | None) -> 
     """URDFs and the replay file must exist (file's folder first, then the project root)."""
 
     def missing(written: str) -> str:
-        bases = [str(b) for b in (folder, root) if b is not None]
+        bases = [str(b) for b in (folder, root, installed_root()) if b is not None]
         if Path(written).is_absolute() or not bases:
             return f"file not found: {written}"
         return f"file not found: {written} (looked in {' and '.join(dict.fromkeys(bases))})"

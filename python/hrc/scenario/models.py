@@ -94,6 +94,8 @@ class ScenarioInfo(_Strict):
     name: Name
     tick_hz: Annotated[float, Field(gt=0.0, le=MAX_TICK_HZ, allow_inf_nan=False)] = DEFAULT_TICK_HZ
     seed: Annotated[int, Field(ge=0, lt=2**64)] = 1
+    # The watchdog: no progress for this long (simulated s) ends the trial; 0: never.
+    stall_timeout_s: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 60.0
 
 
 class ScriptedParams(_Strict):

@@ -26,13 +26,22 @@ def find_project_root(start: Path) -> Path | None:
     return installed if (installed / ROOT_MARKER).is_dir() else None
 
 
+def installed_root() -> Path:
+    """The installed project's root: where the bundled files (robots/arm5.urdf) are."""
+    from hrc.paths import project_root
+
+    return project_root()
+
+
 def resolve_path(written: str, folder: Path | None, root: Path | None) -> Path | None:
     """An existing file for `written`: absolute as is, else relative to the scenario's folder
-    first, then the project root. None when it exists nowhere."""
+    first, then the project root, then the installed project (a scenario anywhere, e.g. in a
+    study folder with its own `scenarios/`, finds the bundled robots/arm5.urdf). None when it
+    exists nowhere."""
     path = Path(written).expanduser()
     if path.is_absolute():
         return path if path.is_file() else None
-    for base in (folder, root):
+    for base in (folder, root, installed_root()):
         if base is not None and (base / path).is_file():
             return (base / path).resolve()
     return None

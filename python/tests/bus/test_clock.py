@@ -111,6 +111,28 @@ def test_a_silent_participant_is_named_when_the_barrier_times_out(session_id: st
         s.close()
 
 
+def test_realtime_a_participant_that_stops_answering_ends_the_run_naming_it(
+    session_id: str,
+) -> None:
+    s = Session(
+        session_id,
+        ClockSettings(mode="realtime", tick_hz=100, ticks=0, barrier_timeout_s=0.5, observers=[]),
+        ["ik_cpp", "orchestrator", "human_input"],
+    )
+    try:
+        _run_participants(s, {}, only=["ik_cpp", "orchestrator"])
+        s.buses["human_input"].declare_token()  # alive, never acks
+        s.clock.start()
+        t0 = time.monotonic()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)
+        assert not end.ok and end.failed_participant == "human_input"
+        assert "human_input" in end.reason and "realtime" in end.reason
+        assert time.monotonic() - t0 < 5.0  # not forever: about the barrier timeout
+        assert end.deadline_misses["human_input"] >= 40
+    finally:
+        s.close()
+
+
 def test_a_vanished_participant_ends_the_run_naming_it(session_id: str) -> None:
     s = Session(
         session_id,

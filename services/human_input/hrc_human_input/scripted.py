@@ -9,12 +9,15 @@ Around that:
 - a human-robot collision (COLLISION event, or a hand-robot contact) makes it pull the hand back
   after a reflex delay and wait until the robots continue (CONTINUED; COLLISION_END for
   `stop_colliding`); a held part may still be placed meanwhile; under `retreat_button` the free
-  hand presses the continue button.
+  hand presses the continue button whenever its cue is on (whatever the other hand does, and
+  again every few seconds while the cue stays on: a press that did not register). A hand that
+  still touches a robot after `TOUCH_MAX_S` is pulled right back to rest (a person does not
+  lean on a halted robot).
 - `caution` in [0, 1] makes it hold back before a reach while a robot is heading into the region
   it wants to reach: radius 0.08 + 0.17 * caution m around the goal; with anticipation it knows
   where robots are heading from their lit target cues (and that a robot showing "Waiting.." is not
   coming); without, it only sees where the TCPs are and extrapolates their motion over
-  0.5 + caution s. It never holds back longer than `max_hold_back_s` at a time.
+  0.5 + caution s. It never holds one action back longer than `max_hold_back_s` in all.
 - `provoke_collisions`: at the given task times, or with the given probability on the first reach
   for each part, it reaches into the nearest robot's tool instead (until physics reports contact).
 """
@@ -56,6 +59,7 @@ RELEASE_MIN_S = 0.3  # ... and not before this
 COLLISION_FALLBACK_S = 30.0  # no CONTINUED ever: carry on anyway
 PROVOKE_GIVE_UP_S = 4.0
 BUTTON_REPEAT_S = 3.0
+TOUCH_MAX_S = 2.0  # a hand touching a robot this long is pulled right back
 HEAD_TIME_CONSTANT_S = 0.15
 
 
@@ -110,6 +114,7 @@ class ScriptedParticipant:
         self.part: str | None = None  # the part being handled
         self.go_t: float | None = None  # when the pending action starts
         self.hold_since: float | None = None  # holding back (caution) since
+        self.hold_first: float | None = None  # the first hold-back of the pending action
         self.hold_expired = False
         self.hold_backs: list[tuple[float, str]] = []  # (time, robot) whenever caution held back
         self.grasp: tuple[Vec3, float, float] | None = None  # hand - object, hand & object yaw_rad
@@ -117,6 +122,7 @@ class ScriptedParticipant:
         self.collision_since = 0.0
         self.collision_confirmed = False  # the orchestrator announced it (COLLISION event)
         self.last_press: float | None = None
+        self.touch_since: float | None = None  # a hand has touched a robot since
         self.provoke_times = list(facts.provoke_times_s)
         self.provoked_parts: set[str] = set()
         self.provoke_robot: str | None = None
@@ -224,7 +230,11 @@ class ScriptedParticipant:
                 self.hold_since = t
                 self.hold_backs.append((t, robot))
                 self.log.append((t, f"holding back for {robot}"))
-            if t - self.hold_since < self.max_hold:
+            if self.hold_first is None:
+                self.hold_first = t
+            # max_hold bounds the holding back of one action in all: a danger that comes and
+            # goes (a robot at the edge of the region) must not hold it back for ever
+            if t - self.hold_first < self.max_hold:
                 self.go_t = None
                 return True
             self.hold_expired = True
@@ -237,6 +247,7 @@ class ScriptedParticipant:
 
     def _action_started(self) -> None:
         self.hold_since = None
+        self.hold_first = None
         self.hold_expired = False
 
     # ------------------------------------------------------------------ the tick
@@ -245,6 +256,7 @@ class ScriptedParticipant:
         self._perceive(t, view)
         self._provoke_check(t, view)
         self._decide(t, view)
+        self._press_if_cued(t, view)
         for hand in self.hands.values():
             hand.advance(t)
         self._look(t)
@@ -279,6 +291,7 @@ class ScriptedParticipant:
             collision_begins = True
         if collision_begins and not self.in_collision:
             self._collision_begins(t, view)
+        self._pull_away(t, view)
         if self.in_collision:
             waited = t - self.collision_since
             if (
@@ -288,6 +301,26 @@ class ScriptedParticipant:
                     t,
                     "no collision announced" if not self.collision_confirmed else "gave up waiting",
                 )
+
+    def _pull_away(self, t: float, view: TaskView) -> None:
+        """A hand that keeps touching a robot goes back to rest (a held part goes with it)."""
+        if not view.hand_robot_contacts:
+            self.touch_since = None
+            return
+        if self.touch_since is None:
+            self.touch_since = t
+            return
+        if t - self.touch_since < TOUCH_MAX_S:
+            return
+        self.touch_since = t  # still touching after this move: again later
+        for name in sorted({h for h, _robot in view.hand_robot_contacts}):
+            hand = self.hands.get(name)
+            if hand is None:
+                continue
+            hand.cancel()
+            hand.do(Move(REST[name], None, GROSS_WIDTH, "pull away"))
+            if name == self.active and self.phase != Phase.DONE:
+                self._set(Phase.PULLBACK, t, "still touching a robot")
 
     def _collision_begins(self, t: float, view: TaskView) -> None:
         self.in_collision = True
@@ -595,6 +628,18 @@ class ScriptedParticipant:
             Move(REST[self.free], 0.0, GROSS_WIDTH, "rest"),
         )
         self.log.append((t, "pressing the continue button"))
+
+    def _press_if_cued(self, t: float, view: TaskView) -> None:
+        """The continue button's cue is on: press it with the free hand, whatever the active
+        hand does (it keeps what it holds); again after BUTTON_REPEAT_S if the cue stays on."""
+        if (
+            self.facts.continue_button is None
+            or self.facts.safety_policy != SafetyPolicy.RETREAT_BUTTON
+        ):
+            return
+        if not view.cue_on(CONTINUE_BUTTON_CUE):
+            return
+        self._maybe_press_button(t, view)
 
     def _provoke_step(self, t: float, view: TaskView) -> None:
         hand = self.hand

@@ -187,6 +187,11 @@ def human_idle(t: float, begin: bool) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_HUMAN_IDLE_END, t, "human back in the workspace.", agent="human")
 
 
+def stalled(t: float, message: str) -> pb.TaskEvent:
+    """`message` is the watchdog's: "stalled for 60 s: r2 waits ..."."""
+    return make(K.TASK_EVENT_KIND_STALLED, t, f"TASK STALLED{message.removeprefix('stalled')}.")
+
+
 def task_finished(t: float, collisions: int, near: int) -> pb.TaskEvent:
     return make(
         K.TASK_EVENT_KIND_TASK_FINISHED,

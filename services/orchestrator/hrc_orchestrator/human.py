@@ -38,6 +38,7 @@ class HumanAgent:
         self.index = 0
         self.held_part = ""
         self.held_hand = ""
+        self.held_since = 0.0  # task time of the grab of held_part
         self.completion_s: float | None = None
         self.idle = IntervalClock()
         self._in_envelope: dict[tuple[str, str], None] = {}  # (hand, box) touching
@@ -69,6 +70,7 @@ class HumanAgent:
         if e.object != self.next_part or e.holder not in HANDS:
             return
         self.held_part, self.held_hand = e.object, e.holder
+        self.held_since = t
         self.board.mark_grabbed(e.object, t)  # metrics keep the first grab; every grab is an event
         self.board.emit(ev.part_grabbed(t, sc.HUMAN, e.object, e.holder))
 

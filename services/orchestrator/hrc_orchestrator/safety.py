@@ -13,7 +13,11 @@ not counted). Under ``stop_colliding`` each robot's halt is its own collision, s
 touches the second robot also stops that one (it would be unsafe to let it carry on).
 
 Near collisions: when the inflated volumes of two arms touch, the arm farther from its own current
-target holds (tie: the one whose id sorts last, i.e. r2) until the volumes separate.
+target holds (tie: the one whose id sorts last, i.e. r2) until the volumes separate. Only an arm
+that can move can part the volumes, so the rule never halts the only arm that can move: when one
+of the two cannot (it waits at its intermediate pose, is finished, is halted by a hand,
+has arrived at its retreat pose, or reports its target unreachable), that one holds instead; and
+when the arm left moving comes to a stop while the other one holds, they swap.
 """
 
 from __future__ import annotations
@@ -26,7 +30,8 @@ from hrc.wire import pb
 
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
-from hrc_orchestrator.robots import HOLD, Motion, RobotAgent
+from hrc_orchestrator.robots import HOLD, Motion, Phase, RobotAgent
+
 
 
 @dataclass
@@ -172,13 +177,53 @@ class Safety:
         if already or not running:
             return
         d_a, d_b = self._distance_to_target(a), self._distance_to_target(b)
-        # The arm farther from its own target yields; exact tie: the id that sorts last (r2).
-        halted = a if d_a > d_b else b
+        move_a, move_b = self.can_move(a), self.can_move(b)
+        n = len(self.near_times) + 1
+        if move_a != move_b:  # never halt the only arm that can move
+            halted = b if move_a else a
+            why = f"near-collision {n}, {a if move_a else b} is the only arm that can move"
+        else:
+            # The arm farther from its own target yields; exact tie: the id that sorts last (r2).
+            halted = a if d_a > d_b else b
+            why = f"near-collision {n}, farther from its target"
         self.near_yield[(a, b)] = halted
         self.near_times.append(t)
-        n = len(self.near_times)
         self.board.emit(ev.near_collision(t, n, a, b, halted, d_a, d_b))
-        self.board.emit(ev.robot_halted(t, halted, f"near-collision {n}, farther from its target"))
+        self.board.emit(ev.robot_halted(t, halted, why))
+
+    def can_move(self, robot: str) -> bool:
+        """The arm has a motion to make that only a near-collision hold keeps it from."""
+        agent = self.agents[robot]
+        st = agent.state
+        if robot in self.halted or (
+            st is not None
+            and st.command_id == agent.sent_id
+            and st.status == pb.MOTION_STATUS_UNREACHABLE
+        ):
+            return False
+        if self.retreating is not None and robot in self.retreating.retreat:
+            return not self.retreating.arrived.get(robot, False)
+        if agent.phase == Phase.SCREWING:
+            return True  # the dwell ends by itself, then it moves on
+        if agent.phase in (Phase.NOT_STARTED, Phase.WAITING, Phase.FINISHED):
+            return False
+        return agent.goal is not None and agent.goal.is_move and not agent.reached(agent.goal)
+
+    def swap_stuck_yields(self, t: float) -> None:
+        """A held arm whose partner cannot move any more takes over: the partner holds. After
+        the phase machines' tick (an arm that just reached a goal has its next one by then)."""
+        for pair, held in list(self.near_yield.items()):
+            other = pair[1] if pair[0] == held else pair[0]
+            if not self.can_move(other) and self.can_move(held):
+                self.near_yield[pair] = other
+                n = len(self.near_times)
+                self.board.emit(
+                    ev.robot_halted(
+                        t,
+                        other,
+                        f"near-collision {n}, {held} is the only arm that can move: it goes on",
+                    )
+                )
 
     def _distance_to_target(self, robot: str) -> float:
         agent = self.agents[robot]

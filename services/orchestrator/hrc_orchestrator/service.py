@@ -86,6 +86,14 @@ class OrchestratorService(Service):
             action="store_true",
             help="skip the motion check when loading the scenario",
         )
+        p.add_argument(
+            "--stall-timeout",
+            type=float,
+            default=None,
+            metavar="S",
+            help="end the trial after S simulated seconds without progress "
+            "(default: the scenario's stall_timeout_s; 0: never)",
+        )
 
     def __init__(self, args: argparse.Namespace) -> None:
         """Loads and checks the scenario before joining the bus."""
@@ -106,7 +114,13 @@ class OrchestratorService(Service):
             self.scenario.scenario.seed = args.seed
         self.out_dir = Path(args.out) if args.out else None
         self.seed = int(self.spb.info.seed)
-        self.task = Task(self.scenario)
+        if args.stall_timeout is not None and not (
+            math.isfinite(args.stall_timeout) and args.stall_timeout >= 0
+        ):
+            raise ServiceExit(
+                f"--stall-timeout must be >= 0, got {args.stall_timeout}", EXIT_BAD_INPUT
+            )
+        self.task = Task(self.scenario, stall_timeout_s=args.stall_timeout)
         self.metrics_every_s = args.metrics_every
         self.keep_running = args.keep_running  # fixed-length runs: no stop at the task's end
         self._next_metrics = self.metrics_every_s
@@ -191,6 +205,13 @@ class OrchestratorService(Service):
         if self.task.running and self.metrics_every_s > 0 and self.task.now() >= self._next_metrics:
             self._next_metrics += self.metrics_every_s
             self.metrics_pub.put(metrics.report(metrics.build(self.task, self.seed), False), k, t)
+        if out.stalled and not self._stop_sent:
+            self._stop_sent = True
+            log.error("%s", out.stalled)
+            self.metrics_pub.put(metrics.report(metrics.build(self.task, self.seed), True), k, t)
+            self.control_pub.put(
+                pb.RunControl(command=pb.RunControl.COMMAND_ABORT, reason=out.stalled), k, t
+            )
         if out.stop and not self._stop_sent:
             self._stop_sent = True
             self.metrics_pub.put(metrics.report(metrics.build(self.task, self.seed), True), k, t)
@@ -208,6 +229,9 @@ class OrchestratorService(Service):
             if run_end is not None
             else metrics.broken_off_run(self.task.tick, outcome.reason)
         )
+        if self.task.watchdog.message:
+            run.end_reason = "stalled"
+            run.stall = self.task.watchdog.message
         data = metrics.build(self.task, self.seed, run)
         if run_end is not None:
             try:  # best effort: the run is over, observers may already be leaving

@@ -34,6 +34,7 @@ from hrc_orchestrator.cues import HUMAN_COLOR, CueBoard
 from hrc_orchestrator.human import HumanAgent
 from hrc_orchestrator.robots import Phase, RobotAgent
 from hrc_orchestrator.safety import Safety
+from hrc_orchestrator.watchdog import Watchdog, describe
 
 
 def wall_clock_now() -> str:
@@ -58,11 +59,16 @@ class Outputs:
     events: list[pb.TaskEvent] = field(default_factory=list)
     cues: list[pb.Cue] = field(default_factory=list)  # on/off changes
     stop: str = ""  # non-empty once: the task finished, end the run
+    stalled: str = ""  # non-empty once: the watchdog fired, end the run with this message
 
 
 class Task:
     def __init__(
-        self, scenario: sc.Scenario, *, wall_clock: Callable[[], str] = wall_clock_now
+        self,
+        scenario: sc.Scenario,
+        *,
+        wall_clock: Callable[[], str] = wall_clock_now,
+        stall_timeout_s: float | None = None,
     ) -> None:
         self.scenario = scenario
         self.board = Board(scenario)
@@ -75,6 +81,9 @@ class Task:
         self.anticipation = scenario.conditions.anticipation
         self.cue_board = CueBoard()
         self._wall_clock = wall_clock
+        self.watchdog = Watchdog(
+            scenario.scenario.stall_timeout_s if stall_timeout_s is None else stall_timeout_s
+        )
         self.wall_start = ""
         self.started = False
         self.finished = False
@@ -101,7 +110,7 @@ class Task:
     def step(self, tick: int, sim_time: float, inputs: Inputs) -> Outputs:
         self.tick, self.sim_time = tick, sim_time
         out = Outputs()
-        if self.finished:
+        if self.finished or self.watchdog.message:
             return out
         sampling = self.running
         for state in inputs.robot_states:
@@ -129,6 +138,7 @@ class Task:
             self.safety.update(t)
             for rid, agent in self.agents.items():
                 agent.advance(t, active=self.safety.override(rid) is None)
+            self.safety.swap_stuck_yields(t)
             if self.human.done and all(a.finished for a in self.agents.values()):
                 self._finish(t)
                 out.stop = "task finished"
@@ -138,7 +148,16 @@ class Task:
         out.events = events
         out.world_commands = world + self._grabbable_changes()
         out.cues = self.cue_board.update(self._desired_cues())
+        if not self.finished and self.watchdog.check(sim_time, out):
+            self._stall(out)
         return out
+
+    def _stall(self, out: Outputs) -> None:
+        """Nothing progressed for the watchdog's timeout: say who waits on what, end."""
+        msg = describe(self, self.watchdog.timeout_s)
+        self.watchdog.message = msg  # from now on the task does nothing: its numbers stay
+        out.events.append(ev.stalled(self.now(), msg))
+        out.stalled = msg
 
     # ------------------------------------------------------------------ inputs
     def _object_event(self, e: pb.ObjectEvent) -> None:

@@ -213,6 +213,7 @@ def test_a_run_that_broke_off_says_what_is_unknown() -> None:
         "ok": False,
         "end_reason": "terminated by SIGTERM",
         "deadline_misses": {},
+        "stall": None,
     }
 
 

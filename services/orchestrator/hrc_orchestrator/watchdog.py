@@ -1,0 +1,132 @@
+"""The stall watchdog (docs/task-semantics.md, "The watchdog"): a trial in which nothing
+progresses for ``stall_timeout_s`` of simulated time ends, with one message saying who waits on
+what.
+
+Progress is any task event except the human's idle changes and an unreachable report, and any
+cue switching on or off. The message is a pure function of the task's state, so it is the same
+in every run of a scenario and seed.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from hrc.wire import pb
+
+from hrc_orchestrator.robots import Phase, RobotAgent
+
+if TYPE_CHECKING:
+    from hrc_orchestrator.task import Outputs, Task
+
+K = pb.TaskEventKind
+# Events that do not show the task moving on: hands wandering in and out of the workspace, and a
+# robot saying it cannot make its move.
+NOT_PROGRESS = frozenset(
+    {
+        K.TASK_EVENT_KIND_HUMAN_IDLE_BEGIN,
+        K.TASK_EVENT_KIND_HUMAN_IDLE_END,
+        K.TASK_EVENT_KIND_ROBOT_UNREACHABLE,
+    }
+)
+
+
+def progressed(out: Outputs) -> bool:
+    return bool(out.cues) or any(e.kind not in NOT_PROGRESS for e in out.events)
+
+
+class Watchdog:
+    def __init__(self, timeout_s: float) -> None:
+        self.timeout_s = timeout_s  # <= 0: no watchdog
+        self.last_progress = 0.0  # simulated time
+        self.message = ""  # set once it fired
+
+    def check(self, sim_time: float, out: Outputs) -> bool:
+        """True once, on the tick the trial has gone `timeout_s` without progress."""
+        if self.message or self.timeout_s <= 0:
+            return False
+        if progressed(out):
+            self.last_progress = sim_time
+            return False
+        return sim_time - self.last_progress >= self.timeout_s - 1e-9
+
+
+def _xyz(v: tuple[float, float, float]) -> str:
+    return f"({v[0]:.3f}, {v[1]:.3f}, {v[2]:.3f})"
+
+
+def _move(agent: RobotAgent) -> str:
+    """The move the robot was last sent: its id, what it is for and where it goes."""
+    sent = agent.sent
+    what = agent.phase.value + (
+        f" {agent.carrying or agent.part}" if agent.phase != Phase.TO_HOME else ""
+    )
+    if sent is None or not sent.is_move:
+        return f"command #{agent.sent_id} ({what})"
+    return f"move #{agent.sent_id} ({what}) to {_xyz(sent.target)}"
+
+
+def _robot(task: Task, rid: str, agent: RobotAgent) -> str:
+    safety = task.safety
+    st = agent.state
+    if (
+        st is not None
+        and st.status == pb.MOTION_STATUS_UNREACHABLE
+        and st.command_id == agent.sent_id
+    ):
+        return f"{rid} cannot make its {_move(agent)}: {st.detail or 'unreachable'}"
+    if agent.phase == Phase.FINISHED:
+        return f"{rid} is home"
+    if agent.phase == Phase.NOT_STARTED:
+        return f"{rid} has not started"
+    if rid in safety.halted:
+        rec = safety.halted[rid]
+        return f"{rid} is halted: the {rec.hand} hand touches it since {rec.t_s:.1f} s"
+    for (a, b), held in safety.near_yield.items():
+        if held == rid:
+            other = b if a == rid else a
+            return f"{rid} holds for a near collision with {other}"
+    if safety.retreating is not None and rid in safety.retreating.retreat:
+        if not safety.retreating.arrived.get(rid, False):
+            return f"{rid} moves to its retreat pose ({_move(agent)}, not reached)"
+        if safety.button_wanted:
+            return f"{rid} waits at its retreat pose for the continue button"
+        return f"{rid} waits at its retreat pose for the other robots"
+    if agent.phase == Phase.WAITING:
+        missing = task.board.missing_deps(agent.carrying)
+        return (
+            f"{rid} waits at its intermediate pose for {agent.carrying}, which needs "
+            f"{', '.join(missing)}"
+        )
+    if agent.phase == Phase.SCREWING:
+        return f"{rid} screws {agent.part}"
+    status = (
+        pb.MotionStatus.Name(st.status).removeprefix("MOTION_STATUS_").lower()
+        if st is not None
+        else "no state"
+    )
+    return f"{rid} has not finished its {_move(agent)} (status {status})"
+
+
+def _human(task: Task) -> str:
+    h = task.human
+    if h.done:
+        return "the human is done"
+    if h.held_part:
+        missing = task.board.missing_deps(h.held_part)
+        needs = f", which needs {', '.join(missing)}" if missing else ""
+        return f"the human holds {h.held_part} since {h.held_since:.1f} s{needs}"
+    nxt = h.next_part
+    if not task.started:
+        return f"the human has not grabbed {nxt}, the first part"
+    if h.grabbable(nxt, task.safety.blocks_grab):
+        return f"the human has not grabbed {nxt}"
+    return f"the human may not grab {nxt} (a collision is open)"
+
+
+def describe(task: Task, stalled_s: float) -> str:
+    """'stalled for 60 s: r2 waits ...; the human holds H3 since 42.6 s; r1 is home'."""
+    robots = [_robot(task, rid, a) for rid, a in task.agents.items()]
+    # the robots that wait or are stuck come first, then the human (often what they wait for)
+    stuck = [r for r in robots if " waits " in r or " cannot " in r]
+    rest = [r for r in robots if r not in stuck]
+    return f"stalled for {stalled_s:g} s: " + "; ".join([*stuck, _human(task), *rest])

@@ -1,0 +1,120 @@
+"""No hangs in the task logic: near collisions never deadlock, and the watchdog ends a trial in
+which nothing progresses, saying who waits on what."""
+
+from __future__ import annotations
+
+from orch_fakes import K, Sim, load
+
+from hrc.wire import pb
+
+from hrc_orchestrator.robots import Phase
+from hrc_orchestrator.task import Task
+
+RR = pb.CONTACT_KIND_ROBOT_ROBOT
+
+
+def last_cmd(sim: Sim, robot: str) -> pb.RobotCommand:
+    return [c for c in sim.commands if c.robot == robot][-1]
+
+
+def r2_waiting() -> Sim:
+    """The human grabbed H1 and stays still holding it: r2 waits with S1 (needs H1)."""
+    sim = Sim(load("thesis.toml"))
+    sim.run(lambda x: x.task.started, max_s=20)
+    assert sim.human is not None
+    sim.human.enabled = False
+    sim.run(lambda x: x.task.agents["r2"].phase == Phase.WAITING, max_s=30)
+    assert sim.task.agents["r1"].phase not in (Phase.WAITING, Phase.FINISHED)
+    return sim
+
+
+def test_near_collision_with_a_waiting_arm_halts_the_waiting_one() -> None:
+    sim = r2_waiting()
+    sim.contact(RR, True, "r1", "r2")
+    sim.step()
+    near = sim.kinds(K.TASK_EVENT_KIND_NEAR_COLLISION)
+    # r2 sits at its goal (distance 0): the old rule would halt r1, the only arm that can move.
+    assert len(near) == 1 and near[0].robot == "r2"
+    assert last_cmd(sim, "r1").kind == pb.RobotCommand.KIND_MOVE
+    halted = sim.kinds(K.TASK_EVENT_KIND_ROBOT_HALTED)[-1]
+    assert halted.robot == "r2" and "only arm that can move" in halted.text
+    placed = len(sim.kinds(K.TASK_EVENT_KIND_PART_PLACED))
+    sim.run(lambda x: len(x.kinds(K.TASK_EVENT_KIND_PART_PLACED)) > placed, max_s=30)
+    assert sim.kinds(K.TASK_EVENT_KIND_PART_PLACED)[-1].robot == "r1"
+
+
+def test_a_held_arm_goes_on_once_the_other_one_stops_to_wait() -> None:
+    sim = Sim(load("thesis.toml"))
+    sim.run(lambda x: x.task.started, max_s=20)
+    assert sim.human is not None
+    sim.human.enabled = False
+    # both moving: r1 is farther from its target (picking table) and yields
+    sim.run(
+        lambda x: (
+            all(a.phase not in (Phase.NOT_STARTED, Phase.WAITING) for a in x.task.agents.values())
+            and x.t > 0.1
+        ),
+        max_s=5,
+    )
+    sim.contact(RR, True, "r1", "r2")
+    sim.step()
+    first = sim.kinds(K.TASK_EVENT_KIND_NEAR_COLLISION)[0].robot
+    assert sim.task.safety.override(first) is not None
+    other = "r2" if first == "r1" else "r1"
+    # The volumes keep touching; the moving arm reaches a dependency wait (r2 with S1) or goes
+    # on; either way the held arm is not held forever.
+    sim.run(lambda x: x.task.safety.override(first) is None, max_s=60)
+    assert sim.task.agents[other].phase == Phase.WAITING or other == "r1"
+    assert last_cmd(sim, first).kind == pb.RobotCommand.KIND_MOVE
+
+
+def test_watchdog_names_the_waiting_robot_and_what_the_human_holds() -> None:
+    sim = r2_waiting()
+    # r1 finishes what it can; then nothing moves: r1 waits (RA4 needs H3) or is done.
+    stopped_at = None
+    out = None
+    for _ in range(int(200 / sim.dt)):
+        out = sim.step()
+        if out.stalled:
+            stopped_at = sim.k * sim.dt
+            break
+    assert out is not None and stopped_at is not None, "the watchdog never fired"
+    msg = out.stalled
+    assert msg.startswith("stalled for 60 s: ")
+    assert "r2 waits at its intermediate pose for S1, which needs H1" in msg
+    assert "the human holds H1 since " in msg
+    assert "r1 " in msg
+    stalled = sim.kinds(K.TASK_EVENT_KIND_STALLED)
+    assert len(stalled) == 1 and msg.removeprefix("stalled") in stalled[0].text
+    assert sim.task.watchdog.message == msg and not sim.task.finished
+    # nothing more after the stall
+    assert sim.step().events == [] and not sim.stop
+
+
+def test_watchdog_names_an_unreachable_move() -> None:
+    sim = Sim(load("thesis.toml", scenario={"stall_timeout_s": 5.0}))
+    sim.run(lambda x: x.task.started, max_s=20)
+    r1 = sim.task.agents["r1"]
+    robot = sim.robots["r1"]
+
+    def unreachable(s: Sim) -> None:  # the arm says it cannot make its move
+        robot.frozen = True
+        robot.status = pb.MOTION_STATUS_UNREACHABLE
+
+    sim.hooks.append(unreachable)
+    out = None
+    for _ in range(int(30 / sim.dt)):
+        out = sim.step()
+        if out.stalled:
+            break
+    assert out is not None and out.stalled, "the watchdog never fired"
+    assert f"r1 cannot make its move #{r1.sent_id} (to_pick RA1) to (" in out.stalled
+    assert out.stalled.startswith("stalled for 5 s: ")
+
+
+def test_watchdog_off_and_progress_resets_it() -> None:
+    task = Task(load("thesis.toml"), stall_timeout_s=0)
+    assert task.watchdog.timeout_s == 0
+    sim = Sim(load("thesis.toml", scenario={"stall_timeout_s": 2.0}))
+    sim.run_to_end()  # a normal trial never goes 2 s without an event or a cue change
+    assert not sim.kinds(K.TASK_EVENT_KIND_STALLED) and sim.stop == "task finished"

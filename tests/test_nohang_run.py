@@ -1,0 +1,88 @@
+"""No trial outlives its `hrc run`, and a trial that cannot progress ends through the watchdog."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import time
+from pathlib import Path
+
+import pytest
+
+from .conftest import HRC, ROOT, wait_until
+
+
+def _alive(pid: int) -> bool:
+    """Running (a zombie, reaped by nobody yet, counts as gone)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGKILL])
+def test_hrc_run_stopped_by_a_signal_leaves_no_service(trial_factory, sig: int) -> None:
+    trial = trial_factory(ROOT / "scenarios" / "thesis.toml")
+    trial.wait_ticking()
+    pids = trial.service_pids()
+    assert len(pids) == 5, pids
+    os.kill(trial.proc.pid, sig)
+    code, _out, err = trial.communicate(timeout=10)
+    # SIGKILL cannot be caught: the services go by themselves (they die with their parent)
+    assert code == (-sig if sig == signal.SIGKILL else 128 + sig), err
+    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), 3.0), {
+        n: p for n, p in pids.items() if _alive(p)
+    }
+    if sig != signal.SIGKILL:
+        assert f"stopped by {signal.Signals(sig).name}" in err
+
+
+@pytest.mark.slow
+def test_an_infeasible_move_at_run_time_ends_through_the_watchdog(
+    tmp_path: Path, ik_bin: Path
+) -> None:
+    # RA1 lies far outside r1's reach; validation (which would say so) is bypassed
+    text = (ROOT / "scenarios" / "thesis.toml").read_text()
+    far = text.replace(
+        "start = { xyz = [0.66, 0.30, 0.03], yaw = 0 }",
+        "start = { xyz = [1.30, 0.30, 0.03], yaw = 0 }",
+    )
+    assert far != text
+    path = tmp_path / "far.toml"
+    path.write_text(far)
+    out = tmp_path / "trial"
+    t0 = time.monotonic()
+    proc = subprocess.run(
+        [
+            HRC,
+            "run",
+            str(path),
+            "--out",
+            str(out),
+            "--no-reach-check",
+            "--stall-timeout",
+            "5",
+            "--max-ticks",
+            "20000",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    print(f"ended after {time.monotonic() - t0:.1f} s: {proc.stderr.strip().splitlines()[0]}")
+    assert proc.returncode != 0
+    assert (
+        "stalled for 5 s: r1 cannot make its move #1 (to_pick RA1) to (1.300, 0.300" in proc.stderr
+    )
+    metrics = json.loads((out / "metrics.json").read_text())
+    assert metrics["run"]["end_reason"] == "stalled" and not metrics["task"]["finished"]
+    assert metrics["run"]["stall"].startswith("stalled for 5 s: r1 cannot make its move #1")
+    assert metrics["run"]["ticks"] < 20000  # the watchdog, not the cap
+    log_txt = (out / "log.txt").read_text()
+    assert "r1 cannot make its move #1 (to_pick RA1)" in log_txt.splitlines()[-1]
+    events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
+    assert any(e.get("kind") == "STALLED" for e in events)
