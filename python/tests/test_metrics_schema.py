@@ -44,9 +44,10 @@ def full_metrics() -> pb.Metrics:
             ticks=11364,
             wall_s=10.5,
             realtime_factor=4.5,
-            ok=True,
-            end_reason="task finished",
+            ok=False,
+            end_reason="stalled",
             deadline_misses={"ik_cpp": 3, "human_input": 1},
+            stall="stalled for 60 s: the human holds H3 since 42.6 s; r1 is home",
         )
     )
     return m
