@@ -33,7 +33,6 @@ from hrc_orchestrator.board import Board
 from hrc_orchestrator.robots import HOLD, Motion, Phase, RobotAgent
 
 
-
 @dataclass
 class CollisionRecord:
     n: int
