@@ -460,17 +460,23 @@ bool MotionGenerator::append_joint(std::deque<Segment>& out, Cursor& c, const Ei
   return true;
 }
 
-bool MotionGenerator::plan_joint(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R,
-                                 const ProfileLimits& lim, std::deque<Segment>& out,
-                                 std::string& why) {
-  out.clear();
-  Cursor c;
+bool MotionGenerator::brake_and_depart(const MoveCommand& cmd, const ProfileLimits& lim,
+                                       std::deque<Segment>& out, Cursor& c, std::string& why) {
   if (!brake_prefix(lim, out, c, why)) return false;
   if (cmd.depart_height > 0 &&
       !append_line(out, c, c.p + Eigen::Vector3d(0, 0, cmd.depart_height), c.r, lim, why)) {
     why = "depart: " + why;
     return false;
   }
+  return true;
+}
+
+bool MotionGenerator::plan_joint(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R,
+                                 const ProfileLimits& lim, std::deque<Segment>& out,
+                                 std::string& why) {
+  out.clear();
+  Cursor c;
+  if (!brake_and_depart(cmd, lim, out, c, why)) return false;
   const Eigen::Vector3d pre = cmd.target + Eigen::Vector3d(0, 0, cmd.approach_height);
   const Eigen::Quaterniond G(goal_R);
   // Candidate configurations at the approach point: the branch nearest the arm first, then the
@@ -521,12 +527,7 @@ bool MotionGenerator::plan_via(const MoveCommand& cmd, const Eigen::Matrix3d& go
                                std::string& why) {
   out.clear();
   Cursor c;
-  if (!brake_prefix(lim, out, c, why)) return false;
-  if (cmd.depart_height > 0 &&
-      !append_line(out, c, c.p + Eigen::Vector3d(0, 0, cmd.depart_height), c.r, lim, why)) {
-    why = "depart: " + why;
-    return false;
-  }
+  if (!brake_and_depart(cmd, lim, out, c, why)) return false;
   const Eigen::Vector3d pre = cmd.target + Eigen::Vector3d(0, 0, cmd.approach_height);
   const Eigen::Quaterniond G(goal_R);
   const double z0 = std::max({c.p.z(), pre.z(), limits_.via_height});

@@ -124,6 +124,9 @@ class MotionGenerator {
                   std::deque<Segment>& out, std::string& why);
   bool plan_via(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R, const ProfileLimits& lim,
                 std::deque<Segment>& out, std::string& why);
+  // The start every planned kind shares: brake what is under way, then leave vertically.
+  bool brake_and_depart(const MoveCommand& cmd, const ProfileLimits& lim, std::deque<Segment>& out,
+                        Cursor& c, std::string& why);
   // Stops the current motion along its own path (no-op at rest); the cursor after it.
   bool brake_prefix(const ProfileLimits& lim, std::deque<Segment>& out, Cursor& c,
                     std::string& why);
