@@ -20,9 +20,15 @@ from hrc.paths import project_root
 if TYPE_CHECKING:
     from playwright.sync_api import Browser
 
-# Software WebGL, and no sandbox (CI runs as root in a container, where the sandbox cannot start).
+# Software WebGL; no sandbox (CI runs as root, where the sandbox cannot start); and none of
+# chromium's own connections (the network is closed here: they fail, many at a time).
 CHROMIUM_ARGS = (
     "--no-sandbox",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
     "--use-angle=swiftshader",
     "--enable-unsafe-swiftshader",
     "--ignore-gpu-blocklist",
