@@ -56,6 +56,7 @@ APT_PACKAGES=(
   git ca-certificates
   chromium  # headless, for the VR page test (services/human_input serves a WebXR page)
   clang-format clang-tidy  # scripts/lint.sh (C++ format and naming)
+  ccache  # C++ compile cache outside the clone (worktrees and repeated CI runs share it)
 )
 
 # --help prints the comment block at the top of this file.
@@ -359,6 +360,11 @@ if [ "$DO_CPP" = 1 ]; then
   export CARGO_BUILD_JOBS="$JOBS"
   export CMAKE_BUILD_PARALLEL_LEVEL="$JOBS"
   mkdir -p "$CARGO_TARGET_DIR"
+  # ccache keyed on paths relative to the clone, so every clone and worktree shares one cache.
+  if command -v ccache >/dev/null 2>&1; then
+    export CMAKE_CXX_COMPILER_LAUNCHER=ccache CCACHE_BASEDIR="$ROOT"
+    export CCACHE_DIR="${CCACHE_DIR:-$HRC_CACHE/ccache}"
+  fi
   # compile_commands.json: what clang-tidy (scripts/lint.sh) compiles each file with.
   if [ ! -f build/ik_cpp/CMakeCache.txt ] || [ ! -f build/ik_cpp/compile_commands.json ]; then
     run_logged cmake-configure cmake -S services/ik_cpp -B build/ik_cpp -DCMAKE_BUILD_TYPE=Release \
