@@ -129,25 +129,26 @@ class WorldMirror:
         t = msg.header.sim_time
         if msg.kind == pb.TASK_EVENT_KIND_TASK_STARTED and self.task_start is None:
             self.task_start = t - msg.task_time
+        if msg.kind in PERCEIVABLE:
+            event = {
+                "type": "event",
+                "tick": msg.header.tick,
+                "t_s": r4(t),
+                "task_t_s": r4(msg.task_time) if self.task_start is not None else None,
+                "kind": event_kind(msg.kind),
+                "part": msg.part,
+                "robot": msg.robot or (msg.agent if msg.agent != "human" else ""),
+                "hand": msg.hand,
+                "text": msg.text,
+            }
+            self.events.append(json.dumps(event, separators=(",", ":")))
+        # the run message follows the event that changed it
+        if msg.kind == pb.TASK_EVENT_KIND_TASK_STARTED:
             self.set_run(RunState.RUNNING)
         elif msg.kind == pb.TASK_EVENT_KIND_TASK_FINISHED:
             self.set_run(RunState.FINISHED, msg.text)
         elif msg.kind == pb.TASK_EVENT_KIND_STALLED:
             self.set_run(RunState.FAILED, msg.text)
-        if msg.kind not in PERCEIVABLE:
-            return
-        event = {
-            "type": "event",
-            "tick": msg.header.tick,
-            "t_s": r4(t),
-            "task_t_s": r4(msg.task_time) if self.task_start is not None else None,
-            "kind": event_kind(msg.kind),
-            "part": msg.part,
-            "robot": msg.robot or (msg.agent if msg.agent != "human" else ""),
-            "hand": msg.hand,
-            "text": msg.text,
-        }
-        self.events.append(json.dumps(event, separators=(",", ":")))
 
     def set_run(self, state: str, reason: str = "") -> None:
         if state == self.run:
