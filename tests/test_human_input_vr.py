@@ -221,7 +221,10 @@ def test_headless_chromium_page_streams_onto_the_bus() -> None:
         pytest.fail("Debian's chromium is missing: scripts/setup.sh installs it")
     target = (0.05, -0.10, 0.12)
     # the minimal fallback page (its demo mode); the participant client has its own tests
-    with rig("--vr-client-dir", "/nonexistent") as r, tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as profile:
+    with (
+        rig("--vr-client-dir", "/nonexistent") as r,
+        tempfile.TemporaryDirectory(ignore_cleanup_errors=True) as profile,
+    ):
         wait_bridge(r.vr_port)
         url = f"http://127.0.0.1:{r.vr_port}/?demo=1&tx={target[0]}&ty={target[1]}&tz={target[2]}"
         browser = subprocess.Popen(

@@ -316,8 +316,9 @@ def measure(n: int, scenario: Path) -> dict[str, Any]:
                     "spectator": _traffic(spectator, i_spect, window),
                 },
             )
-            ctx = BenchContext(url.replace("ws://", "http://").removesuffix("/ws") + "/",
-                               scenario, n)
+            ctx = BenchContext(
+                url.replace("ws://", "http://").removesuffix("/ws") + "/", scenario, n
+            )
             for extra in EXTRA_FIGURES:
                 figures.update(extra(ctx))
         finally:
@@ -409,8 +410,17 @@ def run(args: argparse.Namespace) -> int:
             f"{c['dropped']} dropped"
         )
     for key, value in figures.items():
-        if key not in {"scenario", "n", "misses", "retreat_latency_ms",
-                       "collision_event_latency_ms", "retreat_motion_1mm_ms", "goal_p99_ms", "clients", "load_average"}:
+        if key not in {
+            "scenario",
+            "n",
+            "misses",
+            "retreat_latency_ms",
+            "collision_event_latency_ms",
+            "retreat_motion_1mm_ms",
+            "goal_p99_ms",
+            "clients",
+            "load_average",
+        }:
             print(f"{key}: {value}")
     print(f"load average {figures['load_average']}")
     return 0

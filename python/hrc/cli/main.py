@@ -67,11 +67,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
         token = os.environ.get("HRC_VR_TOKEN") or None
         vr = VrOptions(args.vr_host, args.vr_port, args.vr_wait)
         if mode != "realtime":
-            print("note: a live participant in lockstep mode: simulation time will not follow "
-                  "the wall clock", file=sys.stderr)
+            print(
+                "note: a live participant in lockstep mode: simulation time will not follow "
+                "the wall clock",
+                file=sys.stderr,
+            )
         wait = f"waiting up to {args.vr_wait:g} s for it" if args.vr_wait > 0 else "not waiting"
-        print(f"live VR trial: open {vr.url(token)} ({wait}); the task clock starts on the "
-              "first grab", flush=True)
+        print(
+            f"live VR trial: open {vr.url(token)} ({wait}); the task clock starts on the "
+            "first grab",
+            flush=True,
+        )
     anticipation = s.conditions.anticipation
     trial_dir = (
         Path(args.out)

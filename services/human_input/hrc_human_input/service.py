@@ -22,8 +22,8 @@ from hrc.wire import pb
 from hrc_human_input import facts as facts_mod
 from hrc_human_input.replay import Recorder, Recording, Replayer, ReplayError, load_recording
 from hrc_human_input.sample import Sample
-from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.scene import RobotFiles, build_scene, scene_cue_json
+from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource
 from hrc_human_input.stream import WorldMirror
 from hrc_human_input.task_view import TaskView

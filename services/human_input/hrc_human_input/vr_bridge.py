@@ -250,10 +250,9 @@ class VrBridge:
             schedule = not self._wake_scheduled and loop is not None
             self._wake_scheduled = self._wake_scheduled or schedule
         if schedule and loop is not None:
-            try:
+            # RuntimeError: the loop has closed, nobody to send to
+            with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(self._deliver)
-            except RuntimeError:  # the loop has closed: nobody to send to
-                pass
 
     def flush(self, timeout: float = 1.0) -> None:
         """Waits (up to ``timeout``) until every client has been sent what was published: the
@@ -351,7 +350,9 @@ class VrBridge:
         c.closing = True
         self.stats.too_slow += 1
         log.warning(
-            "VR client %s: %d events waiting, disconnecting it (1013 too slow)", c.peer, len(c.outbox)
+            "VR client %s: %d events waiting, disconnecting it (1013 too slow)",
+            c.peer,
+            len(c.outbox),
         )
         c.outbox.clear()
         if c.task is not None:
@@ -582,7 +583,8 @@ class VrBridge:
                 or not 1.0 <= rate <= MAX_RATE_HZ
             ):
                 await self._error_reply(
-                    c.ws, [f"subscribe: rate_hz must be a number in [1, {MAX_RATE_HZ:g}], got {rate!r}"]
+                    c.ws,
+                    [f"subscribe: rate_hz must be a number in [1, {MAX_RATE_HZ:g}], got {rate!r}"],
                 )
             else:
                 c.rate_hz = float(rate)

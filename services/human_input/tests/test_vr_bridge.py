@@ -148,7 +148,13 @@ def test_the_second_client_is_a_spectator_until_the_driver_leaves() -> None:
 def _publish(bridge: VrBridge, mirror: WorldMirror, k: int, objects: int = 0) -> None:
     mirror.robots["r1"] = ((k * 1e-3, 0.0), (0.1, 0.2, 0.3), "moving", 1)
     for i in range(objects):  # all moving: ~100 bytes each per frame
-        mirror.objects[f"P{i}"] = ((k * 1e-4, i * 0.01, 0.02), (0.0, 0.0, 0.0, 1.0), "", False, True)
+        mirror.objects[f"P{i}"] = (
+            (k * 1e-4, i * 0.01, 0.02),
+            (0.0, 0.0, 0.0, 1.0),
+            "",
+            False,
+            True,
+        )
     bridge.publish(*mirror.snapshot(k, k / 240, None))
 
 
