@@ -219,3 +219,20 @@ def test_a_stalled_client_neither_slows_the_trial_nor_the_others(tmp_path, ik_bi
         (int(a), int(b)) for a, b in re.findall(r"\) left: (\d+) frames, (\d+) dropped", log)
     ]
     assert any(dropped > sent for sent, dropped in per_client), per_client
+
+
+def test_a_live_trial_nobody_joins_ends_naming_the_url(tmp_path, ik_bin) -> None:
+    from hrc.cli.runner import TrialOptions, VrOptions, run_trial
+
+    port = free_port()
+    opts = TrialOptions(
+        scenario=MINIMAL,
+        out=tmp_path / "trial",
+        mode="realtime",
+        input="vr",
+        vr=VrOptions(port=port, wait_s=2.0),
+    )
+    result = run_trial(opts, opts.out)
+    assert not result.ok and result.exit_code == 3 and result.failed_service == "human_input"
+    assert "no VR client connected within 2 s (--vr-wait): nobody opened" in result.message
+    assert f"http://127.0.0.1:{port}/" in result.message
