@@ -31,14 +31,16 @@ from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
+from hrc.services import VR_DEFAULT_HOST, VR_DEFAULT_PORT
+
 from hrc_human_input.sample import Sample, parse_sample
 from hrc_human_input.scene import PROTOCOL_VERSION, RobotFiles
 from hrc_human_input.stream import ClientView, Snapshot, frame_json
 
 log = logging.getLogger(__name__)
 
-DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 8765
+DEFAULT_HOST = VR_DEFAULT_HOST
+DEFAULT_PORT = VR_DEFAULT_PORT
 MAX_FRAME_BYTES = 64 * 1024
 WS_PATHS = ("/ws", "/")
 PAGE_PATHS = ("/", "/index.html")
