@@ -47,6 +47,12 @@ def allowed_speed(p: Ssm, separation: float) -> float:
     return -b + math.sqrt(b * b + 2.0 * a * room)
 
 
+def stop_distance(p: Ssm) -> float:
+    """A robot makes a protective stop when the separation falls below this: the protective
+    distance at the lowest speed it moves at (p.min_speed)."""
+    return protective_distance(p, p.min_speed)
+
+
 def resume_distance(p: Ssm) -> float:
     """A stopped robot resumes once the separation is at least this (the hysteresis)."""
-    return protective_distance(p, p.min_speed) + p.resume_margin_m
+    return stop_distance(p) + p.resume_margin_m

@@ -158,6 +158,14 @@ def ssm_from_proto(msg: pb.SsmParams) -> Ssm:
     return Ssm.model_validate({f.name: getattr(msg, f.name) for f in msg.DESCRIPTOR.fields})
 
 
+def _robot_ssm(rc: pb.RobotConfig, defaults: Ssm) -> Ssm | None:
+    """The robot's overrides: its effective values, or None where they are the defaults'."""
+    if not rc.HasField("ssm"):
+        return None
+    own = ssm_from_proto(rc.ssm)
+    return None if own == defaults else own
+
+
 def _set_fields(msg: pb.ScriptedParams) -> dict[str, float | bool]:
     return {field.name: getattr(msg, field.name) for field, _ in msg.ListFields()}
 
@@ -177,6 +185,9 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
         }
     )
 
+    conditions_ssm = (
+        ssm_from_proto(msg.conditions.ssm) if msg.conditions.HasField("ssm") else Ssm()
+    )
     robots: dict[str, Robot] = {}
     for rc in msg.robots:
         role = _member(RobotRole, rc.role, f"robots.{rc.id}.role", source)
@@ -192,7 +203,7 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
             feeder=_vec_back(rc.feeder) if rc.HasField("feeder") else None,
             screw_time_s=rc.screw_time_s if role == RobotRole.SCREWING else None,
             near_margin=rc.near_margin,
-            ssm=ssm_from_proto(rc.ssm) if rc.HasField("ssm") else None,
+            ssm=_robot_ssm(rc, conditions_ssm),
         )
 
     parts = [
@@ -226,7 +237,7 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
                 source,
                 Conditions().safety_policy,
             ),
-            ssm=ssm_from_proto(msg.conditions.ssm) if msg.conditions.HasField("ssm") else Ssm(),
+            ssm=conditions_ssm,
         ),
         robots=robots,
         parts=parts,

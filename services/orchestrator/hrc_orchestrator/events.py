@@ -305,8 +305,8 @@ def protective_stop(t: float, robot: str, change: Change) -> pb.TaskEvent:
         hand=change.body if who else "",
         payload=pb.ProtectiveStop(
             number=change.number,
-            separation_m=change.separation_m,
-            protective_distance_m=change.protective_distance_m,
+            separation_m=round(change.separation_m, 6),
+            protective_distance_m=round(change.protective_distance_m, 6),
             body=change.body,
         ),
     )
@@ -321,6 +321,8 @@ def protective_resume(t: float, robot: str, change: Change) -> pb.TaskEvent:
         agent=robot,
         robot=robot,
         payload=pb.ProtectiveResume(
-            number=change.number, separation_m=change.separation_m, stopped_s=change.stopped_s
+            number=change.number,
+            separation_m=round(change.separation_m, 6),
+            stopped_s=round(change.stopped_s, 6),
         ),
     )

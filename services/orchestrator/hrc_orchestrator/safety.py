@@ -271,9 +271,7 @@ class Safety:
     def update_ssm(self, t: float, dt: float, running: bool) -> None:
         """Each robot's scale, protective stops and resumes for this tick's separations."""
         for rid, mon in self.ssm.items():
-            st = self.agents[rid].state
-            speed = st.tcp_speed if st is not None else 0.0
-            change = mon.update(t, dt, speed, running)
+            change = mon.update(t, dt, running)
             if change is not None:
                 self._protective(t, rid, change)
 

@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 
 from hrc.scenario import Ssm
-from hrc.ssm import allowed_speed, protective_distance, resume_distance
+from hrc.ssm import allowed_speed, resume_distance, stop_distance
 
 SCALE_STEP = 0.02  # the scale sent to the IK service is rounded down to this step
 
@@ -53,7 +53,7 @@ class SsmMonitor:
     def observe(self, separation: float, body: str) -> None:
         self.separation, self.body = separation, body
 
-    def update(self, t: float, dt: float, robot_speed: float, running: bool) -> Change | None:
+    def update(self, t: float, dt: float, running: bool) -> Change | None:
         """One tick: the state and scale for the latest separation; the stop or resume if
         one happens. Time at reduced speed and in stops counts from the previous tick."""
         if running:
@@ -75,13 +75,7 @@ class SsmMonitor:
             self.state, self.scale = SsmState.STOPPED, 0.0
             self.stops += 1
             self.stop_since = t
-            return Change(
-                True,
-                self.stops,
-                self.separation,
-                protective_distance(self.p, robot_speed),
-                body=self.body,
-            )
+            return Change(True, self.stops, self.separation, stop_distance(self.p), body=self.body)
         raw = min(1.0, allowed / self.max_speed)
         self.scale = 1.0 if raw >= 1.0 else math.floor(raw / SCALE_STEP) * SCALE_STEP
         self.state = SsmState.NORMAL if self.scale >= 1.0 else SsmState.REDUCED
