@@ -99,9 +99,7 @@ def test_a_hand_approaching_at_1_mps_stops_r1_before_contact_and_r1_resumes(
     replay = tmp_path / "approach.jsonl"
     write_replay(replay)
     out = tmp_path / "trial"
-    result = run_trial(
-        TrialOptions(scenario=scenario, out=out, max_ticks=240 * 60), out
-    )
+    result = run_trial(TrialOptions(scenario=scenario, out=out, max_ticks=240 * 60), out)
     assert result.ok, result.message
     evs = events(out)
     kinds = [e.get("kind") for e in evs if "kind" in e]
@@ -141,8 +139,11 @@ def test_thesis_with_ssm_and_provoked_collisions_finishes(tmp_path: Path) -> Non
     resumes = [e for e in evs if e["kind"] == "PROTECTIVE_RESUME"]
     assert stops and resumes
     for robot in ("r1", "r2"):  # every stop is followed by its resume, in order
-        mine = [e["payload"]["number"] for e in evs if e.get("robot") == robot and
-                e["kind"] in ("PROTECTIVE_STOP", "PROTECTIVE_RESUME")]
+        mine = [
+            e["payload"]["number"]
+            for e in evs
+            if e.get("robot") == robot and e["kind"] in ("PROTECTIVE_STOP", "PROTECTIVE_RESUME")
+        ]
         assert mine == [n for n in range(1, len(mine) // 2 + 1) for _ in (0, 1)], robot
     metrics = json.loads((out / "metrics.json").read_text())
     assert metrics["conditions"]["safety_policy"] == "ssm"

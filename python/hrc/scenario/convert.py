@@ -185,9 +185,7 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
         }
     )
 
-    conditions_ssm = (
-        ssm_from_proto(msg.conditions.ssm) if msg.conditions.HasField("ssm") else Ssm()
-    )
+    conditions_ssm = ssm_from_proto(msg.conditions.ssm) if msg.conditions.HasField("ssm") else Ssm()
     robots: dict[str, Robot] = {}
     for rc in msg.robots:
         role = _member(RobotRole, rc.role, f"robots.{rc.id}.role", source)

@@ -156,9 +156,9 @@ class Ssm(_Strict):
 
     human_speed: Annotated[float, Field(gt=0.0, le=5.0, allow_inf_nan=False)] = 1.6
     reaction_time_s: Annotated[float, Field(ge=0.0, le=2.0, allow_inf_nan=False)] = 0.1
-    deceleration: Annotated[
-        float, Field(gt=0.0, le=ARM_MAX_TCP_ACCEL, allow_inf_nan=False)
-    ] = ARM_MAX_TCP_ACCEL
+    deceleration: Annotated[float, Field(gt=0.0, le=ARM_MAX_TCP_ACCEL, allow_inf_nan=False)] = (
+        ARM_MAX_TCP_ACCEL
+    )
     intrusion_distance_m: Annotated[float, Field(ge=0.0, le=1.5, allow_inf_nan=False)] = 0.048
     sensing_uncertainty_m: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.02
     position_uncertainty_m: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.01

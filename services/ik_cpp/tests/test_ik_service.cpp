@@ -213,7 +213,8 @@ TEST_F(Engine, BadCommandsChangeNothing) {
   EXPECT_NE(engine_.apply("r1", nan_hold).find("NaN"), std::string::npos);
   auto unspecified = move(0.2, 0.25, 0.25, 8);
   unspecified.set_kind(RobotCommand::KIND_UNSPECIFIED);
-  EXPECT_NE(engine_.apply("r1", unspecified).find("neither MOVE, HOLD nor SPEED_SCALE"), std::string::npos);
+  EXPECT_NE(engine_.apply("r1", unspecified).find("neither MOVE, HOLD nor SPEED_SCALE"),
+            std::string::npos);
   const std::string unknown = engine_.apply("r9", move(0.2, 0.25, 0.25, 9));
   EXPECT_NE(unknown.find("unknown robot 'r9'"), std::string::npos) << unknown;
 

@@ -215,10 +215,14 @@ class Safety:
         """The arm has a motion to make that only a near-collision hold keeps it from."""
         agent = self.agents[robot]
         st = agent.state
-        if robot in self.halted or self.protective_stop(robot) or (
-            st is not None
-            and st.command_id == agent.sent_id
-            and st.status == pb.MOTION_STATUS_UNREACHABLE
+        if (
+            robot in self.halted
+            or self.protective_stop(robot)
+            or (
+                st is not None
+                and st.command_id == agent.sent_id
+                and st.status == pb.MOTION_STATUS_UNREACHABLE
+            )
         ):
             return False
         if self.retreating is not None and robot in self.retreating.retreat:

@@ -6,6 +6,7 @@ import pytest
 
 from hrc.scenario import Ssm
 from hrc.ssm import allowed_speed, protective_distance, resume_distance, stop_distance
+
 from hrc_orchestrator.ssm import SCALE_STEP, SsmMonitor, SsmState
 
 DT = 1.0 / 240.0

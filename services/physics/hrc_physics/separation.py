@@ -45,7 +45,9 @@ class SeparationMonitor:
 
     def pose_head(self, pose: pb.Pose) -> None:
         pos = vec3((pose.position.x, pose.position.y, pose.position.z))
-        p.resetBasePositionAndOrientation(self.head, list(pos), list(IDENTITY), physicsClientId=self._c)
+        p.resetBasePositionAndOrientation(
+            self.head, list(pos), list(IDENTITY), physicsClientId=self._c
+        )
         self.head_active = True
         self._stale = True
 

@@ -51,9 +51,7 @@ def test_nothing_new_when_nothing_moved(ssm_world: World, helpers) -> None:
     assert ssm_world.separations() is None
 
 
-def test_far_is_the_sensing_range_and_the_base_does_not_count(
-    ssm_world: World, helpers
-) -> None:
+def test_far_is_the_sensing_range_and_the_base_does_not_count(ssm_world: World, helpers) -> None:
     rng = ssm_world.scenario.ssm_of("r1").sensing_range_m
     helpers_far = helpers.human(left=(5.0, -5.0, 0.3), right=(5.0, -5.0, 0.3))
     helpers_far.head.position.x = 5.0

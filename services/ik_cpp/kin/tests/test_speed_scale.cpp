@@ -31,11 +31,11 @@ struct MoveRun {
 // Starts at `start`, moves to `target` and steps until the arm stops moving; `scale_at(tick)`
 // gives the speed scale requested before each tick.
 MoveRun run_move(const Eigen::Vector3d& start, const Eigen::Vector3d& target, MotionKind want,
-             const std::function<double(int)>& scale_at) {
-  static const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
+                 const std::function<double(int)>& scale_at) {
+  static const RobotModel kModel = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   MotionLimits lim;
   lim.max_tcp_speed = 0.5;
-  MotionGenerator g(m, base_r1(), kDt, lim);
+  MotionGenerator g(kModel, base_r1(), kDt, lim);
   EXPECT_TRUE(g.reset_to_pose(start, 0.0));
   MoveCommand c;
   c.target = target;
@@ -133,7 +133,7 @@ TEST(SpeedScale, ScaleZeroStopsTheArmOnItsPathAndItResumes) {
 
 TEST(SpeedScale, HalfScaleHalvesTheCruiseSpeed) {
   const MoveRun r = run_move({0.35, 0.30, 0.35}, {-0.05, 0.10, 0.05}, MotionKind::Linear,
-                         [](int) { return 0.5; });
+                             [](int) { return 0.5; });
   ASSERT_EQ(r.status, MotionStatus::Reached);
   double vmax = 0;
   for (std::size_t i = 1; i < r.tcp.size(); ++i)

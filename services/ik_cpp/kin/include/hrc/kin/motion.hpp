@@ -159,10 +159,10 @@ class MotionGenerator {
 
   MotionState state_;
   std::deque<Segment> segments_;
-  double seg_t_ = 0.0;                               // time into the current segment's profile
-  double time_scale_ = 1.0;                          // < 1 while a joint velocity limit binds
-  double scale_ = 1.0;                               // speed scale applied (set_speed_scale)
-  double scale_target_ = 1.0;                        // speed scale requested
+  double seg_t_ = 0.0;         // time into the current segment's profile
+  double time_scale_ = 1.0;    // < 1 while a joint velocity limit binds
+  double scale_ = 1.0;         // speed scale applied (set_speed_scale)
+  double scale_target_ = 1.0;  // speed scale requested
   // Commanded TCP velocity (world) at speed scale 1: the plans blend in these nominal units.
   Eigen::Vector3d v_cmd_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d target_ = Eigen::Vector3d::Zero();
