@@ -14,6 +14,8 @@ import pytest
 from hrc.cli.runner import TrialOptions, run_trial
 from hrc.paths import ik_binary, project_root
 
+from .conftest import strip_fields
+
 ROOT = project_root()
 pytestmark = [
     pytest.mark.e2e,
@@ -90,17 +92,23 @@ def events(trial_dir: Path) -> list[dict[str, Any]]:
     return [json.loads(line) for line in (trial_dir / "events.jsonl").read_text().splitlines()]
 
 
+def approach_trial(folder: Path) -> Path:
+    """Runs the approach scenario with the 1 m/s replay in `folder`; the trial folder."""
+    folder.mkdir(parents=True, exist_ok=True)
+    scenario = folder / "ssm-approach.toml"
+    scenario.write_text(SCENARIO)
+    (folder / "robots").symlink_to(ROOT / "robots")
+    write_replay(folder / "approach.jsonl")
+    out = folder / "trial"
+    result = run_trial(TrialOptions(scenario=scenario, out=out, max_ticks=240 * 60), out)
+    assert result.ok, result.message
+    return out
+
+
 def test_a_hand_approaching_at_1_mps_stops_r1_before_contact_and_r1_resumes(
     tmp_path: Path,
 ) -> None:
-    scenario = tmp_path / "ssm-approach.toml"
-    scenario.write_text(SCENARIO)
-    (tmp_path / "robots").symlink_to(ROOT / "robots")
-    replay = tmp_path / "approach.jsonl"
-    write_replay(replay)
-    out = tmp_path / "trial"
-    result = run_trial(TrialOptions(scenario=scenario, out=out, max_ticks=240 * 60), out)
-    assert result.ok, result.message
+    out = approach_trial(tmp_path)
     evs = events(out)
     kinds = [e.get("kind") for e in evs if "kind" in e]
     assert "COLLISION" not in kinds, "the hand touched r1"
@@ -156,3 +164,13 @@ def test_thesis_with_ssm_and_provoked_collisions_finishes(tmp_path: Path) -> Non
     assert all(c["delay_s"] is not None and c["delay_s"] > 0 for c in col["human_robot"])
     log_txt = (out / "log.txt").read_text()
     assert "PROTECTIVE STOP 1" in log_txt and "resumes after protective stop 1" in log_txt
+
+
+def test_ssm_trials_are_deterministic(tmp_path: Path) -> None:
+    wall = {"wall_time", "wall_s", "realtime_factor"}
+    runs = []
+    for name in ("a", "b"):
+        out = approach_trial(tmp_path / name)
+        metrics = json.loads((out / "metrics.json").read_text())
+        runs.append(strip_fields([events(out), metrics], wall))
+    assert runs[0] == runs[1]
