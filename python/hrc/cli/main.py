@@ -124,6 +124,48 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_sweep(args: argparse.Namespace) -> int:
+    from hrc.study import StudyError, load_study, sweep
+
+    try:
+        study = load_study(args.study, motion_check=not args.no_reach)
+    except StudyError as exc:
+        print(str(exc), file=sys.stderr)
+        print(f"study rejected: {len(exc.problems)} problem(s); nothing was run", file=sys.stderr)
+        return 2
+    if args.workers < 0 or args.trial_timeout <= 0:
+        print("--workers must be >= 0 and --trial-timeout > 0", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else Path("runs") / "studies" / study.name
+    where = f"cluster {args.cluster}" if args.cluster else f"{args.workers or 'all'} workers"
+    print(f"study {study.name!r}: {len(study.trials)} trials ({where}) -> {out}", flush=True)
+    try:
+        records = sweep(
+            study, out, workers=args.workers, cluster=args.cluster, timeout_s=args.trial_timeout
+        )
+    except KeyboardInterrupt:
+        print(f"sweep interrupted; finished trials are kept in {out} (run again to resume)",
+              file=sys.stderr)  # fmt: skip
+        return 130
+    bad = [r for r in records if r.outcome != "ok"]
+    print(f"{len(records) - len(bad)} ok, {len(bad)} not ok; table: {out / 'trials.parquet'}")
+    for r in bad:
+        print(f"  {r.trial}: {r.outcome}: {r.reason.splitlines()[0] if r.reason else ''}")
+    return 0
+
+
+def _cmd_report(args: argparse.Namespace) -> int:
+    from hrc.study.report import ReportError, write_report
+
+    try:
+        page = write_report(Path(args.sweep_dir))
+    except ReportError as exc:
+        print(f"report: {exc}", file=sys.stderr)
+        return 2
+    print(f"report: {page}")
+    return 0
+
+
 def _cmd_alive(args: argparse.Namespace) -> int:
     from hrc.bus import Bus, bus_config_from_args
 
@@ -293,6 +335,34 @@ def build_parser() -> argparse.ArgumentParser:
         help="skip the motion check (every robot move planned by the IK service)",
     )
     v.set_defaults(func=_cmd_validate)
+
+    sw = sub.add_parser("sweep", help="run every trial of a study (docs/studies.md)")
+    sw.add_argument("study", help="study TOML file")
+    sw.add_argument("--out", default=None, help="sweep folder (default runs/studies/<name>/)")
+    sw.add_argument(
+        "--workers", type=int, default=0, help="trials at a time on this machine (0: one a core)"
+    )
+    sw.add_argument(
+        "--cluster",
+        default=None,
+        metavar="ADDRESS",
+        help="run the trials on a Dask scheduler, e.g. tcp://10.0.0.5:8786",
+    )
+    sw.add_argument(
+        "--trial-timeout",
+        type=float,
+        default=900.0,
+        metavar="S",
+        help="wall seconds one trial may take before it is stopped and recorded failed",
+    )
+    sw.add_argument(
+        "--no-reach", action="store_true", help="skip the motion check of the resolved scenarios"
+    )
+    sw.set_defaults(func=_cmd_sweep)
+
+    rp = sub.add_parser("report", help="write report.html for a sweep folder")
+    rp.add_argument("sweep_dir")
+    rp.set_defaults(func=_cmd_report)
 
     from hrc.bus import add_bus_arguments
 

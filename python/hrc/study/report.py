@@ -1,0 +1,418 @@
+"""`hrc report SWEEP_DIR`: `report.html` and its figures (`figures/*.png`) from a sweep's table.
+
+For each outcome: means with 95 % bootstrap confidence intervals by factor level; interaction
+plots (the speed factor against each other factor: anticipation, policy, ...); a linear
+mixed-effects model per outcome (statsmodels MixedLM, a random intercept per participant) with
+its effect estimates and CIs; and the list of trials that did not end ok. Only trials that ended
+ok enter the statistics. What each outcome is made of is in docs/studies.md.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import logging
+import re
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+log = logging.getLogger(__name__)
+
+BOOTSTRAP_SAMPLES = 2000
+BOOTSTRAP_SEED = 0  # the report of a table is always the same
+FIGURES = "figures"
+
+
+class ReportError(Exception):
+    """The folder is not a sweep folder (or its table is unreadable)."""
+
+
+@dataclass(frozen=True)
+class Outcome:
+    name: str  # column of the analysis frame
+    title: str
+    unit: str
+    columns: str  # regex over the table's columns; several matches are averaged (per robot)
+    note: str = ""
+
+
+OUTCOMES = (
+    Outcome("task_completion_s", "Task completion", "s", r"task\.completion_s"),
+    Outcome("human_completion_s", "Human completion", "s", r"human\.completion_s"),
+    Outcome("human_idle_s", "Human idle", "s", r"human\.idle_s"),
+    Outcome("robot_idle_s", "Robot idle", "s", r"robots\.[^.]+\.idle_s", "mean of the robots"),
+    Outcome(
+        "collisions",
+        "Human–robot collisions",
+        "count",
+        r"collisions\.human_robot_count|collisions\.human_robot",
+    ),
+    Outcome("collision_delay_s", "Total collision delay", "s", r"collisions\.total_delay_s"),
+    Outcome("near_collisions", "Near collisions", "count", r"collisions\.near_count|collisions\.near"),
+    Outcome(
+        "avg_speed_mps",
+        "Average TCP speed",
+        "m/s",
+        r"robots\.[^.]+\.avg_tcp_speed_mps",
+        "mean of the robots; moving-only average",
+    ),
+)
+
+
+# ---------------------------------------------------------------- data
+
+
+def _load(sweep_dir: Path) -> tuple[pd.DataFrame, dict[str, Any]]:
+    import pandas as pd
+
+    table = sweep_dir / "trials.parquet"
+    if not table.exists():
+        raise ReportError(f"{sweep_dir}: no trials.parquet (run hrc sweep with --out here)")
+    try:
+        df = pd.read_parquet(table)
+    except Exception as exc:  # pyarrow raises several kinds
+        raise ReportError(f"{table}: unreadable: {exc}") from exc
+    try:
+        meta = json.loads((sweep_dir / "study.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        meta = {"name": str(df["study"].iloc[0]) if len(df) else sweep_dir.name, "factors": {}}
+    return df, meta
+
+
+def _outcome_values(df: pd.DataFrame, outcome: Outcome) -> pd.Series | None:
+    import pandas as pd
+
+    for alternative in outcome.columns.split("|"):
+        cols = [c for c in df.columns if re.fullmatch(alternative, c)]
+        if cols:
+            values = df[cols].apply(pd.to_numeric, errors="coerce")
+            return values.mean(axis=1)
+    return None
+
+
+def _levels(df: pd.DataFrame, factor: str, meta: dict[str, Any]) -> list[str]:
+    declared = [str(v) for v in meta.get("factors", {}).get(factor, [])]
+    seen = [str(v) for v in df[factor].dropna().unique()]
+    return [v for v in declared if v in seen] + [v for v in seen if v not in declared]
+
+
+def bootstrap_ci(values: np.ndarray, rng: np.random.Generator) -> tuple[float, float, float]:
+    """Mean and its 95 % percentile-bootstrap interval."""
+    values = values[np.isfinite(values)]
+    if len(values) == 0:
+        return (float("nan"),) * 3
+    mean = float(values.mean())
+    if len(values) == 1:
+        return mean, mean, mean
+    idx = rng.integers(0, len(values), size=(BOOTSTRAP_SAMPLES, len(values)))
+    means = values[idx].mean(axis=1)
+    return mean, float(np.percentile(means, 2.5)), float(np.percentile(means, 97.5))
+
+
+# ---------------------------------------------------------------- figures
+
+
+def _fmt(x: float) -> str:
+    if not np.isfinite(x):
+        return "–"
+    return f"{x:.3g}" if abs(x) < 1000 else f"{x:.0f}"
+
+
+def _label(factor: str) -> str:
+    return factor.replace("robots.*.", "").replace("conditions.", "").replace("participant.", "")
+
+
+def _main_effects(
+    data: pd.DataFrame, factors: list[str], levels: dict[str, list[str]], path: Path
+) -> dict[str, list[tuple[str, int, float, float, float]]]:
+    """Per outcome: (factor level, n, mean, lo, hi) rows; one figure per outcome."""
+    import matplotlib.pyplot as plt
+
+    table: dict[str, list[tuple[str, int, float, float, float]]] = {}
+    for outcome in OUTCOMES:
+        if outcome.name not in data:
+            continue
+        rng = np.random.default_rng(BOOTSTRAP_SEED)
+        rows: list[tuple[str, int, float, float, float]] = []
+        fig, axes = plt.subplots(1, max(1, len(factors)), figsize=(2.6 * max(1, len(factors)), 2.4),
+                                 sharey=True, squeeze=False)  # fmt: skip
+        for ax, factor in zip(axes[0], factors, strict=False):
+            xs, ms, los, his = [], [], [], []
+            for i, level in enumerate(levels[factor]):
+                vals = data.loc[data[factor] == level, outcome.name].to_numpy(dtype=float)
+                m, lo, hi = bootstrap_ci(vals, rng)
+                rows.append((f"{_label(factor)} = {level}", int(np.isfinite(vals).sum()), m, lo, hi))
+                xs.append(i)
+                ms.append(m)
+                los.append(m - lo if np.isfinite(m) else 0)
+                his.append(hi - m if np.isfinite(m) else 0)
+            ax.errorbar(xs, ms, yerr=[los, his], fmt="o", capsize=4, color="#1f5f99")
+            ax.set_xticks(xs, levels[factor])
+            ax.set_xlim(-0.5, len(xs) - 0.5)
+            ax.set_xlabel(_label(factor))
+            ax.grid(axis="y", alpha=0.3)
+        axes[0][0].set_ylabel(f"{outcome.title} ({outcome.unit})")
+        fig.tight_layout()
+        fig.savefig(path / f"means_{outcome.name}.png", dpi=90)
+        plt.close(fig)
+        table[outcome.name] = rows
+    return table
+
+
+def _interaction(
+    data: pd.DataFrame, x: str, line: str, levels: dict[str, list[str]], path: Path
+) -> str:
+    import matplotlib.pyplot as plt
+
+    present = [o for o in OUTCOMES if o.name in data]
+    cols = 4
+    nrows = (len(present) + cols - 1) // cols
+    fig, axes = plt.subplots(nrows, cols, figsize=(3.1 * cols, 2.5 * nrows), squeeze=False)
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    for ax, outcome in zip(axes.flat, present, strict=False):
+        for j, lv in enumerate(levels[line]):
+            ms, errs = [], [[], []]
+            for xv in levels[x]:
+                sel = (data[x] == xv) & (data[line] == lv)
+                m, lo, hi = bootstrap_ci(data.loc[sel, outcome.name].to_numpy(dtype=float), rng)
+                ms.append(m)
+                errs[0].append(m - lo if np.isfinite(m) else 0)
+                errs[1].append(hi - m if np.isfinite(m) else 0)
+            offset = (j - (len(levels[line]) - 1) / 2) * 0.06
+            ax.errorbar(np.arange(len(ms)) + offset, ms, yerr=errs, marker="o", capsize=3,
+                        label=f"{_label(line)} = {lv}")  # fmt: skip
+        ax.set_xticks(range(len(levels[x])), levels[x])
+        ax.set_xlabel(_label(x))
+        ax.set_title(f"{outcome.title} ({outcome.unit})", fontsize=9)
+        ax.grid(axis="y", alpha=0.3)
+    for ax in list(axes.flat)[len(present):]:
+        ax.axis("off")
+    handles, labels = axes[0][0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="upper center", ncol=len(labels), frameon=False)
+    fig.tight_layout(rect=(0, 0, 1, 0.93))
+    name = f"interaction_{_safe(x)}_x_{_safe(line)}.png"
+    fig.savefig(path / name, dpi=90)
+    plt.close(fig)
+    return name
+
+
+def _safe(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9]+", "-", _label(text)).strip("-")
+
+
+# ---------------------------------------------------------------- mixed models
+
+
+@dataclass
+class ModelResult:
+    outcome: Outcome
+    rows: list[tuple[str, float, float, float, float]]  # term, estimate, lo, hi, p
+    group_var: float | None
+    notes: list[str]
+    method: str = "MixedLM (REML), random intercept per participant"
+
+
+def _term(name: str, names: dict[str, str], reference: dict[str, str]) -> str:
+    m = re.fullmatch(r"C\((f\d+)\)\[T\.(.*)\]", name)
+    if m:
+        factor = names[m.group(1)]
+        return f"{_label(factor)} = {m.group(2)} (vs {reference[factor]})"
+    return {"Intercept": "intercept (reference levels)", "Group Var": "participant variance"}.get(
+        name, name
+    )
+
+
+def fit_model(
+    data: pd.DataFrame, outcome: Outcome, factors: list[str], levels: dict[str, list[str]]
+) -> ModelResult:
+    """One outcome's mixed model; every degenerate case gives notes, never an exception."""
+    import pandas as pd
+    import statsmodels.formula.api as smf
+
+    notes: list[str] = []
+    d = data[[outcome.name, "participant", *factors]].dropna()
+    d = d.rename(columns={outcome.name: "y", **{f: f"f{i}" for i, f in enumerate(factors)}})
+    names = {f"f{i}": f for i, f in enumerate(factors)}
+    used = [f"f{i}" for i, f in enumerate(factors) if d[f"f{i}"].nunique() > 1]
+    for key in names:
+        if key not in used:
+            notes.append(f"{_label(names[key])} has one level here: left out of the model")
+    if len(d) < 3:
+        return ModelResult(outcome, [], None, [*notes, f"{len(d)} trial(s): too few to fit"])
+    if float(d["y"].std(ddof=0)) == 0.0:
+        value = _fmt(float(d["y"].iloc[0]))
+        return ModelResult(outcome, [], None, [*notes, f"the same value ({value}) in every "
+                                                        "trial: nothing to model"])  # fmt: skip
+    for key in used:  # reference level = the study's first level
+        order = [lv for lv in levels[names[key]] if lv in set(d[key])]
+        d[key] = pd.Categorical(d[key], categories=order)
+    reference = {names[k]: str(d[k].cat.categories[0]) for k in used}
+    formula = "y ~ " + (" + ".join(f"C({k})" for k in used) or "1")
+    groups = d["participant"].nunique()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            if groups < 2:
+                notes.append("one participant: no random intercept; ordinary least squares")
+                res = smf.ols(formula, d).fit()
+                method, group_var = "OLS (one participant)", None
+            else:
+                res = smf.mixedlm(formula, d, groups=d["participant"]).fit(reml=True)
+                method = "MixedLM (REML), random intercept per participant"
+                group_var = float(res.cov_re.iloc[0, 0])
+                if not res.converged:
+                    notes.append("the fit did not converge: read the estimates with care")
+        except (np.linalg.LinAlgError, ValueError, IndexError, ZeroDivisionError) as exc:
+            return ModelResult(outcome, [], None, [*notes, f"model not fitted: {exc}"])
+    for w in caught:
+        text = str(w.message).split("\n")[0]
+        if "singular" in text.lower() or "boundary" in text.lower():
+            text = (f"{text} (the participants' random intercept is estimated at or near 0: "
+                    "the fit is degenerate, effects are as in a plain regression)")  # fmt: skip
+        if text not in notes:
+            notes.append(text)
+    ci = res.conf_int()
+    rows = []
+    for term in res.params.index:
+        if term == "Group Var":
+            continue
+        rows.append((_term(term, names, reference), float(res.params[term]),
+                     float(ci.loc[term, 0]), float(ci.loc[term, 1]),
+                     float(res.pvalues[term])))  # fmt: skip
+    return ModelResult(outcome, rows, group_var, notes, method)
+
+
+# ---------------------------------------------------------------- page
+
+CSS = """
+body { font-family: system-ui, sans-serif; margin: 2em auto; max-width: 1100px; color: #222;
+       line-height: 1.4; padding: 0 1em; }
+h1 { margin-bottom: 0.2em; } h2 { border-bottom: 2px solid #ddd; padding-bottom: 0.2em;
+margin-top: 2em; } h3 { margin-bottom: 0.3em; }
+table { border-collapse: collapse; margin: 0.5em 0 1em; font-size: 0.9em; }
+th, td { border: 1px solid #ccc; padding: 0.25em 0.6em; text-align: right; }
+th { background: #f0f3f7; } td:first-child, th:first-child { text-align: left; }
+.outcome { display: flex; gap: 1.5em; align-items: flex-start; flex-wrap: wrap; }
+.note { color: #7a4b00; background: #fff6e0; border-left: 4px solid #e0a800;
+        padding: 0.3em 0.7em; margin: 0.3em 0; font-size: 0.9em; }
+.muted { color: #666; font-size: 0.9em; } pre { white-space: pre-wrap; margin: 0;
+font-size: 0.85em; } .fail td { text-align: left; vertical-align: top; }
+img { max-width: 100%; }
+"""
+
+
+def _table(head: list[str], body: list[list[str]], cls: str = "") -> str:
+    th = "".join(f"<th>{html.escape(h)}</th>" for h in head)
+    trs = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in body)
+    return f'<table class="{cls}"><tr>{th}</tr>{trs}</table>'
+
+
+def write_report(sweep_dir: Path) -> Path:
+    """Write `<sweep_dir>/report.html` and `<sweep_dir>/figures/`; return the page's path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    df, meta = _load(sweep_dir)
+    figdir = sweep_dir / FIGURES
+    figdir.mkdir(exist_ok=True)
+    factors = [f for f in meta.get("factors", {}) if f in df.columns]
+    data = df[df["outcome"] == "ok"].copy()
+    for f in factors:
+        data[f] = data[f].map(str)
+    for outcome in OUTCOMES:
+        values = _outcome_values(data, outcome)
+        if values is not None:
+            data[outcome.name] = values
+    levels = {f: _levels(data, f, meta) for f in factors}
+
+    parts: list[str] = [f"<h1>Study {html.escape(str(meta.get('name')))}</h1>"]
+    n_ok = int((df["outcome"] == "ok").sum())
+    counts = df["outcome"].value_counts().to_dict()
+    parts.append(
+        f"<p class='muted'>{len(df)} trials: "
+        + ", ".join(f"{v} {html.escape(str(k))}" for k, v in counts.items())
+        + f"; {df['participant'].nunique()} participants; base scenario "
+        f"<code>{html.escape(Path(str(meta.get('scenario', '?'))).name)}</code>. "
+        f"Statistics use the {n_ok} trials that ended ok.</p>"
+    )
+    parts.append("<h2>Design</h2>")
+    parts.append(_table(["factor", "levels"], [[html.escape(f), html.escape(", ".join(levels[f]))]
+                                               for f in factors]))  # fmt: skip
+    missing = [o.title for o in OUTCOMES if o.name not in data]
+    if missing:
+        parts.append(f"<p class='note'>Not in the table: {html.escape(', '.join(missing))}.</p>")
+
+    parts.append("<h2>Outcomes by factor level</h2>")
+    parts.append("<p class='muted'>Means with 95 % bootstrap confidence intervals "
+                 f"({BOOTSTRAP_SAMPLES} resamples of the trials at each level).</p>")  # fmt: skip
+    if data.empty or not factors:
+        parts.append("<p class='note'>No trial ended ok (or the study varies nothing): "
+                     "nothing to summarise.</p>")  # fmt: skip
+        means: dict[str, Any] = {}
+    else:
+        means = _main_effects(data, factors, levels, figdir)
+    for outcome in OUTCOMES:
+        if outcome.name not in means:
+            continue
+        note = f" <span class='muted'>({html.escape(outcome.note)})</span>" if outcome.note else ""
+        body = [[html.escape(r[0]), str(r[1]), _fmt(r[2]), f"[{_fmt(r[3])}, {_fmt(r[4])}]"]
+                for r in means[outcome.name]]  # fmt: skip
+        parts.append(
+            f"<h3 id='{outcome.name}'>{outcome.title} ({outcome.unit}){note}</h3>"
+            "<div class='outcome'>"
+            + _table(["level", "n", "mean", "95 % CI"], body)
+            + f"<img src='{FIGURES}/means_{outcome.name}.png' alt='{outcome.title}'></div>"
+        )
+
+    parts.append("<h2>Interactions</h2>")
+    if len(factors) < 2 or data.empty:
+        parts.append("<p class='note'>One factor only (or no trial ok): no interaction.</p>")
+    else:
+        speed = next((f for f in factors if "speed" in f), factors[0])
+        for other in [f for f in factors if f != speed]:
+            name = _interaction(data, speed, other, levels, figdir)
+            parts.append(f"<h3>{html.escape(_label(speed))} × {html.escape(_label(other))}</h3>"
+                         f"<img src='{FIGURES}/{name}' alt='interaction'>")  # fmt: skip
+
+    parts.append("<h2>Mixed-effects models</h2>")
+    parts.append(
+        "<p class='muted'>Per outcome: <code>outcome ~ factors</code> (each factor categorical, "
+        "its first level the reference), random intercept per participant (statsmodels MixedLM, "
+        "REML). Estimates are differences from the reference, with 95 % Wald CIs.</p>"
+    )
+    for outcome in OUTCOMES:
+        if outcome.name not in data:
+            continue
+        m = fit_model(data, outcome, factors, levels)
+        parts.append(f"<h3>{outcome.title} ({outcome.unit})</h3>")
+        parts.extend(f"<p class='note'>{html.escape(n)}</p>" for n in m.notes)
+        if m.rows:
+            body = [[html.escape(t), _fmt(e), f"[{_fmt(lo)}, {_fmt(hi)}]",
+                     f"{p:.3g}" if np.isfinite(p) else "–"] for t, e, lo, hi, p in m.rows]  # fmt: skip
+            parts.append(_table(["term", "estimate", "95 % CI", "p"], body))
+            var = "" if m.group_var is None else f"; participant variance {_fmt(m.group_var)}"
+            parts.append(f"<p class='muted'>{html.escape(m.method)}{var}</p>")
+
+    parts.append("<h2>Failed trials</h2>")
+    bad = df[df["outcome"] != "ok"]
+    if bad.empty:
+        parts.append("<p>None: every trial ended ok.</p>")
+    else:
+        body = [[html.escape(str(r.trial)), html.escape(str(r.outcome)),
+                 f"<pre>{html.escape(str(r.reason)[:1200])}</pre>"]
+                for r in bad.itertuples()]  # fmt: skip
+        parts.append(_table(["trial", "outcome", "reason"], body, "fail"))
+
+    title = html.escape(f"Study {meta.get('name')}")
+    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title>"
+            f"<style>{CSS}</style></head><body>" + "\n".join(parts) + "</body></html>\n")  # fmt: skip
+    out = sweep_dir / "report.html"
+    out.write_text(page, encoding="utf-8")
+    return out

@@ -1,0 +1,172 @@
+"""`hrc sweep`: run every trial of a study, here (threads driving `hrc run` processes) or on a
+Dask cluster, resumably, and gather one table (docs/studies.md)."""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import sys
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from pathlib import Path
+from typing import IO, Any
+
+from hrc.study.spec import Study, Trial
+from hrc.study.table import write_table
+from hrc.study.trial import Job, Record, run_job
+
+log = logging.getLogger(__name__)
+
+MANIFEST = "manifest.json"
+DONE = ("ok", "stalled")  # outcomes a resumed sweep keeps (deterministic in the inputs)
+
+
+class Manifest:
+    """`<out>/manifest.json`: each trial's input hash and record, rewritten after every trial
+    (atomically: an interrupted sweep leaves a readable manifest)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.records: dict[str, Record] = {}
+        if path.exists():
+            try:
+                data = json.loads(path.read_text(encoding="utf-8"))
+                self.records = {k: Record.from_dict(v) for k, v in data["trials"].items()}
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                log.warning("%s unreadable (%s): every trial runs again", path, exc)
+
+    def done(self, trial: Trial) -> bool:
+        rec = self.records.get(trial.id)
+        return rec is not None and rec.input_hash == trial.input_hash and rec.outcome in DONE
+
+    def put(self, rec: Record) -> None:
+        self.records[rec.trial] = rec
+        tmp = self.path.with_suffix(".tmp")
+        doc = {"trials": {k: v.to_dict() for k, v in sorted(self.records.items())}}
+        tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+        os.replace(tmp, self.path)
+
+
+class Progress:
+    """A progress line with ETA on stderr: redrawn in place on a terminal, one line per finished
+    trial otherwise (logs, CI)."""
+
+    def __init__(self, total: int, skipped: int, stream: IO[str] | None = None) -> None:
+        self.stream = stream or sys.stderr
+        self.tty = self.stream.isatty() and not os.environ.get("CI")
+        self.total, self.skipped = total, skipped
+        self.done = self.failed = 0
+        self.t0 = time.monotonic()
+
+    def _eta(self) -> str:
+        left = self.total - self.skipped - self.done
+        if self.done == 0:
+            return "ETA --:--"
+        per = (time.monotonic() - self.t0) / self.done
+        return f"ETA {_clock(per * left)}"
+
+    def update(self, rec: Record) -> None:
+        self.done += 1
+        self.failed += rec.outcome != "ok"
+        n = self.skipped + self.done
+        elapsed = _clock(time.monotonic() - self.t0)
+        counts = f"{n}/{self.total}" + (f", {self.failed} not ok" if self.failed else "")
+        if self.tty:
+            width = 24
+            fill = int(width * n / max(1, self.total))
+            bar = "#" * fill + "-" * (width - fill)
+            self.stream.write(f"\r[{bar}] {counts}  {elapsed}  {self._eta()}   ")
+            if n == self.total:
+                self.stream.write("\n")
+        else:
+            self.stream.write(
+                f"sweep: {counts} {rec.trial} {rec.outcome} ({rec.wall_s:.1f} s)  "
+                f"elapsed {elapsed}  {self._eta()}\n"
+            )
+        self.stream.flush()
+
+
+def _clock(seconds: float) -> str:
+    s = int(round(seconds))
+    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+
+
+def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
+    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="trial") as pool:
+        futures = [pool.submit(run_job, job) for job in jobs]
+        for fut in as_completed(futures):
+            yield fut.result()
+
+
+def _cluster(jobs: list[Job], address: str) -> Iterator[Record]:
+    from distributed import Client, as_completed as dask_completed
+
+    with Client(address, timeout="30s") as client:
+        # pure=False: two submissions are two runs; retries=0: a failed trial is a record
+        futures = [client.submit(run_job, job, key=f"trial-{job.trial}-{job.input_hash}",
+                                 pure=False) for job in jobs]  # fmt: skip
+        for fut in dask_completed(futures):
+            if fut.status == "error":
+                exc = fut.exception()
+                job = jobs[futures.index(fut)]
+                yield Record(job.trial, job.input_hash, "failed",
+                             f"the cluster could not run it: {exc!r}", None)  # fmt: skip
+            else:
+                yield fut.result()
+
+
+def sweep(
+    study: Study,
+    out: Path,
+    *,
+    workers: int = 0,
+    cluster: str | None = None,
+    timeout_s: float = 900.0,
+    progress: Callable[[Record], None] | None = None,
+) -> list[Record]:
+    """Run the trials of `study` not already done in `out`; write the manifest, the tables and
+    a copy of the study; return every trial's record (in the study's order)."""
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(study.path, out / "study.toml")
+    (out / "study.json").write_text(json.dumps(describe(study), indent=1), encoding="utf-8")
+    manifest = Manifest(out / MANIFEST)
+    todo = [t for t in study.trials if not manifest.done(t)]
+    skipped = len(study.trials) - len(todo)
+    log.info("%d trials: %d to run, %d done before", len(study.trials), len(todo), skipped)
+    bar = Progress(len(study.trials), skipped)
+    jobs = [Job(t.id, str(out.resolve()), t.scenario_text, t.seed, t.input_hash, timeout_s)
+            for t in todo]  # fmt: skip
+    if jobs:
+        stream = _cluster(jobs, cluster) if cluster else _local(jobs, workers or _cores())
+        for rec in stream:
+            manifest.put(rec)
+            bar.update(rec)
+            if progress is not None:
+                progress(rec)
+    records = [manifest.records[t.id] for t in study.trials]
+    write_table(study, records, out)
+    return records
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:
+        return os.cpu_count() or 1
+
+
+def describe(study: Study) -> dict[str, Any]:
+    """What `hrc report` needs to know about the study (beside the table)."""
+    return {
+        "name": study.name,
+        "scenario": str(study.scenario),
+        "design": study.design,
+        "repetitions": study.repetitions,
+        "factors": study.factors,
+        "participants": [p.id for p in study.people],
+        "participant_parameters": list(study.dists),
+        "trials": len(study.trials),
+    }

@@ -1,0 +1,134 @@
+"""One trial of a sweep: write its resolved scenario, run `hrc run` on it, read the outcome.
+
+`run_job` is what a local worker thread or a Dask worker executes: plain data in, plain data
+out (picklable), the five services started on the machine that runs it.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+log = logging.getLogger(__name__)
+
+STDERR_TAIL_LINES = 12
+OUTCOMES = ("ok", "failed", "stalled")
+
+
+@dataclass(frozen=True)
+class Job:
+    trial: str
+    out: str  # the sweep folder (as the machine running the trial sees it)
+    scenario_text: str
+    seed: int
+    input_hash: str
+    timeout_s: float
+
+
+@dataclass
+class Record:
+    """What became of one trial (kept in the sweep's manifest; one row of the table)."""
+
+    trial: str
+    input_hash: str
+    outcome: str  # ok | failed | stalled
+    reason: str = ""
+    exit_code: int | None = None
+    wall_s: float = 0.0
+    host: str = ""
+    finished_at: float = 0.0
+    metrics: dict[str, Any] | None = field(default=None)
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Record:
+        return cls(**{k: d[k] for k in cls.__dataclass_fields__ if k in d})
+
+
+def _tail(text: str, lines: int = STDERR_TAIL_LINES) -> str:
+    return "\n".join(text.strip().splitlines()[-lines:])
+
+
+def _stop(proc: subprocess.Popen[str]) -> None:
+    """SIGTERM to `hrc run` (it stops its services), then SIGKILL to its whole group."""
+    try:
+        os.killpg(proc.pid, signal.SIGTERM)
+        proc.wait(timeout=10)
+    except (ProcessLookupError, subprocess.TimeoutExpired):
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        proc.wait()
+
+
+def run_job(job: Job) -> Record:
+    """Run one trial to its end (bounded by ``job.timeout_s`` of wall time)."""
+    out = Path(job.out)
+    scen = out / "resolved" / f"{job.trial}.toml"
+    trial_dir = out / "trials" / job.trial
+    scen.parent.mkdir(parents=True, exist_ok=True)
+    scen.write_text(job.scenario_text, encoding="utf-8")
+    if trial_dir.exists():  # an earlier, failed or different, run of this trial
+        shutil.rmtree(trial_dir)
+    argv = [
+        sys.executable, "-m", "hrc.cli.main", "run", str(scen),
+        "--out", str(trial_dir), "--seed", str(job.seed), "--no-reach-check",
+    ]  # fmt: skip
+    t0 = time.monotonic()
+    host = os.uname().nodename
+    # own process group: a timeout stops hrc run and everything it started
+    proc = subprocess.Popen(
+        argv,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        stdout, stderr = proc.communicate(timeout=job.timeout_s)
+        timed_out = False
+    except subprocess.TimeoutExpired:
+        _stop(proc)
+        stdout, stderr = proc.communicate()
+        timed_out = True
+    wall = round(time.monotonic() - t0, 3)
+    (trial_dir).mkdir(parents=True, exist_ok=True)
+    (trial_dir / "hrc-run.log").write_text(stdout + stderr, encoding="utf-8")
+    metrics = _read_metrics(trial_dir / "metrics.json")
+    run = (metrics or {}).get("run") or {}
+    rec = Record(job.trial, job.input_hash, "ok", "", proc.returncode, wall, host, time.time())
+    rec.metrics = metrics
+    if timed_out:
+        rec.outcome = "failed"
+        rec.reason = f"timed out after {job.timeout_s:g} s of wall time (hrc run stopped)"
+    elif run.get("end_reason") == "stalled" or run.get("stall"):
+        rec.outcome = "stalled"
+        rec.reason = str(run.get("stall") or _tail(stderr, 1))
+    elif proc.returncode != 0:
+        rec.outcome = "failed"
+        rec.reason = f"hrc run exited with code {proc.returncode}: {_tail(stderr)}"
+    elif metrics is None:
+        rec.outcome = "failed"
+        rec.reason = "hrc run succeeded but wrote no readable metrics.json"
+    return rec
+
+
+def _read_metrics(path: Path) -> dict[str, Any] | None:
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
