@@ -127,8 +127,7 @@ def test_study_level_problems_are_all_listed(tmp_path: Path) -> None:
 
 def test_a_list_design_runs_the_listed_conditions(tmp_path: Path) -> None:
     text = (
-        STUDY.replace('name = "mini"', 'name = "mini"\ndesign = "list"')
-        .split("[factors]")[0]
+        STUDY.replace('name = "mini"', 'name = "mini"\ndesign = "list"').split("[factors]")[0]
         + '[[conditions]]\n"conditions.anticipation" = true\n"scenario.stall_timeout_s" = 5.0\n'
         + '[[conditions]]\n"conditions.anticipation" = false\n"scenario.stall_timeout_s" = 9.0\n'
         + "[participants]\nn = 1\n"

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -28,6 +29,8 @@ log = logging.getLogger(__name__)
 BOOTSTRAP_SAMPLES = 2000
 BOOTSTRAP_SEED = 0  # the report of a table is always the same
 FIGURES = "figures"
+DASH = "\u2013"  # en dash: "human\u2013robot", an empty cell
+TIMES = "\u00d7"  # multiplication sign: "speed \u00d7 anticipation"
 
 
 class ReportError(Exception):
@@ -50,12 +53,14 @@ OUTCOMES = (
     Outcome("robot_idle_s", "Robot idle", "s", r"robots\.[^.]+\.idle_s", "mean of the robots"),
     Outcome(
         "collisions",
-        "Human–robot collisions",
+        f"Human{DASH}robot collisions",
         "count",
         r"collisions\.human_robot_count|collisions\.human_robot",
     ),
     Outcome("collision_delay_s", "Total collision delay", "s", r"collisions\.total_delay_s"),
-    Outcome("near_collisions", "Near collisions", "count", r"collisions\.near_count|collisions\.near"),
+    Outcome(
+        "near_collisions", "Near collisions", "count", r"collisions\.near_count|collisions\.near"
+    ),
     Outcome(
         "avg_speed_mps",
         "Average TCP speed",
@@ -103,7 +108,9 @@ def _levels(df: pd.DataFrame, factor: str, meta: dict[str, Any]) -> list[str]:
     return [v for v in declared if v in seen] + [v for v in seen if v not in declared]
 
 
-def bootstrap_ci(values: np.ndarray, rng: np.random.Generator) -> tuple[float, float, float]:
+def bootstrap_ci(
+    values: npt.NDArray[np.float64], rng: np.random.Generator
+) -> tuple[float, float, float]:
     """Mean and its 95 % percentile-bootstrap interval."""
     values = values[np.isfinite(values)]
     if len(values) == 0:
@@ -119,10 +126,21 @@ def bootstrap_ci(values: np.ndarray, rng: np.random.Generator) -> tuple[float, f
 # ---------------------------------------------------------------- figures
 
 
-def _fmt(x: float) -> str:
+def _fmt(x: Any) -> str:
+    if isinstance(x, str) or x is None:
+        return html.escape(str(x or DASH))
+    x = float(x)
     if not np.isfinite(x):
-        return "–"
+        return DASH
+    if abs(x) < 1e-9:  # rounding noise of a fit
+        return "0"
     return f"{x:.3g}" if abs(x) < 1000 else f"{x:.0f}"
+
+
+def _pval(p: float) -> str:
+    if not np.isfinite(p):
+        return DASH
+    return "< 0.001" if p < 0.001 else f"{p:.3f}"
 
 
 def _label(factor: str) -> str:
@@ -141,14 +159,21 @@ def _main_effects(
             continue
         rng = np.random.default_rng(BOOTSTRAP_SEED)
         rows: list[tuple[str, int, float, float, float]] = []
-        fig, axes = plt.subplots(1, max(1, len(factors)), figsize=(2.6 * max(1, len(factors)), 2.4),
-                                 sharey=True, squeeze=False)  # fmt: skip
+        fig, axes = plt.subplots(
+            1,
+            max(1, len(factors)),
+            figsize=(2.6 * max(1, len(factors)), 2.4),
+            sharey=True,
+            squeeze=False,
+        )
         for ax, factor in zip(axes[0], factors, strict=False):
             xs, ms, los, his = [], [], [], []
             for i, level in enumerate(levels[factor]):
                 vals = data.loc[data[factor] == level, outcome.name].to_numpy(dtype=float)
                 m, lo, hi = bootstrap_ci(vals, rng)
-                rows.append((f"{_label(factor)} = {level}", int(np.isfinite(vals).sum()), m, lo, hi))
+                rows.append(
+                    (f"{_label(factor)} = {level}", int(np.isfinite(vals).sum()), m, lo, hi)
+                )
                 xs.append(i)
                 ms.append(m)
                 los.append(m - lo if np.isfinite(m) else 0)
@@ -171,14 +196,19 @@ def _interaction(
 ) -> str:
     import matplotlib.pyplot as plt
 
-    present = [o for o in OUTCOMES if o.name in data]
+    present = [
+        o for o in OUTCOMES if o.name in data and float(data[o.name].std(ddof=0) or 0.0) > 0.0
+    ]
+    if not present:
+        return ""
     cols = 4
     nrows = (len(present) + cols - 1) // cols
     fig, axes = plt.subplots(nrows, cols, figsize=(3.1 * cols, 2.5 * nrows), squeeze=False)
     rng = np.random.default_rng(BOOTSTRAP_SEED)
     for ax, outcome in zip(axes.flat, present, strict=False):
         for j, lv in enumerate(levels[line]):
-            ms, errs = [], [[], []]
+            ms: list[float] = []
+            errs: list[list[float]] = [[], []]
             for xv in levels[x]:
                 sel = (data[x] == xv) & (data[line] == lv)
                 m, lo, hi = bootstrap_ci(data.loc[sel, outcome.name].to_numpy(dtype=float), rng)
@@ -186,13 +216,19 @@ def _interaction(
                 errs[0].append(m - lo if np.isfinite(m) else 0)
                 errs[1].append(hi - m if np.isfinite(m) else 0)
             offset = (j - (len(levels[line]) - 1) / 2) * 0.06
-            ax.errorbar(np.arange(len(ms)) + offset, ms, yerr=errs, marker="o", capsize=3,
-                        label=f"{_label(line)} = {lv}")  # fmt: skip
+            ax.errorbar(
+                np.arange(len(ms)) + offset,
+                ms,
+                yerr=errs,
+                marker="o",
+                capsize=3,
+                label=f"{_label(line)} = {lv}",
+            )
         ax.set_xticks(range(len(levels[x])), levels[x])
         ax.set_xlabel(_label(x))
         ax.set_title(f"{outcome.title} ({outcome.unit})", fontsize=9)
         ax.grid(axis="y", alpha=0.3)
-    for ax in list(axes.flat)[len(present):]:
+    for ax in list(axes.flat)[len(present) :]:
         ax.axis("off")
     handles, labels = axes[0][0].get_legend_handles_labels()
     fig.legend(handles, labels, loc="upper center", ncol=len(labels), frameon=False)
@@ -229,6 +265,19 @@ def _term(name: str, names: dict[str, str], reference: dict[str, str]) -> str:
     )
 
 
+def _fit(
+    formula: str, d: pd.DataFrame, groups: int, notes: list[str]
+) -> tuple[Any, str, float | None]:
+    import statsmodels.formula.api as smf
+
+    if groups < 2:
+        notes.append("one participant: no random intercept; ordinary least squares")
+        return smf.ols(formula, d).fit(), "OLS (one participant)", None
+    res = smf.mixedlm(formula, d, groups=d["participant"]).fit(reml=True)
+    var = float(res.cov_re.iloc[0, 0])
+    return res, "MixedLM (REML), random intercept per participant", var
+
+
 def fit_model(
     data: pd.DataFrame, outcome: Outcome, factors: list[str], levels: dict[str, list[str]]
 ) -> ModelResult:
@@ -248,8 +297,12 @@ def fit_model(
         return ModelResult(outcome, [], None, [*notes, f"{len(d)} trial(s): too few to fit"])
     if float(d["y"].std(ddof=0)) == 0.0:
         value = _fmt(float(d["y"].iloc[0]))
-        return ModelResult(outcome, [], None, [*notes, f"the same value ({value}) in every "
-                                                        "trial: nothing to model"])  # fmt: skip
+        return ModelResult(
+            outcome,
+            [],
+            None,
+            [*notes, f"the same value ({value}) in every trial: nothing to model"],
+        )
     for key in used:  # reference level = the study's first level
         order = [lv for lv in levels[names[key]] if lv in set(d[key])]
         d[key] = pd.Categorical(d[key], categories=order)
@@ -259,33 +312,40 @@ def fit_model(
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            if groups < 2:
-                notes.append("one participant: no random intercept; ordinary least squares")
-                res = smf.ols(formula, d).fit()
-                method, group_var = "OLS (one participant)", None
-            else:
-                res = smf.mixedlm(formula, d, groups=d["participant"]).fit(reml=True)
-                method = "MixedLM (REML), random intercept per participant"
-                group_var = float(res.cov_re.iloc[0, 0])
-                if not res.converged:
-                    notes.append("the fit did not converge: read the estimates with care")
+            res, method, group_var = _fit(formula, d, groups, notes)
+            if method.startswith("MixedLM") and not np.isfinite(np.asarray(res.bse)).all():
+                # a degenerate fit (no residual or no participant variance) has no standard
+                # errors: say so, and give the plain regression, which is what remains
+                notes.append(
+                    "the mixed model is degenerate here (no standard errors: the factors explain "
+                    "the outcome almost exactly, or the participants do not differ); shown: "
+                    "ordinary least squares"
+                )
+                res, method, group_var = smf.ols(formula, d).fit(), "OLS (degenerate MixedLM)", None
         except (np.linalg.LinAlgError, ValueError, IndexError, ZeroDivisionError) as exc:
             return ModelResult(outcome, [], None, [*notes, f"model not fitted: {exc}"])
-    for w in caught:
-        text = str(w.message).split("\n")[0]
-        if "singular" in text.lower() or "boundary" in text.lower():
-            text = (f"{text} (the participants' random intercept is estimated at or near 0: "
-                    "the fit is degenerate, effects are as in a plain regression)")  # fmt: skip
-        if text not in notes:
-            notes.append(text)
+    texts = {str(w.message).split("\n")[0] for w in caught}
+    if method.startswith("MixedLM") and any("boundary" in t for t in texts):
+        notes.append(
+            "the participant variance is estimated at 0 (the participants do not differ beyond "
+            "the factors): the effects are those of a plain regression"
+        )
+    if method.startswith("MixedLM") and not res.converged:
+        notes.append("the fit did not converge: read the estimates with care")
     ci = res.conf_int()
     rows = []
     for term in res.params.index:
         if term == "Group Var":
             continue
-        rows.append((_term(term, names, reference), float(res.params[term]),
-                     float(ci.loc[term, 0]), float(ci.loc[term, 1]),
-                     float(res.pvalues[term])))  # fmt: skip
+        rows.append(
+            (
+                _term(term, names, reference),
+                float(res.params[term]),
+                float(ci.loc[term, 0]),
+                float(ci.loc[term, 1]),
+                float(res.pvalues[term]),
+            )
+        )
     return ModelResult(outcome, rows, group_var, notes, method)
 
 
@@ -343,18 +403,38 @@ def write_report(sweep_dir: Path) -> Path:
         f"Statistics use the {n_ok} trials that ended ok.</p>"
     )
     parts.append("<h2>Design</h2>")
-    parts.append(_table(["factor", "levels"], [[html.escape(f), html.escape(", ".join(levels[f]))]
-                                               for f in factors]))  # fmt: skip
+    parts.append(
+        _table(
+            ["factor", "levels"],
+            [[html.escape(f), html.escape(", ".join(levels[f]))] for f in factors],
+        )
+    )
+    params = [c for c in df.columns if c.startswith("participant.") and c not in factors]
+    people = df.drop_duplicates("participant").sort_values("participant")
+    parts.append("<h3>Participants</h3>")
+    parts.append(
+        _table(
+            ["participant", *[_label(c) for c in params]],
+            [
+                [html.escape(str(r["participant"])), *[_fmt(r[c]) for c in params]]
+                for _, r in people.iterrows()
+            ],
+        )
+    )
     missing = [o.title for o in OUTCOMES if o.name not in data]
     if missing:
         parts.append(f"<p class='note'>Not in the table: {html.escape(', '.join(missing))}.</p>")
 
     parts.append("<h2>Outcomes by factor level</h2>")
-    parts.append("<p class='muted'>Means with 95 % bootstrap confidence intervals "
-                 f"({BOOTSTRAP_SAMPLES} resamples of the trials at each level).</p>")  # fmt: skip
+    parts.append(
+        "<p class='muted'>Means with 95 % bootstrap confidence intervals "
+        f"({BOOTSTRAP_SAMPLES} resamples of the trials at each level).</p>"
+    )
     if data.empty or not factors:
-        parts.append("<p class='note'>No trial ended ok (or the study varies nothing): "
-                     "nothing to summarise.</p>")  # fmt: skip
+        parts.append(
+            "<p class='note'>No trial ended ok (or the study varies nothing): "
+            "nothing to summarise.</p>"
+        )
         means: dict[str, Any] = {}
     else:
         means = _main_effects(data, factors, levels, figdir)
@@ -362,8 +442,17 @@ def write_report(sweep_dir: Path) -> Path:
         if outcome.name not in means:
             continue
         note = f" <span class='muted'>({html.escape(outcome.note)})</span>" if outcome.note else ""
-        body = [[html.escape(r[0]), str(r[1]), _fmt(r[2]), f"[{_fmt(r[3])}, {_fmt(r[4])}]"]
-                for r in means[outcome.name]]  # fmt: skip
+        values = data[outcome.name].dropna()
+        if len(values) and float(values.std(ddof=0)) == 0.0:
+            parts.append(
+                f"<h3 id='{outcome.name}'>{outcome.title} ({outcome.unit}){note}</h3>"
+                f"<p>{_fmt(float(values.iloc[0]))} in every trial.</p>"
+            )
+            continue
+        body = [
+            [html.escape(r[0]), str(r[1]), _fmt(r[2]), f"[{_fmt(r[3])}, {_fmt(r[4])}]"]
+            for r in means[outcome.name]
+        ]
         parts.append(
             f"<h3 id='{outcome.name}'>{outcome.title} ({outcome.unit}){note}</h3>"
             "<div class='outcome'>"
@@ -375,11 +464,20 @@ def write_report(sweep_dir: Path) -> Path:
     if len(factors) < 2 or data.empty:
         parts.append("<p class='note'>One factor only (or no trial ok): no interaction.</p>")
     else:
+        parts.append(
+            "<p class='muted'>Outcomes that vary, by the speed factor (or the first "
+            "factor) and each other factor; means with 95 % bootstrap CIs.</p>"
+        )
         speed = next((f for f in factors if "speed" in f), factors[0])
         for other in [f for f in factors if f != speed]:
             name = _interaction(data, speed, other, levels, figdir)
-            parts.append(f"<h3>{html.escape(_label(speed))} × {html.escape(_label(other))}</h3>"
-                         f"<img src='{FIGURES}/{name}' alt='interaction'>")  # fmt: skip
+            if not name:
+                parts.append("<p>No outcome varies: nothing to plot.</p>")
+                continue
+            parts.append(
+                f"<h3>{html.escape(_label(speed))} {TIMES} {html.escape(_label(other))}</h3>"
+                f"<img src='{FIGURES}/{name}' alt='interaction'>"
+            )
 
     parts.append("<h2>Mixed-effects models</h2>")
     parts.append(
@@ -394,8 +492,10 @@ def write_report(sweep_dir: Path) -> Path:
         parts.append(f"<h3>{outcome.title} ({outcome.unit})</h3>")
         parts.extend(f"<p class='note'>{html.escape(n)}</p>" for n in m.notes)
         if m.rows:
-            body = [[html.escape(t), _fmt(e), f"[{_fmt(lo)}, {_fmt(hi)}]",
-                     f"{p:.3g}" if np.isfinite(p) else "–"] for t, e, lo, hi, p in m.rows]  # fmt: skip
+            body = [
+                [html.escape(t), _fmt(e), f"[{_fmt(lo)}, {_fmt(hi)}]", _pval(p)]
+                for t, e, lo, hi, p in m.rows
+            ]
             parts.append(_table(["term", "estimate", "95 % CI", "p"], body))
             var = "" if m.group_var is None else f"; participant variance {_fmt(m.group_var)}"
             parts.append(f"<p class='muted'>{html.escape(m.method)}{var}</p>")
@@ -405,14 +505,19 @@ def write_report(sweep_dir: Path) -> Path:
     if bad.empty:
         parts.append("<p>None: every trial ended ok.</p>")
     else:
-        body = [[html.escape(str(r.trial)), html.escape(str(r.outcome)),
-                 f"<pre>{html.escape(str(r.reason)[:1200])}</pre>"]
-                for r in bad.itertuples()]  # fmt: skip
+        body = [
+            [
+                html.escape(str(r.trial)),
+                html.escape(str(r.outcome)),
+                f"<pre>{html.escape(str(r.reason)[:1200])}</pre>",
+            ]
+            for r in bad.itertuples()
+        ]
         parts.append(_table(["trial", "outcome", "reason"], body, "fail"))
 
     title = html.escape(f"Study {meta.get('name')}")
-    page = (f"<!doctype html><html><head><meta charset='utf-8'><title>{title}</title>"
-            f"<style>{CSS}</style></head><body>" + "\n".join(parts) + "</body></html>\n")  # fmt: skip
+    head = f"<meta charset='utf-8'><title>{title}</title><style>{CSS}</style>"
+    page = f"<!doctype html><html><head>{head}</head><body>" + "\n".join(parts) + "</body></html>\n"
     out = sweep_dir / "report.html"
     out.write_text(page, encoding="utf-8")
     return out

@@ -280,8 +280,10 @@ def _conditions(raw: dict[str, Any], design: str, problems: list[str]) -> list[d
     for i, c in enumerate(listed):
         missing = [k for k in keys if k not in c]
         if missing:
-            problems.append(f"conditions[{i}]: missing {', '.join(missing)} (every condition "
-                            "sets the same keys)")
+            problems.append(
+                f"conditions[{i}]: missing {', '.join(missing)} (every condition "
+                "sets the same keys)"
+            )
     return [dict(c) for c in listed]
 
 
@@ -312,8 +314,10 @@ def _portable_paths(raw: dict[str, Any], folder: Path) -> None:
 def _short(key: str, value: Any) -> str:
     last = key.rsplit(".", 1)[-1]
     name = _SHORT.get(last, last)
-    text = {True: "True", False: "False"}.get(value, str(value)) if isinstance(value, bool) else (
-        f"{value:g}" if isinstance(value, float) else str(value)
+    text = (
+        {True: "True", False: "False"}.get(value, str(value))
+        if isinstance(value, bool)
+        else (f"{value:g}" if isinstance(value, float) else str(value))
     )
     return re.sub(r"[^A-Za-z0-9.\-]+", "-", f"{name}{text}")
 
@@ -346,7 +350,7 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
         problems.append(f"{extra}: unknown table")
     head = raw.get("study")
     if not isinstance(head, dict):
-        raise StudyError(problems + ["study: missing table [study] (name, scenario)"], path)
+        raise StudyError([*problems, "study: missing table [study] (name, scenario)"], path)
     for extra in sorted(set(head) - STUDY_KEYS):
         problems.append(f"study.{extra}: unknown key")
     name = head.get("name", "")
@@ -418,8 +422,7 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
             layout = repr({k: resolved.get(k) for k in ("robots", "parts", "sequence")})
             want_motion = motion_check and layout not in checked
             try:
-                sc.loads(scen_text, folder=base.parent, project_root=root,
-                         motion_check=want_motion)
+                sc.loads(scen_text, folder=base.parent, project_root=root, motion_check=want_motion)
                 checked.add(layout)
             except sc.ScenarioError as exc:
                 for p in exc.problems:

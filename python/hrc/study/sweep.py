@@ -60,6 +60,10 @@ class Progress:
         self.total, self.skipped = total, skipped
         self.done = self.failed = 0
         self.t0 = time.monotonic()
+        self.stream.write(
+            f"sweep: {total} trials, {skipped} done before (kept), {total - skipped} to run\n"
+        )
+        self.stream.flush()
 
     def _eta(self) -> str:
         left = self.total - self.skipped - self.done
@@ -90,8 +94,10 @@ class Progress:
 
 
 def _clock(seconds: float) -> str:
-    s = int(round(seconds))
-    return f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+    s = round(seconds)
+    return (
+        f"{s // 3600}:{s % 3600 // 60:02d}:{s % 60:02d}" if s >= 3600 else f"{s // 60}:{s % 60:02d}"
+    )
 
 
 def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
@@ -102,18 +108,26 @@ def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
 
 
 def _cluster(jobs: list[Job], address: str) -> Iterator[Record]:
-    from distributed import Client, as_completed as dask_completed
+    from distributed import Client
+    from distributed import as_completed as dask_completed
 
     with Client(address, timeout="30s") as client:
         # pure=False: two submissions are two runs; retries=0: a failed trial is a record
-        futures = [client.submit(run_job, job, key=f"trial-{job.trial}-{job.input_hash}",
-                                 pure=False) for job in jobs]  # fmt: skip
+        futures = [
+            client.submit(run_job, job, key=f"trial-{job.trial}-{job.input_hash}", pure=False)
+            for job in jobs
+        ]
         for fut in dask_completed(futures):
             if fut.status == "error":
                 exc = fut.exception()
                 job = jobs[futures.index(fut)]
-                yield Record(job.trial, job.input_hash, "failed",
-                             f"the cluster could not run it: {exc!r}", None)  # fmt: skip
+                yield Record(
+                    job.trial,
+                    job.input_hash,
+                    "failed",
+                    f"the cluster could not run it: {exc!r}",
+                    None,
+                )
             else:
                 yield fut.result()
 
@@ -137,8 +151,10 @@ def sweep(
     skipped = len(study.trials) - len(todo)
     log.info("%d trials: %d to run, %d done before", len(study.trials), len(todo), skipped)
     bar = Progress(len(study.trials), skipped)
-    jobs = [Job(t.id, str(out.resolve()), t.scenario_text, t.seed, t.input_hash, timeout_s)
-            for t in todo]  # fmt: skip
+    jobs = [
+        Job(t.id, str(out.resolve()), t.scenario_text, t.seed, t.input_hash, timeout_s)
+        for t in todo
+    ]
     if jobs:
         stream = _cluster(jobs, cluster) if cluster else _local(jobs, workers or _cores())
         for rec in stream:

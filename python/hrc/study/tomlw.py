@@ -52,7 +52,9 @@ def _table(prefix: str, table: dict[str, Any], out: list[str]) -> None:
     plain = {
         k: v
         for k, v in table.items()
-        if not _is_section(v) and not _is_table_array(v) and not (prefix == "" and isinstance(v, dict))
+        if not _is_section(v)
+        and not _is_table_array(v)
+        and not (prefix == "" and isinstance(v, dict))
     }
     for k, v in plain.items():
         out.append(f"{_key(k)} = {_value(v)}")

@@ -6,6 +6,7 @@ out (picklable), the five services started on the machine that runs it.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import logging
 import os
@@ -66,10 +67,8 @@ def _stop(proc: subprocess.Popen[str]) -> None:
         os.killpg(proc.pid, signal.SIGTERM)
         proc.wait(timeout=10)
     except (ProcessLookupError, subprocess.TimeoutExpired):
-        try:
+        with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
         proc.wait()
 
 
@@ -83,9 +82,17 @@ def run_job(job: Job) -> Record:
     if trial_dir.exists():  # an earlier, failed or different, run of this trial
         shutil.rmtree(trial_dir)
     argv = [
-        sys.executable, "-m", "hrc.cli.main", "run", str(scen),
-        "--out", str(trial_dir), "--seed", str(job.seed), "--no-reach-check",
-    ]  # fmt: skip
+        sys.executable,
+        "-m",
+        "hrc.cli.main",
+        "run",
+        str(scen),
+        "--out",
+        str(trial_dir),
+        "--seed",
+        str(job.seed),
+        "--no-reach-check",
+    ]
     t0 = time.monotonic()
     host = os.uname().nodename
     # own process group: a timeout stops hrc run and everything it started

@@ -1,0 +1,251 @@
+"""`hrc sweep` and `hrc report` end to end: real trials (five services each) of a small study on
+minimal.toml, here and on a local Dask cluster; resume; a trial that stalls; the report page."""
+
+from __future__ import annotations
+
+import json
+import os
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from hrc.browser import headless_chromium, output_dir
+
+from .conftest import HRC, ROOT
+
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+
+MINIMAL = ROOT / "scenarios" / "minimal.toml"
+STUDY = f"""
+[study]
+name = "mini-2x2x2"
+scenario = "{MINIMAL}"
+
+[factors]
+"robots.*.max_tcp_speed" = [0.5, 1.0]
+"conditions.anticipation" = [true, false]
+
+[participants]
+n = 2
+seed_base = 1000
+reaction_time_s = {{ dist = "normal", mean = 0.4, sd = 0.08, min = 0.15, max = 0.9 }}
+peak_hand_speed = {{ dist = "normal", mean = 1.0, sd = 0.15, min = 0.5, max = 1.6 }}
+caution = {{ dist = "uniform", min = 0.0, max = 1.0 }}
+"""
+# wall-clock fields legitimately differ between two runs of the same trial
+WALL = {"wall_s", "run.wall_s", "run.realtime_factor"}
+
+
+def _sweep(*args: str, timeout: float = 280) -> subprocess.CompletedProcess[str]:
+    env = dict(os.environ, CI="1")  # plain progress lines
+    return subprocess.run(
+        [HRC, "sweep", *args], capture_output=True, text=True, timeout=timeout, env=env
+    )
+
+
+@pytest.fixture(scope="module")
+def study_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("study") / "mini.toml"
+    path.write_text(STUDY)
+    return path
+
+
+@pytest.fixture(scope="module")
+def local_sweep(study_file: Path) -> tuple[Path, subprocess.CompletedProcess[str]]:
+    out = study_file.parent / "local"
+    proc = _sweep(str(study_file), "--out", str(out), "--workers", "2")
+    assert proc.returncode == 0, proc.stderr
+    return out, proc
+
+
+def test_a_2x2x2_study_gives_8_rows_with_factors_participants_and_metrics(local_sweep) -> None:
+    out, proc = local_sweep
+    df = pd.read_parquet(out / "trials.parquet")
+    csv = pd.read_csv(out / "trials.csv")
+    assert len(df) == 8 and len(csv) == 8
+    assert list(df["outcome"]) == ["ok"] * 8, df[["trial", "reason"]]
+    assert set(df["trial"]) == {
+        f"speed{s}_ant{a}_P0{p}_r1" for s in ("0.5", "1") for a in (True, False) for p in (1, 2)
+    }
+    assert sorted(df["robots.*.max_tcp_speed"].unique()) == [0.5, 1.0]
+    assert set(df["conditions.anticipation"]) == {True, False}
+    assert set(df["participant"]) == {"P01", "P02"}
+    for col in ("participant.reaction_time_s", "participant.caution", "seed", "repetition"):
+        assert df[col].notna().all(), col
+    # metrics.json read generically: its fields are columns, lists counted
+    assert df["task.completion_s"].gt(0).all()
+    assert "robots.r1.avg_tcp_speed_mps" in df and "collisions.human_robot" in df
+    # each trial ran at its own speed: faster robots finish their part sooner
+    r1 = df.groupby("robots.*.max_tcp_speed")["robots.r1.completion_s"].mean()
+    assert r1[1.0] < r1[0.5]
+    for trial in df["trial"]:
+        assert (out / "trials" / trial / "metrics.json").is_file()
+    assert (out / "study.toml").read_text() == STUDY
+    assert "8 trials, 0 done before (kept), 8 to run" in proc.stderr
+    assert proc.stderr.count("ETA") == 8
+
+
+def test_a_second_run_resumes_without_rerunning_any_trial(local_sweep, study_file) -> None:
+    out, _ = local_sweep
+    manifest = json.loads((out / "manifest.json").read_text())["trials"]
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "trials").glob("*/metrics.json")}
+    assert len(stamps) == 8
+    again = _sweep(str(study_file), "--out", str(out), "--workers", "2", timeout=60)
+    assert again.returncode == 0, again.stderr
+    assert "8 trials, 8 done before (kept), 0 to run" in again.stderr
+    assert "ETA" not in again.stderr
+    assert json.loads((out / "manifest.json").read_text())["trials"] == manifest
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps
+    assert len(pd.read_parquet(out / "trials.parquet")) == 8
+
+
+def test_a_stalled_trial_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> None:
+    # a participant who waits 10 s before every move, in a trial whose watchdog allows 1 s
+    # without progress: the orchestrator ends it as stalled; the other condition runs normally
+    study = tmp_path / "stall.toml"
+    study.write_text(
+        f'[study]\nname = "stall"\nscenario = "{MINIMAL}"\ndesign = "list"\n\n'
+        '[[conditions]]\n"participant.reaction_time_s" = 10.0\n"scenario.stall_timeout_s" = 1.0\n'
+        '[[conditions]]\n"participant.reaction_time_s" = 0.4\n"scenario.stall_timeout_s" = 60.0\n'
+        "[participants]\nn = 1\n"
+    )
+    out = tmp_path / "out"
+    proc = _sweep(str(study), "--out", str(out), "--workers", "2")
+    assert proc.returncode == 0, proc.stderr
+    df = pd.read_parquet(out / "trials.parquet").set_index("trial")
+    assert len(df) == 2
+    stalled = df.loc["rt10_stall1_P01_r1"]
+    assert stalled["outcome"] == "stalled", stalled["reason"]
+    assert "stalled for 1 s" in stalled["reason"]
+    assert stalled["exit_code"] != 0 and not stalled["task.finished"]
+    assert df.loc["rt0.4_stall60_P01_r1", "outcome"] == "ok"
+    assert "rt10_stall1_P01_r1: stalled" in proc.stdout
+    # a resumed sweep keeps it: its inputs have not changed and it ended (deterministically)
+    again = _sweep(str(study), "--out", str(out), timeout=60)
+    assert "2 done before (kept), 0 to run" in again.stderr
+    report = subprocess.run([HRC, "report", str(out)], capture_output=True, text=True, timeout=120)
+    assert report.returncode == 0, report.stderr
+    page = (out / "report.html").read_text()
+    assert "rt10_stall1_P01_r1" in page and "stalled for 1 s" in page
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.fixture()
+def dask_cluster(tmp_path: Path) -> Iterator[str]:
+    """A Dask scheduler and 2 single-threaded workers on loopback, as processes."""
+    dask = str(Path(sys.executable).with_name("dask"))
+    port = _free_port()
+    address = f"tcp://127.0.0.1:{port}"
+    common = ["--no-dashboard"]
+    logs = [open(tmp_path / f"dask-{i}.log", "w") for i in range(3)]
+    procs = [
+        subprocess.Popen(
+            [dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), *common],
+            stdout=logs[0],
+            stderr=subprocess.STDOUT,
+        )
+    ]
+    try:
+        for i in (1, 2):
+            procs.append(
+                subprocess.Popen(
+                    [
+                        dask,
+                        "worker",
+                        address,
+                        "--nthreads",
+                        "1",
+                        "--nworkers",
+                        "1",
+                        "--host",
+                        "127.0.0.1",
+                        "--name",
+                        f"w{i}",
+                        "--local-directory",
+                        str(tmp_path / f"w{i}"),
+                        *common,
+                    ],
+                    stdout=logs[i],
+                    stderr=subprocess.STDOUT,
+                )
+            )
+        from distributed import Client
+
+        with Client(address, timeout="30s") as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address
+    finally:
+        for p in reversed(procs):
+            p.terminate()
+        for p in procs:
+            try:
+                p.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                p.kill()
+                p.wait()
+        for f in logs:
+            f.close()
+
+
+def test_the_cluster_gives_the_same_table_as_the_local_run(
+    local_sweep, study_file, dask_cluster: str
+) -> None:
+    local, _ = local_sweep
+    out = study_file.parent / "cluster"
+    proc = _sweep(str(study_file), "--out", str(out), "--cluster", dask_cluster)
+    assert proc.returncode == 0, proc.stderr
+    a = pd.read_parquet(local / "trials.parquet").sort_values("trial").reset_index(drop=True)
+    b = pd.read_parquet(out / "trials.parquet").sort_values("trial").reset_index(drop=True)
+    assert list(b["outcome"]) == ["ok"] * 8
+    manifest = json.loads((out / "manifest.json").read_text())["trials"]
+    assert all(r["host"] for r in manifest.values())
+    keep = [c for c in a.columns if c not in WALL]
+    assert keep == [c for c in b.columns if c not in WALL]
+    pd.testing.assert_frame_equal(a[keep], b[keep])
+
+
+def test_the_report_has_every_section_and_reads_well(local_sweep) -> None:
+    out, _ = local_sweep
+    t0 = time.monotonic()
+    proc = subprocess.run([HRC, "report", str(out)], capture_output=True, text=True, timeout=240)
+    assert proc.returncode == 0, proc.stderr
+    page = (out / "report.html").read_text()
+    for section in (
+        "Outcomes by factor level",
+        "Task completion",
+        "Human completion",
+        "Human idle",
+        "Robot idle",
+        "Human\u2013robot collisions",
+        "Total collision delay",
+        "Near collisions",
+        "Average TCP speed",
+        "Interactions",
+        "max_tcp_speed \u00d7 anticipation",
+        "Mixed-effects models",
+        "Failed trials",
+    ):
+        assert section in page, section
+    figures = sorted(p.name for p in (out / "figures").glob("*.png"))
+    assert "means_task_completion_s.png" in figures and any("interaction" in f for f in figures)
+    shots = output_dir("report")
+    with headless_chromium() as browser:
+        tab = browser.new_page(viewport={"width": 1200, "height": 900})
+        tab.goto((out / "report.html").as_uri())
+        broken = tab.evaluate(
+            "[...document.images].filter(i => !i.complete || i.naturalWidth === 0).length"
+        )
+        tab.screenshot(path=str(shots / "report.png"), full_page=True)
+    assert broken == 0
+    print(f"report in {time.monotonic() - t0:.1f} s; screenshot {shots / 'report.png'}")
