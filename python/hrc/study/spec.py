@@ -135,7 +135,9 @@ def _targets(raw: dict[str, Any], key: str) -> tuple[list[list[str]], str | None
                     return [], f"'*' needs a table of ids at {where}"
                 nxt.extend([*path, k] for k in node)
             elif isinstance(node, dict) and (part in node or depth == 0):
-                node.setdefault(part, {}) if depth == 0 else None
+                # a top-level table the base scenario leaves out ([conditions]) may be set;
+                # a misspelt one is then an unknown key for the scenario checks
+                node.setdefault(part, {})
                 nxt.append([*path, part])
             else:
                 return [], f"the scenario has no table {'.'.join([*path, part])}"
