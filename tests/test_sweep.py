@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
@@ -17,7 +18,7 @@ import pytest
 
 from hrc.browser import headless_chromium, output_dir
 
-from .conftest import HRC, ROOT
+from .conftest import HRC, ROOT, wait_until
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
@@ -249,3 +250,37 @@ def test_the_report_has_every_section_and_reads_well(local_sweep) -> None:
         tab.screenshot(path=str(shots / "report.png"), full_page=True)
     assert broken == 0
     print(f"report in {time.monotonic() - t0:.1f} s; screenshot {shots / 'report.png'}")
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_a_stopped_sweep_stops_its_trials_and_keeps_what_finished(
+    study_file: Path, tmp_path: Path, sig: int
+) -> None:
+    out = tmp_path / "stopped"
+    proc = subprocess.Popen(
+        [HRC, "sweep", str(study_file), "--out", str(out), "--workers", "2", "--no-reach"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    # wait until both trials' services are up, then stop the sweep
+    assert wait_until(lambda: len(list((out / "trials").glob("*/services/*.log"))) >= 10, 120)
+    proc.send_signal(sig)
+    _out, err = proc.communicate(timeout=60)
+    assert proc.returncode == (130 if sig == signal.SIGINT else 128 + sig), err
+    assert "finished trials are kept" in err
+    assert wait_until(lambda: not _processes_under(out), 10), _processes_under(out)
+
+
+def _processes_under(folder: Path) -> list[str]:
+    """Command lines of running processes that name ``folder`` (a trial's hrc run, its services)."""
+    found = []
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            cmd = Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+        except OSError:
+            continue
+        if str(folder) in cmd:
+            found.append(cmd)
+    return found

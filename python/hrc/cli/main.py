@@ -125,7 +125,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
+    from hrc.cli.runner import Terminated, stop_on_signals
     from hrc.study import StudyError, load_study, sweep
+    from hrc.study.sweep import ClusterError
 
     try:
         study = load_study(args.study, motion_check=not args.no_reach)
@@ -140,13 +142,22 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     where = f"cluster {args.cluster}" if args.cluster else f"{args.workers or 'all'} workers"
     print(f"study {study.name!r}: {len(study.trials)} trials ({where}) -> {out}", flush=True)
     try:
+        stop_on_signals()  # SIGTERM/SIGHUP stop the trials in progress, as Ctrl-C does
         records = sweep(
             study, out, workers=args.workers, cluster=args.cluster, timeout_s=args.trial_timeout
         )
     except KeyboardInterrupt:
-        print(f"sweep interrupted; finished trials are kept in {out} (run again to resume)",
-              file=sys.stderr)  # fmt: skip
+        print(
+            f"sweep interrupted; finished trials are kept in {out} (run again to resume)",
+            file=sys.stderr,
+        )
         return 130
+    except Terminated as exc:
+        print(f"sweep stopped by {exc}; finished trials are kept in {out}", file=sys.stderr)
+        return 128 + exc.signum
+    except ClusterError as exc:
+        print(f"sweep: {exc}", file=sys.stderr)
+        return 2
     bad = [r for r in records if r.outcome != "ok"]
     print(f"{len(records) - len(bad)} ok, {len(bad)} not ok; table: {out / 'trials.parquet'}")
     for r in bad:

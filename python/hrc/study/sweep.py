@@ -16,7 +16,7 @@ from typing import IO, Any
 
 from hrc.study.spec import Study, Trial
 from hrc.study.table import write_table
-from hrc.study.trial import Job, Record, run_job
+from hrc.study.trial import Job, Record, run_job, stop_running
 
 log = logging.getLogger(__name__)
 
@@ -101,33 +101,43 @@ def _clock(seconds: float) -> str:
 
 
 def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
-    with ThreadPoolExecutor(max_workers=workers, thread_name_prefix="trial") as pool:
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="trial")
+    try:
         futures = [pool.submit(run_job, job) for job in jobs]
         for fut in as_completed(futures):
             yield fut.result()
+    except BaseException:  # Ctrl-C, or the caller stopped: no new trial, stop those running
+        pool.shutdown(wait=False, cancel_futures=True)
+        stop_running()
+        raise
+    finally:
+        pool.shutdown(wait=True)
+
+
+class ClusterError(Exception):
+    """The Dask scheduler cannot be reached."""
 
 
 def _cluster(jobs: list[Job], address: str) -> Iterator[Record]:
     from distributed import Client
     from distributed import as_completed as dask_completed
 
-    with Client(address, timeout="30s") as client:
-        # pure=False: two submissions are two runs; retries=0: a failed trial is a record
+    try:
+        client = Client(address, timeout="30s")
+    except (OSError, TimeoutError) as exc:
+        raise ClusterError(f"cannot reach the Dask scheduler at {address}: {exc}") from exc
+    with client:
+        # one task a trial, under its own key; a task that fails becomes a failed record
         futures = [
             client.submit(run_job, job, key=f"trial-{job.trial}-{job.input_hash}", pure=False)
             for job in jobs
         ]
+        index = {fut.key: i for i, fut in enumerate(futures)}
         for fut in dask_completed(futures):
             if fut.status == "error":
-                exc = fut.exception()
-                job = jobs[futures.index(fut)]
-                yield Record(
-                    job.trial,
-                    job.input_hash,
-                    "failed",
-                    f"the cluster could not run it: {exc!r}",
-                    None,
-                )
+                job = jobs[index[fut.key]]
+                reason = f"the cluster could not run it: {fut.exception()!r}"
+                yield Record(job.trial, job.input_hash, "failed", reason, None)
             else:
                 yield fut.result()
 

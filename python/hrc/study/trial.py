@@ -14,6 +14,7 @@ import shutil
 import signal
 import subprocess
 import sys
+import threading
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -55,6 +56,21 @@ class Record:
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Record:
         return cls(**{k: d[k] for k in cls.__dataclass_fields__ if k in d})
+
+
+# the `hrc run` processes of this process's trials in progress (stop_running ends them)
+_RUNNING: set[subprocess.Popen[str]] = set()
+_LOCK = threading.Lock()
+
+
+def stop_running() -> None:
+    """SIGTERM to every trial in progress here (an interrupted sweep): `hrc run` stops its
+    services and exits; the records of these trials are dropped, so they run again next time."""
+    with _LOCK:
+        procs = list(_RUNNING)
+    for proc in procs:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGTERM)
 
 
 def _tail(text: str, lines: int = STDERR_TAIL_LINES) -> str:
@@ -104,6 +120,8 @@ def run_job(job: Job) -> Record:
         text=True,
         start_new_session=True,
     )
+    with _LOCK:
+        _RUNNING.add(proc)
     try:
         stdout, stderr = proc.communicate(timeout=job.timeout_s)
         timed_out = False
@@ -111,6 +129,9 @@ def run_job(job: Job) -> Record:
         _stop(proc)
         stdout, stderr = proc.communicate()
         timed_out = True
+    finally:
+        with _LOCK:
+            _RUNNING.discard(proc)
     wall = round(time.monotonic() - t0, 3)
     (trial_dir).mkdir(parents=True, exist_ok=True)
     (trial_dir / "hrc-run.log").write_text(stdout + stderr, encoding="utf-8")
