@@ -191,3 +191,20 @@ def test_the_model_notes_degenerate_data_instead_of_failing() -> None:
     effect = fit.rows[1]
     assert effect[0] == "speed = 1 (vs 0.5)"
     assert effect[2] < -4 + 1 and effect[3] > -4 - 1 and effect[2] < effect[1] < effect[3]
+
+
+def test_a_report_of_a_sweep_in_which_every_trial_failed_lists_them(tmp_path: Path) -> None:
+    from hrc.study.report import write_report
+
+    rows = [
+        {"study": "s", "trial": f"speed{v}_P01_r1", "robots.*.max_tcp_speed": v,
+         "participant": "P01", "outcome": "failed", "reason": f"hrc run exited with code 3 ({v})"}
+        for v in (0.5, 1.0)
+    ]  # fmt: skip
+    pd.DataFrame(rows).to_parquet(tmp_path / "trials.parquet")
+    (tmp_path / "study.json").write_text(
+        '{"name": "s", "factors": {"robots.*.max_tcp_speed": [0.5, 1.0]}}'
+    )
+    page = write_report(tmp_path).read_text()
+    assert "speed0.5_P01_r1" in page and "exited with code 3 (1.0)" in page
+    assert "Statistics use the 0 trials that ended ok" in page
