@@ -183,7 +183,7 @@ def _main_effects(
             ax.set_xlim(-0.5, len(xs) - 0.5)
             ax.set_xlabel(_label(factor))
             ax.grid(axis="y", alpha=0.3)
-        axes[0][0].set_ylabel(f"{outcome.title} ({outcome.unit})")
+        axes[0][0].set_ylabel(outcome.unit)  # the section heading names the outcome
         fig.tight_layout()
         fig.savefig(path / f"means_{outcome.name}.png", dpi=90)
         plt.close(fig)
@@ -327,8 +327,8 @@ def fit_model(
     texts = {str(w.message).split("\n")[0] for w in caught}
     if method.startswith("MixedLM") and any("boundary" in t for t in texts):
         notes.append(
-            "the participant variance is estimated at 0 (the participants do not differ beyond "
-            "the factors): the effects are those of a plain regression"
+            "the participant variance is estimated at or near 0 (the participants hardly differ "
+            "beyond the factors): the effects are close to those of a plain regression"
         )
     if method.startswith("MixedLM") and not res.converged:
         notes.append("the fit did not converge: read the estimates with care")
