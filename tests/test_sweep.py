@@ -70,7 +70,8 @@ def test_a_2x2x2_study_gives_8_rows_with_factors_participants_and_metrics(local_
     df = pd.read_parquet(out / "trials.parquet")
     csv = pd.read_csv(out / "trials.csv")
     assert len(df) == 8 and len(csv) == 8
-    assert list(df["outcome"]) == ["ok"] * 8, df[["trial", "reason"]]
+    bad = df[df["outcome"] != "ok"]
+    assert bad.empty, "\n".join(f"{r.trial}: {r.outcome}: {r.reason}" for r in bad.itertuples())
     assert set(df["trial"]) == {
         f"speed{s}_ant{a}_P0{p}_r1" for s in ("0.5", "1") for a in (True, False) for p in (1, 2)
     }

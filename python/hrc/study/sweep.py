@@ -77,7 +77,7 @@ class Progress:
         self.failed += rec.outcome != "ok"
         n = self.skipped + self.done
         elapsed = _clock(time.monotonic() - self.t0)
-        counts = f"{n}/{self.total}" + (f", {self.failed} not ok" if self.failed else "")
+        counts = f"{n}/{self.total}" + (f" ({self.failed} not ok)" if self.failed else "")
         if self.tty:
             width = 24
             fill = int(width * n / max(1, self.total))
