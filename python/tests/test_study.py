@@ -208,3 +208,9 @@ def test_a_report_of_a_sweep_in_which_every_trial_failed_lists_them(tmp_path: Pa
     page = write_report(tmp_path).read_text()
     assert "speed0.5_P01_r1" in page and "exited with code 3 (1.0)" in page
     assert "Statistics use the 0 trials that ended ok" in page
+
+
+def test_the_shipped_studies_load() -> None:
+    for path, trials in (("thesis-speed-anticipation", 60), ("retreat-vs-ssm", 40)):
+        study = load_study(ROOT / "studies" / f"{path}.toml", motion_check=False)
+        assert len(study.trials) == trials, path
