@@ -338,7 +338,7 @@ window.hrcTest = {
       frames: app.frames,
       xr: app.xr.active(),
       active_hand: app.desktop.active,
-      hands: app.desktop.poses(),
+      hands: app.xr.active() && app.lastXrHands ? app.lastXrHands : app.desktop.poses(),
       objects,
       robots,
       cues,

@@ -130,7 +130,20 @@ export class World {
       hand.name = `hand:${h}`;
       hand.visible = false;
       g.add(hand);
-      this.hands[h] = { obj: hand, palm, grip: 0 };
+      // a plumb line and a ring on the surface below the hand: depth is hard to judge on a
+      // screen (and helps in a headset too)
+      const plumb = new THREE.Mesh(
+        new THREE.CylinderGeometry(0.0015, 0.0015, 1, 6),
+        new THREE.MeshBasicMaterial({ color: handColor, transparent: true, opacity: 0.6 }),
+      );
+      plumb.rotation.x = Math.PI / 2;
+      const ring = new THREE.Mesh(
+        new THREE.RingGeometry(0.012, 0.018, 24),
+        new THREE.MeshBasicMaterial({ color: handColor, depthTest: false, transparent: true }),
+      );
+      ring.renderOrder = 5;
+      g.add(plumb, ring);
+      this.hands[h] = { obj: hand, palm, grip: 0, plumb, ring };
     }
   }
 
@@ -192,7 +205,7 @@ export class World {
       new THREE.LineBasicMaterial({ color: '#222' }),
     );
     mesh.add(edges);
-    const label = labelSprite([p.kind || p.id], 0.022, { px: 40 });
+    const label = labelSprite([p.kind || p.id], 0.028, { px: 40 });
     label.position.set(0, 0, p.size[2] / 2 + 0.018);
     this.group.add(label);
     if (p.start) {
@@ -331,6 +344,11 @@ export class World {
     if (!h) return;
     h.obj.visible = true;
     setPose(h.obj, p, q);
+    const floorZ = 0.002; // the board's and table's top
+    const len = Math.max(0.001, p[2] - floorZ);
+    h.plumb.scale.set(1, len, 1);
+    h.plumb.position.set(p[0], p[1], floorZ + len / 2);
+    h.ring.position.set(p[0], p[1], floorZ);
     h.grip = grip;
     // a closed hand is drawn thinner and darker, an open one flat
     h.palm.scale.set(1, grip >= 0.5 ? 0.7 : 1, grip >= 0.5 ? 1.8 : 1);
