@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import sys
 import time
 from pathlib import Path
@@ -33,6 +34,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     from hrc.cli.runner import (
         Terminated,
         TrialOptions,
+        VrOptions,
         default_trial_dir,
         run_trial,
         stop_on_signals,
@@ -58,6 +60,18 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.ticks and args.max_ticks:
         print("give --ticks (exact length) or --max-ticks (a cap), not both", file=sys.stderr)
         return 2
+    live = (args.input or s.participant.input.value) == sc.InputSource.VR.value and not args.replay
+    mode = args.mode or ("realtime" if live else "lockstep")
+    vr: VrOptions | None = None
+    if live:
+        token = os.environ.get("HRC_VR_TOKEN") or None
+        vr = VrOptions(args.vr_host, args.vr_port, args.vr_wait)
+        if mode != "realtime":
+            print("note: a live participant in lockstep mode: simulation time will not follow "
+                  "the wall clock", file=sys.stderr)
+        wait = f"waiting up to {args.vr_wait:g} s for it" if args.vr_wait > 0 else "not waiting"
+        print(f"live VR trial: open {vr.url(token)} ({wait}); the task clock starts on the "
+              "first grab", flush=True)
     anticipation = s.conditions.anticipation
     trial_dir = (
         Path(args.out)
@@ -67,7 +81,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     opts = TrialOptions(
         scenario=Path(args.scenario).resolve(),
         out=trial_dir,
-        mode=args.mode,
+        mode=mode,
         seed=args.seed,
         ticks=args.ticks,
         max_ticks=args.max_ticks,
@@ -83,8 +97,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         web=args.web,
         record=Path(args.record).resolve() if args.record else None,
         replay=Path(args.replay).resolve() if args.replay else None,
+        input=args.input,
+        vr=vr,
     )
-    print(f"trial {s.scenario.name!r} ({args.mode}) -> {trial_dir}", flush=True)
+    print(f"trial {s.scenario.name!r} ({mode}) -> {trial_dir}", flush=True)
     try:
         stop_on_signals()
         result = run_trial(opts, trial_dir)
@@ -169,7 +185,37 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="trial folder (default runs/<date>/<participant>/<scenario>_<condition>/)",
     )
-    r.add_argument("--mode", choices=["lockstep", "realtime"], default="lockstep")
+    r.add_argument(
+        "--mode",
+        choices=["lockstep", "realtime"],
+        default=None,
+        help="clock mode (default: realtime with a live VR participant, else lockstep)",
+    )
+    r.add_argument(
+        "--input",
+        choices=["scripted", "replay", "vr"],
+        default=None,
+        help="the participant's input, whatever the scenario says (vr: a live trial)",
+    )
+    r.add_argument(
+        "--vr-host",
+        default=os.environ.get("HRC_VR_HOST", "127.0.0.1"),
+        help="live trial: the bridge's address (non-loopback needs HRC_VR_TOKEN)",
+    )
+    r.add_argument(
+        "--vr-port",
+        type=int,
+        default=int(os.environ.get("HRC_VR_PORT", 8765)),
+        help="live trial: the bridge's port, the page's URL (default 8765)",
+    )
+    r.add_argument(
+        "--vr-wait",
+        type=float,
+        default=300.0,
+        metavar="S",
+        help="live trial: wait up to S s for the participant's client, then fail (default 300; "
+        "0: start without one)",
+    )
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     r.add_argument(
         "--ticks",

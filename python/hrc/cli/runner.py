@@ -53,7 +53,39 @@ class TrialOptions:
     replay: Path | None = None
     connect: list[str] = field(default_factory=list)  # extra endpoints for every service (router)
     validated: bool = False  # the scenario file was fully checked (reach included) just before
+    input: str | None = None  # the participant's input, overriding the scenario's
+    vr: VrOptions | None = None  # the input is vr: the bridge's options
     extra: dict[str, list[str]] = field(default_factory=dict)  # per-service extra arguments
+
+
+VR_START_MARGIN_S = 30.0  # physics waits this much longer than human_input waits for a client
+
+
+@dataclass
+class VrOptions:
+    """A live trial's bridge (human_input's --vr-* options; the token comes from HRC_VR_TOKEN)."""
+
+    host: str = "127.0.0.1"
+    port: int = 8765
+    wait_s: float = 300.0  # for the first client; then the trial fails naming the URL
+
+    def argv(self) -> list[str]:
+        return [
+            "--vr-host",
+            self.host,
+            "--vr-port",
+            str(self.port),
+            "--vr-wait",
+            f"{self.wait_s:g}",
+        ]
+
+    def url(self, token: str | None) -> str:
+        from urllib.parse import quote
+
+        host = "127.0.0.1" if self.host in ("0.0.0.0", "::", "") else self.host
+        if ":" in host and not host.startswith("["):
+            host = f"[{host}]"
+        return f"http://{host}:{self.port}/" + (f"?token={quote(token)}" if token else "")
 
 
 @dataclass
@@ -257,6 +289,10 @@ def trial_settings(
     ``sock`` if given; the other services connect to the socket, else to the port."""
     tcp = f"tcp/127.0.0.1:{port}"
     bus = f"unixsock-stream/{sock}" if sock is not None else tcp
+    start_timeout = opts.start_timeout_s
+    if opts.vr is not None and opts.vr.wait_s > 0:
+        # physics waits for human_input, which waits for the participant's client
+        start_timeout = max(start_timeout, opts.vr.wait_s + VR_START_MARGIN_S)
     return services.Settings(
         session=session,
         bus=bus,
@@ -266,7 +302,7 @@ def trial_settings(
         clock=opts.mode,
         ticks=str(opts.ticks or opts.max_ticks),
         barrier_timeout=str(opts.barrier_timeout_s),
-        start_timeout=str(opts.start_timeout_s),
+        start_timeout=f"{start_timeout:g}",
         scenario=str(opts.scenario),
         out=str(trial_dir),
         seed=None if opts.seed is None else str(opts.seed),
@@ -300,7 +336,11 @@ def service_argv(
     """The command line of service ``name`` in one trial (``opts.extra`` appended)."""
     svc = services.service(name)
     settings = trial_settings(opts, session, port, trial_dir, sock, lowlatency)
-    return program(svc) + services.argv(svc, settings) + opts.extra.get(name, [])
+    own: list[str] = []
+    if name == "human_input":
+        own += ["--input", opts.input] if opts.input else []
+        own += opts.vr.argv() if opts.vr is not None else []
+    return program(svc) + services.argv(svc, settings) + own + opts.extra.get(name, [])
 
 
 class _EndWatcher:

@@ -15,6 +15,7 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
 
+from hrc.scenario.colors import NAMED_RGB
 from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
 from hrc.scenario.paths import resolve_path
 
@@ -32,24 +33,7 @@ DEFAULT_TOLERANCE_DEG = 20.0
 DEFAULT_ROLE_COLORS = {RobotRole.TRANSPORT: "yellow", RobotRole.SCREWING: "green"}
 
 # Names the view and the VR clients know; anything else must be written as #rrggbb.
-COLOR_NAMES = frozenset(
-    {
-        "red",
-        "green",
-        "blue",
-        "yellow",
-        "orange",
-        "purple",
-        "cyan",
-        "magenta",
-        "white",
-        "black",
-        "grey",
-        "gray",
-        "pink",
-        "brown",
-    }
-)
+COLOR_NAMES = frozenset(NAMED_RGB)
 _HEX_COLOR = re.compile(r"^#[0-9a-fA-F]{6}$")
 # Ids end up in bus keys (robot/<id>/command), cue ids ("target:RA1") and folder names.
 ID_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_-]*$"

@@ -12,6 +12,7 @@ import contextlib
 import logging
 import os
 from pathlib import Path
+from urllib.parse import quote
 
 from hrc.bus import Bus, Outcome
 from hrc.scenario import InputSource, ScenarioError
@@ -22,9 +23,12 @@ from hrc_human_input import facts as facts_mod
 from hrc_human_input.replay import Recorder, Recording, Replayer, ReplayError, load_recording
 from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import ScriptedParticipant
+from hrc_human_input.scene import RobotFiles, build_scene, scene_cue_json
 from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource
+from hrc_human_input.stream import WorldMirror
 from hrc_human_input.task_view import TaskView
 from hrc_human_input.vr_bridge import (
+    CLIENT_DIST,
     DEFAULT_HOST,
     DEFAULT_PORT,
     BridgeConfigError,
@@ -86,6 +90,22 @@ class HumanInputService(Service):
             help="token VR clients must present (env HRC_VR_TOKEN)",
         )
         p.add_argument(
+            "--vr-wait",
+            type=float,
+            default=float(os.environ.get("HRC_VR_WAIT", 300.0)),
+            metavar="S",
+            help="input vr: wait up to S seconds for a client before joining the run "
+            "(default 300, env HRC_VR_WAIT; 0: do not wait); none came: exit 1 naming the URL",
+        )
+        p.add_argument(
+            "--vr-client-dir",
+            type=Path,
+            default=CLIENT_DIST,
+            metavar="DIR",
+            help="the participant client's bundle (index.html + assets/; default the one "
+            "scripts/setup.sh builds); missing: a minimal fallback page",
+        )
+        p.add_argument(
             "--start-timeout",
             type=float,
             default=60.0,
@@ -107,11 +127,12 @@ class HumanInputService(Service):
         super().open(bus, stack)
         args = self.args
         keys = bus.keys
+        scenario = fetch_scenario(bus, args.start_timeout)
         try:
-            facts = facts_mod.from_proto(fetch_scenario(bus, args.start_timeout))
+            facts = facts_mod.from_proto(scenario)
         except ScenarioError as exc:
             raise ServiceExit(f"scenario rejected:\n{exc}", EXIT_BAD_INPUT) from exc
-        self.source = self._source(facts, keys.session, stack)
+        self.source = self._source(facts, scenario, keys.session, stack)
         if args.record:
             self.recorder = stack.enter_context(
                 Recorder(
@@ -137,7 +158,11 @@ class HumanInputService(Service):
         )
 
     def _source(
-        self, facts: facts_mod.ScenarioFacts, session: str, stack: contextlib.ExitStack
+        self,
+        facts: facts_mod.ScenarioFacts,
+        scenario: pb.Scenario,
+        session: str,
+        stack: contextlib.ExitStack,
     ) -> Source:
         args = self.args
         kind = (
@@ -158,26 +183,59 @@ class HumanInputService(Service):
                 self.recording = _load(facts.replay_file)
             return ReplaySource(Replayer(self.recording))
         if kind == InputSource.VR:
-            bridge = VrBridge(
-                args.vr_host,
-                args.vr_port,
-                args.vr_token,
-                hello={
-                    "session": session,
-                    "scenario": facts.name,
-                    "participant": facts.participant,
-                    "tick_hz": facts.tick_hz,
-                },
-            )
-            try:
-                bridge.start()
-            except BridgeConfigError as exc:
-                raise ServiceExit(str(exc), EXIT_BAD_INPUT) from exc
-            stack.callback(bridge.stop)
-            return VrSource(bridge)
+            return self._vr_source(facts, scenario, session, stack)
         return ScriptedSource(ScriptedParticipant(facts), TaskView(facts))
 
+    def _vr_source(
+        self,
+        facts: facts_mod.ScenarioFacts,
+        scenario: pb.Scenario,
+        session: str,
+        stack: contextlib.ExitStack,
+    ) -> VrSource:
+        """The bridge, serving the scene of this scenario; waits for the first client."""
+        args = self.args
+        files = RobotFiles()
+        try:
+            scene = build_scene(scenario, files)
+        except ScenarioError as exc:
+            raise ServiceExit(f"scenario rejected:\n{exc}", EXIT_BAD_INPUT) from exc
+        bridge = VrBridge(
+            args.vr_host,
+            args.vr_port,
+            args.vr_token,
+            hello={
+                "session": session,
+                "scenario": facts.name,
+                "participant": facts.participant,
+                "tick_hz": facts.tick_hz,
+            },
+            scene=scene,
+            robot_files=files,
+            client_dir=args.vr_client_dir,
+        )
+        try:
+            port = bridge.start()
+        except BridgeConfigError as exc:
+            raise ServiceExit(str(exc), EXIT_BAD_INPUT) from exc
+        stack.callback(bridge.stop)
+        url = client_url(args.vr_host, port, args.vr_token)
+        if args.vr_wait > 0:
+            log.info("open %s to take part (waiting up to %g s for it)", url, args.vr_wait)
+            if not bridge.wait_for_client(args.vr_wait):
+                raise ServiceExit(
+                    f"no VR client connected within {args.vr_wait:g} s (--vr-wait): nobody "
+                    f"opened {url}"
+                )
+            log.info("a VR client connected: joining the run")
+        else:
+            log.info("open %s to take part", url)
+        joints = {r["id"]: list(r["joint_names"]) for r in scene["robots"]}
+        mirror = WorldMirror(joints, {c["id"]: scene_cue_json(c) for c in scene["cues"]})
+        return VrSource(bridge, mirror)
+
     def register_inputs(self, inputs: Inputs) -> None:
+        self._inputs = inputs
         self.source.register_inputs(inputs, self.bus.keys)
 
     def step(self, tick: pb.ClockTick) -> None:
@@ -193,11 +251,27 @@ class HumanInputService(Service):
             self._last_sent = sample
         if self.recorder is not None:
             self.recorder.write(sample)
+        self.source.published(k, t, sample)
 
     def finish(self, outcome: Outcome) -> int | None:
+        if isinstance(self.source, VrSource):
+            # The last tick's messages (TASK_FINISHED, the final states) came after its step:
+            # hand them over so the clients see how the task ended.
+            inbox = getattr(getattr(self, "_inputs", None), "inbox", None)
+            if inbox is not None:
+                inbox.deliver(2**62)
+        self.source.ended(outcome.ok, outcome.reason)
         summary = self.source.summary()
         if summary:
             log.info("%s", summary)
         if self.recorder is not None:
             log.info("recorded %d samples to %s", self.recorder.count, self.args.record)
         return None
+
+
+def client_url(host: str, port: int, token: str | None) -> str:
+    """The page to open (with the token, when there is one)."""
+    shown = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
+    if ":" in shown and not shown.startswith("["):
+        shown = f"[{shown}]"
+    return f"http://{shown}:{port}/" + (f"?token={quote(token)}" if token else "")

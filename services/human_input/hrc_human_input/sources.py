@@ -15,6 +15,7 @@ from hrc.wire import pb
 from hrc_human_input.replay import Replayer
 from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import HEAD_POS, REST, ScriptedParticipant
+from hrc_human_input.stream import RunState, WorldMirror
 from hrc_human_input.task_view import TaskView
 from hrc_human_input.vr_bridge import VrBridge
 
@@ -39,6 +40,12 @@ class Source(Protocol):
     def register_inputs(self, inputs: Inputs, keys: Keys) -> None: ...
 
     def summary(self) -> str | None: ...
+
+    def published(self, tick: int, t: float, sample: Sample) -> None:
+        """The tick's sample is on the bus (the bridge streams the world from here)."""
+
+    def ended(self, ok: bool, reason: str) -> None:
+        """The run is over."""
 
 
 class ScriptedSource:
@@ -66,6 +73,12 @@ class ScriptedSource:
             f"{len(sp.hold_backs)} hold-backs"
         )
 
+    def published(self, tick: int, t: float, sample: Sample) -> None:
+        pass
+
+    def ended(self, ok: bool, reason: str) -> None:
+        pass
+
 
 class ReplaySource:
     name = InputSource.REPLAY
@@ -82,26 +95,52 @@ class ReplaySource:
     def summary(self) -> str | None:
         return None
 
+    def published(self, tick: int, t: float, sample: Sample) -> None:
+        pass
+
+    def ended(self, ok: bool, reason: str) -> None:
+        pass
+
 
 class VrSource:
     """The latest sample the bridge accepted, stamped with the tick's time (the rest pose until
-    a client sends one; the last one when the client goes away)."""
+    a client sends one; the last one when the client goes away). It also mirrors what a
+    participant perceives of the world and hands it to the bridge after every tick."""
 
     name = InputSource.VR
 
-    def __init__(self, bridge: VrBridge) -> None:
+    def __init__(self, bridge: VrBridge, mirror: WorldMirror) -> None:
         self.bridge = bridge
+        self.mirror = mirror
 
     def sample(self, t: float) -> Sample:
         latest = self.bridge.latest()
         return rest_sample(t) if latest is None else latest.at(t)
 
     def register_inputs(self, inputs: Inputs, keys: Keys) -> None:
-        pass  # the person in the headset sees the view, not the bus
+        m = self.mirror
+        inputs.input(keys.world_objects(), pb.WorldObjects, lambda _k, msg: m.on_objects(msg))
+        inputs.input(keys.robot_states(), pb.RobotState, lambda _k, msg: m.on_robot_state(msg))
+        inputs.input(keys.task_indicators(), pb.Indicators, lambda _k, msg: m.on_indicators(msg))
+        inputs.input(keys.task_events(), pb.TaskEvent, lambda _k, msg: m.on_task_event(msg))
+
+    def published(self, tick: int, t: float, sample: Sample) -> None:
+        self.bridge.publish(*self.mirror.snapshot(tick, t, sample))
+
+    def ended(self, ok: bool, reason: str) -> None:
+        m = self.mirror
+        if ok and m.run != RunState.FAILED:
+            m.set_run(RunState.FINISHED, m.run_reason or reason)
+        elif not ok:
+            m.set_run(RunState.FAILED, reason)
+        snap, events = m.snapshot(m.last_tick, m.last_t, self.bridge.latest())
+        self.bridge.publish(snap, events)
+        self.bridge.flush()
 
     def summary(self) -> str | None:
         st = self.bridge.stats
         return (
             f"VR bridge: {st.clients} clients, {st.accepted} samples accepted, "
-            f"{st.rejected} rejected"
+            f"{st.rejected} rejected; {st.frames_sent} frames sent, {st.frames_dropped} "
+            f"dropped, {st.bytes_sent} bytes, {st.too_slow} disconnected as too slow"
         )

@@ -1,23 +1,30 @@
-"""The live VR bridge: a WebSocket endpoint taking samples from any headset application, and the
-small WebXR page served on the same port (see the service README for the protocol).
+"""The live VR bridge: a WebSocket endpoint for participant clients, and the files of the
+participant client, on one port (protocol: docs/client-protocol.md).
 
-Runs an asyncio event loop (websockets 15) in its own thread; the tick thread only reads the
-latest accepted sample.
+Runs an asyncio event loop (websockets 15) in its own thread. The tick thread only reads the
+latest accepted sample (:meth:`VrBridge.latest`) and hands over the latest world snapshot
+(:meth:`VrBridge.publish`, which never waits on a client). Per client a sender task sends its
+events in order and at most ``rate_hz`` frames a second, always of the latest snapshot: a slow
+or stalled client only loses frames (counted), never slows the trial.
 """
 
 from __future__ import annotations
 
 import asyncio
+import collections
+import contextlib
 import hmac
 import ipaddress
 import json
 import logging
+import socket
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from http import HTTPStatus
 from importlib import resources
+from pathlib import Path
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
+from urllib.parse import parse_qs, unquote, urlsplit
 
 from websockets.asyncio.server import Server, ServerConnection, serve
 from websockets.datastructures import Headers
@@ -25,6 +32,8 @@ from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
 from hrc_human_input.sample import Sample, parse_sample
+from hrc_human_input.scene import PROTOCOL_VERSION, RobotFiles
+from hrc_human_input.stream import ClientView, Snapshot, frame_json
 
 log = logging.getLogger(__name__)
 
@@ -33,6 +42,45 @@ DEFAULT_PORT = 8765
 MAX_FRAME_BYTES = 64 * 1024
 WS_PATHS = ("/ws", "/")
 PAGE_PATHS = ("/", "/index.html")
+DEFAULT_RATE_HZ = 90.0
+MAX_RATE_HZ = 240.0
+EVENT_QUEUE = 256  # events waiting for one client; beyond that it is disconnected (1013)
+# Bytes waiting for a client before a send waits (websockets' buffer, then the socket's): small,
+# so a client that reads late gets the latest state, not a backlog.
+WRITE_LIMIT = 16 * 1024
+SOCKET_SEND_BUFFER = 64 * 1024
+CLOSE_TOO_SLOW = 1013
+DRIVER, SPECTATOR = "driver", "spectator"
+# The participant client's bundle (built by scripts/setup.sh, services/human_input/client/).
+CLIENT_DIST = Path(__file__).resolve().parents[1] / "client" / "dist"
+CONTENT_TYPES = {
+    ".html": "text/html; charset=utf-8",
+    ".js": "text/javascript; charset=utf-8",
+    ".mjs": "text/javascript; charset=utf-8",
+    ".css": "text/css; charset=utf-8",
+    ".json": "application/json",
+    ".map": "application/json",
+    ".wasm": "application/wasm",
+    ".svg": "image/svg+xml",
+    ".png": "image/png",
+    ".jpg": "image/jpeg",
+    ".jpeg": "image/jpeg",
+    ".urdf": "application/xml",
+    ".xml": "application/xml",
+    ".stl": "model/stl",
+    ".dae": "model/vnd.collada+xml",
+    ".obj": "model/obj",
+    ".mtl": "text/plain",
+    ".glb": "model/gltf-binary",
+    ".gltf": "model/gltf+json",
+    ".bin": "application/octet-stream",
+    ".txt": "text/plain; charset=utf-8",
+}
+FALLBACK_NOTE = (
+    b'<p style="background:#fe9;padding:6px">The 3D participant client is not built: run '
+    b"<code>scripts/setup.sh</code> (it bundles services/human_input/client/ into "
+    b"client/dist/). This is the minimal fallback page.</p>"
+)
 
 
 class BridgeConfigError(ValueError):
@@ -58,8 +106,29 @@ def check_bind(host: str, token: str | None) -> None:
         )
 
 
-def page_html() -> bytes:
-    return resources.files("hrc_human_input").joinpath("web/index.html").read_bytes()
+def fallback_page() -> bytes:
+    """The minimal page shipped with the package, with a note that the client is not built."""
+    page = resources.files("hrc_human_input").joinpath("web/index.html").read_bytes()
+    return page.replace(b"<body>", b"<body>\n" + FALLBACK_NOTE, 1)
+
+
+def page_html(client_dir: Path | None = CLIENT_DIST) -> bytes:
+    """The client's index.html if its bundle is built, else the fallback page."""
+    if client_dir is not None:
+        index = client_dir / "index.html"
+        if index.is_file():
+            return index.read_bytes()
+    return fallback_page()
+
+
+def safe_file(root: Path, rel: str) -> Path | None:
+    """``root/rel`` if it is a file inside ``root`` (no ``..``, no way out through a link)."""
+    parts = [p for p in rel.split("/") if p]
+    if not parts or any(p in (".", "..") or "\\" in p or "\x00" in p for p in parts):
+        return None
+    base = root.resolve()
+    cand = base.joinpath(*parts).resolve()
+    return cand if cand.is_relative_to(base) and cand.is_file() else None
 
 
 @dataclass
@@ -68,10 +137,32 @@ class BridgeStats:
     accepted: int = 0
     rejected: int = 0
     auth_failures: int = 0
+    frames_sent: int = 0
+    frames_dropped: int = 0
+    bytes_sent: int = 0
+    too_slow: int = 0  # clients disconnected because their events piled up
+
+
+@dataclass(eq=False)
+class Client:
+    ws: ServerConnection
+    peer: str
+    role: str = SPECTATOR
+    rate_hz: float = DEFAULT_RATE_HZ
+    view: ClientView = field(default_factory=ClientView)
+    outbox: collections.deque[str] = field(default_factory=collections.deque)
+    wake: asyncio.Event = field(default_factory=asyncio.Event)
+    sending: bool = False
+    due: float = 0.0  # loop time the next frame may go out
+    dropped: int = 0  # frame slots that passed while a send was still waiting on the client
+    frames: int = 0
+    bytes: int = 0
+    task: asyncio.Task[None] | None = None
+    closing: bool = False
 
 
 class VrBridge:
-    """Accepts JSON samples over WebSocket and keeps the latest one."""
+    """Accepts JSON samples over WebSocket (keeps the latest one) and streams the world."""
 
     def __init__(
         self,
@@ -79,23 +170,38 @@ class VrBridge:
         port: int = DEFAULT_PORT,
         token: str | None = None,
         hello: dict[str, Any] | None = None,
+        scene: dict[str, Any] | None = None,
+        robot_files: RobotFiles | None = None,
+        client_dir: Path | None = CLIENT_DIST,
     ) -> None:
         check_bind(host, token)
         self.host = host
         self.port = port
         self.token = token or None
         self.hello = dict(hello or {})
+        self.scene_json = None if scene is None else json.dumps(scene, separators=(",", ":"))
+        self.robot_files = robot_files or RobotFiles()
+        self.client_dir = client_dir
         self.stats = BridgeStats()
-        self._page = page_html()
+        self._page = page_html(client_dir)
+        self.client_built = client_dir is not None and (client_dir / "index.html").is_file()
         self._lock = threading.Lock()
         self._latest: Sample | None = None
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: Server | None = None
         self._thread: threading.Thread | None = None
         self._ready = threading.Event()
+        self._first_client = threading.Event()
         self._stop: asyncio.Event | None = None
         self._error: BaseException | None = None
         self.bound_port = 0
+        # tick thread -> loop hand-over (under _lock)
+        self._pending: Snapshot | None = None
+        self._pending_events: list[str] = []
+        self._wake_scheduled = False
+        # loop thread only
+        self._snapshot: Snapshot | None = None
+        self._clients: list[Client] = []  # authenticated, in connection order
 
     # ------------------------------------------------------------------ lifecycle
     def start(self, timeout: float = 10.0) -> int:
@@ -129,6 +235,50 @@ class VrBridge:
         with self._lock:
             return self._latest
 
+    def wait_for_client(self, timeout: float | None) -> bool:
+        """True once a client has connected (and authenticated) since the start."""
+        return self._first_client.wait(timeout)
+
+    # ------------------------------------------------------------------ tick thread -> clients
+    def publish(self, snap: Snapshot, events: list[str]) -> None:
+        """Hands the latest world state (and the events since the last one) to the loop; returns
+        at once. Snapshots not yet taken by the loop are replaced (events are kept)."""
+        loop = self._loop
+        with self._lock:
+            self._pending = snap
+            self._pending_events.extend(events)
+            schedule = not self._wake_scheduled and loop is not None
+            self._wake_scheduled = self._wake_scheduled or schedule
+        if schedule and loop is not None:
+            try:
+                loop.call_soon_threadsafe(self._deliver)
+            except RuntimeError:  # the loop has closed: nobody to send to
+                pass
+
+    def flush(self, timeout: float = 1.0) -> None:
+        """Waits (up to ``timeout``) until every client has been sent what was published: the
+        last frame and the run's end reach the page before the bridge closes."""
+        loop = self._loop
+        if loop is None or not loop.is_running():
+            return
+        fut = asyncio.run_coroutine_threadsafe(self._drained(timeout), loop)
+        with contextlib.suppress(Exception):
+            fut.result(timeout + 1.0)
+
+    async def _drained(self, timeout: float) -> None:
+        end = asyncio.get_running_loop().time() + timeout
+        while asyncio.get_running_loop().time() < end:
+            snap = self._snapshot
+            pending = self._pending is not None or self._pending_events
+            busy = any(
+                c.outbox or (snap is not None and c.view.version != snap.version)
+                for c in self._clients
+                if not c.closing
+            )
+            if not pending and not busy:
+                return
+            await asyncio.sleep(0.01)
+
     # ------------------------------------------------------------------ the loop thread
     def _run(self) -> None:
         try:
@@ -149,30 +299,170 @@ class VrBridge:
             self.port,
             process_request=self._http,
             max_size=MAX_FRAME_BYTES,
+            write_limit=WRITE_LIMIT,
             ping_interval=20,
             ping_timeout=20,
+            close_timeout=2,
         ) as server:
             self._server = server
             self.bound_port = int(next(iter(server.sockets)).getsockname()[1])
             log.info(
-                "VR bridge on ws://%s:%d/ws (page http://%s:%d/)%s",
+                "VR bridge on ws://%s:%d/ws (page http://%s:%d/)%s%s",
                 self.host,
                 self.bound_port,
                 self.host,
                 self.bound_port,
                 ", token required" if self.token else "",
+                "" if self.client_built else "; participant client not built (fallback page)",
             )
             self._ready.set()
             await self._stop.wait()
+            for c in list(self._clients):
+                if c.task is not None:
+                    c.task.cancel()
 
-    # ------------------------------------------------------------------ HTTP (page) and handshake
+    def _deliver(self) -> None:
+        """In the loop: takes what the tick thread handed over, queues the events of every
+        client, counts the frame slots missed by clients still busy, wakes the senders."""
+        with self._lock:
+            snap, self._pending = self._pending, None
+            events, self._pending_events = self._pending_events, []
+            self._wake_scheduled = False
+        if snap is not None:
+            self._snapshot = snap
+        now = asyncio.get_running_loop().time()
+        for c in list(self._clients):
+            if c.closing:
+                continue
+            c.outbox.extend(events)
+            if len(c.outbox) > EVENT_QUEUE:
+                self._kick(c)
+                continue
+            if c.sending:
+                period = 1.0 / c.rate_hz
+                while now >= c.due:
+                    c.dropped += 1
+                    self.stats.frames_dropped += 1
+                    c.due += period
+            c.wake.set()
+
+    def _kick(self, c: Client) -> None:
+        """Events piled up beyond EVENT_QUEUE: the client cannot keep up; disconnect it."""
+        c.closing = True
+        self.stats.too_slow += 1
+        log.warning(
+            "VR client %s: %d events waiting, disconnecting it (1013 too slow)", c.peer, len(c.outbox)
+        )
+        c.outbox.clear()
+        if c.task is not None:
+            c.task.cancel()
+        asyncio.get_running_loop().create_task(self._close(c.ws, CLOSE_TOO_SLOW, "too slow"))
+
+    @staticmethod
+    async def _close(ws: ServerConnection, code: int, reason: str) -> None:
+        try:
+            await asyncio.wait_for(ws.close(code, reason), 2.0)
+        except (TimeoutError, ConnectionClosed, OSError):
+            ws.transport.abort()
+
+    async def _sender(self, c: Client) -> None:
+        """Sends one client its events (in order) and its frames (latest state, at its rate)."""
+        loop = asyncio.get_running_loop()
+        try:
+            while not c.closing:
+                await c.wake.wait()
+                c.wake.clear()
+                while c.outbox:
+                    await self._send(c, c.outbox.popleft())
+                snap = self._snapshot
+                if snap is None or snap.version == c.view.version:
+                    continue
+                wait = c.due - loop.time()
+                if wait > 0:
+                    await asyncio.sleep(wait)
+                    while c.outbox:  # what came meanwhile goes first
+                        await self._send(c, c.outbox.popleft())
+                    snap = self._snapshot or snap
+                c.due = max(c.due + 1.0 / c.rate_hz, loop.time())
+                c.sending = True
+                try:
+                    await self._send(c, frame_json(c.view, snap, c.dropped), frame=True)
+                finally:
+                    c.sending = False
+                if self._snapshot is not None and self._snapshot.version != c.view.version:
+                    c.wake.set()  # a newer state came while this one was sent
+        except ConnectionClosed:
+            pass
+
+    async def _send(self, c: Client, text: str, frame: bool = False) -> None:
+        await c.ws.send(text)
+        n = len(text)
+        c.bytes += n
+        self.stats.bytes_sent += n
+        if frame:
+            c.frames += 1
+            self.stats.frames_sent += 1
+
+    # ------------------------------------------------------------------ clients and roles
+    def _register(self, ws: ServerConnection, peer: str) -> Client:
+        c = Client(ws, peer)
+        c.role = DRIVER if not any(o.role == DRIVER for o in self._clients) else SPECTATOR
+        c.due = asyncio.get_running_loop().time()
+        self._clients.append(c)
+        self._first_client.set()
+        log.info("VR client %s is the %s", peer, c.role)
+        return c
+
+    def _unregister(self, c: Client) -> None:
+        if c not in self._clients:
+            return
+        self._clients.remove(c)
+        c.closing = True
+        if c.task is not None:
+            c.task.cancel()
+        log.info(
+            "VR client %s (%s) left: %d frames, %d dropped, %d bytes",
+            c.peer,
+            c.role,
+            c.frames,
+            c.dropped,
+            c.bytes,
+        )
+        if c.role == DRIVER:
+            nxt = next((o for o in self._clients if not o.closing), None)
+            if nxt is not None:
+                nxt.role = DRIVER
+                log.info("VR client %s is now the driver", nxt.peer)
+                nxt.outbox.append(self._hello_json(nxt.role, authed=True))
+                nxt.wake.set()
+
+    def _hello_json(self, role: str | None, authed: bool) -> str:
+        return json.dumps(
+            {
+                "type": "hello",
+                "auth_required": not authed,
+                **self.hello,
+                "protocol": PROTOCOL_VERSION,
+                "role": role,
+            }
+        )
+
+    async def _welcome(self, ws: ServerConnection, peer: str) -> Client:
+        """An authenticated client: its role, hello, the scene, then its stream."""
+        c = self._register(ws, peer)
+        await self._send(c, self._hello_json(c.role, authed=True))
+        if self.scene_json is not None:
+            await self._send(c, self.scene_json)
+        c.task = asyncio.get_running_loop().create_task(self._sender(c))
+        c.wake.set()
+        return c
+
+    # ------------------------------------------------------------------ HTTP (files) and handshake
     def _http(self, connection: ServerConnection, request: Request) -> Response | None:
         parts = urlsplit(request.path)
         upgrade = request.headers.get("Upgrade", "").lower() == "websocket"
         if not upgrade:
-            if parts.path in PAGE_PATHS:
-                return _response(HTTPStatus.OK, self._page, "text/html; charset=utf-8")
-            return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")
+            return self._file(unquote(parts.path))
         if parts.path not in WS_PATHS:
             return _response(
                 HTTPStatus.NOT_FOUND, b"WebSocket endpoint is /ws\n", "text/plain; charset=utf-8"
@@ -183,6 +473,24 @@ class VrBridge:
             log.warning("VR client %s: wrong token in the URL", _peer(connection))
             return _response(HTTPStatus.UNAUTHORIZED, b"wrong token\n", "text/plain; charset=utf-8")
         return None
+
+    def _file(self, path: str) -> Response:
+        """GET: the page, the client's bundle, the scenario's robot files; nothing else."""
+        if path in PAGE_PATHS:
+            return _response(HTTPStatus.OK, self._page, CONTENT_TYPES[".html"])
+        found: Path | None = None
+        if path.startswith("/assets/") and self.client_dir is not None:
+            found = safe_file(self.client_dir / "assets", path.removeprefix("/assets/"))
+        elif path.startswith("/robots/"):
+            found = self.robot_files.lookup(path.removeprefix("/robots/"))
+        if found is None:
+            return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")
+        try:
+            body = found.read_bytes()
+        except OSError:
+            return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")
+        ctype = CONTENT_TYPES.get(found.suffix.lower(), "application/octet-stream")
+        return _response(HTTPStatus.OK, body, ctype)
 
     def _token_ok(self, given: Any) -> bool:
         return (
@@ -199,9 +507,14 @@ class VrBridge:
             query["token"][0] if query.get("token") else None
         )
         self.stats.clients += 1
+        _limit_send_buffer(ws)
         log.info("VR client %s connected%s", peer, "" if authed else " (must authenticate)")
+        client: Client | None = None
         try:
-            await ws.send(json.dumps({"type": "hello", "auth_required": not authed, **self.hello}))
+            if authed:
+                client = await self._welcome(ws, peer)
+            else:
+                await ws.send(self._hello_json(None, authed=False))
             async for message in ws:
                 if isinstance(message, bytes):
                     await self._error_reply(ws, ["binary frames are not accepted: send JSON text"])
@@ -211,16 +524,17 @@ class VrBridge:
                 except json.JSONDecodeError as exc:
                     await self._error_reply(ws, [f"not valid JSON: {exc.msg} (column {exc.colno})"])
                     continue
-                if isinstance(obj, dict) and "token" in obj:
+                if isinstance(obj, dict) and "token" in obj and "type" not in obj:
                     if self.token is None or self._token_ok(obj.get("token")):
-                        authed = True
                         await ws.send(json.dumps({"type": "auth", "ok": True}))
+                        if client is None:
+                            client = await self._welcome(ws, peer)
                         continue
                     self.stats.auth_failures += 1
                     await self._error_reply(ws, ["wrong token"])
                     await ws.close(1008, "wrong token")
                     return
-                if not authed:
+                if client is None:
                     self.stats.auth_failures += 1
                     await self._error_reply(
                         ws,
@@ -228,9 +542,21 @@ class VrBridge:
                     )
                     await ws.close(1008, "token required")
                     return
+                if isinstance(obj, dict) and "type" in obj:
+                    await self._command(client, obj)
+                    continue
                 sample, problems = parse_sample(obj, require_t=False)
                 if sample is None:
                     await self._error_reply(ws, problems)
+                    continue
+                if client.role != DRIVER:
+                    await self._error_reply(
+                        ws,
+                        [
+                            "spectator: another client drives the hands; this one only watches "
+                            "(it becomes the driver when that one leaves)"
+                        ],
+                    )
                     continue
                 with self._lock:
                     self._latest = sample
@@ -238,7 +564,44 @@ class VrBridge:
         except ConnectionClosed:
             pass
         finally:
+            if client is not None:
+                self._unregister(client)
             log.info("VR client %s disconnected", peer)
+
+    async def _command(self, c: Client, obj: dict[str, Any]) -> None:
+        """``subscribe`` and ``ping``; anything else is an error and changes nothing."""
+        kind = obj.get("type")
+        if kind == "subscribe":
+            rate = obj.get("rate_hz", DEFAULT_RATE_HZ)
+            unknown = sorted(set(obj) - {"type", "rate_hz"})
+            if unknown:
+                await self._error_reply(c.ws, [f"subscribe: unknown key(s) {', '.join(unknown)}"])
+            elif (
+                isinstance(rate, bool)
+                or not isinstance(rate, int | float)
+                or not 1.0 <= rate <= MAX_RATE_HZ
+            ):
+                await self._error_reply(
+                    c.ws, [f"subscribe: rate_hz must be a number in [1, {MAX_RATE_HZ:g}], got {rate!r}"]
+                )
+            else:
+                c.rate_hz = float(rate)
+            return
+        if kind == "ping":
+            await c.ws.send(
+                json.dumps(
+                    {
+                        "type": "pong",
+                        "id": obj.get("id"),
+                        "client_time_ms": obj.get("client_time_ms"),
+                        "tick": self._snapshot.tick if self._snapshot is not None else None,
+                    }
+                )
+            )
+            return
+        await self._error_reply(
+            c.ws, [f"unknown message type {kind!r}: expected subscribe, ping or a sample"]
+        )
 
     async def _error_reply(self, ws: ServerConnection, problems: list[str]) -> None:
         self.stats.rejected += 1
@@ -252,6 +615,14 @@ class VrBridge:
         await ws.send(
             json.dumps({"type": "error", "error": "; ".join(problems), "problems": problems})
         )
+
+
+def _limit_send_buffer(ws: ServerConnection) -> None:
+    """A client that reads late must get the latest state, not seconds of backlog."""
+    sock = ws.transport.get_extra_info("socket")
+    if sock is not None:
+        with contextlib.suppress(OSError):
+            sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SOCKET_SEND_BUFFER)
 
 
 def _response(status: HTTPStatus, body: bytes, content_type: str) -> Response:

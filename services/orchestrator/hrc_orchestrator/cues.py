@@ -3,9 +3,8 @@ publishes only the changes (docs/ARCHITECTURE.md: stable ids, only `on` changes)
 
 from __future__ import annotations
 
+from hrc.scenario.colors import HUMAN_COLOR  # noqa: F401  (the cues' colour of the participant)
 from hrc.wire import pb
-
-HUMAN_COLOR = "blue"  # the participant's colour in the thesis (hands, own outlines and targets)
 
 
 class CueBoard:

@@ -37,7 +37,9 @@ from hrc.geometry import (
     yaw_difference_deg,
     yaw_quat_deg,
 )
+from hrc.scenario.colors import part_color, unit_rgba
 from hrc.scenario.conventions import GRASP_DISTANCE_M, GRIP_CLOSED, HANDS
+from hrc.scenario.layout import BUTTON_HEIGHT, BUTTON_RADIUS, FLOOR_Z, StaticBox, furniture
 from hrc.scenario.models import DEFAULT_TICK_HZ, ID_PATTERN
 from hrc.validate import check_pose
 from hrc.wire import pb
@@ -45,7 +47,6 @@ from hrc.wire import pb
 from hrc_physics import objects as ob
 from hrc_physics.contacts import ContactKey, ContactTracker, Touch
 from hrc_physics.hands import Hand, create_hand, pose_hand
-from hrc_physics.layout import BUTTON_HEIGHT, BUTTON_RADIUS, FLOOR_Z, StaticBox, furniture
 from hrc_physics.objects import WorldObject
 from hrc_physics.robots import KinematicRobot
 
@@ -56,9 +57,6 @@ BUTTON_ID = "continue_button"
 HAND_ROBOT, ROBOT_ROBOT = pb.CONTACT_KIND_HAND_ROBOT, pb.CONTACT_KIND_ROBOT_ROBOT
 HAND_ENVELOPE, HAND_BUTTON = pb.CONTACT_KIND_HAND_ENVELOPE, pb.CONTACT_KIND_HAND_BUTTON
 _ID_RE = re.compile(ID_PATTERN)
-
-PART_COLORS = {sc.HUMAN: (0.9, 0.5, 0.2, 1.0)}
-DEFAULT_PART_COLOR = (0.7, 0.7, 0.75, 1.0)
 
 
 @dataclass
@@ -204,7 +202,8 @@ class World:
         self, oid: str, kind: str, owner: str, size: Vec3, pos: Vec3, rot: Quat
     ) -> WorldObject:
         mass = ob.mass_of(size)
-        color = PART_COLORS.get(owner, DEFAULT_PART_COLOR)
+        robot_colors = {rid: r.color_or_default for rid, r in self.scenario.robots.items()}
+        color = unit_rgba(part_color(owner, robot_colors))
         body = ob.create_box(self.c, size, pos, rot, mass, color)
         part = self.parts.get(oid)
         target = (tuple(part.target.xyz), part.target.yaw) if part is not None else None

@@ -10,8 +10,8 @@ import pytest
 from hrc import scenario as sc
 from hrc.geometry import quat_yaw_deg, yaw_difference_deg
 from hrc.paths import project_root
+from hrc.scenario.layout import furniture
 
-from hrc_physics.layout import furniture
 from hrc_physics.world import World
 
 

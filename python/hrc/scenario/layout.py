@@ -1,4 +1,5 @@
-"""The static furniture of a scenario, derived from its poses (pure data; no pybullet here).
+"""The static furniture of a scenario, derived from its poses (pure data): physics builds its
+world from it and the participant client draws it (hrc_human_input's scene).
 
 Conventions (docs/scenario.md, docs/ARCHITECTURE.md "Task conventions"):
 - the board's top surface is z = 0; the board is flush with the table top around it, so parts
@@ -15,8 +16,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from hrc import scenario as sc
 from hrc.geometry import Vec3
+from hrc.scenario.colors import (
+    BOARD_RGBA,
+    FEEDER_RGBA,
+    FEEDER_WALL_RGBA,
+    PICKING_TABLE_RGBA,
+    TABLE_RGBA,
+    TARGET_MARKER_RGBA,
+)
+from hrc.scenario.models import HUMAN, Scenario
 
 BOARD_SIZE: Vec3 = (0.60, 0.40, 0.02)
 TABLE_THICKNESS = 0.04
@@ -76,24 +85,24 @@ def _slab(
     )
 
 
-def furniture(scenario: sc.Scenario) -> list[StaticBox]:
+def furniture(scenario: Scenario) -> list[StaticBox]:
     """Board, table, picking tables, feeders with their walls, target markers."""
     boxes: list[StaticBox] = []
     bx, by, bz = BOARD_SIZE
     board = (-bx / 2, -by / 2, bx / 2, by / 2)
     boxes.append(
         StaticBox(
-            "board", (0.0, 0.0, -bz / 2), (bx / 2, by / 2, bz / 2), rgba=(0.1, 0.45, 0.2, 1.0)
+            "board", (0.0, 0.0, -bz / 2), (bx / 2, by / 2, bz / 2), rgba=BOARD_RGBA
         )
     )
     # The table carries the board and the participant's parts.
     human = [
         _footprint((p.start.xyz[0], p.start.xyz[1]), p.size, p.start.yaw)
         for p in scenario.parts
-        if p.owner == sc.HUMAN and p.start is not None
+        if p.owner == HUMAN and p.start is not None
     ]
     boxes.append(
-        _slab("table", _union([board, *human]), 0.0, TABLE_MARGIN, (0.55, 0.45, 0.35, 1.0))
+        _slab("table", _union([board, *human]), 0.0, TABLE_MARGIN, TABLE_RGBA)
     )
 
     for rid, robot in scenario.robots.items():
@@ -104,7 +113,7 @@ def furniture(scenario: sc.Scenario) -> list[StaticBox]:
             )
             top = min(s.xyz[2] - p.size[2] / 2 for p, s in own if s is not None)
             boxes.append(
-                _slab(f"{rid}_picking_table", bounds, top, PICKING_MARGIN, (0.5, 0.5, 0.55, 1.0))
+                _slab(f"{rid}_picking_table", bounds, top, PICKING_MARGIN, PICKING_TABLE_RGBA)
             )
         if robot.feeder is not None:
             fx, fy, fz = robot.feeder
@@ -116,7 +125,7 @@ def furniture(scenario: sc.Scenario) -> list[StaticBox]:
                     f"{rid}_feeder",
                     (fx, fy, 0.5 * (top + bottom)),
                     (FEEDER_HALF, FEEDER_HALF, 0.5 * (top - bottom)),
-                    rgba=(0.3, 0.3, 0.3, 1.0),
+                    rgba=FEEDER_RGBA,
                 )
             )
             wall_top = top + FEEDER_WALL_HEIGHT
@@ -125,7 +134,7 @@ def furniture(scenario: sc.Scenario) -> list[StaticBox]:
                     f"{rid}_feeder_wall",
                     (fx, fy - FEEDER_WALL_GAP, 0.5 * (wall_top + bottom)),
                     (1.5 * FEEDER_HALF, 0.005, 0.5 * (wall_top - bottom)),
-                    rgba=(0.35, 0.35, 0.35, 1.0),
+                    rgba=FEEDER_WALL_RGBA,
                 )
             )
 
@@ -138,7 +147,7 @@ def furniture(scenario: sc.Scenario) -> list[StaticBox]:
                 (p.size[0] / 2, p.size[1] / 2, p.size[2] / 2),
                 t.yaw,
                 collides=False,
-                rgba=(1.0, 1.0, 1.0, 0.25),
+                rgba=TARGET_MARKER_RGBA,
             )
         )
     return boxes
