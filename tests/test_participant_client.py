@@ -230,3 +230,103 @@ def test_immersive_controller_grabs_and_places_h1(
     controller_to([x - 0.4, y - 0.2, top + 0.1])  # away, so the robots can finish
     page.screenshot("xr-after-placing.png")
     assert not page.errors, page.errors
+
+
+# ---------------------------------------------------------------- pictures
+
+
+def hue_sat(rgb: tuple[int, int, int]) -> tuple[float, float, float]:
+    h, s, v = colorsys.rgb_to_hsv(*(c / 255 for c in rgb))
+    return h * 360, s, v
+
+
+def hex_rgb(color: str) -> tuple[int, int, int]:
+    return int(color[1:3], 16), int(color[3:5], 16), int(color[5:7], 16)
+
+
+def looks_like(pixel: tuple[int, int, int], color: str, tol_deg: float = 10.0) -> bool:
+    """Same hue (lighting changes brightness, not hue) and clearly coloured."""
+    h, s, _ = hue_sat(pixel)
+    eh, _, _ = hue_sat(hex_rgb(color))
+    return s > 0.35 and min(abs(h - eh), 360 - abs(h - eh)) <= tol_deg
+
+
+def found_near(img: Any, xy: tuple[float, float], color: str, radius: int) -> bool:
+    x0, y0 = round(xy[0]), round(xy[1])
+    w, h = img.size
+    return any(
+        looks_like(img.getpixel((x, y)), color)
+        for x in range(max(0, x0 - radius), min(w, x0 + radius + 1), 2)
+        for y in range(max(0, y0 - radius), min(h, y0 + radius + 1), 2)
+    )
+
+
+def slow_minimal(tmp_path: Path) -> Path:
+    """minimal.toml with slower robots, so a carry lasts long enough for several pictures."""
+    text = MINIMAL.read_text().replace("max_tcp_speed = 0.5", "max_tcp_speed = 0.15")
+    assert "max_tcp_speed = 0.15" in text
+    path = tmp_path / "minimal-slow.toml"
+    path.write_text(text)
+    return path
+
+
+def test_pictures_while_a_robot_carries_with_anticipation(
+    browser: Any, live: Callable[..., tuple[Trial, str]], tmp_path: Path
+) -> None:
+    trial, url = live(slow_minimal(tmp_path))
+    desk = Page(browser, url + "?mode=desktop")
+    # a second client: a spectator, in an emulated headset looking down at the board
+    xr = Page(browser, url + "?test=iwer")
+    assert xr.state()["role"] == "spectator"
+    xr.page.click("#enter-vr")
+    xr.wait("immersive session", lambda s: s["xr"], 10)
+    xr.page.evaluate(
+        """() => {
+            const d = window.hrcXrDevice;
+            d.position.set(0, 1.55, 0);
+            d.quaternion.set(-0.33, 0, 0, 0.944);  // 38 degrees down
+        }"""
+    )
+    scene = desk.scene()
+    assert scene["anticipation"] is True
+    # the first grab starts the task; H1 is let go where it was, the hand goes back to rest
+    grab_part(desk, "H1")
+    desk.keys(" ")
+    desk.wait("H1 let go", lambda s: s["objects"]["H1"]["holder"] == "", 5)
+    desk.keys("r")
+    for page in (desk, xr):
+        page.wait("r1 carries RA1", lambda s: s["objects"]["RA1"]["holder"] == "r1", 30)
+
+    robot = next(r for r in scene["robots"] if r["id"] == "r1")
+    cue = next(c for c in scene["cues"] if c["id"] == "target:RA1")
+    h1 = desk.part("H1")
+    board_color = scene["board"].get("color", "#1f7336")
+    # both pages stop applying frames while they are photographed: the positions read and the
+    # pictures agree (a software-rendered screenshot takes a few hundred ms here)
+    for page in (desk, xr):
+        page.page.evaluate("window.hrcTest.freeze(true)")
+    for page, view in ((desk, "desktop"), (xr, "xr")):
+        cue_px = page.project([cue["position"][0], cue["position"][1], 0.003])
+        lit, dark = 0, 0
+        s = page.state()
+        assert s["objects"]["RA1"]["holder"] == "r1", "the carry ended before the pictures"
+        assert s["cues"]["target:RA1"]["on"], "r1 carries RA1 but its target cue is off"
+        for i in range(10):
+            tcp = s["robots"]["r1"]["tcp"]
+            tcp_px = page.project(tcp)
+            ra1_px = page.project(s["objects"]["RA1"]["p"])
+            img = page.screenshot(f"{view}-carry-{i}.png")
+            assert found_near(img, tcp_px, robot["color"], 14), f"{view} {i}: no r1 at its TCP"
+            assert found_near(img, ra1_px, desk.part("RA1")["color"], 6), f"{view} {i}: RA1"
+            h1_at = s["objects"]["H1"]["p"]
+            top = [h1_at[0], h1_at[1], h1_at[2] + h1["size"][2] / 2]
+            assert found_near(img, page.project(top), h1["color"], 4), f"{view} {i}: H1"
+            pixel = img.getpixel((round(cue_px[0]), round(cue_px[1])))
+            lit += looks_like(pixel, cue["color"])
+            dark += looks_like(pixel, board_color, 25)
+            if lit >= 1 and dark >= 1 and i >= 1:
+                break
+            time.sleep(0.13)
+        page.page.evaluate("window.hrcTest.freeze(false)")
+        assert lit >= 1 and dark >= 1, f"{view}: the target cue did not blink ({lit} lit, {dark})"
+    assert not desk.errors and not xr.errors, (desk.errors, xr.errors)

@@ -64,7 +64,7 @@ export class Hud {
         new THREE.PlaneGeometry(1, 1),
         new THREE.MeshBasicMaterial({ map: tex, transparent: true }),
       );
-      this.sprite.rotation.set(Math.PI / 2, Math.PI / 6, 0, 'ZXY'); // upright, turned to the participant
+      this.sprite.rotation.set(Math.PI / 2, 0, 0.6, 'ZXY'); // upright, turned to the participant
       this.sprite.position.set(-0.75, 0.35, 0.3); // left of the board, clear of the robots
       this.sprite.visible = false;
       root.add(this.sprite);

@@ -182,6 +182,7 @@ class App {
         this.hud.message('');
         break;
       case 'frame':
+        if (this.frozen) break; // a test holds the picture still (hrcTest.freeze)
         this.frames++;
         this.world.applyFrame(m);
         this.robots.applyFrame(m);
@@ -345,6 +346,11 @@ window.hrcTest = {
       events: app.events.map((e) => e.kind + (e.part ? `:${e.part}` : '')),
       sent: app.bridge.sent,
     };
+  },
+  /** Stops (true) or resumes (false) applying the bridge's frames, so that a screenshot and
+   * the positions read before it agree; rendering, blinking and sending go on. */
+  freeze: (on) => {
+    window.hrcApp.frozen = !!on;
   },
   /** Render intervals of the page (ms), newest last; `reset` clears them. */
   frameTimes: (reset = false) => {
