@@ -9,6 +9,7 @@ _MODULES = {
     "bus": "hrc.cli.bench_bus",
     "physics": "hrc.cli.bench_physics",
     "ik": "hrc.cli.bench_ik",
+    "client": "hrc.cli.bench_client",
 }
 
 

@@ -55,7 +55,7 @@ class RunState:
     FAILED = "failed"
 
 
-RobotEntry = tuple[tuple[float, ...], tuple[float, ...], str]  # q, tcp, status
+RobotEntry = tuple[tuple[float, ...], tuple[float, ...], str, int]  # q, tcp, status, command
 ObjectEntry = tuple[tuple[float, ...], tuple[float, ...], str, bool, bool]  # p, q, holder, ...
 
 
@@ -113,7 +113,12 @@ class WorldMirror:
         else:  # names the scene does not know: as sent
             q = tuple(r4(x) for x in msg.joint_positions)
         p = msg.tcp.position
-        self.robots[msg.robot] = (q, (r4(p.x), r4(p.y), r4(p.z)), motion_status(msg.status))
+        self.robots[msg.robot] = (
+            q,
+            (r4(p.x), r4(p.y), r4(p.z)),
+            motion_status(msg.status),
+            int(msg.command_id),
+        )
 
     def on_indicators(self, msg: pb.Indicators) -> None:
         for cue in msg.cues:
@@ -129,25 +134,26 @@ class WorldMirror:
         t = msg.header.sim_time
         if msg.kind == pb.TASK_EVENT_KIND_TASK_STARTED and self.task_start is None:
             self.task_start = t - msg.task_time
+        if msg.kind in PERCEIVABLE:
+            event = {
+                "type": "event",
+                "tick": msg.header.tick,
+                "t_s": r4(t),
+                "task_t_s": r4(msg.task_time) if self.task_start is not None else None,
+                "kind": event_kind(msg.kind),
+                "part": msg.part,
+                "robot": msg.robot or (msg.agent if msg.agent != "human" else ""),
+                "hand": msg.hand,
+                "text": msg.text,
+            }
+            self.events.append(json.dumps(event, separators=(",", ":")))
+        # the run message follows the event that changed it
+        if msg.kind == pb.TASK_EVENT_KIND_TASK_STARTED:
             self.set_run(RunState.RUNNING)
         elif msg.kind == pb.TASK_EVENT_KIND_TASK_FINISHED:
             self.set_run(RunState.FINISHED, msg.text)
         elif msg.kind == pb.TASK_EVENT_KIND_STALLED:
             self.set_run(RunState.FAILED, msg.text)
-        if msg.kind not in PERCEIVABLE:
-            return
-        event = {
-            "type": "event",
-            "tick": msg.header.tick,
-            "t_s": r4(t),
-            "task_t_s": r4(msg.task_time) if self.task_start is not None else None,
-            "kind": event_kind(msg.kind),
-            "part": msg.part,
-            "robot": msg.robot or (msg.agent if msg.agent != "human" else ""),
-            "hand": msg.hand,
-            "text": msg.text,
-        }
-        self.events.append(json.dumps(event, separators=(",", ":")))
 
     def set_run(self, state: str, reason: str = "") -> None:
         if state == self.run:
@@ -211,7 +217,7 @@ class ClientView:
 def frame_json(view: ClientView, snap: Snapshot, dropped: int) -> str:
     """The next frame for one client (only what changed for it), and remembers it as sent."""
     robots = {
-        rid: {"q": list(e[0]), "tcp": list(e[1]), "status": e[2]}
+        rid: {"q": list(e[0]), "tcp": list(e[1]), "status": e[2], "command": e[3]}
         for rid, e in snap.robots.items()
         if view.robots.get(rid) != e
     }
