@@ -184,7 +184,7 @@ def test_desktop_page_completes_the_minimal_task(
 def test_immersive_controller_grabs_and_places_h1(
     browser: Any, live: Callable[..., tuple[Trial, str]]
 ) -> None:
-    trial, url = live()
+    _trial, url = live()
     page = Page(browser, url + "?test=iwer")
     page.page.click("#enter-vr")  # a user gesture, as a headset's browser needs
     page.wait("immersive session", lambda s: s["xr"], 10)
@@ -273,7 +273,7 @@ def slow_minimal(tmp_path: Path) -> Path:
 def test_pictures_while_a_robot_carries_with_anticipation(
     browser: Any, live: Callable[..., tuple[Trial, str]], tmp_path: Path
 ) -> None:
-    trial, url = live(slow_minimal(tmp_path))
+    _trial, url = live(slow_minimal(tmp_path))
     desk = Page(browser, url + "?mode=desktop")
     # a second client: a spectator, in an emulated headset looking down at the board
     xr = Page(browser, url + "?test=iwer")

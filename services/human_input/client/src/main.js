@@ -60,7 +60,8 @@ class App {
     this.serverHands = null;
     this.lastSample = '';
     this.lastSentMs = 0;
-    this.frameMs = [];
+    this.frameMs = []; // intervals between rendered frames
+    this.workMs = []; // the page's own work per frame (update + render call)
     this.events = [];
     this.frames = 0;
     this.sceneMsg = null;
@@ -68,7 +69,7 @@ class App {
 
   async init() {
     const canvas = document.getElementById('view');
-    const renderer = new THREE.WebGLRenderer({ canvas, antialias: true });
+    const renderer = new THREE.WebGLRenderer({ canvas, antialias: params.get('aa') !== '0' });
     renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
     renderer.setSize(window.innerWidth, window.innerHeight, false);
     renderer.xr.enabled = true;
@@ -250,6 +251,8 @@ class App {
     this.hud.set('task', this.taskT === null || this.taskT === undefined ? '-' : `${this.taskT.toFixed(1)} s`);
     if (!this.xr.active() && this.mode === 'desktop') this.hud.set('hand', driving ? this.desktop.statusLine() : '');
     this.renderer.render(this.scene, this.camera);
+    this.workMs.push(performance.now() - now);
+    if (this.workMs.length > 2000) this.workMs.shift();
   }
 
   spectatorHands() {
@@ -352,10 +355,15 @@ window.hrcTest = {
   freeze: (on) => {
     window.hrcApp.frozen = !!on;
   },
-  /** Render intervals of the page (ms), newest last; `reset` clears them. */
+  /** The page's frame times (ms), oldest first: `intervals` between rendered frames and the
+   * `work` of each (update + render call); `reset` clears them. */
   frameTimes: (reset = false) => {
-    const out = [...window.hrcApp.frameMs];
-    if (reset) window.hrcApp.frameMs.length = 0;
+    const app = window.hrcApp;
+    const out = { intervals: [...app.frameMs], work: [...app.workMs] };
+    if (reset) {
+      app.frameMs.length = 0;
+      app.workMs.length = 0;
+    }
     return out;
   },
 };

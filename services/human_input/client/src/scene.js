@@ -291,6 +291,14 @@ export class World {
       if (o.placed !== undefined) part.placed = o.placed;
       if (o.grabbable !== undefined) part.grabbable = o.grabbable;
     }
+    // a lit cue whose live definition differs from the scene's (an outline where its part is
+    // now, ...): outlines follow their part anyway; the others move to the new position
+    for (const [id, def] of Object.entries(f.cue_defs || {})) {
+      const cue = this.cues.get(id);
+      if (!cue || !def.position || cue.obj.userData.followPart) continue;
+      const [x, y, z] = def.position;
+      cue.obj.position.set(x, y, cue.spec.kind === 'target' ? cue.obj.position.z : z);
+    }
     for (const [id, v] of Object.entries(f.cues || {})) {
       const cue = this.cues.get(id);
       if (!cue) continue;

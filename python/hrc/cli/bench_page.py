@@ -1,0 +1,55 @@
+"""The participant page's frame time, a figure of ``hrc bench client``.
+
+The page (services/human_input/client, as the bridge serves it) runs in headless Debian
+chromium with software WebGL (:mod:`hrc.browser`) as a spectator of the bench's live trial,
+desktop view, 1280 x 800. It records, per rendered frame, the interval since the previous one and
+its own work (scene update and the render call); the figures are their p50 / p95 over a window
+while the robots move. Without a GPU the interval is mostly SwiftShader's rasterisation: it says
+how heavy the scene is, not what a headset would show.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import TYPE_CHECKING, Any
+
+from hrc.browser import headless_chromium
+
+if TYPE_CHECKING:
+    from hrc.cli.bench_client import BenchContext
+
+VIEWPORT = {"width": 1280, "height": 800}
+
+
+def _pct(xs: list[float], q: float) -> float:
+    if not xs:
+        return math.nan
+    s = sorted(xs)
+    return s[max(0, min(len(s) - 1, math.ceil(q / 100 * len(s)) - 1))]
+
+
+def page_frame_time(url: str, seconds: float = 5.0, warmup_s: float = 2.0) -> dict[str, Any]:
+    """Opens the page at ``url`` (a running live trial's bridge) and measures its frame times
+    for ``seconds`` after ``warmup_s``; p50 / p95 in ms and the frame count."""
+    with headless_chromium() as browser:
+        page = browser.new_page(viewport=VIEWPORT)
+        page.goto(url + "?mode=desktop")
+        page.wait_for_function("window.hrcTest && window.hrcTest.ready()", timeout=60_000)
+        time.sleep(warmup_s)
+        page.evaluate("window.hrcTest.frameTimes(true)")
+        time.sleep(seconds)
+        times = page.evaluate("window.hrcTest.frameTimes(true)")
+    intervals: list[float] = times["intervals"]
+    work: list[float] = times["work"]
+    return {
+        "frames": len(intervals),
+        "interval_ms": {"p50": round(_pct(intervals, 50), 1), "p95": round(_pct(intervals, 95), 1)},
+        "work_ms": {"p50": round(_pct(work, 50), 1), "p95": round(_pct(work, 95), 1)},
+        "viewport": f"{VIEWPORT['width']}x{VIEWPORT['height']}",
+    }
+
+
+def page_figures(ctx: BenchContext) -> dict[str, Any]:
+    """For :data:`hrc.cli.bench_client.EXTRA_FIGURES`."""
+    return {"page_frame_ms": page_frame_time(ctx.url)}
