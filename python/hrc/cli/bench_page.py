@@ -17,9 +17,11 @@ from typing import TYPE_CHECKING, Any
 from hrc.browser import headless_chromium
 
 if TYPE_CHECKING:
+    from playwright.sync_api import ViewportSize
+
     from hrc.cli.bench_client import BenchContext
 
-VIEWPORT = {"width": 1280, "height": 800}
+VIEWPORT: ViewportSize = {"width": 1280, "height": 800}
 
 
 def _pct(xs: list[float], q: float) -> float:

@@ -4,7 +4,7 @@
 // button (or the page's button) takes the table height from the right controller resting on the
 // table top and the standing point from where the head is.
 import * as THREE from 'three';
-import { toWorldPosition, toWorldQuaternion } from './frames.js';
+import { toWorldPosition, toWorldQuaternion, yawQuat } from './frames.js';
 
 export class XrInput {
   constructor({ renderer, root, onCalibrate }) {
@@ -64,7 +64,7 @@ export class XrInput {
       const calib = value(buttons[4]) > 0.5;
       out[src.handedness] = {
         p: toWorldPosition(this.root, p),
-        q: toWorldQuaternion(q),
+        q: this.heading(q),
         grip: Math.min(1, Math.max(0, grip)),
         xr: p,
         calib,
@@ -74,6 +74,16 @@ export class XrInput {
     if (pressed && !this.calibrateHeld) this.onCalibrate?.(this.calibration(out));
     this.calibrateHeld = pressed;
     return out;
+  }
+
+  /** A hand's orientation from its controller: the controller's heading only (yaw about the
+   * vertical), palm down. Grip spaces differ between controllers (a Touch controller's is
+   * pitched 45 degrees from its ray) and the task needs only the yaw: a held part stays flat. */
+  heading(q) {
+    const fwd = new THREE.Vector3(0, 0, -1).applyQuaternion(q); // XR: -z is forward
+    if (Math.hypot(fwd.x, fwd.z) < 0.2) fwd.set(0, 1, 0).applyQuaternion(q); // pointing down
+    // XR (x, -z) is world (x, y); an identity hand's fingers point along world +y
+    return yawQuat(Math.atan2(-fwd.x, -fwd.z));
   }
 
   /** The calibration from the present poses: the table height from the right (else left)
