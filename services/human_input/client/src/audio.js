@@ -1,6 +1,6 @@
 // Sounds synthesized in the page with WebAudio (no audio files): a chime when a part is placed,
 // an alert on a collision, a click when the continue button is pressed. Every sound triggered is
-// appended to `window.hrcAudioLog` ({sound, t_ms, state}) for the browser tests.
+// appended to `window.hrcAudioLog` ({sound, cause, t_ms, state}) for the browser tests.
 let ctx = null;
 window.hrcAudioLog = [];
 
@@ -51,9 +51,9 @@ const SOUNDS = {
   },
 };
 
-export function play(sound) {
+export function play(sound, cause = '') {
   const ac = context();
-  window.hrcAudioLog.push({ sound, t_ms: performance.now(), state: ac ? ac.state : 'none' });
+  window.hrcAudioLog.push({ sound, cause, t_ms: performance.now(), state: ac ? ac.state : 'none' });
   if (!ac) return;
   SOUNDS[sound](ac, ac.currentTime + 0.01);
 }

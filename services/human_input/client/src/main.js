@@ -214,7 +214,7 @@ class App {
     this.events.push(ev);
     if (this.events.length > 500) this.events.shift();
     const sound = soundForEvent(ev.kind);
-    if (sound) play(sound);
+    if (sound) play(sound, ev.kind + (ev.part ? `:${ev.part}` : ''));
     if (ev.kind === 'collision') this.hud.message('collision: pull your hand back');
     else if (ev.kind === 'continued' || ev.kind === 'collision_end') this.hud.message('');
     else if (ev.kind === 'task_finished') this.hud.message('task finished');
