@@ -244,3 +244,21 @@ def argv(svc: Service, settings: Settings) -> list[str]:
         for opt in (*_role_options(svc.role), *svc.options)
         for token in opt.argv(settings, svc.name)
     ]
+
+
+# human_input's VR bridge (input vr): where it listens by default, and how long a live trial waits
+# for its first client; the service's options and hrc run's take these defaults.
+VR_DEFAULT_HOST = "127.0.0.1"
+VR_DEFAULT_PORT = 8765
+VR_DEFAULT_WAIT_S = 300.0
+
+
+def vr_client_url(host: str, port: int, token: str | None = None) -> str:
+    """The participant client's page served by human_input's VR bridge on ``host:port`` (with
+    the token in the query when there is one): what ``hrc run --input vr`` prints."""
+    from urllib.parse import quote
+
+    shown = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
+    if ":" in shown and not shown.startswith("["):
+        shown = f"[{shown}]"
+    return f"http://{shown}:{port}/" + (f"?token={quote(token)}" if token else "")

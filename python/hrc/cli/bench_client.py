@@ -23,7 +23,6 @@ import json
 import logging
 import math
 import os
-import socket
 import sys
 import tempfile
 import threading
@@ -68,24 +67,15 @@ class LiveClient:
     """A participant client in Python: a reader thread keeps every message (with its arrival
     time) and the world merged from the frames' deltas."""
 
-    def __init__(self, url: str, recv_buffer: int | None = None, read: bool = True) -> None:
-        sock = None
-        if recv_buffer is not None:  # a small window: the bridge sees a slow reader at once
-            host_port = url.split("//", 1)[1].split("/", 1)[0]
-            host, port = host_port.rsplit(":", 1)
-            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-            sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, recv_buffer)
-            sock.connect((host, int(port)))
-        self.ws: ClientConnection = connect(url, open_timeout=10, sock=sock, max_size=None)
+    def __init__(self, url: str) -> None:
+        self.ws: ClientConnection = connect(url, open_timeout=10, max_size=None)
         self.messages: list[Received] = []
         self.robots: dict[str, dict[str, Any]] = {}
         self.objects: dict[str, dict[str, Any]] = {}
         self.cond = threading.Condition()
         self.closed = False
-        self._thread: threading.Thread | None = None
-        if read:
-            self._thread = threading.Thread(target=self._read, daemon=True)
-            self._thread.start()
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
 
     def _read(self) -> None:
         try:
@@ -146,8 +136,7 @@ class LiveClient:
     def close(self) -> None:
         with contextlib.suppress(Exception):
             self.ws.close()
-        if self._thread is not None:
-            self._thread.join(5)
+        self._thread.join(5)
 
 
 def move(client: LiveClient, a: Vec, b: Vec, grip: float, hold: Vec, steps: int = 20) -> None:
@@ -328,8 +317,9 @@ def measure(n: int, scenario: Path) -> dict[str, Any]:
                     "spectator": _traffic(spectator, i_spect, window),
                 },
             )
-            ctx = BenchContext(url.replace("ws://", "http://").removesuffix("/ws") + "/",
-                               scenario, n)
+            ctx = BenchContext(
+                url.replace("ws://", "http://").removesuffix("/ws") + "/", scenario, n
+            )
             for extra in EXTRA_FIGURES:
                 figures.update(extra(ctx))
         finally:
@@ -421,8 +411,17 @@ def run(args: argparse.Namespace) -> int:
             f"{c['dropped']} dropped"
         )
     for key, value in figures.items():
-        if key not in {"scenario", "n", "misses", "retreat_latency_ms",
-                       "collision_event_latency_ms", "retreat_motion_1mm_ms", "goal_p99_ms", "clients", "load_average"}:
+        if key not in {
+            "scenario",
+            "n",
+            "misses",
+            "retreat_latency_ms",
+            "collision_event_latency_ms",
+            "retreat_motion_1mm_ms",
+            "goal_p99_ms",
+            "clients",
+            "load_average",
+        }:
             print(f"{key}: {value}")
     print(f"load average {figures['load_average']}")
     return 0

@@ -11,6 +11,7 @@ import time
 from pathlib import Path
 
 from hrc.logsetup import setup_logging
+from hrc.services import VR_DEFAULT_HOST, VR_DEFAULT_PORT, VR_DEFAULT_WAIT_S
 
 log = logging.getLogger("hrc")
 
@@ -67,11 +68,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
         token = os.environ.get("HRC_VR_TOKEN") or None
         vr = VrOptions(args.vr_host, args.vr_port, args.vr_wait)
         if mode != "realtime":
-            print("note: a live participant in lockstep mode: simulation time will not follow "
-                  "the wall clock", file=sys.stderr)
+            print(
+                "note: a live participant in lockstep mode: simulation time will not follow "
+                "the wall clock",
+                file=sys.stderr,
+            )
         wait = f"waiting up to {args.vr_wait:g} s for it" if args.vr_wait > 0 else "not waiting"
-        print(f"live VR trial: open {vr.url(token)} ({wait}); the task clock starts on the "
-              "first grab", flush=True)
+        print(
+            f"live VR trial: open {vr.url(token)} ({wait}); the task clock starts on the "
+            "first grab",
+            flush=True,
+        )
     anticipation = s.conditions.anticipation
     trial_dir = (
         Path(args.out)
@@ -199,19 +206,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     r.add_argument(
         "--vr-host",
-        default=os.environ.get("HRC_VR_HOST", "127.0.0.1"),
+        default=os.environ.get("HRC_VR_HOST", VR_DEFAULT_HOST),
         help="live trial: the bridge's address (non-loopback needs HRC_VR_TOKEN)",
     )
     r.add_argument(
         "--vr-port",
         type=int,
-        default=int(os.environ.get("HRC_VR_PORT", 8765)),
+        default=int(os.environ.get("HRC_VR_PORT", VR_DEFAULT_PORT)),
         help="live trial: the bridge's port, the page's URL (default 8765)",
     )
     r.add_argument(
         "--vr-wait",
         type=float,
-        default=300.0,
+        default=VR_DEFAULT_WAIT_S,
         metavar="S",
         help="live trial: wait up to S s for the participant's client, then fail (default 300; "
         "0: start without one)",

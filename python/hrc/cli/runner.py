@@ -65,9 +65,9 @@ VR_START_MARGIN_S = 30.0  # physics waits this much longer than human_input wait
 class VrOptions:
     """A live trial's bridge (human_input's --vr-* options; the token comes from HRC_VR_TOKEN)."""
 
-    host: str = "127.0.0.1"
-    port: int = 8765
-    wait_s: float = 300.0  # for the first client; then the trial fails naming the URL
+    host: str = services.VR_DEFAULT_HOST
+    port: int = services.VR_DEFAULT_PORT
+    wait_s: float = services.VR_DEFAULT_WAIT_S  # for the first client; then the trial fails
 
     def argv(self) -> list[str]:
         return [
@@ -80,12 +80,7 @@ class VrOptions:
         ]
 
     def url(self, token: str | None) -> str:
-        from urllib.parse import quote
-
-        host = "127.0.0.1" if self.host in ("0.0.0.0", "::", "") else self.host
-        if ":" in host and not host.startswith("["):
-            host = f"[{host}]"
-        return f"http://{host}:{self.port}/" + (f"?token={quote(token)}" if token else "")
+        return services.vr_client_url(self.host, self.port, token)
 
 
 @dataclass

@@ -90,20 +90,14 @@ def furniture(scenario: Scenario) -> list[StaticBox]:
     boxes: list[StaticBox] = []
     bx, by, bz = BOARD_SIZE
     board = (-bx / 2, -by / 2, bx / 2, by / 2)
-    boxes.append(
-        StaticBox(
-            "board", (0.0, 0.0, -bz / 2), (bx / 2, by / 2, bz / 2), rgba=BOARD_RGBA
-        )
-    )
+    boxes.append(StaticBox("board", (0.0, 0.0, -bz / 2), (bx / 2, by / 2, bz / 2), rgba=BOARD_RGBA))
     # The table carries the board and the participant's parts.
     human = [
         _footprint((p.start.xyz[0], p.start.xyz[1]), p.size, p.start.yaw)
         for p in scenario.parts
         if p.owner == HUMAN and p.start is not None
     ]
-    boxes.append(
-        _slab("table", _union([board, *human]), 0.0, TABLE_MARGIN, TABLE_RGBA)
-    )
+    boxes.append(_slab("table", _union([board, *human]), 0.0, TABLE_MARGIN, TABLE_RGBA))
 
     for rid, robot in scenario.robots.items():
         own = [(p, p.start) for p in scenario.parts if p.owner == rid and p.start is not None]

@@ -153,7 +153,11 @@ def build_scene(msg: pb.Scenario, files: RobotFiles) -> dict[str, Any]:
         "participant": s.participant.name,
         "anticipation": s.conditions.anticipation,
         "safety_policy": s.conditions.safety_policy.value,
-        "board": {"size": v3(BOARD_SIZE), "center": v3(board.center), "color": rgba_hex(board.rgba)},
+        "board": {
+            "size": v3(BOARD_SIZE),
+            "center": v3(board.center),
+            "color": rgba_hex(board.rgba),
+        },
         "tables": tables,
         "floor_z": FLOOR_Z,
         "parts": parts,
@@ -174,16 +178,29 @@ def scene_cues(s: sc.Scenario, robot_colors: dict[str, str]) -> list[dict[str, A
     for p in s.parts:
         color = human if p.owner == sc.HUMAN else hex_color(robot_colors.get(p.owner, ""))
         cues.append(
-            _cue(target_cue_id(p.id), "target", p.id, "" if p.owner == sc.HUMAN else p.owner,
-                 color, p.target.xyz)
+            _cue(
+                target_cue_id(p.id),
+                "target",
+                p.id,
+                "" if p.owner == sc.HUMAN else p.owner,
+                color,
+                p.target.xyz,
+            )
         )
         if p.owner == sc.HUMAN and p.start is not None:
             cues.append(_cue(outline_cue_id(p.id), "outline", p.id, "", human, p.start.xyz))
     for rid, r in s.robots.items():
         above = [r.base.xyz[0], r.base.xyz[1], r.base.xyz[2] + WAITING_HEIGHT_M]
         cues.append(
-            _cue(waiting_cue_id(rid), "waiting", "", rid, hex_color(robot_colors[rid]), above,
-                 WAITING_TEXT)
+            _cue(
+                waiting_cue_id(rid),
+                "waiting",
+                "",
+                rid,
+                hex_color(robot_colors[rid]),
+                above,
+                WAITING_TEXT,
+            )
         )
     button = s.workspace.continue_button
     if button is not None:

@@ -12,18 +12,18 @@ import contextlib
 import logging
 import os
 from pathlib import Path
-from urllib.parse import quote
 
 from hrc.bus import Bus, Outcome
 from hrc.scenario import InputSource, ScenarioError
 from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit, fetch_scenario
+from hrc.services import VR_DEFAULT_WAIT_S, vr_client_url
 from hrc.wire import pb
 
 from hrc_human_input import facts as facts_mod
 from hrc_human_input.replay import Recorder, Recording, Replayer, ReplayError, load_recording
 from hrc_human_input.sample import Sample
-from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.scene import RobotFiles, build_scene, scene_cue_json
+from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource
 from hrc_human_input.stream import WorldMirror
 from hrc_human_input.task_view import TaskView
@@ -92,7 +92,7 @@ class HumanInputService(Service):
         p.add_argument(
             "--vr-wait",
             type=float,
-            default=float(os.environ.get("HRC_VR_WAIT", 300.0)),
+            default=float(os.environ.get("HRC_VR_WAIT", VR_DEFAULT_WAIT_S)),
             metavar="S",
             help="input vr: wait up to S seconds for a client before joining the run "
             "(default 300, env HRC_VR_WAIT; 0: do not wait); none came: exit 1 naming the URL",
@@ -219,7 +219,7 @@ class HumanInputService(Service):
         except BridgeConfigError as exc:
             raise ServiceExit(str(exc), EXIT_BAD_INPUT) from exc
         stack.callback(bridge.stop)
-        url = client_url(args.vr_host, port, args.vr_token)
+        url = vr_client_url(args.vr_host, port, args.vr_token)
         if args.vr_wait > 0:
             log.info("open %s to take part (waiting up to %g s for it)", url, args.vr_wait)
             if not bridge.wait_for_client(args.vr_wait):
@@ -267,11 +267,3 @@ class HumanInputService(Service):
         if self.recorder is not None:
             log.info("recorded %d samples to %s", self.recorder.count, self.args.record)
         return None
-
-
-def client_url(host: str, port: int, token: str | None) -> str:
-    """The page to open (with the token, when there is one)."""
-    shown = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
-    if ":" in shown and not shown.startswith("["):
-        shown = f"[{shown}]"
-    return f"http://{shown}:{port}/" + (f"?token={quote(token)}" if token else "")

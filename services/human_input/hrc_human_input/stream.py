@@ -39,12 +39,12 @@ EVENT_PREFIX = "TASK_EVENT_KIND_"
 STATUS_PREFIX = "MOTION_STATUS_"
 
 
-def event_kind(kind: int) -> str:
+def event_kind(kind: pb.TaskEventKind.ValueType) -> str:
     """The protocol's name of a task event kind: the enum name, lower case, without prefix."""
     return pb.TaskEventKind.Name(kind).removeprefix(EVENT_PREFIX).lower()
 
 
-def motion_status(status: int) -> str:
+def motion_status(status: pb.MotionStatus.ValueType) -> str:
     return pb.MotionStatus.Name(status).removeprefix(STATUS_PREFIX).lower()
 
 

@@ -31,14 +31,16 @@ from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
+from hrc.services import VR_DEFAULT_HOST, VR_DEFAULT_PORT
+
 from hrc_human_input.sample import Sample, parse_sample
 from hrc_human_input.scene import PROTOCOL_VERSION, RobotFiles
 from hrc_human_input.stream import ClientView, Snapshot, frame_json
 
 log = logging.getLogger(__name__)
 
-DEFAULT_HOST = "127.0.0.1"
-DEFAULT_PORT = 8765
+DEFAULT_HOST = VR_DEFAULT_HOST
+DEFAULT_PORT = VR_DEFAULT_PORT
 MAX_FRAME_BYTES = 64 * 1024
 WS_PATHS = ("/ws", "/")
 PAGE_PATHS = ("/", "/index.html")
@@ -250,10 +252,9 @@ class VrBridge:
             schedule = not self._wake_scheduled and loop is not None
             self._wake_scheduled = self._wake_scheduled or schedule
         if schedule and loop is not None:
-            try:
+            # RuntimeError: the loop has closed, nobody to send to
+            with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(self._deliver)
-            except RuntimeError:  # the loop has closed: nobody to send to
-                pass
 
     def flush(self, timeout: float = 1.0) -> None:
         """Waits (up to ``timeout``) until every client has been sent what was published: the
@@ -351,7 +352,9 @@ class VrBridge:
         c.closing = True
         self.stats.too_slow += 1
         log.warning(
-            "VR client %s: %d events waiting, disconnecting it (1013 too slow)", c.peer, len(c.outbox)
+            "VR client %s: %d events waiting, disconnecting it (1013 too slow)",
+            c.peer,
+            len(c.outbox),
         )
         c.outbox.clear()
         if c.task is not None:
@@ -582,7 +585,8 @@ class VrBridge:
                 or not 1.0 <= rate <= MAX_RATE_HZ
             ):
                 await self._error_reply(
-                    c.ws, [f"subscribe: rate_hz must be a number in [1, {MAX_RATE_HZ:g}], got {rate!r}"]
+                    c.ws,
+                    [f"subscribe: rate_hz must be a number in [1, {MAX_RATE_HZ:g}], got {rate!r}"],
                 )
             else:
                 c.rate_hz = float(rate)

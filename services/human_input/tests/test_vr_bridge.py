@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import socket
 import time
 import urllib.error
 import urllib.request
@@ -11,7 +12,16 @@ import pytest
 from websockets.exceptions import ConnectionClosed, InvalidStatus
 from websockets.sync.client import connect
 
-from hrc_human_input.vr_bridge import BridgeConfigError, VrBridge, check_bind, is_loopback
+from hrc.wire import pb
+
+from hrc_human_input.stream import ClientView, WorldMirror, event_kind, frame_json
+from hrc_human_input.vr_bridge import (
+    EVENT_QUEUE,
+    BridgeConfigError,
+    VrBridge,
+    check_bind,
+    is_loopback,
+)
 
 POSE = {"position": [0.1, -0.3, 0.2], "orientation": [0, 0, 0, 1]}
 SAMPLE = {"head": POSE, "left": POSE, "right": POSE, "left_grip": 0.0, "right_grip": 1.0}
@@ -64,6 +74,7 @@ def test_token_in_query_or_first_message() -> None:
             assert json.loads(ws.recv(timeout=5))["auth_required"] is True
             ws.send(json.dumps({"token": "s3cret"}))
             assert json.loads(ws.recv(timeout=5)) == {"type": "auth", "ok": True}
+            assert json.loads(ws.recv(timeout=5))["role"] == "driver"  # hello, now with its role
             ws.send(json.dumps({**SAMPLE, "left_grip": 0.5}))
             assert wait_for(lambda: bridge.latest().left_grip == 0.5)
         with connect(f"ws://127.0.0.1:{port}/ws") as ws:
@@ -76,16 +87,170 @@ def test_token_in_query_or_first_message() -> None:
         assert bridge.latest().left_grip == 0.5
 
 
-def test_serves_the_page() -> None:
-    with VrBridge("127.0.0.1", 0) as bridge:
+def test_serves_the_fallback_page_when_the_client_is_not_built(tmp_path) -> None:
+    with VrBridge("127.0.0.1", 0, client_dir=tmp_path / "missing") as bridge:
         base = f"http://127.0.0.1:{bridge.bound_port}"
         with urllib.request.urlopen(base + "/", timeout=5) as r:
             body = r.read().decode()
             assert r.headers["Content-Type"].startswith("text/html")
         assert "immersive-vr" in body and "navigator.xr" in body and "/ws" in body
+        assert "run <code>scripts/setup.sh</code>" in body
         with pytest.raises(urllib.error.HTTPError) as err:
             urllib.request.urlopen(base + "/nothing", timeout=5)
         assert err.value.code == 404
+
+
+def test_serves_the_client_bundle_and_nothing_outside_it(tmp_path) -> None:
+    dist = tmp_path / "dist"
+    (dist / "assets").mkdir(parents=True)
+    (dist / "index.html").write_text("<html>the client</html>")
+    (dist / "assets" / "app.js").write_text("export const x = 1;")
+    (tmp_path / "secret.txt").write_text("no")
+    (dist / "assets" / "link.js").symlink_to(tmp_path / "secret.txt")
+    with VrBridge("127.0.0.1", 0, client_dir=dist) as bridge:
+        base = f"http://127.0.0.1:{bridge.bound_port}"
+        with urllib.request.urlopen(base + "/", timeout=5) as r:
+            assert r.read() == b"<html>the client</html>"
+        with urllib.request.urlopen(base + "/assets/app.js", timeout=5) as r:
+            assert r.headers["Content-Type"].startswith("text/javascript")
+            assert r.read() == b"export const x = 1;"
+        for bad in (
+            "/assets/../../secret.txt",
+            "/assets/%2e%2e/%2e%2e/secret.txt",
+            "/assets/link.js",
+            "/index.html/../../secret.txt",
+            "/robots/anything.urdf",
+        ):
+            with pytest.raises(urllib.error.HTTPError) as err:
+                urllib.request.urlopen(base + bad, timeout=5)
+            assert err.value.code == 404, bad
+
+
+def test_the_second_client_is_a_spectator_until_the_driver_leaves() -> None:
+    with VrBridge("127.0.0.1", 0, scene={"type": "scene", "protocol": 1}) as bridge:
+        url = f"ws://127.0.0.1:{bridge.bound_port}/ws"
+        with connect(url) as first, connect(url) as second:
+            assert json.loads(first.recv(timeout=5))["role"] == "driver"
+            assert json.loads(first.recv(timeout=5))["type"] == "scene"
+            assert json.loads(second.recv(timeout=5))["role"] == "spectator"
+            assert json.loads(second.recv(timeout=5))["type"] == "scene"
+            second.send(json.dumps(SAMPLE))
+            reply = json.loads(second.recv(timeout=5))
+            assert reply["type"] == "error" and reply["error"].startswith("spectator")
+            assert bridge.latest() is None
+            first.close()
+            hello = json.loads(second.recv(timeout=5))
+            assert hello["type"] == "hello" and hello["role"] == "driver"
+            second.send(json.dumps(SAMPLE))
+            assert wait_for(lambda: bridge.latest() is not None)
+
+
+def _publish(bridge: VrBridge, mirror: WorldMirror, k: int, objects: int = 0) -> None:
+    mirror.robots["r1"] = ((k * 1e-3, 0.0), (0.1, 0.2, 0.3), "moving", 1)
+    for i in range(objects):  # all moving: ~100 bytes each per frame
+        mirror.objects[f"P{i}"] = (
+            (k * 1e-4, i * 0.01, 0.02),
+            (0.0, 0.0, 0.0, 1.0),
+            "",
+            False,
+            True,
+        )
+    bridge.publish(*mirror.snapshot(k, k / 240, None))
+
+
+def test_frames_follow_the_rate_the_client_asks_for() -> None:
+    mirror = WorldMirror({"r1": ["a", "b"]}, {})
+    with (
+        VrBridge("127.0.0.1", 0) as bridge,
+        connect(f"ws://127.0.0.1:{bridge.bound_port}/ws") as ws,
+    ):
+        json.loads(ws.recv(timeout=5))  # hello
+        ws.send(json.dumps({"type": "subscribe", "rate_hz": 20}))
+        time.sleep(0.2)
+        t0 = time.monotonic()
+        k = 0
+        while time.monotonic() - t0 < 1.0:  # 240 snapshots a second
+            k += 1
+            _publish(bridge, mirror, k)
+            time.sleep(1 / 240)
+        frames = []
+        with pytest.raises(TimeoutError):
+            while True:
+                frames.append(json.loads(ws.recv(timeout=0.5)))
+        assert all(f["type"] == "frame" for f in frames)
+        assert 3 <= len(frames) <= 25, len(frames)  # ~20 in the second (+ the first at once)
+        assert frames[-1]["robots"]["r1"]["q"][0] == pytest.approx(k * 1e-3, abs=0.02)  # latest
+
+
+def test_a_client_that_never_reads_loses_frames_then_is_dropped_when_events_pile_up() -> None:
+    mirror = WorldMirror({}, {})
+    with VrBridge("127.0.0.1", 0) as bridge:
+        sock = socket.socket()
+        sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+        sock.connect(("127.0.0.1", bridge.bound_port))
+        sock.sendall(
+            b"GET /ws HTTP/1.1\r\nHost: x\r\nUpgrade: websocket\r\nConnection: Upgrade\r\n"
+            b"Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nSec-WebSocket-Version: 13\r\n\r\n"
+        )
+        t0 = time.monotonic()
+        k = 0
+        while time.monotonic() - t0 < 3.0:  # publishing never waits on the client
+            k += 1
+            before = time.perf_counter()
+            _publish(bridge, mirror, k, objects=20)
+            assert time.perf_counter() - before < 0.05
+            time.sleep(1 / 240)
+        assert bridge.stats.frames_dropped > 50, bridge.stats
+        assert bridge.stats.too_slow == 0
+        for i in range(EVENT_QUEUE + 10):  # events are never dropped: beyond the queue, 1013
+            mirror.set_run("running" if i % 2 else "waiting_first_grab")
+            _publish(bridge, mirror, k + i)
+        assert wait_for(lambda: bridge.stats.too_slow == 1), bridge.stats
+        sock.close()
+
+
+def test_frames_carry_only_what_changed_for_each_client() -> None:
+    mirror = WorldMirror({"r1": ["b", "a"]}, {})
+    mirror.on_robot_state(
+        pb.RobotState(robot="r1", joint_names=["a", "b"], joint_positions=[0.1, 0.2], command_id=3)
+    )
+    objects = pb.WorldObjects()
+    for oid in ("H1", "RA1"):
+        o = objects.objects.add(id=oid, grabbable=oid == "H1")
+        o.pose.orientation.w = 1.0
+    mirror.on_objects(objects)
+    mirror.on_indicators(pb.Indicators(cues=[pb.Cue(id="outline:H1", on=True, color="blue")]))
+    view = ClientView()
+    first = json.loads(frame_json(view, mirror.snapshot(1, 0.1, None)[0], 0))
+    assert first["robots"]["r1"]["q"] == [0.2, 0.1]  # the scene's joint order
+    assert first["robots"]["r1"]["command"] == 3
+    assert set(first["objects"]) == {"H1", "RA1"} and first["cues"] == {"outline:H1": True}
+    assert "cue_defs" in first  # the scene did not define this cue: its live definition
+    moved = pb.WorldObjects()
+    o = moved.objects.add(id="H1", held_by="right")
+    o.pose.position.z = 0.1
+    o.pose.orientation.w = 1.0
+    mirror.on_objects(moved)
+    second = json.loads(frame_json(view, mirror.snapshot(2, 0.2, None)[0], 0))
+    assert second["robots"] == {} and second["cues"] == {} and "cue_defs" not in second
+    assert list(second["objects"]) == ["H1"] and second["objects"]["H1"]["holder"] == "right"
+    assert second["seq"] == 2 and second["tick"] == 2
+    # another client that joins now gets everything
+    late = json.loads(frame_json(ClientView(), mirror.snapshot(3, 0.3, None)[0], 0))
+    assert set(late["objects"]) == {"H1", "RA1"} and set(late["robots"]) == {"r1"}
+
+
+def test_event_kinds_are_the_enum_names() -> None:
+    assert event_kind(pb.TASK_EVENT_KIND_PART_PLACED) == "part_placed"
+    assert event_kind(pb.TASK_EVENT_KIND_ROBOT_WAIT_OVER) == "robot_wait_over"
+    mirror = WorldMirror({}, {})
+    mirror.on_task_event(pb.TaskEvent(kind=pb.TASK_EVENT_KIND_TASK_STARTED, part="H1"))
+    mirror.on_task_event(pb.TaskEvent(kind=pb.TASK_EVENT_KIND_ROBOT_PHASE, robot="r1"))
+    sent = [json.loads(e) for e in mirror.snapshot(1, 0.0, None)[1]]
+    assert [(e["type"], e.get("kind"), e.get("state")) for e in sent] == [
+        ("event", "task_started", None),
+        ("run", None, "running"),
+    ]  # a robot's phase is not something the participant perceives
 
 
 def test_non_loopback_bind_needs_a_token() -> None:
