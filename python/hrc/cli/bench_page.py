@@ -4,13 +4,16 @@ The page (services/human_input/client, as the bridge serves it) runs in headless
 chromium with software WebGL (:mod:`hrc.browser`) as a spectator of the bench's live trial,
 desktop view, 1280 x 800. It records, per rendered frame, the interval since the previous one and
 its own work (scene update and the render call); the figures are their p50 / p95 over a window
-while the robots move. Without a GPU the interval is mostly SwiftShader's rasterisation: it says
-how heavy the scene is, not what a headset would show.
+while the robots move. Without a GPU the interval is mostly SwiftShader's rasterisation, and on a
+loaded machine mostly waiting for a core: the CPU time chromium's processes spent per frame
+(`cpu_ms_per_frame`: GPU process, page's renderer, all) is the figure that load changes least.
+It says how heavy the scene is, not what a headset would show.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -31,6 +34,38 @@ def _pct(xs: list[float], q: float) -> float:
     return s[max(0, min(len(s) - 1, math.ceil(q / 100 * len(s)) - 1))]
 
 
+def _children(pid: int) -> list[int]:
+    try:
+        with open(f"/proc/{pid}/task/{pid}/children") as f:
+            kids = [int(x) for x in f.read().split()]
+    except OSError:
+        return []
+    return kids + [g for k in kids for g in _children(k)]
+
+
+def _chromium_cpu_s() -> dict[str, float]:
+    """CPU seconds (user + system) so far of this process's chromium descendants, by kind."""
+    tick = os.sysconf("SC_CLK_TCK")
+    out = {"gpu": 0.0, "renderer": 0.0, "all": 0.0}
+    for pid in _children(os.getpid()):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                cmd = f.read().decode(errors="replace")
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if "chrom" not in cmd:
+            continue
+        cpu = (int(fields[11]) + int(fields[12])) / tick  # utime, stime
+        out["all"] += cpu
+        if "--type=gpu-process" in cmd:
+            out["gpu"] += cpu
+        elif "--type=renderer" in cmd:
+            out["renderer"] += cpu
+    return out
+
+
 def page_frame_time(url: str, seconds: float = 5.0, warmup_s: float = 2.0) -> dict[str, Any]:
     """Opens the page at ``url`` (a running live trial's bridge) and measures its frame times
     for ``seconds`` after ``warmup_s``; p50 / p95 in ms and the frame count."""
@@ -40,12 +75,16 @@ def page_frame_time(url: str, seconds: float = 5.0, warmup_s: float = 2.0) -> di
         page.wait_for_function("window.hrcTest && window.hrcTest.ready()", timeout=60_000)
         time.sleep(warmup_s)
         page.evaluate("window.hrcTest.frameTimes(true)")
+        cpu0 = _chromium_cpu_s()
         time.sleep(seconds)
         times = page.evaluate("window.hrcTest.frameTimes(true)")
+        cpu1 = _chromium_cpu_s()
     intervals: list[float] = times["intervals"]
     work: list[float] = times["work"]
+    n = max(1, len(intervals))
     return {
         "frames": len(intervals),
+        "cpu_ms_per_frame": {k: round(1000 * (cpu1[k] - cpu0[k]) / n, 1) for k in cpu0},
         "interval_ms": {"p50": round(_pct(intervals, 50), 1), "p95": round(_pct(intervals, 95), 1)},
         "work_ms": {"p50": round(_pct(work, 50), 1), "p95": round(_pct(work, 95), 1)},
         "viewport": f"{VIEWPORT['width']}x{VIEWPORT['height']}",

@@ -38,6 +38,17 @@ function standParam() {
 
 const KEEPALIVE_MS = 500; // an unchanged sample is still sent this often
 
+/** WebGL drawn by the CPU (SwiftShader, llvmpipe: headless browsers, machines without a GPU),
+ * where antialiasing costs about a third of each frame. */
+function softwareWebGl() {
+  const gl = document.createElement('canvas').getContext('webgl2');
+  if (!gl) return false;
+  const info = gl.getExtension('WEBGL_debug_renderer_info');
+  const name = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : '';
+  gl.getExtension('WEBGL_lose_context')?.loseContext();
+  return /swiftshader|llvmpipe|software/i.test(name);
+}
+
 async function main() {
   if (params.get('test') === 'iwer') {
     // the WebXR emulation runtime, a separate bundle: only the browser tests load it
@@ -69,7 +80,9 @@ class App {
 
   async init() {
     const canvas = document.getElementById('view');
-    const renderer = new THREE.WebGLRenderer({ canvas, antialias: params.get('aa') !== '0' });
+    const aa = params.get('aa');
+    const antialias = aa === null ? !softwareWebGl() : aa !== '0';
+    const renderer = new THREE.WebGLRenderer({ canvas, antialias });
     renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
     renderer.setSize(window.innerWidth, window.innerHeight, false);
     renderer.xr.enabled = true;
