@@ -83,7 +83,8 @@ class Page:
         self.errors: list[str] = []
         self.page.on("pageerror", lambda e: self.errors.append(str(e)))
         self.page.goto(url)
-        self.page.wait_for_function("window.hrcTest && window.hrcTest.ready()", timeout=30_000)
+        # generous: on a loaded machine software WebGL renders a frame or two a second
+        self.page.wait_for_function("window.hrcTest && window.hrcTest.ready()", timeout=90_000)
         assert not self.errors, self.errors
 
     def state(self) -> dict[str, Any]:
@@ -142,7 +143,7 @@ def grab_part(page: Page, pid: str) -> None:
     page.move_over(x, y)
     page.height_to(top)
     page.keys(" ")
-    page.wait(f"{pid} held", lambda s: s["objects"][pid]["holder"] in ("left", "right"), 10)
+    page.wait(f"{pid} held", lambda s: s["objects"][pid]["holder"] in ("left", "right"), 20)
 
 
 def place_part(page: Page, pid: str) -> None:
@@ -153,7 +154,7 @@ def place_part(page: Page, pid: str) -> None:
     page.move_over(x, y)
     page.height_to(top)
     page.keys(" ")
-    page.wait(f"{pid} placed", lambda s: s["objects"][pid]["placed"], 10)
+    page.wait(f"{pid} placed", lambda s: s["objects"][pid]["placed"], 20)
     page.keys("r")  # the hand back to rest, out of the robots' way
 
 
@@ -188,7 +189,7 @@ def test_immersive_controller_grabs_and_places_h1(
     _trial, url = live()
     page = Page(browser, url + "?test=iwer")
     page.page.click("#enter-vr")  # a user gesture, as a headset's browser needs
-    page.wait("immersive session", lambda s: s["xr"], 10)
+    page.wait("immersive session", lambda s: s["xr"], 20)
     h1 = page.part("H1")
     x, y, z = h1["start"]["xyz"]
     top = z + h1["size"][2] / 2
@@ -215,7 +216,7 @@ def test_immersive_controller_grabs_and_places_h1(
     controller_to([x, y, top])
     time.sleep(0.3)
     squeeze(1.0)
-    page.wait("H1 held", lambda s: s["objects"]["H1"]["holder"] == "right", 10)
+    page.wait("H1 held", lambda s: s["objects"]["H1"]["holder"] == "right", 20)
     controller_to([x, y, top + 0.08])
     time.sleep(0.3)
     controller_to([tx, ty, tz + h1["size"][2] / 2 + 0.08])
@@ -223,7 +224,7 @@ def test_immersive_controller_grabs_and_places_h1(
     controller_to([tx, ty, tz + h1["size"][2] / 2])
     time.sleep(0.3)
     squeeze(0.0)
-    page.wait("H1 placed", lambda s: "part_placed:H1" in s["events"], 10)
+    page.wait("H1 placed", lambda s: "part_placed:H1" in s["events"], 20)
     sounds = page.page.evaluate("window.hrcAudioLog")
     chimes = [a for a in sounds if a["cause"] == "part_placed:H1"]
     assert [a["sound"] for a in chimes] == ["chime"], sounds
@@ -281,7 +282,7 @@ def test_pictures_while_a_robot_carries_with_anticipation(
     xr = Page(browser, url + "?test=iwer")
     assert xr.state()["role"] == "spectator"
     xr.page.click("#enter-vr")
-    xr.wait("immersive session", lambda s: s["xr"], 10)
+    xr.wait("immersive session", lambda s: s["xr"], 20)
     xr.page.evaluate(
         """() => {
             const d = window.hrcXrDevice;
@@ -291,11 +292,16 @@ def test_pictures_while_a_robot_carries_with_anticipation(
     )
     scene = desk.scene()
     assert scene["anticipation"] is True
+    # each page stops applying frames at the first one in which r1 holds RA1 (the XR page may
+    # run seconds behind on a loaded machine): the positions read and the pictures then agree
+    # (the condition is a state: a page told after the grasp freezes at its next frame)
+    xr.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1')")
     # the first grab starts the task; H1 is let go where it was, the hand goes back to rest
     grab_part(desk, "H1")
     desk.keys(" ")
-    desk.wait("H1 let go", lambda s: s["objects"]["H1"]["holder"] == "", 5)
+    desk.wait("H1 let go", lambda s: s["objects"]["H1"]["holder"] == "", 20)
     desk.keys("r")
+    desk.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1')")
     for page in (desk, xr):
         page.wait("r1 carries RA1", lambda s: s["objects"]["RA1"]["holder"] == "r1", 30)
 
@@ -303,10 +309,6 @@ def test_pictures_while_a_robot_carries_with_anticipation(
     cue = next(c for c in scene["cues"] if c["id"] == "target:RA1")
     h1 = desk.part("H1")
     board_color = scene["board"].get("color", "#1f7336")
-    # both pages stop applying frames while they are photographed: the positions read and the
-    # pictures agree (a software-rendered screenshot takes a few hundred ms here)
-    for page in (desk, xr):
-        page.page.evaluate("window.hrcTest.freeze(true)")
     for page, view in ((desk, "desktop"), (xr, "xr")):
         cue_px = page.project([cue["position"][0], cue["position"][1], 0.003])
         lit, dark = 0, 0

@@ -203,6 +203,10 @@ class App {
         if (m.run) this.setRun(m.run);
         if (m.task_t_s !== undefined) this.taskT = m.task_t_s;
         if (m.hands) this.serverHands = m.hands;
+        if (this.freezeOn && this.world.parts.get(this.freezeOn.part)?.holder === this.freezeOn.holder) {
+          this.frozen = true; // hrcTest.freezeWhen: the awaited moment is on screen now
+          this.freezeOn = null;
+        }
         break;
       case 'event':
         this.onEvent(m);
@@ -367,6 +371,11 @@ window.hrcTest = {
    * the positions read before it agree; rendering, blinking and sending go on. */
   freeze: (on) => {
     window.hrcApp.frozen = !!on;
+  },
+  /** Freezes the page (as freeze(true)) at the first frame in which `part` is held by
+   * `holder`, however late this page runs behind the trial. */
+  freezeWhen: (part, holder) => {
+    window.hrcApp.freezeOn = { part, holder };
   },
   /** The page's frame times (ms), oldest first: `intervals` between rendered frames and the
    * `work` of each (update + render call); `reset` clears them. */
