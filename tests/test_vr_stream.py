@@ -118,7 +118,7 @@ def test_clients_get_scene_frames_and_events_of_a_live_trial(tmp_path, ik_bin) -
             assert get(http + "/")[0] == 200
 
             # the first frame has everything; the robots' joints in the scene's order
-            first = of_kind(driver, "frame")
+            first = of_kind(driver, "frame", 150)  # the logger may take long to start
             assert set(first["objects"]) == {"H1", "RA1"}  # S1 comes from the feeder later
             assert first["run"] == "waiting_first_grab" and first["task_t_s"] is None
 

@@ -151,7 +151,7 @@ def move(client: LiveClient, a: Vec, b: Vec, grip: float, hold: Vec, steps: int 
 def grab(client: LiveClient, part: dict[str, Any], lift: float = 0.10) -> Vec:
     """Grabs a part at its start with the right hand and lifts it; returns where the hand is.
     Waits for the trial to tick first (it joins the run once a client has connected)."""
-    if client.wait_for(lambda m: m.msg.get("type") == "frame" and m.msg["tick"] > 10, 60) is None:
+    if client.wait_for(lambda m: m.msg.get("type") == "frame" and m.msg["tick"] > 10, 150) is None:
         raise RuntimeError("the trial never started ticking")
     x, y, z = part["start"]["xyz"]
     grasp = (x, y, z + min(0.02, part["size"][2] / 2))

@@ -219,7 +219,8 @@ class HumanInputService(Service):
         except BridgeConfigError as exc:
             raise ServiceExit(str(exc), EXIT_BAD_INPUT) from exc
         stack.callback(bridge.stop)
-        url = vr_client_url(args.vr_host, port, args.vr_token)
+        # the token stays out of the logs: hrc run prints the URL with it on the console
+        url = vr_client_url(args.vr_host, port) + ("?token=..." if args.vr_token else "")
         if args.vr_wait > 0:
             log.info("open %s to take part (waiting up to %g s for it)", url, args.vr_wait)
             if not bridge.wait_for_client(args.vr_wait):
