@@ -211,8 +211,22 @@ def test_immersive_controller_grabs_and_places_h1(
             "(v) => window.hrcXrDevice.controllers.right.updateButtonValue('squeeze', v)", v
         )
 
+    # calibration: the right controller on the (real) table top, A pressed -> the table height
+    page.page.evaluate(
+        """() => {
+            const c = window.hrcXrDevice.controllers.right;
+            c.position.set(0.1, 0.93, -0.5);
+            c.updateButtonValue('a-button', 1);
+        }"""
+    )
+
+    def board_y() -> float:
+        return float(page.page.evaluate("window.hrcTest.worldToXr([0, 0, 0])[1]"))
+
+    assert wait_until(lambda: abs(board_y() - 0.93) < 1e-6, 10), board_y()
+    page.page.evaluate("window.hrcXrDevice.controllers.right.updateButtonValue('a-button', 0)")
     controller_to([x, y, top + 0.08])
-    page.wait("right hand tracked", lambda s: abs(s["hands"]["right"]["p"][0] - x) < 0.005, 5)
+    page.wait("right hand tracked", lambda s: abs(s["hands"]["right"]["p"][0] - x) < 0.005, 10)
     controller_to([x, y, top])
     time.sleep(0.3)
     squeeze(1.0)

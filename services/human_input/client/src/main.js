@@ -160,6 +160,7 @@ class App {
         }
       });
       this.hud.showHelp(false);
+      this.hud.set('hand', 'calibrate: right controller on the table top, press A');
     } else {
       this.desktop.enable();
       this.helpShown = true;
@@ -171,7 +172,9 @@ class App {
     if (tableHeight !== null && tableHeight > 0.3 && tableHeight < 1.6) this.tableHeight = tableHeight;
     placeRoot(this.root, this.tableHeight, this.stand, origin || this.root.userData.origin);
     if (this.sceneMsg) this.world.buildFurniture(); // the floor moves with the table height
-    this.hud.message(`calibrated: table height ${this.tableHeight.toFixed(2)} m`);
+    const text = `calibrated: table height ${this.tableHeight.toFixed(2)} m (A again to redo)`;
+    this.hud.message(text);
+    this.hud.set('hand', text); // the panel is what a headset shows
   }
 
   resize() {
