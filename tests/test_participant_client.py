@@ -212,10 +212,11 @@ def test_immersive_controller_grabs_and_places_h1(
         )
 
     # calibration: the right controller on the (real) table top, A pressed -> the table height
+    # is its grip's height (the grip centre sits 1-2 cm from the emulated controller's origin)
     page.page.evaluate(
         """() => {
             const c = window.hrcXrDevice.controllers.right;
-            c.position.set(0.1, 0.93, -0.5);
+            c.position.set(0.1, 1.05, -0.5);
             c.updateButtonValue('a-button', 1);
         }"""
     )
@@ -223,7 +224,7 @@ def test_immersive_controller_grabs_and_places_h1(
     def board_y() -> float:
         return float(page.page.evaluate("window.hrcTest.worldToXr([0, 0, 0])[1]"))
 
-    assert wait_until(lambda: abs(board_y() - 0.93) < 1e-6, 10), board_y()
+    assert wait_until(lambda: abs(board_y() - 1.05) < 0.025, 10), board_y()
     page.page.evaluate("window.hrcXrDevice.controllers.right.updateButtonValue('a-button', 0)")
     controller_to([x, y, top + 0.08])
     page.wait("right hand tracked", lambda s: abs(s["hands"]["right"]["p"][0] - x) < 0.005, 10)
