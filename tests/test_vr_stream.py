@@ -139,7 +139,7 @@ def test_clients_get_scene_frames_and_events_of_a_live_trial(tmp_path, ik_bin) -
 
             place_h1(driver, scene)
             placed = driver.wait_for(
-                lambda m: m.msg.get("kind") == "part_placed" and m.msg.get("part") == "H1", 30
+                lambda m: m.msg.get("kind") == "part_placed" and m.msg.get("part") == "H1", 120
             )
             assert placed is not None, [m.msg for m in driver.messages if m.msg["type"] != "frame"]
             ev = placed[1].msg
@@ -161,7 +161,7 @@ def test_clients_get_scene_frames_and_events_of_a_live_trial(tmp_path, ik_bin) -
             assert set(driver.robots) == {"r1", "r2"}
             assert len(driver.robots["r1"]["q"]) == 5 and len(driver.robots["r1"]["tcp"]) == 3
             done = driver.wait_for(
-                lambda m: m.msg.get("type") == "run" and m.msg["state"] == "finished", 60
+                lambda m: m.msg.get("type") == "run" and m.msg["state"] == "finished", 180
             )
             assert done is not None
             kinds = [m.msg["kind"] for m in driver.messages if m.msg.get("type") == "event"]
@@ -192,33 +192,46 @@ def test_a_stalled_client_neither_slows_the_trial_nor_the_others(tmp_path, ik_bi
     with trial as (_session, result):
         driver = connect_when_up(ws_url)
         stalled = stalled_client(port)
+        stalled_port = stalled.getsockname()[1]
         try:
             scene = of_kind(driver, "scene")
             place_h1(driver, scene)
             done = driver.wait_for(
-                lambda m: m.msg.get("type") == "run" and m.msg["state"] == "finished", 90
+                lambda m: m.msg.get("type") == "run" and m.msg["state"] == "finished", 180
             )
             assert done is not None, "the task did not finish with a stalled client attached"
-            frames = [m for m in driver.messages if m.msg.get("type") == "frame"]
-            span = frames[-1].t - frames[0].t
-            # the driver kept getting its frames at its rate (90 Hz; loose for a loaded machine)
-            assert len(frames) / span > 30, f"{len(frames)} frames in {span:.1f} s"
-            assert frames[-1].msg["dropped"] <= len(frames) / 10
+            driver_frames = [m.msg for m in driver.messages if m.msg.get("type") == "frame"]
+            assert driver_frames[-1]["run"] == "finished"  # it got frames to the end
         finally:
             driver.close()
             stalled.close()
     r = result()
     assert r is not None and r.ok, r.message if r else "no result"
-    assert r.run_end is not None and r.run_end.realtime_factor > 0.8, r.run_end
     log = (tmp_path / "trial" / "services" / "human_input.log").read_text()
+    # the tick never waited on a client: a send that blocked the tick thread would take seconds
+    # (timings are not asserted otherwise: the machine may be loaded)
+    compute = re.search(r"hrc.bus.lockstep: \d+ ticks; mean us per tick: .*compute (\d+)", log)
+    assert compute is not None and int(compute.group(1)) < 20_000, compute
     summary = re.search(r"VR bridge: .* (\d+) frames sent, (\d+) dropped", log)
     assert summary is not None, log[-2000:]
     assert int(summary.group(2)) > 10, summary.group(0)
-    # the stalled client's frames: a few until the buffers filled up, then dropped
-    per_client = [
-        (int(a), int(b)) for a, b in re.findall(r"\) left: (\d+) frames, (\d+) dropped", log)
-    ]
-    assert any(dropped > sent for sent, dropped in per_client), per_client
+    # the stalled client's frames: a few until the buffers filled up, then dropped; the
+    # driver's: all it was due
+    per_client = {
+        int(p): (int(a), int(b))
+        for p, a, b in re.findall(
+            r"VR client [\d.]+:(\d+) \(\w+\) left: (\d+) frames, (\d+) dropped", log
+        )
+    }
+    assert len(per_client) == 2 and stalled_port in per_client, per_client
+    stalled_sent, stalled_dropped = per_client.pop(stalled_port)
+    ((driver_sent, driver_dropped),) = per_client.values()
+    assert stalled_dropped > stalled_sent, per_client
+    assert driver_sent > stalled_sent and driver_dropped <= driver_sent / 10, (
+        driver_sent,
+        driver_dropped,
+        stalled_sent,
+    )
 
 
 def test_a_live_trial_nobody_joins_ends_naming_the_url(tmp_path, ik_bin) -> None:

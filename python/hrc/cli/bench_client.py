@@ -362,11 +362,14 @@ def _retreat_frames(
     return None if second is None else (first[1], second[1])
 
 
-def _stats(xs: list[float]) -> dict[str, float]:
+def _stats(xs: list[float]) -> dict[str, float | None]:
+    """p50 / p99 / max in ms (None without samples: JSON has no NaN)."""
+    if not xs:
+        return {"p50": None, "p99": None, "max": None}
     return {
         "p50": round(percentile(xs, 50), 1),
         "p99": round(percentile(xs, 99), 1),
-        "max": round(max(xs), 1) if xs else math.nan,
+        "max": round(max(xs), 1),
     }
 
 
@@ -398,6 +401,9 @@ def run(args: argparse.Namespace) -> int:
         return 0
     lat, ev = figures["retreat_latency_ms"], figures["collision_event_latency_ms"]
     mo = figures["retreat_motion_1mm_ms"]
+    if lat["p50"] is None:
+        print("no collision was measured", file=sys.stderr)
+        return 1
     print(f"scenario {figures['scenario']}, {figures['n']} collisions ({figures['misses']} missed)")
     print(
         f"hand pose -> retreat visible  p50 {lat['p50']:.1f} ms  p99 {lat['p99']:.1f} ms  "
