@@ -141,7 +141,7 @@ def test_thesis_run_writes_every_spec_metric(tmp_path: Path) -> None:
     for path in SPEC_FIELDS:
         dig(data, path)
     assert data["scenario"] == "thesis-board" and data["participant"] == "P01"
-    assert data["conditions"] == {"anticipation": True, "safety_policy": "retreat"}
+    assert data["conditions"] == {"anticipation": True, "safety_policy": "retreat", "ssm": None}
     assert data["task"]["completion_s"] is not None, "the task did not finish"
     assert data["run"]["mode"] == "lockstep" and data["run"]["ticks"] > 0
     assert set(data["robots"]) == {"r1", "r2"}

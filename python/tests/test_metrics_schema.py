@@ -23,6 +23,19 @@ def full_metrics() -> pb.Metrics:
     m = pb.Metrics(scenario="s", participant="P", seed=2**63 + 5)
     m.conditions.anticipation = True
     m.conditions.safety_policy = pb.SAFETY_POLICY_RETREAT_BUTTON
+    m.conditions.ssm.CopyFrom(
+        pb.SsmParams(
+            human_speed=1.6,
+            reaction_time_s=0.1,
+            deceleration=2.0,
+            intrusion_distance_m=0.048,
+            sensing_uncertainty_m=0.02,
+            position_uncertainty_m=0.01,
+            min_speed=0.01,
+            resume_margin_m=0.05,
+            sensing_range_m=2.0,
+        )
+    )
     m.task.started, m.task.finished, m.task.completion_s = True, True, 45.5
     m.human.completion_s, m.human.idle_s = 39.25, 1.5
     m.robots["r2"].CopyFrom(
@@ -31,6 +44,15 @@ def full_metrics() -> pb.Metrics:
     m.robots["r1"].CopyFrom(
         pb.RobotMetrics(completion_s=45.5, idle_s=0.0, avg_tcp_speed_mps=0.3, max_tcp_speed_mps=0.5)
     )
+    for rid, stops in (("r1", 2), ("r2", 0)):
+        m.robots[rid].ssm.CopyFrom(
+            pb.SsmMetrics(
+                min_separation_m=0.125,
+                reduced_speed_s=12.5,
+                protective_stop_count=stops,
+                protective_stop_s=1.5 * stops,
+            )
+        )
     col = m.collisions
     col.human_robot.add(t_s=3.5, robot="r2", hand="right", delay_s=1.5)
     col.human_robot_count, col.total_delay_s = 1, 1.5

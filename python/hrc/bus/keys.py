@@ -85,6 +85,10 @@ class Keys:
     def world_contacts(self) -> str:
         return self._k("world", "contacts")
 
+    def world_separation(self) -> str:
+        """Separations (physics, only under safety_policy = ssm)."""
+        return self._k("world", "separation")
+
     def world_commands(self) -> str:
         return self._k("world", "commands")
 

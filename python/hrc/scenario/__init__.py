@@ -29,6 +29,7 @@ from hrc.scenario.models import (
     Scenario,
     ScenarioInfo,
     ScriptedParams,
+    Ssm,
     Workspace,
 )
 from hrc.scenario.motion_check import PlannedMove, check_motion, planned_moves
@@ -53,6 +54,7 @@ __all__ = [
     "ScenarioError",
     "ScenarioInfo",
     "ScriptedParams",
+    "Ssm",
     "Workspace",
     "check_motion",
     "find_project_root",

@@ -22,6 +22,7 @@ from hrc.scenario.models import (
     Scenario,
     ScenarioInfo,
     ScriptedParams,
+    Ssm,
     Workspace,
 )
 from hrc.wire import pb
@@ -54,6 +55,9 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
             safety_policy=scenario.conditions.safety_policy.to_proto(),
         )
     )
+    if scenario.conditions.safety_policy == SafetyPolicy.SSM:
+        # Only under ssm: the other policies' conditions (and metrics.json) stay as they were.
+        msg.conditions.ssm.CopyFrom(ssm_to_proto(scenario.conditions.ssm))
 
     for rid, robot in scenario.robots.items():
         rc = msg.robots.add()
@@ -71,6 +75,7 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
             rc.feeder.CopyFrom(vec3_to_pb(robot.feeder))
         rc.screw_time_s = robot.screw_time_or_default
         rc.near_margin = robot.near_margin
+        rc.ssm.CopyFrom(ssm_to_proto(scenario.ssm_of(rid)))
 
     for p in scenario.parts:
         pcfg = msg.parts.add()
@@ -99,6 +104,10 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
     msg.source_path = str(scenario.source_path) if scenario.source_path else ""
     msg.source_toml = scenario.source_text
     return msg
+
+
+def ssm_to_proto(params: Ssm) -> pb.SsmParams:
+    return pb.SsmParams(**params.model_dump())
 
 
 def scripted_params_to_proto(params: ScriptedParams) -> pb.ScriptedParams:
@@ -144,6 +153,19 @@ def _wire_key(loc: tuple[int | str, ...]) -> str:
     return f"participant.{key}" if loc and loc[0] in ScriptedParams.model_fields else key
 
 
+def ssm_from_proto(msg: pb.SsmParams) -> Ssm:
+    # Every field: a message carries all of them (0 is a valid value for some).
+    return Ssm.model_validate({f.name: getattr(msg, f.name) for f in msg.DESCRIPTOR.fields})
+
+
+def _robot_ssm(rc: pb.RobotConfig, defaults: Ssm) -> Ssm | None:
+    """The robot's overrides: its effective values, or None where they are the defaults'."""
+    if not rc.HasField("ssm"):
+        return None
+    own = ssm_from_proto(rc.ssm)
+    return None if own == defaults else own
+
+
 def _set_fields(msg: pb.ScriptedParams) -> dict[str, float | bool]:
     return {field.name: getattr(msg, field.name) for field, _ in msg.ListFields()}
 
@@ -163,6 +185,7 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
         }
     )
 
+    conditions_ssm = ssm_from_proto(msg.conditions.ssm) if msg.conditions.HasField("ssm") else Ssm()
     robots: dict[str, Robot] = {}
     for rc in msg.robots:
         role = _member(RobotRole, rc.role, f"robots.{rc.id}.role", source)
@@ -178,6 +201,7 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
             feeder=_vec_back(rc.feeder) if rc.HasField("feeder") else None,
             screw_time_s=rc.screw_time_s if role == RobotRole.SCREWING else None,
             near_margin=rc.near_margin,
+            ssm=_robot_ssm(rc, conditions_ssm),
         )
 
     parts = [
@@ -211,6 +235,7 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
                 source,
                 Conditions().safety_policy,
             ),
+            ssm=conditions_ssm,
         ),
         robots=robots,
         parts=parts,

@@ -51,6 +51,7 @@ class SafetyPolicy(WireEnum):
     RETREAT = "retreat"
     RETREAT_BUTTON = "retreat_button"
     STOP_COLLIDING = "stop_colliding"
+    SSM = "ssm"  # speed and separation monitoring (docs/safety-ssm.md)
 
     def to_proto(self) -> pb.SafetyPolicy.ValueType:
         return cast("pb.SafetyPolicy.ValueType", super().to_proto())

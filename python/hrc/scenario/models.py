@@ -27,6 +27,9 @@ DEFAULT_TICK_HZ = 240.0
 MAX_TICK_HZ = 2000.0
 MAX_TCP_SPEED = 1.5  # m/s, upper bound allowed for any robot
 DEFAULT_NEAR_MARGIN = 0.05  # m, inflated-volume margin for robot-robot near collisions
+# m/s^2: the arms' acceleration limit (the IK service's MotionLimits::max_tcp_accel), so the
+# hardest an arm brakes: an ssm deceleration above it would assume braking the arm cannot do.
+ARM_MAX_TCP_ACCEL = 2.0
 DEFAULT_SCREW_TIME_S = 1.0
 DEFAULT_TOLERANCE_M = 0.02
 DEFAULT_TOLERANCE_DEG = 20.0
@@ -146,9 +149,36 @@ class Participant(ScriptedParams):
         return ScriptedParams(**{name: getattr(self, name) for name in ScriptedParams.model_fields})
 
 
+class Ssm(_Strict):
+    """Speed and separation monitoring parameters (safety_policy = "ssm"): the defaults of
+    [conditions.ssm], overridden key by key per robot in [robots.<id>.ssm]. Meaning, default and
+    source of each: docs/safety-ssm.md. They travel as `pb.SsmParams`."""
+
+    human_speed: Annotated[float, Field(gt=0.0, le=5.0, allow_inf_nan=False)] = 1.6
+    reaction_time_s: Annotated[float, Field(ge=0.0, le=2.0, allow_inf_nan=False)] = 0.1
+    deceleration: Annotated[float, Field(gt=0.0, le=ARM_MAX_TCP_ACCEL, allow_inf_nan=False)] = (
+        ARM_MAX_TCP_ACCEL
+    )
+    intrusion_distance_m: Annotated[float, Field(ge=0.0, le=1.5, allow_inf_nan=False)] = 0.048
+    sensing_uncertainty_m: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.02
+    position_uncertainty_m: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.01
+    min_speed: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.01
+    resume_margin_m: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.05
+    sensing_range_m: Annotated[float, Field(gt=0.0, le=10.0, allow_inf_nan=False)] = 2.0
+
+    def merged(self, override: Ssm | None) -> Ssm:
+        """These values with the keys `override`'s table sets (a robot's own [ssm] table)."""
+        if override is None:
+            return self.model_copy()
+        return self.model_copy(
+            update={name: getattr(override, name) for name in override.model_fields_set}
+        )
+
+
 class Conditions(_Strict):
     anticipation: bool = True
     safety_policy: PolicyChoice = SafetyPolicy.RETREAT
+    ssm: Ssm = Field(default_factory=Ssm)
 
 
 class Robot(_Strict):
@@ -165,6 +195,7 @@ class Robot(_Strict):
     feeder: Vec3 | None = None  # screwing robots only (required there)
     screw_time_s: Annotated[float, Field(ge=0.0, le=60.0, allow_inf_nan=False)] | None = None
     near_margin: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = DEFAULT_NEAR_MARGIN
+    ssm: Ssm | None = None  # overrides of [conditions.ssm] for this robot (only the keys set)
 
     _id: str = PrivateAttr(default="")
 
@@ -277,6 +308,10 @@ class Scenario(_Strict):
     @property
     def parts_by_id(self) -> dict[str, Part]:
         return {part.id: part for part in self.parts}
+
+    def ssm_of(self, robot_id: str) -> Ssm:
+        """The robot's effective SSM parameters: [conditions.ssm] with its own overrides."""
+        return self.conditions.ssm.merged(self.robot(robot_id).ssm)
 
     def robot(self, robot_id: str) -> Robot:
         try:

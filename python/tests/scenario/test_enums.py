@@ -17,6 +17,7 @@ TABLE: list[tuple[type[WireEnum], str, int]] = [
     (SafetyPolicy, "retreat", pb.SAFETY_POLICY_RETREAT),
     (SafetyPolicy, "retreat_button", pb.SAFETY_POLICY_RETREAT_BUTTON),
     (SafetyPolicy, "stop_colliding", pb.SAFETY_POLICY_STOP_COLLIDING),
+    (SafetyPolicy, "ssm", pb.SAFETY_POLICY_SSM),
     (RobotRole, "transport", pb.ROBOT_ROLE_TRANSPORT),
     (RobotRole, "screwing", pb.ROBOT_ROLE_SCREWING),
     (InputSource, "scripted", pb.INPUT_SOURCE_SCRIPTED),
@@ -51,7 +52,7 @@ def test_unset_and_unknown_wire_values() -> None:
     with pytest.raises(ValueError, match="no value 99"):
         InputSource.from_proto(99)
     assert SafetyPolicy.parse("pray") is None and SafetyPolicy.parse(None) is None
-    with pytest.raises(ValueError, match="use one of retreat, retreat_button, stop_colliding"):
+    with pytest.raises(ValueError, match="use one of retreat, retreat_button, stop_colliding, ssm"):
         enum_number(pb.SafetyPolicy.DESCRIPTOR, "pray")
     with pytest.raises(ValueError):
         enum_number(pb.SafetyPolicy.DESCRIPTOR, "RETREAT")  # the text is lower case

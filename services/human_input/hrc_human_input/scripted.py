@@ -8,11 +8,12 @@ the target yaw -> lower -> dwell, open the grip -> placed? withdraw : grab it ag
 Around that:
 - a human-robot collision (COLLISION event, or a hand-robot contact) makes it pull the hand back
   after a reflex delay and wait until the robots continue (CONTINUED; COLLISION_END for
-  `stop_colliding`); a held part may still be placed meanwhile; under `retreat_button` the free
-  hand presses the continue button whenever its cue is on (whatever the other hand does, and
-  again every few seconds while the cue stays on: a press that did not register). A hand that
-  still touches a robot after `TOUCH_MAX_S` is pulled right back to rest (a person does not
-  lean on a halted robot).
+  `stop_colliding`; under `ssm` it pulls the hand back to rest, out of the robot's protective
+  zone, so the robot resumes); a held part may still be placed meanwhile; under
+  `retreat_button` the free hand presses the continue button whenever its cue is on (whatever
+  the other hand does, and again every few seconds while the cue stays on: a press that did not
+  register). A hand that still touches a robot after `TOUCH_MAX_S` is pulled right back to
+  rest (a person does not lean on a halted robot).
 - `caution` in [0, 1] makes it hold back before a reach while a robot is heading into the region
   it wants to reach: radius 0.08 + 0.17 * caution m around the goal; with anticipation it knows
   where robots are heading from their lit target cues (and that a robot showing "Waiting.." is not
@@ -332,6 +333,10 @@ class ScriptedParticipant:
         if not holding:
             hand.do(Grip(0.0))
         back = (hand.pos[0], max(HAND_Y_MIN, hand.pos[1] + PULLBACK[1]), hand.pos[2] + PULLBACK[2])
+        if self.facts.safety_policy == SafetyPolicy.SSM:
+            # The touched robot stays in its protective stop while the hand is near it: a short
+            # pull-back could leave both waiting for each other.
+            back = REST[self.active]
         hand.do(Dwell(self._rt(0.5), "reflex"), Move(back, None, GROSS_WIDTH, "pull back"))
         self._set(Phase.PULLBACK, t, "collision")
 

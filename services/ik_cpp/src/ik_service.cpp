@@ -146,6 +146,13 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
     return "unknown robot '" + robot + "' (this scenario has " + known + ")";
   }
   Arm& arm = arms_[static_cast<std::size_t>(i)];
+  if (c.kind() == v2::RobotCommand::KIND_SPEED_SCALE) {
+    // Only the speed along the current path changes; the command id the state echoes stays.
+    if (!(c.speed_scale() >= 0.0 && c.speed_scale() <= 1.0))  // also false for NaN
+      return "speed_scale " + fmt(c.speed_scale()) + " is outside [0, 1]";
+    arm.motion->set_speed_scale(c.speed_scale());
+    return {};
+  }
   const double nums[] = {c.target().x(),      c.target().y(),    c.target().z(), c.yaw_deg(),
                          c.approach_height(), c.depart_height(), c.max_speed()};
   for (const double v : nums) {
@@ -169,7 +176,7 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
     case v2::RobotCommand::KIND_HOLD: arm.motion->hold(); break;
     default:
       return "command kind " + std::to_string(static_cast<int>(c.kind())) +
-             " is neither MOVE nor HOLD";
+             " is neither MOVE, HOLD nor SPEED_SCALE";
   }
   arm.command_id = c.command_id();
   return {};
@@ -216,6 +223,13 @@ void IkEngine::fill_state(std::size_t index, v2::RobotState& out) const {
   out.set_motion_kind(to_wire(s.kind));
   out.set_command_id(arm.command_id);
   if (out.detail() != s.detail) out.set_detail(s.detail);
+  // Unset at scale 1: the policies without speed scaling publish the same bytes as before.
+  const double scale = arm.motion->speed_scale();
+  if (scale < 1.0) {
+    out.set_speed_scale(scale);
+  } else if (out.has_speed_scale()) {
+    out.clear_speed_scale();
+  }
 }
 
 v2::ReachReply IkEngine::reach(const v2::ReachRequest& request) {

@@ -67,6 +67,7 @@ std::string Keys::robot_reach() const { return k("robot", "reach"); }
 std::string Keys::human_state() const { return k("human", "state"); }
 std::string Keys::world_objects() const { return k("world", "objects"); }
 std::string Keys::world_contacts() const { return k("world", "contacts"); }
+std::string Keys::world_separation() const { return k("world", "separation"); }
 std::string Keys::world_commands() const { return k("world", "commands"); }
 std::string Keys::task_events() const { return k("task", "events"); }
 std::string Keys::task_indicators() const { return k("task", "indicators"); }

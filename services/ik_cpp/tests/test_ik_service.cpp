@@ -213,7 +213,8 @@ TEST_F(Engine, BadCommandsChangeNothing) {
   EXPECT_NE(engine_.apply("r1", nan_hold).find("NaN"), std::string::npos);
   auto unspecified = move(0.2, 0.25, 0.25, 8);
   unspecified.set_kind(RobotCommand::KIND_UNSPECIFIED);
-  EXPECT_NE(engine_.apply("r1", unspecified).find("neither MOVE nor HOLD"), std::string::npos);
+  EXPECT_NE(engine_.apply("r1", unspecified).find("neither MOVE, HOLD nor SPEED_SCALE"),
+            std::string::npos);
   const std::string unknown = engine_.apply("r9", move(0.2, 0.25, 0.25, 9));
   EXPECT_NE(unknown.find("unknown robot 'r9'"), std::string::npos) << unknown;
 
@@ -226,6 +227,37 @@ TEST_F(Engine, BadCommandsChangeNothing) {
   engine_.fill_state(0, st);
   EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED);
   EXPECT_EQ(st.command_id(), 3u);
+}
+
+TEST_F(Engine, SpeedScaleStopsAndResumesTheMoveWithoutTakingItsCommandId) {
+  ASSERT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 5)), "");
+  for (int k = 0; k < 40; ++k) engine_.step();
+  RobotState st;
+  engine_.fill_state(0, st);
+  EXPECT_FALSE(st.has_speed_scale());  // unset at scale 1: unchanged bytes for other policies
+  RobotCommand scale;
+  scale.set_kind(RobotCommand::KIND_SPEED_SCALE);
+  scale.set_command_id(99);
+  scale.set_speed_scale(0.0);
+  ASSERT_EQ(engine_.apply("r1", scale), "");
+  for (int k = 0; k < 240; ++k) engine_.step();
+  engine_.fill_state(0, st);
+  EXPECT_EQ(st.command_id(), 5u);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_MOVING);
+  EXPECT_EQ(st.tcp_speed(), 0.0);
+  ASSERT_TRUE(st.has_speed_scale());
+  EXPECT_EQ(st.speed_scale(), 0.0);
+  for (const double bad : {-0.1, 1.5, std::nan("")}) {
+    scale.set_speed_scale(bad);
+    EXPECT_NE(engine_.apply("r1", scale).find("outside [0, 1]"), std::string::npos) << bad;
+  }
+  scale.set_speed_scale(1.0);
+  ASSERT_EQ(engine_.apply("r1", scale), "");
+  run_r1(4000);
+  engine_.fill_state(0, st);
+  EXPECT_EQ(st.status(), hrc::v2::MOTION_STATUS_REACHED);
+  EXPECT_EQ(st.command_id(), 5u);
+  EXPECT_FALSE(st.has_speed_scale());
 }
 
 TEST_F(Engine, HoldStopsSmoothlyAndReportsHolding) {

@@ -26,6 +26,7 @@ TEST(Keys, EveryKeyOfTheArchitectureTable) {
   EXPECT_EQ(k.human_state(), "hrc/s1/human/state");
   EXPECT_EQ(k.world_objects(), "hrc/s1/world/objects");
   EXPECT_EQ(k.world_contacts(), "hrc/s1/world/contacts");
+  EXPECT_EQ(k.world_separation(), "hrc/s1/world/separation");
   EXPECT_EQ(k.world_commands(), "hrc/s1/world/commands");
   EXPECT_EQ(k.task_events(), "hrc/s1/task/events");
   EXPECT_EQ(k.task_indicators(), "hrc/s1/task/indicators");

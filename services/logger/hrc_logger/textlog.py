@@ -125,6 +125,22 @@ def _unreachable(ev: pb.TaskEvent, c: LogCounters) -> str:
     )
 
 
+def _protective_stop(ev: pb.TaskEvent, c: LogCounters) -> str:
+    x = ev.protective_stop
+    return (
+        f"{secs(ev.task_time)} sec : {ev.robot} PROTECTIVE STOP {x.number}: separation "
+        f"{x.separation_m:.3f} m, protective distance {x.protective_distance_m:.3f} m."
+    )
+
+
+def _protective_resume(ev: pb.TaskEvent, c: LogCounters) -> str:
+    x = ev.protective_resume
+    return (
+        f"{secs(ev.task_time)} sec : {ev.robot} resumes after protective stop {x.number} "
+        f"(stopped {secs(x.stopped_s)} sec)."
+    )
+
+
 FORMATTERS: dict[int, Callable[[pb.TaskEvent, LogCounters], str]] = {
     K.TASK_EVENT_KIND_TASK_STARTED: _task_started,
     K.TASK_EVENT_KIND_NEAR_COLLISION: _near,
@@ -134,6 +150,9 @@ FORMATTERS: dict[int, Callable[[pb.TaskEvent, LogCounters], str]] = {
     K.TASK_EVENT_KIND_HUMAN_FINISHED: _human_finished,
     K.TASK_EVENT_KIND_TASK_FINISHED: _task_finished,
     K.TASK_EVENT_KIND_ROBOT_UNREACHABLE: _unreachable,
+    # ssm only (docs/safety-ssm.md): beyond the thesis, logged like its collisions
+    K.TASK_EVENT_KIND_PROTECTIVE_STOP: _protective_stop,
+    K.TASK_EVENT_KIND_PROTECTIVE_RESUME: _protective_resume,
 }
 LOG_KINDS = frozenset(FORMATTERS)
 

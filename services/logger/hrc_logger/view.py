@@ -42,9 +42,11 @@ from rerun.urdf import UrdfTree
 
 from hrc.geometry import to_array, vec3_from_array, vec3_from_pb, yaw_quat_deg
 from hrc.scenario.conventions import WAITING_HEIGHT_M, WAITING_TEXT
+from hrc.scenario.convert import ssm_from_proto
 from hrc.scenario.models import DEFAULT_TICK_HZ, HUMAN
 from hrc.wire import pb
 
+from hrc_logger.ssm_zone import Zone
 from hrc_logger.textlog import kind_name
 from hrc_logger.urdf_fk import (
     UrdfError,
@@ -236,6 +238,7 @@ class View:
         self.clock: tuple[int, float] | None = None  # the latest clock tick (tick, sim time)
         self.button: npt.NDArray[np.float64] = np.zeros(3)
         self._flash_phase: int | None = None
+        self.zones: dict[str, Zone] = {}  # ssm only: the protective zone per robot
         self.logged = 0  # rerun log calls, for the service's summary
 
     # ------------------------------------------------------------------ helpers
@@ -264,6 +267,8 @@ class View:
             self.owner_color[r.id] = rgb(r.color)
         for r in scenario.robots:
             self._setup_robot(r)
+            if scenario.conditions.safety_policy == pb.SAFETY_POLICY_SSM:
+                self.zones[r.id] = Zone(ssm_from_proto(r.ssm))
         for p in scenario.parts:
             self.parts[p.id] = p
             color = self.owner_color.get(p.owner, UNKNOWN_COLOR)
@@ -410,6 +415,15 @@ class View:
             )
         if math.isfinite(st.tcp_speed):
             self._log(f"plots/tcp_speed/{part(rv.rid)}", rr.Scalars(st.tcp_speed))
+        zone = self.zones.get(rv.rid)
+        if zone is not None:
+            zone.observe(st)
+            self._log_zone(rv, zone)
+
+    def _log_zone(self, rv: RobotView, zone: Zone) -> None:
+        centers = rv.chain if rv.chain is not None else rv.tcp[None] if rv.tcp is not None else None
+        if centers is not None and finite(np.ravel(centers)):
+            self._log(f"world/ssm_zone/{part(rv.rid)}", zone.archetype(np.asarray(centers)))
 
     # ------------------------------------------------------------------ human
     def human_state(self, hs: pb.HumanState) -> None:
@@ -650,10 +664,14 @@ class View:
                 pb.TASK_EVENT_KIND_COLLISION,
                 pb.TASK_EVENT_KIND_NEAR_COLLISION,
                 pb.TASK_EVENT_KIND_ROBOT_UNREACHABLE,
+                pb.TASK_EVENT_KIND_PROTECTIVE_STOP,
             )
             else "INFO"
         )
         self._log("events", rr.TextLog(text, level=level))
+        zone = self.zones.get(ev.robot)
+        if zone is not None and zone.event(ev) and ev.robot in self.robots:
+            self._log_zone(self.robots[ev.robot], zone)  # a stopped arm sends no new state
 
     # ------------------------------------------------------------------ end
     def close(self) -> None:

@@ -9,10 +9,15 @@ function of the scenario and the inputs. The figures of a kind travel in its typ
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from google.protobuf.message import Message
 
 from hrc.scenario.conventions import WAITING_TEXT
 from hrc.wire import pb
+
+if TYPE_CHECKING:
+    from hrc_orchestrator.ssm import Change
 
 K = pb.TaskEventKind
 
@@ -284,4 +289,40 @@ def near_collision_end(t: float, n: int, halted: str) -> pb.TaskEvent:
         f"Near-collision {n} over; {halted} continues.",
         robot=halted,
         payload=pb.CollisionNumber(number=n),
+    )
+
+
+def protective_stop(t: float, robot: str, change: Change) -> pb.TaskEvent:
+    who = f", {change.body}" if change.body in ("left", "right") else ""
+    closest = f"{change.body} hand" if who else change.body or "participant"
+    return make(
+        K.TASK_EVENT_KIND_PROTECTIVE_STOP,
+        t,
+        f"{robot} PROTECTIVE STOP {change.number}: separation {change.separation_m:.3f} m "
+        f"({closest}), protective distance {change.protective_distance_m:.3f} m.",
+        agent=robot,
+        robot=robot,
+        hand=change.body if who else "",
+        payload=pb.ProtectiveStop(
+            number=change.number,
+            separation_m=round(change.separation_m, 6),
+            protective_distance_m=round(change.protective_distance_m, 6),
+            body=change.body,
+        ),
+    )
+
+
+def protective_resume(t: float, robot: str, change: Change) -> pb.TaskEvent:
+    return make(
+        K.TASK_EVENT_KIND_PROTECTIVE_RESUME,
+        t,
+        f"{robot} resumes after protective stop {change.number} "
+        f"(stopped {fmt_t(change.stopped_s)} sec, separation {change.separation_m:.3f} m).",
+        agent=robot,
+        robot=robot,
+        payload=pb.ProtectiveResume(
+            number=change.number,
+            separation_m=round(change.separation_m, 6),
+            stopped_s=round(change.stopped_s, 6),
+        ),
     )

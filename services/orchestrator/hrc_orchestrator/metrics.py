@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from google.protobuf.message import Message
 
+from hrc.scenario.convert import ssm_to_proto
 from hrc.wire import pb
 
 from hrc_orchestrator.task import Task
@@ -30,6 +31,8 @@ def build(task: Task, seed: int, run: pb.RunMetrics | None = None) -> pb.Metrics
     m = pb.Metrics(scenario=s.scenario.name, participant=s.participant.name, seed=int(seed))
     m.conditions.anticipation = s.conditions.anticipation
     m.conditions.safety_policy = s.conditions.safety_policy.to_proto()
+    if task.safety.ssm:
+        m.conditions.ssm.CopyFrom(ssm_to_proto(s.conditions.ssm))
 
     m.task.SetInParent()
     m.task.started = task.started
@@ -47,6 +50,13 @@ def build(task: Task, seed: int, run: pb.RunMetrics | None = None) -> pb.Metrics
         r.idle_s = _r(agent.idle.value(t_end))
         r.avg_tcp_speed_mps = _r(agent.avg_speed)
         r.max_tcp_speed_mps = _r(agent.speed_max)
+        mon = task.safety.ssm.get(rid)
+        if mon is not None:
+            r.ssm.SetInParent()
+            _set_time(r.ssm, "min_separation_m", mon.min_separation)
+            r.ssm.reduced_speed_s = _r(mon.reduced_s)
+            r.ssm.protective_stop_count = mon.stops
+            r.ssm.protective_stop_s = _r(mon.stop_s)
 
     col = m.collisions
     col.SetInParent()

@@ -8,6 +8,11 @@ Policies on a hand touching a robot:
   button after the collision (and all have arrived); the button cue flashes meanwhile.
 - ``stop_colliding``: only the touched robot holds, until no hand touches it any more; the other
   robots carry on.
+- ``ssm``: speed and separation monitoring (hrc_orchestrator.ssm, docs/safety-ssm.md): each
+  robot's speed is scaled from its separation to the participant, a protective stop at the
+  protective distance, a resume by itself. No retreat. A touch is a collision as under the other
+  policies and keeps the touched robot in its protective stop until the hand has left (CONTINUED
+  when it resumes).
 Under the retreat policies collisions are handled one at a time (touches during a collision are
 not counted). Under ``stop_colliding`` each robot's halt is its own collision, so a hand that
 touches the second robot also stops that one (it would be unsafe to let it carry on).
@@ -31,6 +36,7 @@ from hrc.wire import pb
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
 from hrc_orchestrator.robots import HOLD, Motion, Phase, RobotAgent
+from hrc_orchestrator.ssm import Change, SsmMonitor, SsmState
 
 
 @dataclass
@@ -54,8 +60,17 @@ class RetreatState:
 
 
 class Safety:
-    def __init__(self, policy: SafetyPolicy, agents: dict[str, RobotAgent], board: Board) -> None:
+    def __init__(
+        self,
+        policy: SafetyPolicy,
+        agents: dict[str, RobotAgent],
+        board: Board,
+        ssm: dict[str, SsmMonitor] | None = None,
+    ) -> None:
         self.policy = SafetyPolicy(policy)  # ValueError for a string that is not a policy
+        # ssm: one monitor per robot (empty under the other policies)
+        self.ssm: dict[str, SsmMonitor] = ssm if self.policy == SafetyPolicy.SSM and ssm else {}
+        self.ssm_collided: dict[str, CollisionRecord] = {}  # ssm: robot -> touch until resume
         self.agents = agents
         self.board = board
         # Insertion-ordered dicts used as sets: iteration order never depends on hashing.
@@ -72,7 +87,7 @@ class Safety:
     @property
     def blocks_grab(self) -> bool:
         """During a collision the participant may not grab a new object."""
-        return self.retreating is not None or bool(self.halted)
+        return self.retreating is not None or bool(self.halted) or bool(self.ssm_collided)
 
     @property
     def button_wanted(self) -> bool:
@@ -114,7 +129,11 @@ class Safety:
         self._hand_touch[key] = None
         if not running:
             return
-        if self.policy == SafetyPolicy.STOP_COLLIDING:
+        if self.policy == SafetyPolicy.SSM:
+            self.ssm[robot].touched = True
+            if robot not in self.ssm_collided:
+                self.ssm_collided[robot] = self._new_record(t, robot, hand, c.link)
+        elif self.policy == SafetyPolicy.STOP_COLLIDING:
             if robot not in self.halted:
                 rec = self._new_record(t, robot, hand, c.link)
                 self.halted[robot] = rec
@@ -144,6 +163,8 @@ class Safety:
             if rec.robot == robot and not rec.hand_left:
                 rec.hand_left = True
                 self.board.emit(ev.collision_end(t, rec.n, robot, rec.hand))
+        if robot in self.ssm:
+            self.ssm[robot].touched = False  # it resumes by the separation rule (update)
         rec_halted = self.halted.pop(robot, None)
         if rec_halted is not None:
             self._resume(rec_halted, t, robot)
@@ -194,10 +215,14 @@ class Safety:
         """The arm has a motion to make that only a near-collision hold keeps it from."""
         agent = self.agents[robot]
         st = agent.state
-        if robot in self.halted or (
-            st is not None
-            and st.command_id == agent.sent_id
-            and st.status == pb.MOTION_STATUS_UNREACHABLE
+        if (
+            robot in self.halted
+            or self.protective_stop(robot)
+            or (
+                st is not None
+                and st.command_id == agent.sent_id
+                and st.status == pb.MOTION_STATUS_UNREACHABLE
+            )
         ):
             return False
         if self.retreating is not None and robot in self.retreating.retreat:
@@ -237,6 +262,32 @@ class Safety:
         return distance(tcp, target)
 
     # ------------------------------------------------------------------ per tick
+    def protective_stop(self, robot: str) -> bool:
+        mon = self.ssm.get(robot)
+        return mon is not None and mon.state == SsmState.STOPPED
+
+    def observe_separations(self, msg: pb.Separations) -> None:
+        for sep in msg.separations:
+            mon = self.ssm.get(sep.robot)
+            if mon is not None:
+                mon.observe(sep.distance_m, sep.body)
+
+    def update_ssm(self, t: float, dt: float, running: bool) -> None:
+        """Each robot's scale, protective stops and resumes for this tick's separations."""
+        for rid, mon in self.ssm.items():
+            change = mon.update(t, dt, running)
+            if change is not None:
+                self._protective(t, rid, change)
+
+    def _protective(self, t: float, robot: str, change: Change) -> None:
+        if change.stopped:
+            self.board.emit(ev.protective_stop(t, robot, change))
+            return
+        self.board.emit(ev.protective_resume(t, robot, change))
+        rec = self.ssm_collided.pop(robot, None)
+        if rec is not None:
+            self._resume(rec, t, robot)
+
     def update(self, t: float) -> None:
         """Retreat arrivals, and the resume under the retreat policies."""
         state = self.retreating
@@ -261,4 +312,5 @@ class Safety:
                 rec.delay_s = t - rec.t_s
         self.retreating = None
         self.halted.clear()
+        self.ssm_collided.clear()
         self.near_yield.clear()

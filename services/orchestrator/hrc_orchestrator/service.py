@@ -156,6 +156,8 @@ class OrchestratorService(Service):
         inputs.input(keys.world_objects(), pb.WorldObjects, self._on_objects, v["world_objects"])
         inputs.input(keys.world_contacts(), pb.WorldContacts, self._on_contacts)
         inputs.input(keys.human_state(), pb.HumanState, self._on_human, v["human_state"])
+        if self.task.safety.ssm:  # only under ssm does physics publish separations
+            inputs.input(keys.world_separation(), pb.Separations, self._on_separations)
 
     # ------------------------------------------------------------------ inputs (run() thread)
     def _on_state(self, _key: str, msg: Message) -> None:
@@ -166,6 +168,9 @@ class OrchestratorService(Service):
 
     def _on_contacts(self, _key: str, msg: Message) -> None:
         self._pending.contacts.append(msg)  # type: ignore[arg-type]
+
+    def _on_separations(self, _key: str, msg: Message) -> None:
+        self._pending.separations.append(msg)  # type: ignore[arg-type]
 
     def _on_human(self, _key: str, msg: Message) -> None:
         self._pending.human = msg  # type: ignore[assignment]
@@ -188,6 +193,10 @@ class OrchestratorService(Service):
             )
             self.events_pub.put(event, k, t)
         for cmd in out.robot_commands:
+            if cmd.kind == pb.RobotCommand.KIND_SPEED_SCALE:
+                log.debug("command %s speed scale %.2f", cmd.robot, cmd.speed_scale)
+                self.cmd_pubs[cmd.robot].put(cmd, k, t)
+                continue
             log.info(
                 "command %s #%d %s (%.4f, %.4f, %.4f)",
                 cmd.robot,

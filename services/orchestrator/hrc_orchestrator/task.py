@@ -34,6 +34,7 @@ from hrc_orchestrator.cues import HUMAN_COLOR, CueBoard
 from hrc_orchestrator.human import HumanAgent
 from hrc_orchestrator.robots import Phase, RobotAgent
 from hrc_orchestrator.safety import Safety
+from hrc_orchestrator.ssm import SsmMonitor
 from hrc_orchestrator.watchdog import Watchdog, describe
 
 
@@ -50,6 +51,7 @@ class Inputs:
     objects: list[pb.WorldObjects] = field(default_factory=list)
     contacts: list[pb.WorldContacts] = field(default_factory=list)
     human: pb.HumanState | None = None
+    separations: list[pb.Separations] = field(default_factory=list)  # ssm only
 
 
 @dataclass
@@ -77,7 +79,13 @@ class Task:
             rid: RobotAgent(robot, scenario.sequence_of(rid), self.board)
             for rid, robot in scenario.robots.items()
         }
-        self.safety = Safety(scenario.conditions.safety_policy, self.agents, self.board)
+        monitors = {
+            rid: SsmMonitor(scenario.ssm_of(rid), robot.max_tcp_speed)
+            for rid, robot in scenario.robots.items()
+        }
+        self.safety = Safety(scenario.conditions.safety_policy, self.agents, self.board, monitors)
+        self.dt = 1.0 / scenario.scenario.tick_hz
+        self._sent_scale: dict[str, float] = {rid: 1.0 for rid in scenario.robots}
         self.anticipation = scenario.conditions.anticipation
         self.cue_board = CueBoard()
         self._wall_clock = wall_clock
@@ -132,8 +140,11 @@ class Task:
         for contacts in inputs.contacts:
             for c in contacts.contacts:
                 self._contact(c)
+        for seps in inputs.separations:
+            self.safety.observe_separations(seps)
         t = self.now()
         self.human.update_idle(t, self.running)
+        self.safety.update_ssm(t, self.dt, self.running)
         if self.running:
             self.safety.update(t)
             for rid, agent in self.agents.items():
@@ -207,6 +218,18 @@ class Task:
             if motion is None or motion == agent.sent:
                 continue
             cmds.append(motion.to_proto(rid, agent.record_sent(motion)))
+        if self.running:
+            for rid, mon in self.safety.ssm.items():
+                if mon.scale != self._sent_scale[rid]:
+                    self._sent_scale[rid] = mon.scale
+                    cmds.append(
+                        pb.RobotCommand(
+                            robot=rid,
+                            command_id=self.agents[rid].sent_id,
+                            kind=pb.RobotCommand.KIND_SPEED_SCALE,
+                            speed_scale=mon.scale,
+                        )
+                    )
         return cmds
 
     def _grabbable_changes(self) -> list[pb.WorldCommand]:

@@ -81,6 +81,12 @@ def _robot(task: Task, rid: str, agent: RobotAgent) -> str:
     if rid in safety.halted:
         rec = safety.halted[rid]
         return f"{rid} is halted: the {rec.hand} hand touches it since {rec.t_s:.1f} s"
+    mon = safety.ssm.get(rid)
+    if mon is not None and safety.protective_stop(rid):
+        return (
+            f"{rid} is in protective stop {mon.stops} since {mon.stop_since:.1f} s "
+            f"(separation {mon.separation:.3f} m to the {mon.body or 'participant'})"
+        )
     for (a, b), held in safety.near_yield.items():
         if held == rid:
             other = b if a == rid else a

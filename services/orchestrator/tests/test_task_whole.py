@@ -164,12 +164,13 @@ def test_metrics_have_every_field_and_match_the_events() -> None:
     for path in METRIC_FIELDS:
         dig(data, path)
     assert data["seed"] == 7 and data["run"]["mode"] == "lockstep"
-    assert data["conditions"] == {"anticipation": True, "safety_policy": "retreat"}
+    assert data["conditions"] == {"anticipation": True, "safety_policy": "retreat", "ssm": None}
     assert data["task"]["completion_s"] == pytest.approx(sim.task.completion_s)
     assert data["human"]["idle_s"] == pytest.approx(data["human"]["completion_s"])  # never in
     for rid in ("r1", "r2"):
         r = data["robots"][rid]
-        assert set(r) == {"completion_s", "idle_s", "avg_tcp_speed_mps", "max_tcp_speed_mps"}
+        assert set(r) == {"completion_s", "idle_s", "avg_tcp_speed_mps", "max_tcp_speed_mps", "ssm"}
+        assert r["ssm"] is None  # only under safety_policy = "ssm"
         assert 0 < r["avg_tcp_speed_mps"] <= r["max_tcp_speed_mps"] <= 0.5 + 1e-9
         assert r["completion_s"] <= data["task"]["completion_s"]
     col = data["collisions"]

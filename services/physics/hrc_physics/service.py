@@ -138,6 +138,9 @@ class PhysicsService(ClockMasterService):
         self._commands_key = keys.world_commands()
         self._objects_pub = bus.publisher(keys.world_objects())
         self._contacts_pub = bus.publisher(keys.world_contacts())
+        self._separation_pub = (
+            bus.publisher(keys.world_separation()) if self.world.separation is not None else None
+        )
         log.info(
             "scenario %r, %s at %g Hz, %d objects, waiting for %s",
             self.scenario.info.name,
@@ -187,6 +190,10 @@ class PhysicsService(ClockMasterService):
             self._objects_pub.put(
                 pb.WorldObjects(objects=states, full=full, events=events), tick, sim_time
             )
+        if self._separation_pub is not None:
+            seps = self.world.separations()
+            if seps is not None:
+                self._separation_pub.put(pb.Separations(separations=seps), tick, sim_time)
         contacts = self.world.contact_events()
         if contacts:
             self._contacts_pub.put(pb.WorldContacts(contacts=contacts), tick, sim_time)

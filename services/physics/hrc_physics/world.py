@@ -49,6 +49,7 @@ from hrc_physics.contacts import ContactKey, ContactTracker, Touch
 from hrc_physics.hands import Hand, create_hand, pose_hand
 from hrc_physics.objects import WorldObject
 from hrc_physics.robots import KinematicRobot
+from hrc_physics.separation import SeparationMonitor
 
 log = logging.getLogger(__name__)
 
@@ -89,6 +90,11 @@ class World:
             p.disconnect(physicsClientId=self.c)
             raise
         self.tracker = ContactTracker()
+        # ssm only: the participant-robot separations (its own module; nothing for the others)
+        self.separation: SeparationMonitor | None = None
+        if scenario.conditions.safety_policy == sc.SafetyPolicy.SSM:
+            ranges = {rid: scenario.ssm_of(rid).sensing_range_m for rid in self.robots}
+            self.separation = SeparationMonitor(self.c, self.robots, self.hands, ranges)
         self.events: list[pb.ObjectEvent] = []
         self.rejected: Counter[str] = Counter()  # by object id (or "?" when none)
         self.steps = 0
@@ -251,6 +257,8 @@ class World:
             # A participant at rest sends no new state (states come on change): same message,
             # nothing to do.
             h = self._human_applied = self._human
+            if self.separation is not None:
+                self.separation.pose_head(h.head)
             for hand, pose, grip in (
                 (self.hands["left"], h.left_hand, h.left_grip),
                 (self.hands["right"], h.right_hand, h.right_grip),
@@ -258,6 +266,8 @@ class World:
                 pos, rot = pose_from_pb(pose, unit=True)
                 if pose_hand(c, hand, pos, rot, grip):
                     self._contacts_stale = True
+        if self.separation is not None and self._contacts_stale:
+            self.separation.mark_moved()  # a hand or an arm moved
         problems: list[str] = []
         for cmd in commands or ():
             try:
@@ -544,6 +554,10 @@ class World:
             return []
         self._contacts_stale = False
         return self.tracker.update(self.current_contacts())
+
+    def separations(self) -> list[pb.Separation] | None:
+        """ssm: the separations when they changed since the last call (else None)."""
+        return self.separation.update() if self.separation is not None else None
 
     # ------------------------------------------------------------------ inspection
     def tool_pose(self, robot_id: str) -> Pose:

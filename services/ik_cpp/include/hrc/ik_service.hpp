@@ -61,7 +61,8 @@ class IkEngine {
   double dt() const { return dt_; }
 
   /// Applies a command for `robot`: KIND_MOVE -> move (yaw deg -> rad, max_speed capped at the
-  /// robot's max_tcp_speed, 0 = max), KIND_HOLD -> hold. Returns "" when applied, else what is
+  /// robot's max_tcp_speed, 0 = max), KIND_HOLD -> hold, KIND_SPEED_SCALE -> the arm's speed
+  /// scale (speed_scale in [0, 1]; command_id unchanged). Returns "" when applied, else what is
   /// wrong (unknown robot, NaN/inf numbers in any kind, negative heights/speed, unknown kind); a
   /// refused command changes nothing. An unreachable target is applied (the arm reports
   /// UNREACHABLE). The one place a command's content is checked.

@@ -39,6 +39,7 @@ class Keys {
   std::string human_state() const;
   std::string world_objects() const;
   std::string world_contacts() const;
+  std::string world_separation() const;  // physics, only under safety_policy = ssm
   std::string world_commands() const;
   std::string task_events() const;
   std::string task_indicators() const;

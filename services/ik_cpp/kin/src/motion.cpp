@@ -640,7 +640,15 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
   return state_.status;
 }
 
+void MotionGenerator::set_speed_scale(double scale) {
+  scale_target_ = std::isfinite(scale) ? std::clamp(scale, 0.0, 1.0) : 0.0;
+}
+
 const MotionState& MotionGenerator::step() {
+  // The applied scale moves towards the requested one by at most a dt / v_max per tick: the
+  // change of speed it causes, v_nominal x d(scale)/dt, then stays below the acceleration limit.
+  const double max_dscale = limits_.max_tcp_accel * dt_ / limits_.max_tcp_speed;
+  scale_ += std::clamp(scale_target_ - scale_, -max_dscale, max_dscale);
   if (segments_.empty()) {
     v_cmd_.setZero();
     meas_speed_ = 0.0;
@@ -656,7 +664,7 @@ const MotionState& MotionGenerator::step() {
   bool clipped = false;
   constexpr int kTries = 5;
   for (int attempt = 0; attempt < kTries; ++attempt) {
-    t_new = seg_t_ + sigma * dt_;
+    t_new = seg_t_ + sigma * scale_ * dt_;
     seg.profile.eval(t_new, s, vs);
     if (seg.joint) {
       // The planned joint path itself: no IK, nothing to re-decide.

@@ -78,12 +78,22 @@ class MotionGenerator {
   MotionStatus move(const MoveCommand& cmd);
   // Stop smoothly where it is and hold.
   void hold();
+  // Speed scale in [0, 1] (speed and separation monitoring): the path parameter of the motion
+  // in progress, and of later moves, advances at scale x nominal, so the path is unchanged and
+  // scale 0 stops the arm on it. The applied scale follows the requested one at no more than
+  // max_tcp_accel / max_tcp_speed per second: slowing down, stopping and resuming stay within
+  // the acceleration limit (a stop from speed v <= scale x max_tcp_speed takes at most
+  // v / max_tcp_accel s and v^2 / (2 max_tcp_accel) m). Values outside [0, 1] are clamped.
+  void set_speed_scale(double scale);
+  double speed_scale() const { return scale_; }  // applied in the last step
+  double requested_speed_scale() const { return scale_target_; }
   // Advance one tick.
   const MotionState& step();
 
   const MotionState& state() const { return state_; }
   double dt() const { return dt_; }
-  const Eigen::Vector3d& commanded_velocity() const { return v_cmd_; }
+  // The TCP velocity the current step commands (the speed scale applied).
+  Eigen::Vector3d commanded_velocity() const { return v_cmd_ * scale_; }
   const RobotModel& model() const { return model_; }
   // Can the arm reach `position` (world) tool-down with `yaw`? Fills the position error.
   bool reachable(const Eigen::Vector3d& position, double yaw, double* position_error = nullptr);
@@ -149,9 +159,12 @@ class MotionGenerator {
 
   MotionState state_;
   std::deque<Segment> segments_;
-  double seg_t_ = 0.0;                               // time into the current segment's profile
-  double time_scale_ = 1.0;                          // < 1 while a joint velocity limit binds
-  Eigen::Vector3d v_cmd_ = Eigen::Vector3d::Zero();  // commanded TCP velocity (world)
+  double seg_t_ = 0.0;         // time into the current segment's profile
+  double time_scale_ = 1.0;    // < 1 while a joint velocity limit binds
+  double scale_ = 1.0;         // speed scale applied (set_speed_scale)
+  double scale_target_ = 1.0;  // speed scale requested
+  // Commanded TCP velocity (world) at speed scale 1: the plans blend in these nominal units.
+  Eigen::Vector3d v_cmd_ = Eigen::Vector3d::Zero();
   Eigen::Vector3d target_ = Eigen::Vector3d::Zero();
   MotionStatus final_status_ = MotionStatus::Reached;
   double meas_speed_ = 0.0;  // current speed in the front joint segment's measure units

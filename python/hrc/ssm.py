@@ -1,0 +1,58 @@
+"""The protective separation distance of speed and separation monitoring (ISO/TS 15066, 5.5.4)
+and the allowed robot speed derived from it: the one implementation of the formula
+(docs/safety-ssm.md). The orchestrator's policy (hrc_orchestrator.ssm) and the logger's view of the
+protective zone use it.
+
+    S_p(v) = S_h + S_r + S_s + C + Z_d + Z_r
+    S_h = v_h (T_r + T_s),  T_s = v / a   (the human's approach while the robot reacts and stops)
+    S_r = v T_r                           (the robot's travel during its reaction time)
+    S_s = v^2 / (2 a)                     (its stopping distance at constant deceleration a)
+
+Allowed speed from a separation S: the largest v with S_p(v) <= S (a quadratic in v), as in the
+velocity-scaling formulation of Marvel and Norcross (2017):
+
+    v_allowed = -(a T_r + v_h) + sqrt((a T_r + v_h)^2 + 2 a (S - v_h T_r - C - Z_d - Z_r))
+"""
+
+from __future__ import annotations
+
+import math
+
+from hrc.scenario import Ssm
+
+
+def protective_distance(p: Ssm, robot_speed: float) -> float:
+    """S_p (m) for a robot moving at `robot_speed` (m/s) towards a person approaching at
+    p.human_speed."""
+    v, a = max(0.0, robot_speed), p.deceleration
+    stop_time = v / a
+    s_h = p.human_speed * (p.reaction_time_s + stop_time)
+    s_r = v * p.reaction_time_s
+    s_s = v * v / (2.0 * a)
+    return s_h + s_r + s_s + _constant(p)
+
+
+def _constant(p: Ssm) -> float:
+    return p.intrusion_distance_m + p.sensing_uncertainty_m + p.position_uncertainty_m
+
+
+def allowed_speed(p: Ssm, separation: float) -> float:
+    """The largest robot speed (m/s) whose protective distance fits in `separation` (m);
+    0 at or below the protective distance of a robot at rest."""
+    a = p.deceleration
+    room = separation - p.human_speed * p.reaction_time_s - _constant(p)
+    if not room > 0.0:  # also for NaN
+        return 0.0
+    b = a * p.reaction_time_s + p.human_speed
+    return -b + math.sqrt(b * b + 2.0 * a * room)
+
+
+def stop_distance(p: Ssm) -> float:
+    """A robot makes a protective stop when the separation falls below this: the protective
+    distance at the lowest speed it moves at (p.min_speed)."""
+    return protective_distance(p, p.min_speed)
+
+
+def resume_distance(p: Ssm) -> float:
+    """A stopped robot resumes once the separation is at least this (the hysteresis)."""
+    return stop_distance(p) + p.resume_margin_m

@@ -1,0 +1,82 @@
+"""The ssm safety policy's per-robot monitor (docs/safety-ssm.md): each tick's separation ->
+the robot's speed scale for the IK service, protective stops and resumes (with hysteresis), and
+the ssm metrics. The formula itself is `hrc.ssm`.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass
+
+from hrc.scenario import Ssm
+from hrc.ssm import allowed_speed, resume_distance, stop_distance
+
+SCALE_STEP = 0.02  # the scale sent to the IK service is rounded down to this step
+
+
+class SsmState(enum.StrEnum):
+    NORMAL = "normal"  # full speed allowed
+    REDUCED = "reduced"  # scaled below full speed
+    STOPPED = "stopped"  # protective stop
+
+
+@dataclass
+class Change:
+    """A protective stop or resume decided this tick (the monitor's caller emits the event)."""
+
+    stopped: bool
+    number: int
+    separation_m: float
+    protective_distance_m: float = 0.0
+    stopped_s: float = 0.0
+    body: str = ""
+
+
+class SsmMonitor:
+    """One robot: its separation, state, scale and figures."""
+
+    def __init__(self, params: Ssm, max_speed: float) -> None:
+        self.p = params
+        self.max_speed = max_speed
+        self.state = SsmState.NORMAL
+        self.separation = params.sensing_range_m
+        self.body = ""
+        self.scale = 1.0  # what the IK service should apply (rounded down to SCALE_STEP)
+        self.touched = False  # a hand touches the robot: stopped whatever the separation
+        self.stops = 0
+        self.stop_since = 0.0
+        self.stop_s = 0.0
+        self.reduced_s = 0.0
+        self.min_separation: float | None = None
+
+    def observe(self, separation: float, body: str) -> None:
+        self.separation, self.body = separation, body
+
+    def update(self, t: float, dt: float, running: bool) -> Change | None:
+        """One tick: the state and scale for the latest separation; the stop or resume if
+        one happens. Time at reduced speed and in stops counts from the previous tick."""
+        if running:
+            if self.state == SsmState.REDUCED:
+                self.reduced_s += dt
+            elif self.state == SsmState.STOPPED:
+                self.stop_s += dt
+            if self.min_separation is None or self.separation < self.min_separation:
+                self.min_separation = self.separation
+        allowed = allowed_speed(self.p, self.separation)
+        change: Change | None = None
+        if self.state == SsmState.STOPPED:
+            if self.touched or self.separation < resume_distance(self.p):
+                return None
+            change = Change(False, self.stops, self.separation, stopped_s=t - self.stop_since)
+        elif self.touched or allowed < max(self.p.min_speed, 1e-9):
+            if not running:
+                return None  # before the start the robots stand still anyway
+            self.state, self.scale = SsmState.STOPPED, 0.0
+            self.stops += 1
+            self.stop_since = t
+            return Change(True, self.stops, self.separation, stop_distance(self.p), body=self.body)
+        raw = min(1.0, allowed / self.max_speed)
+        self.scale = 1.0 if raw >= 1.0 else math.floor(raw / SCALE_STEP) * SCALE_STEP
+        self.state = SsmState.NORMAL if self.scale >= 1.0 else SsmState.REDUCED
+        return change

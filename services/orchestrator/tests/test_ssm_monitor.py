@@ -1,0 +1,76 @@
+"""The ssm policy's per-robot monitor: scale, protective stop, hysteresis, resume, figures."""
+
+from __future__ import annotations
+
+import pytest
+
+from hrc.scenario import Ssm
+from hrc.ssm import allowed_speed, protective_distance, resume_distance, stop_distance
+
+from hrc_orchestrator.ssm import SCALE_STEP, SsmMonitor, SsmState
+
+DT = 1.0 / 240.0
+
+
+def test_far_is_full_speed_near_is_scaled() -> None:
+    p = Ssm()
+    mon = SsmMonitor(p, max_speed=0.5)
+    mon.observe(2.0, "")
+    assert mon.update(0.0, DT, True) is None
+    assert (mon.state, mon.scale) == (SsmState.NORMAL, 1.0)
+    sep = protective_distance(p, 0.25)  # room for half the speed
+    mon.observe(sep, "left")
+    assert mon.update(DT, DT, True) is None
+    assert mon.state == SsmState.REDUCED
+    assert mon.scale <= allowed_speed(p, sep) / 0.5 + 1e-12  # never above the allowed speed
+    assert mon.scale > allowed_speed(p, sep) / 0.5 - SCALE_STEP
+    assert mon.scale == pytest.approx(0.5, abs=SCALE_STEP)
+
+
+def test_stop_at_the_protective_distance_and_resume_with_hysteresis() -> None:
+    p = Ssm()
+    mon = SsmMonitor(p, max_speed=0.5)
+    stop_at = stop_distance(p)
+    mon.observe(stop_at - 0.001, "right")
+    change = mon.update(1.0, DT, True)
+    assert change is not None and change.stopped and change.number == 1
+    assert change.body == "right"
+    assert change.protective_distance_m == pytest.approx(stop_distance(p))
+    assert (mon.state, mon.scale) == (SsmState.STOPPED, 0.0)
+    # Between the stop distance and the resume distance it stays stopped (no chattering).
+    mon.observe((stop_at + resume_distance(p)) / 2, "right")
+    for k in range(1, 240):
+        assert mon.update(1.0 + k * DT, DT, True) is None
+    assert mon.state == SsmState.STOPPED
+    mon.observe(resume_distance(p) + 0.001, "right")
+    change = mon.update(2.0, DT, True)
+    assert change is not None and not change.stopped
+    assert change.stopped_s == pytest.approx(1.0)
+    assert mon.state != SsmState.STOPPED and mon.scale > 0.0
+    assert mon.stops == 1
+    assert mon.stop_s == pytest.approx(240 * DT)  # counted per tick, from the tick after the stop
+
+
+def test_a_touch_keeps_it_stopped_until_the_hand_leaves() -> None:
+    mon = SsmMonitor(Ssm(), max_speed=0.5)
+    mon.observe(0.0, "left")
+    mon.touched = True
+    assert mon.update(0.0, DT, True) is not None
+    mon.observe(1.0, "left")  # far again, but still touching (separation is per tick)
+    assert mon.update(0.1, DT, True) is None
+    mon.touched = False
+    change = mon.update(0.2, DT, True)
+    assert change is not None and not change.stopped
+
+
+def test_figures_count_only_while_the_task_runs() -> None:
+    p = Ssm()
+    mon = SsmMonitor(p, max_speed=0.5)
+    mon.observe(0.3, "head")
+    assert mon.update(0.0, DT, False) is None  # no stop before the start
+    assert mon.min_separation is None
+    mon.observe(protective_distance(p, 0.2), "head")
+    for k in range(240):
+        mon.update(k * DT, DT, True)
+    assert mon.reduced_s == pytest.approx(240 * DT)  # it was reduced before the first tick
+    assert mon.min_separation == pytest.approx(protective_distance(p, 0.2))
