@@ -12,9 +12,11 @@
 #      wire contract's type stubs hrc_pb2.pyi (protoc-gen-mypy comes from the venv)
 #   5. C++ build (CMake, which also builds the Rust crate with cargo) in build/ik_cpp
 #   6. process-compose, built from the Go module proxy into tools/bin/
+#   7. participant client: npm ci (package-lock.json) and the esbuild bundle in
+#      services/human_input/client/dist/ (served by the VR bridge)
 #
 # Environment:
-#   HRC_CACHE   caches kept outside the clone (cargo target dir, Go caches);
+#   HRC_CACHE   caches kept outside the clone (cargo target dir, Go caches, npm cache);
 #               default ~/.cache/hrc-cosim. A machine without them still works.
 #   HRC_JOBS    parallel build jobs (default 2)
 #   HRC_PYTHON  interpreter for the venv (default python3, must be >= 3.11)
@@ -58,6 +60,9 @@ APT_PACKAGES=(
   clang-format clang-tidy  # scripts/lint.sh (C++ format and naming)
   ccache  # C++ compile cache outside the clone (worktrees and repeated CI runs share it)
 )
+# Node for the participant client's bundle: Debian's nodejs and npm only when no npm is on PATH
+# (a newer Node installed otherwise is used as it is).
+command -v npm >/dev/null 2>&1 || APT_PACKAGES+=(nodejs npm)
 
 # --help prints the comment block at the top of this file.
 usage() { awk 'NR > 1 && /^#/ { sub(/^# ?/, ""); print; next } NR > 1 { exit }' "$0"; }
@@ -417,6 +422,33 @@ else
   pc_have="$("$PC_BIN" version --short 2>/dev/null || true)"
   [ "$pc_have" = "$PC_VERSION" ] || die "built process-compose reports version '$pc_have', expected $PC_VERSION"
   done_step "built"
+fi
+
+# --- 7. participant client -------------------------------------------------
+# services/human_input/client: npm ci from the committed package-lock.json (cache outside the
+# clone), then esbuild bundles the page into dist/. Each is skipped while its inputs are unchanged.
+step "participant client (services/human_input/client/dist)"
+CLIENT="$ROOT/services/human_input/client"
+command -v npm >/dev/null 2>&1 || die "npm not found: install Debian's nodejs and npm (apt-get install nodejs npm), or run setup without --no-apt"
+export npm_config_cache="$HRC_CACHE/npm"
+export npm_config_update_notifier=false
+deps_stamp="$( { node --version; sha256sum "$CLIENT/package-lock.json"; } | sha256sum | awk '{print $1}')"
+deps_file="$CLIENT/node_modules/.hrc-setup-stamp"
+client_note="dependencies up to date"
+if [ ! -f "$deps_file" ] || [ "$(cat "$deps_file")" != "$deps_stamp" ]; then
+  (cd "$CLIENT" && run_logged npm-ci npm ci --no-audit --no-fund)
+  echo "$deps_stamp" >"$deps_file"
+  client_note="npm ci"
+fi
+bundle_stamp="$( { echo "$deps_stamp"; cd "$CLIENT" && find src index.html build.mjs -type f -print0 \
+  | sort -z | xargs -0 sha256sum; } | sha256sum | awk '{print $1}')"
+bundle_file="$CLIENT/dist/.hrc-setup-stamp"
+if [ ! -f "$bundle_file" ] || [ "$(cat "$bundle_file")" != "$bundle_stamp" ] || [ ! -f "$CLIENT/dist/index.html" ]; then
+  (cd "$CLIENT" && run_logged client-build node build.mjs)
+  echo "$bundle_stamp" >"$bundle_file"
+  done_step "$client_note, bundle built ($(du -sk "$CLIENT/dist" | awk '{print $1}') KiB)"
+else
+  done_step "$client_note, bundle up to date"
 fi
 
 STEP="done"

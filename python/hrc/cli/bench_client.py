@@ -37,6 +37,7 @@ from websockets.sync.client import ClientConnection, connect
 
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig
+from hrc.cli.bench_page import page_figures
 from hrc.cli.runner import TrialOptions, TrialResult, VrOptions, free_port, run_trial
 from hrc.paths import project_root
 from hrc.wire import pb
@@ -180,7 +181,7 @@ class BenchContext:
     n: int
 
 
-EXTRA_FIGURES: list[Callable[[BenchContext], dict[str, Any]]] = []
+EXTRA_FIGURES: list[Callable[[BenchContext], dict[str, Any]]] = [page_figures]
 
 
 @contextlib.contextmanager

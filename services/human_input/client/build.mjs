@@ -1,0 +1,23 @@
+// Bundles the page into dist/ (index.html + assets/): main.js (three.js, urdf-loader, the page)
+// and iwer.js (the WebXR emulation, loaded only with ?test=iwer). Run by scripts/setup.sh.
+import { build } from 'esbuild';
+import { copyFileSync, mkdirSync, rmSync } from 'node:fs';
+import { dirname, join } from 'node:path';
+import { fileURLToPath } from 'node:url';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const dist = join(here, 'dist');
+rmSync(dist, { recursive: true, force: true });
+mkdirSync(join(dist, 'assets'), { recursive: true });
+const common = {
+  bundle: true,
+  format: 'esm',
+  minify: true,
+  sourcemap: false,
+  target: ['chrome110', 'firefox115', 'safari16'],
+  logLevel: 'warning',
+  legalComments: 'none',
+};
+await build({ ...common, entryPoints: [join(here, 'src/main.js')], outfile: join(dist, 'assets/main.js') });
+await build({ ...common, entryPoints: [join(here, 'src/iwer.js')], outfile: join(dist, 'assets/iwer.js') });
+copyFileSync(join(here, 'index.html'), join(dist, 'index.html'));

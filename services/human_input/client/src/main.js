@@ -1,0 +1,403 @@
+// The participant's page: connects to the bridge, builds the scene it sends, renders it in a
+// headset (WebXR) or on a desktop, and sends the participant's head, hands and grips back.
+// Query parameters: token, mode=desktop|xr, table_height (m), stand=x,y (m), rate (Hz),
+// test=iwer (loads the WebXR emulation, for the browser tests only).
+import * as THREE from 'three';
+import { Bridge } from './net.js';
+import { World } from './scene.js';
+import { Robots } from './robots.js';
+import { DesktopInput, KEY_HELP } from './input-desktop.js';
+import { XrInput } from './input-xr.js';
+import { Hud } from './hud.js';
+import { play, soundForEvent, unlockAudio } from './audio.js';
+import { DEFAULT_STAND, DEFAULT_TABLE_HEIGHT, placeRoot } from './frames.js';
+
+const params = new URLSearchParams(window.location.search);
+
+function numberParam(name, fallback, lo, hi) {
+  const raw = params.get(name);
+  if (raw === null) return fallback;
+  const v = Number(raw);
+  if (!Number.isFinite(v) || v < lo || v > hi) {
+    console.warn(`ignoring ${name}=${raw}: expected a number in [${lo}, ${hi}]`);
+    return fallback;
+  }
+  return v;
+}
+
+function standParam() {
+  const raw = params.get('stand');
+  if (!raw) return [...DEFAULT_STAND];
+  const xy = raw.split(',').map(Number);
+  if (xy.length !== 2 || !xy.every((v) => Number.isFinite(v) && Math.abs(v) < 5)) {
+    console.warn(`ignoring stand=${raw}: expected x,y in metres`);
+    return [...DEFAULT_STAND];
+  }
+  return xy;
+}
+
+const KEEPALIVE_MS = 500; // an unchanged sample is still sent this often
+
+/** WebGL drawn by the CPU (SwiftShader, llvmpipe: headless browsers, machines without a GPU),
+ * where antialiasing costs about a third of each frame. */
+function softwareWebGl() {
+  const gl = document.createElement('canvas').getContext('webgl2');
+  if (!gl) return false;
+  const info = gl.getExtension('WEBGL_debug_renderer_info');
+  const name = info ? String(gl.getParameter(info.UNMASKED_RENDERER_WEBGL)) : '';
+  gl.getExtension('WEBGL_lose_context')?.loseContext();
+  return /swiftshader|llvmpipe|software/i.test(name);
+}
+
+async function main() {
+  if (params.get('test') === 'iwer') {
+    // the WebXR emulation runtime, a separate bundle: only the browser tests load it
+    const url = new URL('assets/iwer.js', document.baseURI).href;
+    await import(/* @vite-ignore */ url);
+  }
+  const app = new App();
+  window.hrcApp = app;
+  await app.init();
+}
+
+class App {
+  constructor() {
+    this.tableHeight = numberParam('table_height', DEFAULT_TABLE_HEIGHT, 0.3, 1.6);
+    this.stand = standParam();
+    this.rateHz = numberParam('rate', 90, 1, 240);
+    this.role = '-';
+    this.run = '-';
+    this.taskT = null;
+    this.serverHands = null;
+    this.lastSample = '';
+    this.lastSentMs = 0;
+    this.frameMs = []; // intervals between rendered frames
+    this.workMs = []; // the page's own work per frame (update + render call)
+    this.events = [];
+    this.frames = 0;
+    this.sceneMsg = null;
+  }
+
+  async init() {
+    const canvas = document.getElementById('view');
+    const aa = params.get('aa');
+    const antialias = aa === null ? !softwareWebGl() : aa !== '0';
+    const renderer = new THREE.WebGLRenderer({ canvas, antialias });
+    renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+    renderer.setSize(window.innerWidth, window.innerHeight, false);
+    renderer.xr.enabled = true;
+    this.renderer = renderer;
+
+    const scene = new THREE.Scene();
+    scene.background = new THREE.Color('#b9c4cf');
+    scene.add(new THREE.HemisphereLight('#ffffff', '#444444', 1.6));
+    const sun = new THREE.DirectionalLight('#ffffff', 1.8);
+    sun.position.set(1, 3, 1.5);
+    scene.add(sun);
+    this.scene = scene;
+
+    this.root = new THREE.Group();
+    placeRoot(this.root, this.tableHeight, this.stand);
+    scene.add(this.root);
+    this.camera = new THREE.PerspectiveCamera(62, window.innerWidth / window.innerHeight, 0.02, 30);
+    scene.add(this.camera);
+
+    this.world = new World(this.root);
+    this.robotGroup = new THREE.Group();
+    this.root.add(this.robotGroup);
+    this.robots = new Robots(this.robotGroup, (m) => this.hud.message(m, true));
+    this.hud = new Hud();
+    this.desktop = new DesktopInput({
+      canvas,
+      camera: this.camera,
+      root: this.root,
+      onChange: () => {},
+    });
+    this.desktop.placeCamera();
+    this.xr = new XrInput({ renderer, root: this.root, onCalibrate: (c) => this.calibrate(c) });
+    document.getElementById('help').textContent = KEY_HELP.join('\n');
+
+    const xrOk = await XrInput.supported();
+    this.mode = params.get('mode') || (xrOk ? 'xr' : 'desktop');
+    this.setupModeUi(xrOk);
+
+    window.addEventListener('resize', () => this.resize());
+    window.addEventListener('keydown', (e) => {
+      if (e.key === 'F1') {
+        e.preventDefault();
+        this.helpShown = !this.helpShown;
+        this.hud.showHelp(this.helpShown);
+      }
+    });
+    for (const ev of ['pointerdown', 'keydown']) window.addEventListener(ev, unlockAudio);
+
+    this.bridge = new Bridge({
+      token: params.get('token'),
+      onMessage: (m) => this.onMessage(m),
+      onStatus: (s, detail) => {
+        this.hud.set('connection', detail ? `${s} (${detail})` : s);
+      },
+    });
+    setInterval(() => this.hud.refresh(this.root), 250);
+    setInterval(() => this.bridge.ping(), 1000);
+    renderer.setAnimationLoop((t, frame) => this.onFrame(t, frame));
+  }
+
+  setupModeUi(xrOk) {
+    const enter = document.getElementById('enter-vr');
+    if (this.mode === 'xr') {
+      enter.style.display = 'block';
+      enter.disabled = !xrOk;
+      enter.textContent = xrOk ? 'Enter VR' : 'WebXR (immersive-vr) is not available';
+      enter.addEventListener('click', async () => {
+        unlockAudio();
+        try {
+          await this.xr.start(this.scene);
+          enter.style.display = 'none';
+          this.hud.setInWorld(true);
+        } catch (err) {
+          this.hud.message(`cannot start VR: ${err}`, true);
+        }
+      });
+      this.hud.showHelp(false);
+      this.hud.set('hand', 'calibrate: right controller on the table top, press A');
+    } else {
+      this.desktop.enable();
+      this.helpShown = true;
+      this.hud.showHelp(true);
+    }
+  }
+
+  calibrate({ tableHeight, origin }) {
+    if (tableHeight !== null && tableHeight > 0.3 && tableHeight < 1.6) this.tableHeight = tableHeight;
+    placeRoot(this.root, this.tableHeight, this.stand, origin || this.root.userData.origin);
+    if (this.sceneMsg) this.world.buildFurniture(); // the floor moves with the table height
+    const text = `calibrated: table height ${this.tableHeight.toFixed(2)} m (A again to redo)`;
+    this.hud.message(text);
+    this.hud.set('hand', text); // the panel is what a headset shows
+  }
+
+  resize() {
+    if (this.renderer.xr.isPresenting) return;
+    this.camera.aspect = window.innerWidth / window.innerHeight;
+    this.camera.updateProjectionMatrix();
+    this.renderer.setSize(window.innerWidth, window.innerHeight, false);
+  }
+
+  // ------------------------------------------------------------------ messages from the bridge
+  onMessage(m) {
+    switch (m.type) {
+      case 'hello':
+        if (m.role) this.role = m.role;
+        this.hud.set('role', this.role);
+        if (m.auth_required) this.hud.message('the bridge needs a token: open the URL with ?token=...', true);
+        break;
+      case 'scene':
+        this.sceneMsg = m;
+        this.world.build(m);
+        this.robots.build(m.robots);
+        this.hud.message('');
+        break;
+      case 'frame':
+        if (this.frozen) break; // a test holds the picture still (hrcTest.freeze)
+        this.frames++;
+        this.world.applyFrame(m);
+        this.robots.applyFrame(m);
+        if (m.run) this.setRun(m.run);
+        if (m.task_t_s !== undefined) this.taskT = m.task_t_s;
+        if (m.hands) this.serverHands = m.hands;
+        if (this.freezeOn && this.world.parts.get(this.freezeOn.part)?.holder === this.freezeOn.holder) {
+          this.frozen = true; // hrcTest.freezeWhen: the awaited moment is on screen now
+          this.freezeOn = null;
+        }
+        break;
+      case 'event':
+        this.onEvent(m);
+        break;
+      case 'run':
+        this.setRun(m.state, m.reason);
+        break;
+      case 'error':
+        if (!String(m.error).startsWith('spectator')) this.hud.message(`bridge: ${m.error}`, true);
+        break;
+      default:
+        break;
+    }
+  }
+
+  setRun(state, reason) {
+    this.run = state;
+    this.hud.set('run', reason ? `${state} (${reason})` : state);
+  }
+
+  onEvent(ev) {
+    this.events.push(ev);
+    if (this.events.length > 500) this.events.shift();
+    const sound = soundForEvent(ev.kind);
+    if (sound) play(sound, ev.kind + (ev.part ? `:${ev.part}` : ''));
+    if (ev.kind === 'collision') this.hud.message('collision: pull your hand back');
+    else if (ev.kind === 'continued' || ev.kind === 'collision_end') this.hud.message('');
+    else if (ev.kind === 'task_finished') this.hud.message('task finished');
+  }
+
+  // ------------------------------------------------------------------ the frame loop
+  localHands() {
+    if (this.xr.active()) {
+      const hands = this.xr.hands();
+      // an untracked controller keeps its hand where it was last seen
+      this.lastXrHands = { ...(this.lastXrHands || this.desktop.poses()), ...hands };
+      return this.lastXrHands;
+    }
+    return this.desktop.poses();
+  }
+
+  onFrame(t, frame) {
+    const now = performance.now();
+    if (this.lastFrameAt !== undefined) {
+      this.frameMs.push(now - this.lastFrameAt);
+      if (this.frameMs.length > 2000) this.frameMs.shift();
+    }
+    this.lastFrameAt = now;
+    const driving = this.role === 'driver';
+    const hands = driving ? this.localHands() : this.spectatorHands();
+    if (hands) {
+      for (const name of ['left', 'right']) {
+        if (hands[name]) this.world.setHand(name, hands[name].p, hands[name].q, hands[name].grip);
+      }
+      this.world.followHands(driving ? hands : {});
+    }
+    if (driving && this.sceneMsg) this.sendSample(now, hands);
+    this.world.animate(now);
+    this.hud.set('task', this.taskT === null || this.taskT === undefined ? '-' : `${this.taskT.toFixed(1)} s`);
+    if (!this.xr.active() && this.mode === 'desktop') this.hud.set('hand', driving ? this.desktop.statusLine() : '');
+    this.renderer.render(this.scene, this.camera);
+    this.workMs.push(performance.now() - now);
+    if (this.workMs.length > 2000) this.workMs.shift();
+  }
+
+  spectatorHands() {
+    const s = this.serverHands;
+    if (!s) return null;
+    const out = {};
+    for (const name of ['left', 'right']) {
+      if (s[name]) out[name] = { p: s[name].p, q: s[name].q, grip: s[name].grip ?? 0 };
+    }
+    return out;
+  }
+
+  sendSample(now, hands) {
+    if (now - this.lastSentMs < 1000 / this.rateHz - 0.5) return;
+    const sample = this.xr.active() ? this.xr.sample(hands) : this.desktop.sample();
+    for (const name of ['left', 'right']) {
+      if (!sample[name]) sample[name] = { position: hands[name].p, orientation: hands[name].q };
+      if (sample[`${name}_grip`] === undefined) sample[`${name}_grip`] = hands[name].grip;
+    }
+    const text = JSON.stringify(sample);
+    if (text === this.lastSample && now - this.lastSentMs < KEEPALIVE_MS) return;
+    if (this.bridge.send(sample)) {
+      this.lastSample = text;
+      this.lastSentMs = now;
+    }
+  }
+}
+
+// ------------------------------------------------------------------ hooks for the browser tests
+function projectWith(app, xyz) {
+  const v = new THREE.Vector3(...xyz);
+  app.root.localToWorld(v);
+  const canvas = app.renderer.domElement;
+  const rect = canvas.getBoundingClientRect();
+  if (app.renderer.xr.isPresenting) {
+    // the first (left) eye's view, in its viewport of the canvas
+    const cams = app.renderer.xr.getCamera().cameras;
+    const cam = cams[0];
+    const vp = cam.viewport; // drawing-buffer pixels
+    const scale = rect.width / canvas.width;
+    v.project(cam);
+    return {
+      x: rect.left + (vp.x + ((v.x + 1) / 2) * vp.z) * scale,
+      y: rect.top + (canvas.height - vp.y - vp.w + ((1 - v.y) / 2) * vp.w) * scale,
+      visible: Math.abs(v.z) <= 1,
+    };
+  }
+  v.project(app.camera);
+  return {
+    x: rect.left + ((v.x + 1) / 2) * rect.width,
+    y: rect.top + ((1 - v.y) / 2) * rect.height,
+    visible: Math.abs(v.z) <= 1,
+  };
+}
+
+window.hrcTest = {
+  /** The scene has arrived and every robot's URDF is loaded. */
+  ready: () => !!window.hrcApp?.sceneMsg && window.hrcApp.robots.allLoaded() && window.hrcApp.frames > 0,
+  /** A world point [x, y, z] as CSS pixels of the page {x, y, visible}. */
+  project: (xyz) => projectWith(window.hrcApp, xyz),
+  /** A world point as the XR (local-floor) coordinates the calibration maps it to. */
+  worldToXr: (xyz) => {
+    const v = new THREE.Vector3(...xyz);
+    window.hrcApp.root.localToWorld(v);
+    return [v.x, v.y, v.z];
+  },
+  state: () => {
+    const app = window.hrcApp;
+    const objects = {};
+    for (const [id, p] of app.world.parts) {
+      objects[id] = {
+        p: p.mesh.position.toArray(),
+        holder: p.holder,
+        placed: p.placed,
+        visible: p.mesh.visible,
+      };
+    }
+    const robots = {};
+    for (const [id, r] of app.robots.robots) robots[id] = { tcp: r.tcp, q: r.q, loaded: r.loaded };
+    const cues = {};
+    for (const [id, c] of app.world.cues) cues[id] = { on: c.on, visible: c.obj.visible };
+    return {
+      role: app.role,
+      run: app.run,
+      task_t_s: app.taskT,
+      connection: app.bridge.state,
+      frames: app.frames,
+      xr: app.xr.active(),
+      active_hand: app.desktop.active,
+      hands: app.xr.active() && app.lastXrHands ? app.lastXrHands : app.desktop.poses(),
+      objects,
+      robots,
+      cues,
+      events: app.events.map((e) => e.kind + (e.part ? `:${e.part}` : '')),
+      sent: app.bridge.sent,
+    };
+  },
+  /** Stops (true) or resumes (false) applying the bridge's frames, so that a screenshot and
+   * the positions read before it agree; rendering, blinking and sending go on. */
+  freeze: (on) => {
+    window.hrcApp.frozen = !!on;
+  },
+  /** Freezes the page (as freeze(true)) at the first frame in which `part` is held by
+   * `holder`, however late this page runs behind the trial. */
+  freezeWhen: (part, holder) => {
+    window.hrcApp.freezeOn = { part, holder };
+  },
+  /** The page's frame times (ms), oldest first: `intervals` between rendered frames and the
+   * `work` of each (update + render call); `reset` clears them. */
+  frameTimes: (reset = false) => {
+    const app = window.hrcApp;
+    const out = { intervals: [...app.frameMs], work: [...app.workMs] };
+    if (reset) {
+      app.frameMs.length = 0;
+      app.workMs.length = 0;
+    }
+    return out;
+  },
+};
+
+main().catch((err) => {
+  console.error(err);
+  const m = document.getElementById('message');
+  if (m) {
+    m.textContent = `the page failed to start: ${err}`;
+    m.style.display = 'block';
+  }
+});
