@@ -130,6 +130,15 @@ class ClockMasterService(Service):
     def step_world(self, tick: int, sim_time: float) -> None:
         """After the barrier of ``tick``: its inputs are applied; advance to ``tick + 1``."""
 
+    def exchange_span(self, tick: int) -> int:
+        """How many ticks the exchange starting at ``tick`` covers (lockstep), chosen from the
+        simulated state only (docs/ARCHITECTURE.md, "Exchange step"). Default 1."""
+        return 1
+
+    def publish_substep(self, tick: int, sim_time: float) -> None:
+        """Inside an exchange, ``tick`` is reached: publish what happened at it (stamped
+        ``tick``); the rest of the world state goes with the next clock tick."""
+
 
 def fetch_scenario(bus: Bus, timeout: float) -> pb.Scenario:
     """The scenario from the orchestrator's queryable (it may still be starting)."""
@@ -200,7 +209,12 @@ def _run_role(service: Service, bus: Bus) -> Outcome:
         clock = ClockMaster(bus, service.clock_settings())
         service.register_inputs(clock)
         clock.start()
-        end = clock.run(service.publish_world, service.step_world)
+        end = clock.run(
+            service.publish_world,
+            service.step_world,
+            service.exchange_span,
+            service.publish_substep,
+        )
         return Outcome(end.ok, end.reason, end)
     timeout = service.args.input_timeout
     role: ClockFollower

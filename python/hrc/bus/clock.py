@@ -85,6 +85,10 @@ class ClockMaster:
         self._mode = MODES[settings.mode]
         self._publish_world: Callable[[int, float], None] = lambda k, t: None
         self._step_world: Callable[[int, float], None] = lambda k, t: None
+        self._span_of: Callable[[int], int] = lambda k: 1
+        self._substep: Callable[[int, float], None] = lambda k, t: None
+        self._span = 1  # ticks in the current exchange
+        self.exchanges = 0
         self._alive: set[str] = set()
         self._lost: list[str] = []
         self._stop: tuple[bool, str] | None = None
@@ -277,12 +281,27 @@ class ClockMaster:
                 self._cond.wait(wait)
 
     # ------------------------------------------------------------------ one tick's two halves
+    def _choose_span(self, k: int) -> int:
+        """Ticks in the exchange that starts at k: the service's choice (from the simulated
+        state only), 1 in realtime, never past the run's last tick."""
+        if self.settings.mode != "lockstep":
+            return 1
+        n = max(1, int(self._span_of(k)))
+        if self.settings.ticks:
+            n = min(n, self.settings.ticks - k)
+        return max(1, n)
+
     def _publish_tick(self, k: int) -> None:
-        """World state of k, then clock tick k (the participants' cue to compute k)."""
+        """World state of k, then clock tick k (the participants' cue to compute the ticks of
+        the exchange k .. k + span - 1)."""
         sim = k * self.dt
         ta = time.perf_counter()
         self._publish_world(k, sim)
+        self._span = n = self._choose_span(k)
+        self.exchanges += 1
         tick = pb.ClockTick(mode=self._mode, dt=self.dt, participants=self.settings.participants)
+        if n > 1:
+            tick.span = n
         # Only what moved since the previous clock tick (see Bus.new_marks).
         tick.published.extend(
             pb.PublishedMark(key=key, sender=snd, seq=seq)
@@ -297,19 +316,29 @@ class ClockMaster:
         self._own_s["publish"] += tb - ta
 
     def _apply_tick(self, k: int) -> tuple[bool, str] | None:
-        """After the barrier of k: apply the outputs of k and step. Returns how the run ends
-        (ok, reason) if it ends after k, else None."""
+        """After the barrier of the exchange that starts at k: for each of its ticks t, apply
+        the outputs of t and step (in between, the service reports what happened at the tick
+        reached). The next exchange starts at ``ticks_done``. Returns how the run ends (ok,
+        reason) if it ends after this exchange, else None; a stop ends it after the tick it was
+        sent in."""
         tc = time.perf_counter()
         self._own_s["barrier"] += tc - self._published_at
-        self.inbox.deliver_through(k)
-        self._step_world(k, k * self.dt)
-        self.ticks_done = k + 1
+        stop: tuple[bool, str] | None = None
+        for i in range(self._span):
+            t = k + i
+            if i:
+                self._substep(t, t * self.dt)
+            self.inbox.deliver_through(t)
+            self._step_world(t, t * self.dt)
+            self.ticks_done = t + 1
+            with self._cond:
+                stop = self._stop
+            if stop is not None:
+                break
         self._own_s["step"] += time.perf_counter() - tc
-        with self._cond:
-            stop = self._stop
         if stop is not None:
             return stop
-        if self.settings.ticks and k + 1 >= self.settings.ticks:
+        if self.settings.ticks and self.ticks_done >= self.settings.ticks:
             return (True, "ticks")
         return None
 
@@ -345,7 +374,7 @@ class ClockMaster:
             try:
                 end = self._apply_tick(k)
                 if end is None:
-                    self._publish_tick(k + 1)
+                    self._publish_tick(self.ticks_done)
             except BaseException as exc:  # raised again by run()
                 with self._cond:
                     self._crash = exc
@@ -412,13 +441,17 @@ class ClockMaster:
             end = self._apply_tick(k)
             if end is not None:
                 return end
-            k += 1
+            k = self.ticks_done
             pause = t0 + k * self.dt - time.monotonic()
             if pause > 0:
                 time.sleep(pause)
 
     def run(
-        self, publish_world: Callable[[int, float], None], step: Callable[[int, float], None]
+        self,
+        publish_world: Callable[[int, float], None],
+        step: Callable[[int, float], None],
+        span: Callable[[int], int] | None = None,
+        substep: Callable[[int, float], None] | None = None,
     ) -> pb.RunEnd:
         """Runs the clock to the end and publishes ``run/end``; returns it.
 
@@ -426,10 +459,18 @@ class ClockMaster:
         vouches for) applies k, steps and publishes k + 1 itself, saving a thread hand-off per
         tick; this thread takes over whenever something must be waited for, and watches the
         timeouts. realtime: everything on this thread.
+
+        ``span(k)``: how many ticks the exchange starting at k covers (lockstep; default 1);
+        ``substep(t, sim)``: called inside an exchange when tick t is reached, before its
+        inputs are applied (the world's reports of t, e.g. contacts that began).
         """
         s = self.settings
         self._mode = MODES[s.mode]
         self._publish_world, self._step_world = publish_world, step
+        if span is not None:
+            self._span_of = span
+        if substep is not None:
+            self._substep = substep
         t0 = time.monotonic()
         ok, reason, failed = True, "", ""
         try:
@@ -463,9 +504,18 @@ class ClockMaster:
         for p, n in self.misses.items():
             end.deadline_misses[p] = n
         if k:
-            parts = ", ".join(f"{p} {self._compute_total[p] / k:.0f}" for p in s.participants)
-            own = ", ".join(f"{name} {v / k * 1e6:.0f}" for name, v in self._own_s.items())
-            log.info("mean us per tick: participants' compute %s; physics %s", parts, own)
+            n = max(1, self.exchanges)
+            parts = ", ".join(f"{p} {self._compute_total[p] / n:.0f}" for p in s.participants)
+            own = ", ".join(f"{name} {v / n * 1e6:.0f}" for name, v in self._own_s.items())
+            log.info(
+                "%d ticks in %d exchanges (mean span %.2f); mean us per exchange: "
+                "participants' compute %s; physics %s",
+                k,
+                self.exchanges,
+                k / n,
+                parts,
+                own,
+            )
         self._end_pub.put(end, k, k * self.dt)
         self._linger()
         return end

@@ -3,8 +3,8 @@
 Messages from different Zenoh sessions arrive in no defined order relative to each other, and a
 peer may already publish its outputs for tick k while we are still computing k. So a service never
 handles a message when it arrives: the Inbox keeps it until the service asks for "everything up to
-tick k", then hands it over sorted by (subscription order, key, sender, seq) — the same order on
-any machine at any load.
+tick k", then hands it over sorted by (tick, subscription order, key, sender, seq) — the same
+order on any machine at any load.
 """
 
 from __future__ import annotations
@@ -27,11 +27,11 @@ Handler = Callable[[str, Message], None]
 
 @dataclass(order=True)
 class _Pending:
+    tick: int  # first: an exchange hands over several ticks' messages, oldest tick first
     index: int
     key: str
     sender: str
     seq: int
-    tick: int = field(compare=False)
     msg: Message = field(compare=False)
 
 
@@ -73,7 +73,7 @@ class Inbox:
                     if bucket is None:
                         bucket = self._pending[h.tick] = []
                         heapq.heappush(self._pending_ticks, h.tick)
-                    bucket.append(_Pending(index, k, h.sender, h.seq, h.tick, msg))
+                    bucket.append(_Pending(h.tick, index, k, h.sender, h.seq, msg))
                 mark = (k, h.sender)
                 if h.seq > self._received.get(mark, 0):
                     self._received[mark] = h.seq

@@ -65,6 +65,23 @@ def describe_marks(marks: list[pb.PublishedMark]) -> str:
     return ", ".join(f"{m.key}#{m.seq} from {m.sender}" for m in marks)
 
 
+def exchange_ticks(tick: pb.ClockTick) -> list[pb.ClockTick]:
+    """The ticks of the exchange a clock tick opens: itself, then (span > 1) one ClockTick
+    per further tick, with header.tick and sim_time of that tick (``mode`` and ``dt`` kept)."""
+    if tick.span <= 1:
+        return [tick]
+    k, dt = tick.header.tick, tick.dt
+    out = [tick]
+    for i in range(1, tick.span):
+        sub = pb.ClockTick(mode=tick.mode, dt=dt)
+        sub.header.session = tick.header.session
+        sub.header.sender = tick.header.sender
+        sub.header.tick = k + i
+        sub.header.sim_time = (k + i) * dt  # as the clock master computes it
+        out.append(sub)
+    return out
+
+
 class ClockFollower:
     """The loop shared by participants and observers; use one of the two subclasses.
 
@@ -254,15 +271,24 @@ class ClockFollower:
         self._ticks_done += 1
         self._tick_ready(tick, arrived)
         try:
+            # Every input of the exchange is handed over before its first tick (Jacobi): the
+            # others' outputs of ticks inside this exchange are not for us yet.
             self.inbox.deliver(k, master=self.bus.config.clock_master)
-            self.last_tick = tick
-            self.bus.stats.tick(k)
-            if self._step is not None:
-                self._step(tick)
+            for sub in self._ticks_of(tick):
+                self.last_tick = sub
+                self.bus.stats.tick(sub.header.tick)
+                if self._step is not None:
+                    self._step(sub)
             self._after_step(tick, t0)
         except Exception as exc:  # any failure of the service ends the run
             self._abort(tick, exc)
         self._compute_s += time.perf_counter() - t0
+
+    def _ticks_of(self, tick: pb.ClockTick) -> list[pb.ClockTick]:
+        """The ticks this service steps through for one clock tick: a participant every tick
+        of the exchange (k .. k + span - 1, each a ClockTick of its own with header.tick and
+        sim_time set); an observer only the clock tick itself."""
+        return [tick]
 
     def _abort(self, tick: pb.ClockTick, exc: Exception) -> None:
         """The service failed in tick k: ask the clock master to end the run, naming us."""
@@ -295,6 +321,9 @@ class LockstepParticipant(ClockFollower):
 
     def _declare_publishers(self) -> None:
         self._ack_pub = self.bus.publisher(self.bus.keys.clock_ack(self.name), express=True)
+
+    def _ticks_of(self, tick: pb.ClockTick) -> list[pb.ClockTick]:
+        return exchange_ticks(tick)
 
     def _inputs_missing(self, k: int, missing: list[pb.PublishedMark]) -> bool:
         names = describe_marks(missing)

@@ -92,7 +92,9 @@ std::size_t Inbox::deliver(uint64_t upto_tick, const std::string& master) {
     handlers = handlers_;
   }
   std::sort(ready.begin(), ready.end(), [](const Pending& a, const Pending& b) {
-    return std::tie(a.index, a.key, a.sender, a.seq) < std::tie(b.index, b.key, b.sender, b.seq);
+    // Oldest tick first: an exchange hands over several ticks' messages at once.
+    return std::tie(a.tick, a.index, a.key, a.sender, a.seq) <
+           std::tie(b.tick, b.index, b.key, b.sender, b.seq);
   });
   for (const auto& p : ready) handlers[p.index](p.key, *p.msg);
   return ready.size();

@@ -183,13 +183,28 @@ void LockstepParticipant::process(const v2::ClockTick& tick) {
     }
     // TickAck.compute_us starts here: every input of tick k is at hand.
     const auto t0 = std::chrono::steady_clock::now();
+    // Every input of the exchange is handed over before its first tick (Jacobi): the others'
+    // outputs of ticks inside this exchange are not for us yet.
     inbox_.deliver(k, options_.clock_master);
-    {
-      const std::lock_guard<std::mutex> lock(mutex_);
-      last_tick_ = tick;
+    const uint32_t span = std::max<uint32_t>(1, tick.span());
+    v2::ClockTick sub = tick;  // ticks k + 1 .. of the exchange: header.tick / sim_time differ
+    sub.clear_published();
+    sub.clear_participants();
+    sub.clear_span();
+    for (uint32_t i = 0; i < span; ++i) {
+      const v2::ClockTick& now = i == 0 ? tick : sub;
+      if (i > 0) {
+        sub.mutable_header()->set_tick(k + i);
+        // as the clock master computes it
+        sub.mutable_header()->set_sim_time(static_cast<double>(k + i) * tick.dt());
+      }
+      {
+        const std::lock_guard<std::mutex> lock(mutex_);
+        last_tick_ = now;
+      }
+      bus_.stats().tick(k + i);
+      if (step_) step_(now);
     }
-    bus_.stats().tick(k);
-    if (step_) step_(tick);
     if (ack_pub_ != nullptr) {
       v2::TickAck ack;
       ack.set_participant(name());

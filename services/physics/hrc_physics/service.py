@@ -18,6 +18,7 @@ from hrc.services import OBSERVERS, PARTICIPANTS
 from hrc.validate import check_pose
 from hrc.wire import pb
 
+from hrc_physics.exchange import DEFAULT_MAX_SPAN, SpanPlanner, arm_speed_bound
 from hrc_physics.robots import RobotModelError
 from hrc_physics.world import CommandRejected, World, WorldSettings
 
@@ -93,6 +94,13 @@ class PhysicsService(ClockMasterService):
             help="seconds to wait for the scenario and every service (default 60)",
         )
         p.add_argument(
+            "--max-span",
+            type=int,
+            default=DEFAULT_MAX_SPAN,
+            help="lockstep: at most N ticks per exchange, fewer near a hand-arm contact "
+            "(1: an exchange every tick; default %(default)s)",
+        )
+        p.add_argument(
             "--solver-iterations",
             type=int,
             default=WorldSettings.solver_iterations,
@@ -103,6 +111,8 @@ class PhysicsService(ClockMasterService):
         super().__init__(args)
         if args.ticks < 0:
             raise ServiceExit(f"--ticks must be >= 0, got {args.ticks}", EXIT_BAD_INPUT)
+        if args.max_span < 1:
+            raise ServiceExit(f"--max-span must be >= 1, got {args.max_span}", EXIT_BAD_INPUT)
         if args.solver_iterations < 1:
             raise ServiceExit(
                 f"--solver-iterations must be >= 1, got {args.solver_iterations}", EXIT_BAD_INPUT
@@ -134,6 +144,11 @@ class PhysicsService(ClockMasterService):
         except (sc.ScenarioError, RobotModelError) as exc:
             raise ServiceExit(f"cannot build the world: {exc}") from exc
         stack.callback(self.close)
+        self.planner = SpanPlanner(
+            dt=1.0 / tick_hz,
+            arm_bounds={rid: arm_speed_bound(r) for rid, r in self.world.robots.items()},
+            max_span=args.max_span,
+        )
         keys = bus.keys
         self._commands_key = keys.world_commands()
         self._objects_pub = bus.publisher(keys.world_objects())
@@ -151,6 +166,15 @@ class PhysicsService(ClockMasterService):
         )
 
     def close(self) -> None:
+        if self.planner.spans:
+            log.info(
+                "exchanges: %d for %d ticks (mean span %.2f, at most %d); arm speed bounds %s m/s",
+                self.planner.spans,
+                self.planner.ticks,
+                self.planner.ticks / self.planner.spans,
+                self.planner.max_span,
+                ", ".join(f"{k} {v:.2f}" for k, v in sorted(self.planner.arm_bounds.items())),
+            )
         if self.world.rejected:
             log.info(
                 "world commands rejected, by object: %s",
@@ -194,19 +218,29 @@ class PhysicsService(ClockMasterService):
             seps = self.world.separations()
             if seps is not None:
                 self._separation_pub.put(pb.Separations(separations=seps), tick, sim_time)
+        self._publish_contacts(tick, sim_time)
+
+    def _publish_contacts(self, tick: int, sim_time: float) -> None:
         contacts = self.world.contact_events()
         if contacts:
             self._contacts_pub.put(pb.WorldContacts(contacts=contacts), tick, sim_time)
-            for c in contacts:
-                log.debug(
-                    "tick %d: contact %s %s %s-%s %s",
-                    tick,
-                    pb.ContactKind.Name(c.kind),
-                    "begins" if c.begin else "ends",
-                    c.a,
-                    c.b,
-                    c.link,
-                )
+
+    def exchange_span(self, tick: int) -> int:
+        return self.planner.span(
+            self.world.c, list(self.world.hands.values()), self.world.robots
+        )
+
+    def publish_substep(self, tick: int, sim_time: float) -> None:
+        """Inside an exchange: the object events and contacts of ``tick``, stamped with it (the
+        objects' poses go with the next clock tick)."""
+        events = self.world.take_events()
+        if events:
+            self._objects_pub.put(
+                pb.WorldObjects(objects=self.world.object_states(), events=events),
+                tick,
+                sim_time,
+            )
+        self._publish_contacts(tick, sim_time)
 
     def step_world(self, tick: int, sim_time: float) -> None:
         """Applies the outputs of ``tick`` and advances the world to ``tick + 1``."""

@@ -1,7 +1,8 @@
 // Deterministic input delivery for the tick protocol (twin of Python hrc.bus.inbox.Inbox).
 // Messages from different zenoh sessions arrive in no defined order relative to each other, so a
 // service never handles a message when it arrives: the Inbox keeps it until the service asks for
-// "everything up to tick k", then hands it over sorted by (subscription order, key, sender, seq).
+// "everything up to tick k", then hands it over sorted by (tick, subscription order, key,
+// sender, seq).
 #pragma once
 
 #include <condition_variable>

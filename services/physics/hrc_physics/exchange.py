@@ -1,0 +1,133 @@
+"""The exchange step: how many ticks the next exchange may cover (docs/ARCHITECTURE.md,
+"Exchange step").
+
+Inside an exchange of n ticks every participant computes from the inputs it held at its start, so
+a contact that began inside it would be acted on only at its end. The hand-robot contact must be
+acted on within one thesis frame, so an exchange of n > 1 ticks is allowed only where no hand can
+touch an arm before it ends: the gap between each active hand and each arm is larger than what
+the two can close in n ticks at their speed bounds,
+
+    gap > n * dt * (hand_speed_bound + arm_speed_bound).
+
+A contact can then only begin in an exchange of one tick, exactly as without exchanges. The gap
+and the bounds are simulated quantities, so the step sizes are the same on every run.
+
+Speed bounds: an arm's from its URDF joint velocity limits (every point of it moves at most
+sum_j |qdot_j| * r_j, r_j the farthest any collider beyond joint j can be from it); the hand's
+is :data:`HAND_SPEED_BOUND` (the scenario's cap on a reach's peak speed).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import pybullet as p
+
+from hrc_physics.hands import Hand
+from hrc_physics.robots import KinematicRobot
+
+# m/s: the scenario's upper limit of ``peak_hand_speed`` (hrc.scenario.models); a hand source
+# faster than this (a replay, VR) gets one-tick exchanges only if it says so (--max-span 1).
+HAND_SPEED_BOUND = 5.0
+# Exchanges of at most this many ticks (240 Hz: 8 ticks = 30 exchanges per simulated second).
+DEFAULT_MAX_SPAN = 8
+
+
+def _aabb_radius(origin: tuple[float, ...], box: tuple[tuple[float, ...], ...]) -> float:
+    """The largest distance from ``origin`` to a corner of the box (covers the collider)."""
+    lo, hi = box
+    return math.sqrt(
+        sum(max(abs(lo[i] - origin[i]), abs(hi[i] - origin[i])) ** 2 for i in range(3))
+    )
+
+
+def arm_speed_bound(robot: KinematicRobot) -> float:
+    """m/s no point of the arm's colliders exceeds, from the joint velocity limits.
+
+    Each link's reach from joint j is bounded by the chain of joint offsets from j to the link
+    plus the link's own radius (link frame to its collider's AABB corners), so it holds in any
+    pose. A joint without a velocity limit counts as 2 pi rad/s.
+    """
+    c, body = robot._c, robot.body
+    n = p.getNumJoints(body, physicsClientId=c)
+    parent: dict[int, int] = {}
+    vmax: dict[int, float] = {}
+    origin: dict[int, tuple[float, ...]] = {-1: tuple(p.getBasePositionAndOrientation(body, c)[0])}
+    for j in range(n):
+        info = p.getJointInfo(body, j, physicsClientId=c)
+        parent[j] = info[16]
+        if info[2] != p.JOINT_FIXED:
+            vmax[j] = info[11] if info[11] > 0 else 2 * math.pi
+        origin[j] = tuple(p.getLinkState(body, j, physicsClientId=c)[4])
+    radius: dict[int, float] = {}
+    for link in range(n):
+        shapes = p.getCollisionShapeData(body, link, physicsClientId=c)
+        box = p.getAABB(body, link, physicsClientId=c)
+        radius[link] = _aabb_radius(origin[link], box) if shapes else 0.0
+    offset = {j: math.dist(origin[j], origin[parent[j]]) for j in range(n)}
+    bound = 0.0
+    for j, v in vmax.items():
+        reach = 0.0
+        for link in range(n):
+            # path length from joint j down to link (link must lie below j)
+            length, at = 0.0, link
+            while at != j and at != -1:
+                length += offset[at]
+                at = parent[at]
+            if at == j:
+                reach = max(reach, length + radius[link])
+        bound += v * reach
+    return bound
+
+
+@dataclass
+class SpanPlanner:
+    """Chooses each exchange's span from the world's hand-arm gaps."""
+
+    dt: float
+    arm_bounds: dict[str, float]  # robot id -> m/s
+    max_span: int = DEFAULT_MAX_SPAN
+    hand_bound: float = HAND_SPEED_BOUND
+
+    def __post_init__(self) -> None:
+        self.spans = 0  # statistics: exchanges planned and their ticks
+        self.ticks = 0
+
+    def span(self, client: int, hands: list[Hand], robots: dict[str, KinematicRobot]) -> int:
+        n = self._span(client, hands, robots)
+        self.spans += 1
+        self.ticks += n
+        return n
+
+    def _span(self, client: int, hands: list[Hand], robots: dict[str, KinematicRobot]) -> int:
+        if self.max_span <= 1:
+            return 1
+        n = self.max_span
+        for hand in hands:
+            if not hand.active:
+                continue
+            hand_box = p.getAABB(hand.body, -1, physicsClientId=client)
+            for rid, robot in robots.items():
+                per_tick = self.dt * (self.hand_bound + self.arm_bounds[rid])
+                need = n * per_tick  # the gap a span of n needs
+                lo, hi = robot.aabb()
+                if _box_gap(hand_box, (lo, hi)) > need:
+                    continue  # the boxes are farther apart than that: so are the bodies
+                gap = need
+                for pt in p.getClosestPoints(hand.body, robot.body, need, physicsClientId=client):
+                    gap = min(gap, pt[8])
+                # the largest n with n * per_tick < gap
+                n = max(1, min(n, math.ceil(gap / per_tick) - 1))
+                if n == 1:
+                    return 1
+        return n
+
+
+def _box_gap(a: tuple, b: tuple) -> float:
+    """Euclidean distance between two AABBs ((lo), (hi)); 0 if they overlap."""
+    d2 = 0.0
+    for i in range(3):
+        d = max(a[0][i] - b[1][i], b[0][i] - a[1][i], 0.0)
+        d2 += d * d
+    return math.sqrt(d2)
