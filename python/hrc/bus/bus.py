@@ -27,6 +27,9 @@ log = logging.getLogger(__name__)
 M = TypeVar("M", bound=Message)
 R = TypeVar("R", bound=Message)
 
+# The attachment of an ExchangeBatch is the sender's name and this suffix (names cannot hold '+').
+BATCH_SUFFIX = b"+batch"
+
 
 class InputStats:
     """Thread-safe counters of what a service received."""
@@ -73,6 +76,7 @@ class Publisher(Generic[M]):
         self.seq = 0
         self.reported = 0  # the seq last listed by Bus.new_marks
         self._lock = threading.Lock()
+        self._held: list[bytes] = []  # serialized messages held back while the bus batches
         self._pub = bus.session.declare_publisher(
             key,
             congestion_control=zenoh.CongestionControl.BLOCK
@@ -90,8 +94,22 @@ class Publisher(Generic[M]):
             h.sim_time = sim_time
             h.sender = self._bus.sender
             h.seq = self.seq
-            self._pub.put(msg.SerializeToString(), attachment=self._bus.sender_bytes)
+            if self._bus.batching:
+                self._held.append(msg.SerializeToString())
+            else:
+                self._pub.put(msg.SerializeToString(), attachment=self._bus.sender_bytes)
             return self.seq
+
+    def flush(self) -> None:
+        """Puts what was held back while the bus batched: one message as it is, several as one
+        ExchangeBatch (attachment ``<sender>+batch``)."""
+        with self._lock:
+            held, self._held = self._held, []
+            if len(held) == 1:
+                self._pub.put(held[0], attachment=self._bus.sender_bytes)
+            elif held:
+                batch = pb.ExchangeBatch(items=held).SerializeToString()
+                self._pub.put(batch, attachment=self._bus.sender_bytes + BATCH_SUFFIX)
 
     def undeclare(self) -> None:
         self._pub.undeclare()
@@ -112,6 +130,8 @@ class Bus:
         self.sender = check_name("service name", sender)
         self.sender_bytes = sender.encode()
         self.stats = InputStats()
+        # While set, puts are held back per publisher until flush_batches() (one put per key).
+        self.batching = False
         self._declared: list[object] = []
         self._publishers: dict[str, Publisher[Any]] = {}
         self.session = zenoh.open(config.to_zenoh())
@@ -145,6 +165,17 @@ class Bus:
             self._publishers[key] = pub
             self._declared.append(pub)
         return pub
+
+    def begin_batch(self) -> None:
+        """From now on every put is held back (per publisher) until :meth:`flush_batches`:
+        what one exchange publishes on a key goes out in one put (docs/ARCHITECTURE.md)."""
+        self.batching = True
+
+    def flush_batches(self) -> None:
+        """Ends batching and puts everything held back."""
+        self.batching = False
+        for pub in list(self._publishers.values()):
+            pub.flush()
 
     def published_marks(self) -> list[pb.PublishedMark]:
         """The last seq of every key this service has published on (for the tick protocol)."""
@@ -184,11 +215,10 @@ class Bus:
         self.stats.subscribed.append(key)
         session = self.keys.session
 
-        def on_sample(sample: zenoh.Sample) -> None:
-            k = str(sample.key_expr)
+        def one(k: str, sample: zenoh.Sample, payload: bytes) -> None:
             try:
                 msg = msg_type()
-                msg.ParseFromString(sample.payload.to_bytes())
+                msg.ParseFromString(payload)
                 problem = None
                 header = getattr(msg, "header", None)
                 if header is not None and header.session != session:
@@ -205,12 +235,27 @@ class Bus:
             except Exception:
                 log.exception("handler for %s failed", k)
 
+        def on_sample(sample: zenoh.Sample) -> None:
+            k = str(sample.key_expr)
+            att = sample.attachment
+            if att is None or not att.to_bytes().endswith(BATCH_SUFFIX):
+                one(k, sample, sample.payload.to_bytes())
+                return
+            batch = pb.ExchangeBatch()
+            try:
+                batch.ParseFromString(sample.payload.to_bytes())
+            except DecodeError as exc:
+                self._malformed(k, sample, f"does not decode as ExchangeBatch: {exc}")
+                return
+            for item in batch.items:
+                one(k, sample, item)
+
         self._declared.append(self.session.declare_subscriber(key, on_sample))
 
     def _malformed(self, key: str, sample: zenoh.Sample, problem: str) -> None:
         att = sample.attachment
-        sender = att.to_bytes().decode(errors="replace") if att is not None else "?"
-        self.reject(key, sender, problem)
+        raw = att.to_bytes().removesuffix(BATCH_SUFFIX) if att is not None else b"?"
+        self.reject(key, raw.decode(errors="replace"), problem)
 
     def reject(self, key: str, sender: str, problem: str) -> None:
         """Counts and logs a malformed message (also for checks done after decoding)."""

@@ -297,6 +297,8 @@ class ClockMaster:
         sim = k * self.dt
         ta = time.perf_counter()
         self._publish_world(k, sim)
+        # What the exchange published on a key (substeps and this) goes out in one put.
+        self.bus.flush_batches()
         self._span = n = self._choose_span(k)
         self.exchanges += 1
         tick = pb.ClockTick(mode=self._mode, dt=self.dt, participants=self.settings.participants)
@@ -323,6 +325,7 @@ class ClockMaster:
         sent in."""
         tc = time.perf_counter()
         self._own_s["barrier"] += tc - self._published_at
+        self.bus.begin_batch()  # flushed before the next clock tick (or the end)
         stop: tuple[bool, str] | None = None
         for i in range(self._span):
             t = k + i
@@ -516,6 +519,7 @@ class ClockMaster:
                 parts,
                 own,
             )
+        self.bus.flush_batches()  # a last exchange's world state, if any
         self._end_pub.put(end, k, k * self.dt)
         self._linger()
         return end

@@ -8,6 +8,7 @@ own log goes to ``<trial>/services/<name>.log``.
 from __future__ import annotations
 
 import datetime as dt
+import json
 import logging
 import os
 import random
@@ -199,6 +200,7 @@ class ServiceGroup:
         self.logs_dir.mkdir(parents=True, exist_ok=True)
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self._files: list[IO[bytes]] = []
+        self.cpu_s: dict[str, tuple[float, float]] = {}  # (user, system) of each ended service
 
     def start(self, name: str, argv: list[str]) -> None:
         f = open(self.logs_dir / f"{name}.log", "wb")
@@ -215,21 +217,37 @@ class ServiceGroup:
             preexec_fn=die_with_parent,
         )
 
+    def _reap(self, name: str, p: subprocess.Popen[bytes]) -> int | None:
+        """Like ``p.poll()``, but reaps with wait4 to keep the service's CPU time."""
+        if p.returncode is None:
+            try:
+                pid, status, ru = os.wait4(p.pid, os.WNOHANG)
+            except ChildProcessError:
+                return p.poll()
+            if pid:
+                p.returncode = os.waitstatus_to_exitcode(status)
+                self.cpu_s[name] = (ru.ru_utime, ru.ru_stime)
+        return p.returncode
+
     def poll(self) -> dict[str, int | None]:
-        return {n: p.poll() for n, p in self.procs.items()}
+        return {n: self._reap(n, p) for n, p in self.procs.items()}
 
     def stop_all(self, grace_s: float = 2.0) -> None:
         for p in self.procs.values():
             if p.poll() is None:
                 p.send_signal(signal.SIGTERM)
         deadline = time.monotonic() + grace_s
+        while any(r is None for r in self.poll().values()) and time.monotonic() < deadline:
+            time.sleep(0.01)
         for p in self.procs.values():
-            left = deadline - time.monotonic()
-            try:
-                p.wait(timeout=max(0.0, left))
-            except subprocess.TimeoutExpired:
+            if p.poll() is None:
                 p.kill()
                 p.wait()
+
+    def write_cpu(self) -> None:
+        """``services/cpu.json``: each service's CPU seconds (user, system), for benches."""
+        data = {n: {"user_s": round(u, 3), "system_s": round(s, 3)} for n, (u, s) in self.cpu_s.items()}
+        (self.logs_dir / "cpu.json").write_text(json.dumps(data, indent=1) + "\n")
 
     def close(self) -> None:
         for f in self._files:
@@ -449,6 +467,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         if watcher is not None:
             watcher.close()
         group.stop_all(grace_s=1.0)
+        group.write_cpu()
         group.close()
         if sock is not None:
             sock.unlink(missing_ok=True)

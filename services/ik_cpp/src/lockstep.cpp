@@ -167,6 +167,31 @@ Outcome LockstepParticipant::run(double timeout_s) {
   }
 }
 
+void LockstepParticipant::step_through(const v2::ClockTick& tick) {
+  const uint64_t k = tick.header().tick();
+  const uint32_t span = std::max<uint32_t>(1, tick.span());
+  v2::ClockTick sub;  // ticks k + 1 .. of the exchange: header.tick / sim_time differ
+  if (span > 1) {
+    sub.set_mode(tick.mode());
+    sub.set_dt(tick.dt());
+    *sub.mutable_header() = tick.header();
+  }
+  for (uint32_t i = 0; i < span; ++i) {
+    if (i > 0) {
+      sub.mutable_header()->set_tick(k + i);
+      // as the clock master computes it
+      sub.mutable_header()->set_sim_time(static_cast<double>(k + i) * tick.dt());
+    }
+    const v2::ClockTick& now = i == 0 ? tick : sub;
+    {
+      const std::lock_guard<std::mutex> lock(mutex_);
+      last_tick_ = now;
+    }
+    bus_.stats().tick(k + i);
+    if (step_) step_(now);
+  }
+}
+
 void LockstepParticipant::process(const v2::ClockTick& tick) {
   const uint64_t k = tick.header().tick();
   try {
@@ -186,25 +211,15 @@ void LockstepParticipant::process(const v2::ClockTick& tick) {
     // Every input of the exchange is handed over before its first tick (Jacobi): the others'
     // outputs of ticks inside this exchange are not for us yet.
     inbox_.deliver(k, options_.clock_master);
-    const uint32_t span = std::max<uint32_t>(1, tick.span());
-    v2::ClockTick sub = tick;  // ticks k + 1 .. of the exchange: header.tick / sim_time differ
-    sub.clear_published();
-    sub.clear_participants();
-    sub.clear_span();
-    for (uint32_t i = 0; i < span; ++i) {
-      const v2::ClockTick& now = i == 0 ? tick : sub;
-      if (i > 0) {
-        sub.mutable_header()->set_tick(k + i);
-        // as the clock master computes it
-        sub.mutable_header()->set_sim_time(static_cast<double>(k + i) * tick.dt());
-      }
-      {
-        const std::lock_guard<std::mutex> lock(mutex_);
-        last_tick_ = now;
-      }
-      bus_.stats().tick(k + i);
-      if (step_) step_(now);
+    // What the exchange publishes on a key goes out in one put, before the ack.
+    bus_.begin_batch();
+    try {
+      step_through(tick);
+    } catch (...) {
+      bus_.flush_batches();  // what was published before the failure still goes out
+      throw;
     }
+    bus_.flush_batches();
     if (ack_pub_ != nullptr) {
       v2::TickAck ack;
       ack.set_participant(name());

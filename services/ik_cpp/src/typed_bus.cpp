@@ -70,7 +70,24 @@ void TypedPublisher::stamp(v2::Header& h, uint64_t tick, double sim_time, uint64
 }
 
 void TypedPublisher::put_bytes_locked(const std::string& bytes) {
+  if (bus_.batching()) {
+    held_.push_back(bytes);
+    return;
+  }
   publisher_.put(bytes, bus_.sender());
+}
+
+void TypedPublisher::flush() {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  if (held_.empty()) return;
+  if (held_.size() == 1) {
+    publisher_.put(held_.front(), bus_.sender());
+  } else {
+    v2::ExchangeBatch batch;
+    for (auto& item : held_) batch.add_items(std::move(item));
+    publisher_.put(batch.SerializeAsString(), bus_.sender() + std::string(kBatchSuffix));
+  }
+  held_.clear();
 }
 
 void TypedPublisher::put_raw(std::string_view payload) {
@@ -164,6 +181,16 @@ std::vector<v2::PublishedMark> Bus::new_marks(const std::string& exclude) {
     marks.push_back(make_mark(key, sender_, seq));
   }
   return marks;
+}
+
+void Bus::flush_batches() {
+  batching_.store(false);
+  std::vector<TypedPublisher*> pubs;
+  {
+    const std::lock_guard<std::mutex> lock(mutex_);
+    for (auto& [key, pub] : publishers_) pubs.push_back(pub.get());
+  }
+  for (TypedPublisher* pub : pubs) pub->flush();
 }
 
 void Bus::malformed(const SampleView& s, const std::string& problem) {

@@ -154,7 +154,10 @@ class LoggerService(Service):
             web_port=args.web_port,
             grpc_port=args.grpc_port,
         )
-        self.view = View(rec, ViewSettings(view_hz=args.view_hz))
+        live = args.viewer or args.web  # someone watches: send time series in small batches
+        self.view = View(
+            rec, ViewSettings(view_hz=args.view_hz, series_flush_s=0.25 if live else None)
+        )
         self.view.setup(self.scenario)
         self.recorder = TrialRecorder(self.out, self.view)
         log.info("observing session %s; writing %s", bus.keys.session, self.out)

@@ -112,6 +112,10 @@ class ViewSettings:
     view_hz: float = 30.0  # robot/hand/object updates per simulated second (logging cost)
     flash_hz: float = 2.0  # cue blinking: on for half of each 1/flash_hz period
     tick_hz: float = DEFAULT_TICK_HZ  # replaced by the scenario's / clock's rate when known
+    # Time series (joint transforms, plots) are sent in columns, one call per entity, once this
+    # many simulated seconds have gathered (a live viewer) or at the end (a file only): a
+    # rerun log call per row was most of the logger's CPU time.
+    series_flush_s: float | None = None
 
 
 S = TypeVar("S", pb.RobotState, pb.HumanState)
@@ -155,6 +159,38 @@ class StateStream(Generic[S]):
             held.header.tick, held.header.sim_time = clock
             out.append(held)
         return out
+
+
+@dataclass
+class Series:
+    """One entity's rows not yet sent: joint transforms or scalars, at (tick, sim time)."""
+
+    ticks: list[int] = field(default_factory=list)
+    times: list[float] = field(default_factory=list)
+    values: list[Any] = field(default_factory=list)  # scalar, or (translation, xyzw)
+    frames: tuple[str, str] | None = None  # a transform's (parent, child) frame
+
+    def send(self, rec: rr.RecordingStream, entity: str) -> None:
+        if not self.ticks:
+            return
+        n = len(self.ticks)
+        # nanoseconds rounded as set_time rounds a float duration
+        nanos = np.round(np.asarray(self.times, dtype=np.float64) * 1e9).astype(np.int64)
+        indexes = [
+            rr.TimeColumn("tick", sequence=np.asarray(self.ticks, dtype=np.int64)),
+            rr.TimeColumn("sim_time", duration=nanos.astype("timedelta64[ns]")),
+        ]
+        if self.frames is None:
+            columns = rr.Scalars.columns(scalars=np.asarray(self.values, dtype=np.float64))
+        else:
+            columns = rr.Transform3D.columns(
+                translation=np.asarray([v[0] for v in self.values], dtype=np.float64),
+                quaternion=np.asarray([v[1] for v in self.values], dtype=np.float64),
+                parent_frame=[self.frames[0]] * n,
+                child_frame=[self.frames[1]] * n,
+            )
+        rr.send_columns(entity, indexes=indexes, columns=columns, recording=rec)
+        self.ticks, self.times, self.values = [], [], []
 
 
 @dataclass
@@ -239,7 +275,11 @@ class View:
         self.button: npt.NDArray[np.float64] = np.zeros(3)
         self._flash_phase: int | None = None
         self.zones: dict[str, Zone] = {}  # ssm only: the protective zone per robot
-        self.logged = 0  # rerun log calls, for the service's summary
+        self.logged = 0  # rerun log calls (and rows sent in columns), for the service's summary
+        self._now = (0, 0.0)  # the time set by _time
+        self._series: dict[str, Series] = {}
+        self._series_since = 0.0  # sim time of the oldest unsent row
+        self._pending_rows = 0
 
     # ------------------------------------------------------------------ helpers
     def _log(self, entity: str, *archetypes: Any, static: bool = False) -> None:
@@ -249,6 +289,29 @@ class View:
     def _time(self, tick: int, sim_time: float) -> None:
         self.rec.set_time("tick", sequence=int(tick))
         self.rec.set_time("sim_time", duration=float(sim_time))
+        self._now = (int(tick), float(sim_time))
+
+    def _row(self, entity: str, value: Any, frames: tuple[str, str] | None = None) -> None:
+        """A time-series row at the current time, sent later in columns (flush_series)."""
+        series = self._series.get(entity)
+        if series is None:
+            series = self._series[entity] = Series(frames=frames)
+        if not self._pending_rows:
+            self._series_since = self._now[1]
+        self._pending_rows += 1
+        series.ticks.append(self._now[0])
+        series.times.append(self._now[1])
+        series.values.append(value)
+        self.logged += 1
+        every = self.s.series_flush_s
+        if every is not None and self._now[1] - self._series_since >= every:
+            self.flush_series()
+
+    def flush_series(self) -> None:
+        """Sends every gathered time-series row (one call per entity)."""
+        for entity, series in self._series.items():
+            series.send(self.rec, entity)
+        self._pending_rows = 0
 
     def set_tick_hz(self, hz: float) -> None:
         if hz > 0 and math.isfinite(hz):
@@ -365,6 +428,13 @@ class View:
     def _log_joint(self, rv: RobotView, name: str, t: np.ndarray, static: bool = False) -> None:
         assert rv.model is not None
         j = rv.model.by_name[name]
+        if not static:
+            self._row(
+                f"robot_{part(rv.rid)}/joints/{part(name)}",
+                (t[:3, 3], matrix_to_quat_xyzw(t[:3, :3])),
+                (f"{rv.rid}/{j.parent}", f"{rv.rid}/{j.child}"),
+            )
+            return
         self._log(
             f"robot_{part(rv.rid)}/joints/{part(name)}",
             rr.Transform3D(
@@ -414,7 +484,7 @@ class View:
                 f"world/tcp/{part(rv.rid)}", rr.Points3D([rv.tcp], radii=[0.01], colors=[rv.color])
             )
         if math.isfinite(st.tcp_speed):
-            self._log(f"plots/tcp_speed/{part(rv.rid)}", rr.Scalars(st.tcp_speed))
+            self._row(f"plots/tcp_speed/{part(rv.rid)}", st.tcp_speed)
         zone = self.zones.get(rv.rid)
         if zone is not None:
             zone.observe(st)
@@ -460,9 +530,9 @@ class View:
                     else (rv.tcp[None, :] if rv.tcp is not None else None)
                 )
                 if pts is not None:
-                    self._log(
+                    self._row(
                         f"plots/hand_distance/{hand}/{part(rid)}",
-                        rr.Scalars(point_polyline_distance(pos, pts)),
+                        point_polyline_distance(pos, pts),
                     )
 
     # ------------------------------------------------------------------ objects
@@ -682,5 +752,6 @@ class View:
                 self._log_robot(rv, st)
         for hs in self.human.closing(self.clock):
             self._log_human(hs)
+        self.flush_series()
         self.rec.flush()
         self.rec.disconnect()  # closes the file sink (writes the rrd footer)

@@ -86,6 +86,8 @@ class LockstepParticipant {
   void finish(Outcome outcome);
   /// Computes one tick; called with busy_ set by exactly one thread at a time.
   void process(const v2::ClockTick& tick);
+  /// The step of every tick of the exchange `tick` opens (k .. k + span - 1).
+  void step_through(const v2::ClockTick& tick);
   /// The tick failed: asks the clock master to abort the run, naming the error.
   void abort(const v2::ClockTick& tick, const std::string& error);
 

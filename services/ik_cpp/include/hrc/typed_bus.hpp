@@ -5,6 +5,7 @@
 // in InputStats, logged with key and sender, and never reaches service code.
 #pragma once
 
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -73,6 +74,9 @@ class TypedPublisher {
 
   /// Puts bytes as they are (for probes and garbage tests); does not advance seq.
   void put_raw(std::string_view payload);
+  /// Puts what was held back while the bus batched: one message as it is, several as one
+  /// ExchangeBatch (attachment "<sender>+batch").
+  void flush();
   uint64_t seq() const;
   const std::string& key() const { return publisher_.key(); }
   bool has_subscribers() const { return publisher_.has_subscribers(); }
@@ -85,7 +89,11 @@ class TypedPublisher {
   Publisher publisher_;
   mutable std::mutex mutex_;
   uint64_t seq_ = 0;
+  std::vector<std::string> held_;  // serialized messages held back while the bus batches
 };
+
+/// The attachment suffix that marks an ExchangeBatch (after the sender's name).
+inline constexpr std::string_view kBatchSuffix = "+batch";
 
 /// One service's view of the bus. Not movable: callbacks hold a pointer to it. Everything declared
 /// through it is undeclared when it is destroyed (or close() is called), before the session closes.
@@ -119,20 +127,39 @@ class Bus {
   /// messages list only these; receivers keep the highest seq per key and sender).
   std::vector<v2::PublishedMark> new_marks(const std::string& exclude = "");
 
+  /// From now on every put is held back (per publisher) until flush_batches(): what one
+  /// exchange publishes on a key goes out in one put (docs/ARCHITECTURE.md, "Batches").
+  void begin_batch() { batching_.store(true); }
+  /// Ends batching and puts everything held back.
+  void flush_batches();
+  bool batching() const { return batching_.load(); }
+
   /// Calls handler(key, msg) on a zenoh thread for each well-formed message on `key_expr`.
   template <class M>
   void subscribe(const std::string& key_expr, Handler<M> handler, Validator<M> validate = {}) {
     stats_.add_subscribed(key_expr);
     auto on_sample = [this, handler = std::move(handler),
                       validate = std::move(validate)](const SampleView& s) {
-      M msg;
-      std::string problem = check_payload(msg, s.payload);
-      if (problem.empty() && validate) problem = validate(msg);
-      if (!problem.empty()) {
-        malformed(s, problem);
+      const auto one = [&](std::string_view payload) {
+        M msg;
+        std::string problem = check_payload(msg, payload);
+        if (problem.empty() && validate) problem = validate(msg);
+        if (!problem.empty()) {
+          malformed(s, problem);
+          return;
+        }
+        handler(std::string(s.key), msg);
+      };
+      if (!is_batch(s.attachment)) {
+        one(s.payload);
         return;
       }
-      handler(std::string(s.key), msg);
+      v2::ExchangeBatch batch;
+      if (!parse(batch, s.payload)) {
+        malformed(s, "does not decode as ExchangeBatch");
+        return;
+      }
+      for (const std::string& item : batch.items()) one(item);
     };
     add_subscriber(session_.declare_subscriber(key_expr, std::move(on_sample)));
   }
@@ -206,6 +233,10 @@ class Bus {
     }
     return {};
   }
+  static bool is_batch(std::string_view attachment) {
+    return attachment.size() > kBatchSuffix.size() &&
+           attachment.substr(attachment.size() - kBatchSuffix.size()) == kBatchSuffix;
+  }
   void malformed(const SampleView& s, const std::string& problem);
   void add_subscriber(Subscriber s);
   void add_queryable(Queryable q);
@@ -220,6 +251,7 @@ class Bus {
   std::vector<Subscriber> subscribers_;
   std::vector<Queryable> queryables_;
   std::vector<LivelinessToken> tokens_;
+  std::atomic<bool> batching_{false};
 };
 
 }  // namespace hrc
