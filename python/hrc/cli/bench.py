@@ -10,6 +10,7 @@ _MODULES = {
     "physics": "hrc.cli.bench_physics",
     "ik": "hrc.cli.bench_ik",
     "client": "hrc.cli.bench_client",
+    "trial": "hrc.cli.bench_trial",
 }
 
 

@@ -409,7 +409,7 @@ def build_parser() -> argparse.ArgumentParser:
     d.set_defaults(func=_cmd_deploy_files)
 
     b = sub.add_parser("bench", help="benchmarks that print their figures")
-    b.add_argument("what", choices=["bus", "ik", "physics", "client"])
+    b.add_argument("what", choices=["bus", "ik", "physics", "client", "trial"])
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--n", type=int, default=0, help="samples / ticks (0: the benchmark's default)")
     b.set_defaults(func=_cmd_bench)

@@ -451,6 +451,13 @@ class View:
         rv = self.robots.get(st.robot)
         if rv is None:  # a robot the scenario did not announce: TCP only
             rv = self.robots[st.robot] = RobotView(st.robot, UNKNOWN_COLOR, np.eye(4))
+        # Only the states the rate limit lets through are looked into (a state per tick per arm
+        # would otherwise cost more than logging them).
+        if rv.states.offer(st, self.every):
+            self._log_robot(rv, st)
+
+    def _absorb(self, rv: RobotView, st: pb.RobotState) -> None:
+        """The joints and TCP of a state about to be logged."""
         if st.joint_names and len(st.joint_names) == len(st.joint_positions):
             q = dict(zip(st.joint_names, st.joint_positions, strict=True))
         elif rv.model is not None and len(st.joint_positions) == len(rv.model.movable):
@@ -462,10 +469,9 @@ class View:
         p = st.tcp.position
         if finite((p.x, p.y, p.z)):
             rv.tcp = np.array([p.x, p.y, p.z])
-        if rv.states.offer(st, self.every):
-            self._log_robot(rv, st)
 
     def _log_robot(self, rv: RobotView, st: pb.RobotState) -> None:
+        self._absorb(rv, st)
         self._time(st.header.tick, st.header.sim_time)
         rv.states.logged(st)
         if rv.model is not None:
@@ -497,14 +503,14 @@ class View:
 
     # ------------------------------------------------------------------ human
     def human_state(self, hs: pb.HumanState) -> None:
-        for hand, pose in (("left", hs.left_hand), ("right", hs.right_hand)):
-            p = pose.position
-            if finite((p.x, p.y, p.z)):
-                self.hands[hand] = np.array([p.x, p.y, p.z])
         if self.human.offer(hs, self.every):
             self._log_human(hs)
 
     def _log_human(self, hs: pb.HumanState) -> None:
+        for hand, pose in (("left", hs.left_hand), ("right", hs.right_hand)):
+            p = pose.position
+            if finite((p.x, p.y, p.z)):
+                self.hands[hand] = np.array([p.x, p.y, p.z])
         self._time(hs.header.tick, hs.header.sim_time)
         self.human.logged(hs)
         h = hs.head.position

@@ -14,6 +14,7 @@ import argparse
 import json
 import math
 import time
+from pathlib import Path
 
 from hrc import scenario as sc
 from hrc.paths import project_root
@@ -42,8 +43,9 @@ def _joints(k: int, dt: float, phase: float) -> list[float]:
     return [0.4 * math.sin(0.5 * t + phase), q2, q3, math.pi - q2 - q3, 0.0]
 
 
-def measure(n: int) -> dict[str, float]:
-    scenario = sc.load(project_root() / "scenarios" / "thesis.toml", motion_check=False)
+def measure(n: int, path: Path | None = None) -> dict[str, float]:
+    path = path or project_root() / "scenarios" / "thesis.toml"
+    scenario = sc.load(path, motion_check=False)
     dt = 1.0 / scenario.scenario.tick_hz
     with World(scenario, WorldSettings(dt=dt)) as world:
         robots = list(world.robots)
@@ -76,10 +78,13 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m hrc_physics.bench", description=__doc__)
     p.add_argument("--n", type=int, default=5000, help="measured ticks (default %(default)s)")
     p.add_argument("--json", action="store_true", help='print one JSON object {"us_per_tick": x}')
+    p.add_argument(
+        "--scenario", type=Path, default=None, help="the world of this scenario (default: thesis)"
+    )
     args = p.parse_args(argv)
     if args.n < 1:
         p.error(f"--n must be >= 1, got {args.n}")
-    result = measure(args.n)
+    result = measure(args.n, args.scenario)
     if args.json:
         print(json.dumps({"us_per_tick": result["us_per_tick"]}))
     else:

@@ -1,0 +1,146 @@
+"""``hrc bench trial``: what a whole trial costs (issue 15), from one run of each board.
+
+For the thesis trial (``scenarios/thesis.toml``) and for a board three times as large (the
+thesis's 18 parts plus 36 spare parts lying on the table, generated here), it runs ``hrc run``
+as a user would and reports:
+
+- ``realtime_factor``: simulated / wall seconds of the run phase (metrics.json ``run``);
+- ``end_to_end_s``: wall seconds of the whole ``hrc run`` (start-up, run, the logger's files);
+- ``cpu_s`` and ``cpu_s_per_sim_s``: CPU seconds of ``hrc run`` and every service (user +
+  system), in all and per simulated second; ``cpu_s_by_service``;
+- ``exchanges``, ``mean_span``: clock exchanges and ticks per exchange;
+- ``us_per_exchange_by_service``: each service's CPU microseconds per exchange;
+- ``cosim_us_per_tick``: run-phase wall microseconds per tick; ``raw_physics_us_per_tick``: the
+  physics bench's tick of the same board measured right after it; ``ratio`` of the two.
+
+Figures only, never asserted (the machine's load moves them; CPU seconds move least).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+from hrc import services
+from hrc.paths import project_root
+
+THESIS = "scenarios/thesis.toml"
+SPARE_PARTS = 36  # 18 + 36 = 54 parts: three times the thesis board
+_EXCHANGES = re.compile(r"(\d+) ticks in (\d+) exchanges")
+
+
+def board_3x_toml(thesis: Path) -> str:
+    """The thesis scenario plus 36 spare parts (2 cm cubes, the human's, last in the human's
+    sequence, each placed where it lies) in two rows on the table behind the participant's
+    parts: at rest, as most of a board is at any moment."""
+    lines = [thesis.read_text(), "\n# ---- 36 spare parts (hrc bench trial: a board 3x the thesis's)\n"]
+    for i in range(SPARE_PARTS):
+        row, col = divmod(i, SPARE_PARTS // 2)
+        x = -0.38 + col * (0.76 / (SPARE_PARTS // 2 - 1))
+        y = -0.58 - 0.06 * row
+        lines.append(
+            f'\n[[parts]]\nid = "X{i + 1:02d}"\nowner = "human"\nkind = "spare"\n'
+            f"size = [0.02, 0.02, 0.02]\n"
+            f"start = {{ xyz = [{x:.4f}, {y:.4f}, 0.01], yaw = 0 }}\n"
+            f"target = {{ xyz = [{x:.4f}, {y:.4f}, 0.01], yaw = 0 }}\n"
+        )
+    text = "".join(lines)
+    spares = ", ".join(f'"X{i + 1:02d}"' for i in range(SPARE_PARTS))
+    human = re.search(r"^human = \[(.*)\]$", text, re.MULTILINE)
+    if human is None:
+        raise ValueError(f"{thesis}: no human sequence to extend")
+    return text.replace(human.group(0), f"human = [{human.group(1)}, {spares}]")
+
+
+def _children_cpu() -> float:
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return ru.ru_utime + ru.ru_stime
+
+
+def raw_physics_us(scenario: Path, n: int) -> float:
+    argv = [sys.executable, "-m", f"{services.service('physics').module}.bench", "--json"]
+    argv += ["--scenario", str(scenario), "--n", str(n)]
+    out = subprocess.run(argv, stdout=subprocess.PIPE, text=True, check=True).stdout
+    return float(json.loads(out)["us_per_tick"])
+
+
+def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> dict[str, Any]:
+    """One ``hrc run`` of ``scenario`` into ``out`` (at most ``max_ticks``), then the physics
+    bench of the same board."""
+    argv = [sys.executable, "-m", "hrc.cli.main", "run", str(scenario), "--out", str(out)]
+    if max_ticks:
+        argv += ["--max-ticks", str(max_ticks)]
+    cpu0, t0 = _children_cpu(), time.monotonic()
+    proc = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    wall, cpu = time.monotonic() - t0, _children_cpu() - cpu0
+    if proc.returncode != 0:
+        raise RuntimeError(f"hrc run {scenario} failed ({proc.returncode}):\n{proc.stdout}")
+    run = json.loads((out / "metrics.json").read_text())["run"]
+    by_service = {
+        name: round(v["user_s"] + v["system_s"], 3)
+        for name, v in json.loads((out / "services" / "cpu.json").read_text()).items()
+    }
+    found = _EXCHANGES.search((out / "services" / "physics.log").read_text())
+    ticks = int(run["ticks"])
+    exchanges = int(found.group(2)) if found else ticks
+    sim_s = run["wall_s"] * run["realtime_factor"]
+    cosim_us = run["wall_s"] / ticks * 1e6
+    raw_us = raw_physics_us(scenario, physics_n)
+    return {
+        "scenario": str(scenario),
+        "ticks": ticks,
+        "sim_s": round(sim_s, 3),
+        "run_wall_s": round(run["wall_s"], 3),
+        "realtime_factor": round(run["realtime_factor"], 2),
+        "end_to_end_s": round(wall, 3),
+        "cpu_s": round(cpu, 3),
+        "cpu_s_per_sim_s": round(cpu / sim_s, 4),
+        "cpu_s_by_service": by_service,
+        "exchanges": exchanges,
+        "mean_span": round(ticks / max(1, exchanges), 2),
+        "us_per_exchange_by_service": {
+            n: round(v / max(1, exchanges) * 1e6) for n, v in by_service.items()
+        },
+        "cosim_us_per_tick": round(cosim_us, 1),
+        "raw_physics_us_per_tick": round(raw_us, 1),
+        "ratio": round(cosim_us / raw_us, 2),
+    }
+
+
+def run(args: argparse.Namespace) -> int:
+    root = project_root()
+    n = getattr(args, "n", 0) or 2000
+    with tempfile.TemporaryDirectory(prefix="hrc-bench-trial-") as tmp:
+        tmpdir = Path(tmp)
+        board = tmpdir / "board-3x.toml"
+        board.write_text(board_3x_toml(root / THESIS))
+        thesis = measure(root / THESIS, tmpdir / "thesis", n)
+        # as many ticks as the thesis trial took: the same work, on a board 3x as large
+        figures = {
+            "thesis": thesis,
+            "board_3x": measure(board, tmpdir / "board-3x", n, thesis["ticks"]),
+        }
+    if getattr(args, "json", False):
+        print(json.dumps(figures))
+        return 0
+    for name, f in figures.items():
+        print(f"{name}: {f['ticks']} ticks ({f['sim_s']} s simulated) in {f['exchanges']} exchanges")
+        print(
+            f"  run phase {f['run_wall_s']} s = {f['realtime_factor']}x real time; "
+            f"end to end {f['end_to_end_s']} s"
+        )
+        print(f"  CPU {f['cpu_s']} s = {f['cpu_s_per_sim_s']} CPU-s per simulated s")
+        print(f"  CPU us per exchange: {f['us_per_exchange_by_service']}")
+        print(
+            f"  co-simulated tick {f['cosim_us_per_tick']} us, raw physics tick "
+            f"{f['raw_physics_us_per_tick']} us, ratio {f['ratio']}"
+        )
+    return 0
