@@ -122,6 +122,11 @@ def run_synthetic(
             assert wait_until(lambda: "logger" in phys.alive_services(timeout=0.3), timeout=60), (
                 log_path.read_text()
             )
+            # The logger takes part at once and builds its view meanwhile; this test kills it
+            # mid-trial and reads the view, so it starts once the view is there.
+            assert wait_until(lambda: "view ready" in log_path.read_text(), timeout=120), (
+                log_path.read_text()
+            )
             stats = phys.get(fake.keys.stats("logger"), pb.ServiceStats, timeout=5)
             assert stats and stats[0].service == "logger"
             assert fake.keys.task_events() in stats[0].subscribed

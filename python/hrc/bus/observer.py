@@ -100,6 +100,11 @@ class Observer(ClockFollower):
             self._hurry = True
         super()._finish(outcome)
 
+    @property
+    def hurried(self) -> bool:
+        """The run ended badly (a stop, a lost clock master): finish quickly."""
+        return self._hurry
+
     def _work_off_queue(self) -> bool:
         return not self._aborted
 

@@ -9,13 +9,16 @@ from __future__ import annotations
 import logging
 from collections import Counter
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from hrc.wire import pb
 
 from hrc_logger.files import JsonlFile, LineFile
 from hrc_logger.records import cue_records, event_record, metrics_record, run_end_record
 from hrc_logger.textlog import ThesisLog, kind_name, run_end_line
-from hrc_logger.view import View
+
+if TYPE_CHECKING:  # rerun is imported only by whoever builds a View (slow to import)
+    from hrc_logger.view import View
 
 log = logging.getLogger(__name__)
 

@@ -11,9 +11,11 @@ import argparse
 import contextlib
 import logging
 import os
+import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hrc.bus import Bus, Observer, Outcome
 from hrc.bus.bus import M
@@ -22,7 +24,13 @@ from hrc.wire import pb
 
 from hrc_logger.files import write_json_atomic
 from hrc_logger.recorder import TrialRecorder
-from hrc_logger.view import View, ViewSettings, open_recording
+
+if TYPE_CHECKING:
+    from hrc_logger.view import View
+
+# At most this long for the view's set-up (scenario, rerun, URDFs) beyond the scenario timeout.
+VIEW_SETUP_S = 60.0
+STOP_VIEW_WAIT_S = 0.5  # after a stop signal (hrc.service.STOP_GRACE_S is 2 s)
 
 log = logging.getLogger("hrc_logger")
 
@@ -41,7 +49,7 @@ def fetch_scenario(bus: Bus, timeout: float) -> pb.Scenario | None:
 
 
 def stats_dict(
-    obs: Observer, rec: TrialRecorder, view: View, bus: Bus, handler_errors: int
+    obs: Observer, rec: TrialRecorder, view: View | None, bus: Bus, handler_errors: int
 ) -> dict[str, Any]:
     return {
         "lag_mean_ticks": round(obs.lag.mean_ticks, 3),
@@ -57,7 +65,7 @@ def stats_dict(
         "handler_errors": handler_errors,
         "events": sum(rec.kinds.values()),
         "cue_changes": rec.cue_changes,
-        "rerun_logs": view.logged,
+        "rerun_logs": view.logged if view is not None else 0,
     }
 
 
@@ -143,28 +151,69 @@ class LoggerService(Service):
 
     def open(self, bus: Bus, stack: contextlib.ExitStack) -> None:
         super().open(bus, stack)
-        args = self.args
-        self.scenario = fetch_scenario(bus, args.scenario_timeout)
-        rec = open_recording(
-            self.out / RRD_FILE,
-            bus.keys.session,
-            viewer=args.viewer,
-            web=args.web,
-            viewer_port=args.viewer_port,
-            web_port=args.web_port,
-            grpc_port=args.grpc_port,
-        )
-        live = args.viewer or args.web  # someone watches: send time series in small batches
-        self.view = View(
-            rec, ViewSettings(view_hz=args.view_hz, series_flush_s=0.25 if live else None)
-        )
-        self.view.setup(self.scenario)
-        self.recorder = TrialRecorder(self.out, self.view)
+        self.scenario: pb.Scenario | None = None
+        self.view: View | None = None
+        self.recorder = TrialRecorder(self.out)
+        # The view (scenario, rerun's import, the URDFs: seconds) is built on a thread of its
+        # own while the run starts: the clock need not wait for it, the messages wait in the
+        # inbox, and the first one handled waits for the view (_view_up).
+        self._view_ready = threading.Event()
+        self._view_lock = threading.Lock()
+        self._view_abandoned = False
+        threading.Thread(target=self._open_view, name="view-setup", daemon=True).start()
         log.info("observing session %s; writing %s", bus.keys.session, self.out)
+
+    def _open_view(self) -> None:
+        args, t0 = self.args, time.monotonic()
+        try:
+            self.scenario = fetch_scenario(self.bus, args.scenario_timeout)
+            from hrc_logger.view import View, ViewSettings, open_recording
+
+            rec = open_recording(
+                self.out / RRD_FILE,
+                self.bus.keys.session,
+                viewer=args.viewer,
+                web=args.web,
+                viewer_port=args.viewer_port,
+                web_port=args.web_port,
+                grpc_port=args.grpc_port,
+            )
+            # time series in small batches if someone watches, else every few seconds (a
+            # logger stopped before the end keeps what it had sent)
+            live = args.viewer or args.web
+            view = View(
+                rec, ViewSettings(view_hz=args.view_hz, series_flush_s=0.25 if live else 5.0)
+            )
+            view.setup(self.scenario)
+            with self._view_lock:
+                if not self._view_abandoned:
+                    self.view = self.recorder.view = view
+            log.info("view ready (%.1f s)", time.monotonic() - t0)
+        except Exception:
+            log.exception("the view could not be set up: no %s (the text logs go on)", RRD_FILE)
+        finally:
+            self._view_ready.set()
+
+    def _view_up(self) -> None:
+        """Waits (once) until the view is set up or has failed; a run that was stopped waits
+        at most STOP_VIEW_WAIT_S (the text logs must be written within the stop's grace)."""
+        if self._view_ready.is_set():
+            return
+        t0 = time.monotonic()
+        limit = self.args.scenario_timeout + VIEW_SETUP_S
+        while not self._view_ready.wait(0.05):
+            waited = time.monotonic() - t0
+            obs = self.observer
+            if waited >= limit or (obs is not None and obs.hurried and waited >= STOP_VIEW_WAIT_S):
+                with self._view_lock:
+                    self._view_abandoned = True
+                log.error("the view is not set up after %.1f s: logging without it", waited)
+                self._view_ready.set()
 
     def _guarded(self, handler: Callable[[str, M], None]) -> Callable[[str, M], None]:
         # A failing view update must not cost the text logs anything: log, count, go on.
         def call(key: str, msg: M) -> None:
+            self._view_up()
             try:
                 handler(key, msg)
             except Exception:
@@ -185,7 +234,8 @@ class LoggerService(Service):
         inputs.input(keys.human_state(), pb.HumanState, g(rec.on_human_state))
 
     def step(self, tick: pb.ClockTick) -> None:
-        if self._first and self.scenario is None and tick.dt > 0:
+        self._view_up()
+        if self._first and self.scenario is None and self.view is not None and tick.dt > 0:
             self.view.set_tick_hz(1.0 / tick.dt)
         self._first = False
 
@@ -195,6 +245,7 @@ class LoggerService(Service):
         self._guarded(on_tick)(self.bus.keys.clock(), tick)
 
     def finish(self, outcome: Outcome) -> int | None:
+        self._view_up()
         self.recorder.finish(outcome.run_end, outcome.reason)
         obs = self.observer
         assert obs is not None, "run_service sets the observer"

@@ -113,8 +113,8 @@ class ViewSettings:
     flash_hz: float = 2.0  # cue blinking: on for half of each 1/flash_hz period
     tick_hz: float = DEFAULT_TICK_HZ  # replaced by the scenario's / clock's rate when known
     # Time series (joint transforms, plots) are sent in columns, one call per entity, once this
-    # many simulated seconds have gathered (a live viewer) or at the end (a file only): a
-    # rerun log call per row was most of the logger's CPU time.
+    # many simulated seconds have gathered (None: at the end): a rerun log call per row was
+    # most of the logger's CPU time.
     series_flush_s: float | None = None
 
 

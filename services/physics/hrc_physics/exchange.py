@@ -20,6 +20,7 @@ is :data:`HAND_SPEED_BOUND` (the scenario's cap on a reach's peak speed).
 from __future__ import annotations
 
 import math
+from collections import Counter
 from dataclasses import dataclass
 
 import pybullet as p
@@ -91,13 +92,11 @@ class SpanPlanner:
     hand_bound: float = HAND_SPEED_BOUND
 
     def __post_init__(self) -> None:
-        self.spans = 0  # statistics: exchanges planned and their ticks
-        self.ticks = 0
+        self.histogram: Counter[int] = Counter()  # exchanges planned, by span
 
     def span(self, client: int, hands: list[Hand], robots: dict[str, KinematicRobot]) -> int:
         n = self._span(client, hands, robots)
-        self.spans += 1
-        self.ticks += n
+        self.histogram[n] += 1
         return n
 
     def _span(self, client: int, hands: list[Hand], robots: dict[str, KinematicRobot]) -> int:

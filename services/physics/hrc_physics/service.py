@@ -166,13 +166,10 @@ class PhysicsService(ClockMasterService):
         )
 
     def close(self) -> None:
-        if self.planner.spans:
+        if self.planner.histogram:
             log.info(
-                "exchanges: %d for %d ticks (mean span %.2f, at most %d); arm speed bounds %s m/s",
-                self.planner.spans,
-                self.planner.ticks,
-                self.planner.ticks / self.planner.spans,
-                self.planner.max_span,
+                "exchange spans planned (span: count): %s; arm speed bounds %s m/s",
+                ", ".join(f"{k}: {v}" for k, v in sorted(self.planner.histogram.items())),
                 ", ".join(f"{k} {v:.2f}" for k, v in sorted(self.planner.arm_bounds.items())),
             )
         if self.world.rejected:
