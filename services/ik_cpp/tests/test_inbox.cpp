@@ -1,4 +1,4 @@
-// The Inbox releases inputs tick by tick in (subscription order, key, sender, seq) order,
+// The Inbox releases inputs tick by tick in (tick, subscription order, key, sender, seq) order,
 // whatever order they arrived in. One bus publishes to itself (zenoh delivers locally).
 #include <gtest/gtest.h>
 
@@ -64,10 +64,12 @@ TEST(Inbox, DeliversInDeterministicOrderUpToTheTick) {
   EXPECT_TRUE(inbox.missing(marks).empty());
 
   EXPECT_EQ(inbox.deliver(2, "physics"), 5u);
+  // Oldest tick first (an exchange hands over several ticks), then subscription order, key,
+  // sender, seq.
   const std::vector<std::string> expected = {
-      "hrc/inbox/human/state|human_input#1", "hrc/inbox/human/state|human_input#2",
-      "hrc/inbox/human/state|physics#1", "hrc/inbox/robot/r1/command|orchestrator#1",
-      "hrc/inbox/robot/r2/command|orchestrator#1"};
+      "hrc/inbox/human/state|human_input#1", "hrc/inbox/robot/r1/command|orchestrator#1",
+      "hrc/inbox/robot/r2/command|orchestrator#1", "hrc/inbox/human/state|human_input#2",
+      "hrc/inbox/human/state|physics#1"};
   EXPECT_EQ(order, expected);
   EXPECT_EQ(inbox.pending(), 1u);
   EXPECT_EQ(inbox.deliver_through(2), 1u);
