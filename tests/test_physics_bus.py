@@ -439,7 +439,7 @@ def test_release_near_and_far_from_the_target(physics_run) -> None:
     ticks_with_h1 = {m.header.tick for m in rec.objects for o in m.objects if o.id == "H1"}
     held = sorted(t for t in ticks_with_h1 if 26 <= t <= t_rel1)
     assert held and held[0] == 26 and t_rel1 - held[-1] <= 8
-    assert all(b - a <= 8 for a, b in zip(held, held[1:], strict=False)), held
+    assert all(b - a <= 8 for a, b in itertools.pairwise(held)), held
     assert not ticks_with_h1 & set(range(t_rest1 + 1, grabbed[1][0]))
 
 

@@ -47,9 +47,7 @@ def provoking_scenario(tmp: Path) -> Path:
 
 def test_robots_react_to_a_hand_contact_within_one_thesis_frame(tmp_path: Path) -> None:
     session, port = f"rb{uuid.uuid4().hex[:8]}", free_port()
-    cfg = BusConfig(
-        session=session, mode="client", connect=[f"tcp/127.0.0.1:{port}"], listen=[]
-    )
+    cfg = BusConfig(session=session, mode="client", connect=[f"tcp/127.0.0.1:{port}"], listen=[])
     lock = threading.Lock()
     contacts: list[tuple[int, str]] = []  # (tick, robot) of each hand-robot contact begin
     states: list[tuple[int, str, int]] = []  # (tick, robot, command_id)

@@ -41,7 +41,10 @@ def board_3x_toml(thesis: Path) -> str:
     """The thesis scenario plus 36 spare parts (2 cm cubes, the human's, last in the human's
     sequence, each placed where it lies) in two rows on the table behind the participant's
     parts: at rest, as most of a board is at any moment."""
-    lines = [thesis.read_text(), "\n# ---- 36 spare parts (hrc bench trial: a board 3x the thesis's)\n"]
+    lines = [
+        thesis.read_text(),
+        "\n# ---- 36 spare parts (hrc bench trial: a board 3x the thesis's)\n",
+    ]
     for i in range(SPARE_PARTS):
         row, col = divmod(i, SPARE_PARTS // 2)
         x = -0.38 + col * (0.76 / (SPARE_PARTS // 2 - 1))
@@ -132,7 +135,9 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps(figures))
         return 0
     for name, f in figures.items():
-        print(f"{name}: {f['ticks']} ticks ({f['sim_s']} s simulated) in {f['exchanges']} exchanges")
+        print(
+            f"{name}: {f['ticks']} ticks ({f['sim_s']} s simulated) in {f['exchanges']} exchanges"
+        )
         print(
             f"  run phase {f['run_wall_s']} s = {f['realtime_factor']}x real time; "
             f"end to end {f['end_to_end_s']} s"

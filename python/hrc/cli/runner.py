@@ -246,7 +246,9 @@ class ServiceGroup:
 
     def write_cpu(self) -> None:
         """``services/cpu.json``: each service's CPU seconds (user, system), for benches."""
-        data = {n: {"user_s": round(u, 3), "system_s": round(s, 3)} for n, (u, s) in self.cpu_s.items()}
+        data = {
+            n: {"user_s": round(u, 3), "system_s": round(s, 3)} for n, (u, s) in self.cpu_s.items()
+        }
         (self.logs_dir / "cpu.json").write_text(json.dumps(data, indent=1) + "\n")
 
     def close(self) -> None:

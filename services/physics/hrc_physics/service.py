@@ -223,9 +223,7 @@ class PhysicsService(ClockMasterService):
             self._contacts_pub.put(pb.WorldContacts(contacts=contacts), tick, sim_time)
 
     def exchange_span(self, tick: int) -> int:
-        return self.planner.span(
-            self.world.c, list(self.world.hands.values()), self.world.robots
-        )
+        return self.planner.span(self.world.c, list(self.world.hands.values()), self.world.robots)
 
     def publish_substep(self, tick: int, sim_time: float) -> None:
         """Inside an exchange: the object events and contacts of ``tick``, stamped with it (the
