@@ -101,6 +101,12 @@ class Observer(ClockFollower):
         super()._finish(outcome)
 
     @property
+    def ended(self) -> bool:
+        """The run is over (run/end came, a stop, or the clock master is gone)."""
+        with self._cond:
+            return self._end is not None
+
+    @property
     def hurried(self) -> bool:
         """The run ended badly (a stop, a lost clock master): finish quickly."""
         return self._hurry

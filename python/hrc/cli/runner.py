@@ -33,6 +33,10 @@ from hrc.wire import pb
 log = logging.getLogger(__name__)
 
 
+# After the clock master's end: how long the others may take to finish their files and leave.
+SERVICES_LEAVE_S = 60.0
+
+
 @dataclass
 class TrialOptions:
     scenario: Path
@@ -429,7 +433,8 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             time.sleep(0.05)
         if not failed:
             # the clock master is done; the others leave on run/end.
-            deadline = time.monotonic() + 15.0
+            # (the logger may still be catching up: it writes every file before it leaves)
+            deadline = time.monotonic() + SERVICES_LEAVE_S
             while any(rc is None for rc in group.poll().values()) and time.monotonic() < deadline:
                 time.sleep(0.05)
         # judge by how each ended on its own, before we stop the stragglers

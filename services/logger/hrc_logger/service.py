@@ -143,7 +143,16 @@ class LoggerService(Service):
         # CPU first. Its lag behind the clock is measured and reported instead. Set before any
         # thread starts (zenoh's, rerun's): on Linux the policy is per thread and new threads
         # inherit it.
+        self._view_ready = threading.Event()
+        self._view_lock = threading.Lock()
+        self._view_abandoned = False
+        self._bus_up = threading.Event()
+        # The view's thread starts before the priority is lowered and keeps the normal one (a
+        # thread inherits its creator's): rerun's import and the URDFs must not wait for idle
+        # CPU while the run goes on.
+        threading.Thread(target=self._open_view, name="view-setup", daemon=True).start()
         lower_priority(args.sched, args.nice)
+        self._lowered = args.sched == "idle"
         self.out = Path(args.out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.handler_errors = 0
@@ -157,17 +166,16 @@ class LoggerService(Service):
         # The view (scenario, rerun's import, the URDFs: seconds) is built on a thread of its
         # own while the run starts: the clock need not wait for it, the messages wait in the
         # inbox, and the first one handled waits for the view (_view_up).
-        self._view_ready = threading.Event()
-        self._view_lock = threading.Lock()
-        self._view_abandoned = False
-        threading.Thread(target=self._open_view, name="view-setup", daemon=True).start()
+        self._bus_up.set()
         log.info("observing session %s; writing %s", bus.keys.session, self.out)
 
     def _open_view(self) -> None:
         args, t0 = self.args, time.monotonic()
         try:
-            self.scenario = fetch_scenario(self.bus, args.scenario_timeout)
             from hrc_logger.view import View, ViewSettings, open_recording
+
+            self._bus_up.wait()
+            self.scenario = fetch_scenario(self.bus, args.scenario_timeout)
 
             rec = open_recording(
                 self.out / RRD_FILE,
@@ -194,6 +202,17 @@ class LoggerService(Service):
         finally:
             self._view_ready.set()
 
+    def _after_end(self) -> None:
+        """Once the run is over nobody waits for CPU on our account: catch up at the normal
+        priority (hrc run waits for our files)."""
+        obs = self.observer
+        if self._lowered and obs is not None and obs.ended:
+            self._lowered = False
+            try:
+                os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+            except OSError as exc:
+                log.debug("could not leave SCHED_IDLE after the run: %s", exc)
+
     def _view_up(self) -> None:
         """Waits (once) until the view is set up or has failed; a run that was stopped waits
         at most STOP_VIEW_WAIT_S (the text logs must be written within the stop's grace)."""
@@ -214,6 +233,7 @@ class LoggerService(Service):
         # A failing view update must not cost the text logs anything: log, count, go on.
         def call(key: str, msg: M) -> None:
             self._view_up()
+            self._after_end()
             try:
                 handler(key, msg)
             except Exception:
