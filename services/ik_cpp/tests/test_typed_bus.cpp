@@ -249,3 +249,50 @@ TEST(Intersects, KeyExpressions) {
 }
 
 }  // namespace
+
+namespace {
+
+// docs/ARCHITECTURE.md, "Batches": what one exchange publishes on a key goes in one put
+// ("<sender>+batch"); the receiver hands on each message with its own tick and seq.
+TEST_F(TwoPeers, AnExchangeGoesOutInOnePutAndArrivesMessageByMessage) {
+  Received got;
+  std::mutex puts_mutex;
+  std::vector<std::string> puts;
+  b_->subscribe<hrc::v2::HumanState>(b_->keys().human_state(),
+                                     [&](const std::string& k, const hrc::v2::HumanState& m) {
+                                       const std::lock_guard<std::mutex> lock(got.mutex);
+                                       got.msgs.emplace_back(k, m);
+                                     });
+  hrc::Subscriber raw =
+      b_->session().declare_subscriber(a_->keys().human_state(), [&](const hrc::SampleView& s) {
+        const std::lock_guard<std::mutex> lock(puts_mutex);
+        puts.emplace_back(s.attachment);
+      });
+  auto& pub = a_->publisher(a_->keys().human_state());
+  ASSERT_TRUE(wait_until([&] { return pub.has_subscribers(); }));
+  a_->begin_batch();
+  for (int i = 0; i < 4; ++i) {
+    hrc::v2::HumanState h;
+    h.set_left_grip(0.25 * i);
+    pub.put(h, static_cast<uint64_t>(20 + i), 0.0);
+  }
+  {
+    const std::lock_guard<std::mutex> lock(puts_mutex);
+    EXPECT_TRUE(puts.empty());  // held back until the flush
+  }
+  a_->flush_batches();
+  ASSERT_TRUE(wait_until([&] { return got.size() == 4; }));
+  {
+    const std::lock_guard<std::mutex> lock(puts_mutex);
+    ASSERT_EQ(puts.size(), 1u);
+    EXPECT_EQ(puts[0], "alpha+batch");
+  }
+  const std::lock_guard<std::mutex> lock(got.mutex);
+  for (std::size_t i = 0; i < 4; ++i) {
+    EXPECT_EQ(got.msgs[i].second.header().tick(), 20 + i);
+    EXPECT_EQ(got.msgs[i].second.header().seq(), i + 1);
+    EXPECT_DOUBLE_EQ(got.msgs[i].second.left_grip(), 0.25 * static_cast<double>(i));
+  }
+}
+
+}  // namespace
