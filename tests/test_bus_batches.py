@@ -44,6 +44,7 @@ def test_an_exchange_goes_out_in_one_put_and_arrives_message_by_message() -> Non
                     got.append((msg.header.tick, msg.header.seq, msg.left_grip))
 
         receiver.subscribe(key, pb.HumanState, on_state)
+
         def on_put(sample: zenoh.Sample) -> None:
             att = sample.attachment.to_bytes() if sample.attachment is not None else b""
             if not att.endswith(BATCH_SUFFIX):
@@ -57,7 +58,7 @@ def test_an_exchange_goes_out_in_one_put_and_arrives_message_by_message() -> Non
         receiver.session.declare_subscriber(key, on_put)
         pub = sender.publisher(key)
         probe = pb.HumanState(left_grip=0.0)
-        assert wait_until(lambda: (pub.put(probe, 0) > 0 and bool(probes)), 10, 0.1)
+        assert wait_until(lambda: pub.put(probe, 0) > 0 and bool(probes), 10, 0.1)
         seq0 = pub.seq
         assert wait_until(lambda: probes[-1] == seq0, 5)  # every probe is in
         sender.begin_batch()

@@ -48,6 +48,7 @@ class Inbox:
         self._pending: dict[int, list[_Pending]] = {}
         self._pending_ticks: list[int] = []
         self._received: dict[tuple[str, str], int] = {}
+        self.arrived = 0  # messages received so far (delivered or not)
         self._matches: dict[str, bool] = {}
 
     def add(
@@ -74,6 +75,7 @@ class Inbox:
                         bucket = self._pending[h.tick] = []
                         heapq.heappush(self._pending_ticks, h.tick)
                     bucket.append(_Pending(h.tick, index, k, h.sender, h.seq, msg))
+                self.arrived += 1
                 mark = (k, h.sender)
                 if h.seq > self._received.get(mark, 0):
                     self._received[mark] = h.seq

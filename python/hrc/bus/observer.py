@@ -129,13 +129,17 @@ class Observer(ClockFollower):
         self.lag.add(latest - tick.header.tick, time.perf_counter() - arrived)
 
     def _wind_up(self) -> None:
-        """Hands over everything still arriving until the session is quiet for ``quiet_s``."""
+        """Waits until the session is quiet for ``quiet_s``, then hands over everything still
+        held at once (sorted: the last outputs, which no clock tick lists, may come on several
+        keys, and their order must not depend on when each arrived)."""
         deadline = time.monotonic() + (0.5 if self._hurry else self.drain_max_s)
         quiet_since = time.monotonic()
+        seen = self.inbox.arrived
         while True:
-            if self.inbox.deliver(2**62) > 0:
-                quiet_since = time.monotonic()
             now = time.monotonic()
+            if self.inbox.arrived != seen:
+                seen, quiet_since = self.inbox.arrived, now
             if now - quiet_since >= self.quiet_s or now >= deadline:
+                self.inbox.deliver(2**62)
                 return
             time.sleep(0.05)
