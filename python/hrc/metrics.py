@@ -4,6 +4,9 @@ described in docs/metrics.md.
 metrics.json, the metrics records of events.jsonl and the run summary are all this JSON form of
 the message (`to_dict`; `from_dict` reads it back), by the rule of `hrc.wire.jsonmap`: keys and
 nesting as the message declares them, null for what is not set.
+
+The trial's conditions (`conditions`) are built here too, once: the orchestrator puts them into
+metrics.json, the logger writes them as the settings line at the top of log.txt.
 """
 
 from __future__ import annotations
@@ -11,8 +14,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
+from hrc import scenario as sc
+from hrc.scenario.convert import ssm_to_proto
 from hrc.wire import pb
-from hrc.wire.jsonmap import dict_to_message, message_to_dict
+from hrc.wire.jsonmap import dict_to_message, enum_text, message_to_dict
 
 
 def to_dict(metrics: pb.Metrics) -> dict[str, Any]:
@@ -22,3 +27,55 @@ def to_dict(metrics: pb.Metrics) -> dict[str, Any]:
 def from_dict(data: Mapping[str, Any]) -> pb.Metrics:
     """ValueError when a key is not in the schema or a value does not fit its field."""
     return dict_to_message(data, pb.Metrics())
+
+
+def conditions(s: sc.Scenario) -> pb.TrialConditions:
+    """Every condition a study can vary, as the trial ran it (overrides applied)."""
+    c = pb.TrialConditions(
+        anticipation=s.conditions.anticipation,
+        safety_policy=s.conditions.safety_policy.to_proto(),
+    )
+    for rid, robot in s.robots.items():
+        c.robots[rid].max_tcp_speed = robot.max_tcp_speed
+    p = s.participant
+    c.participant.input = sc.InputSource(p.input).to_proto()
+    if p.replay_file is not None:
+        c.participant.replay_file = p.replay_file
+    if p.input == sc.InputSource.SCRIPTED:  # the other sources ignore these parameters
+        for name, value in p.scripted_params().model_dump().items():
+            setattr(c.participant, name, value)
+    c.participant.provoke_probability = p.provoke_probability
+    c.participant.provoke_times_s.extend(p.provoke_times_s)
+    if s.conditions.safety_policy == sc.SafetyPolicy.SSM:
+        c.ssm.CopyFrom(ssm_to_proto(s.conditions.ssm))
+    return c
+
+
+def _num(x: float) -> str:
+    return f"{x:g}"
+
+
+def settings_line(participant: str, seed: int, c: pb.TrialConditions) -> str:
+    """The thesis-style settings line of log.txt (the thesis logged each robot's LearningRate,
+    its speed setting), e.g. ``SETTINGS: anticipation on, safety policy retreat, seed 1; r1 max
+    TCP speed 0.5 m/s, r2 ...; participant P01: scripted, reaction_time_s 0.4, ...``."""
+    policy = enum_text(pb.SafetyPolicy.DESCRIPTOR, c.safety_policy) or "?"
+    robots = ", ".join(
+        f"{rid} max TCP speed {_num(c.robots[rid].max_tcp_speed)} m/s" for rid in sorted(c.robots)
+    )
+    p = c.participant
+    who = [enum_text(pb.InputSource.DESCRIPTOR, p.input) or "?"]
+    if p.HasField("replay_file"):
+        who.append(f"replay_file {p.replay_file}")
+    for field in p.DESCRIPTOR.fields:
+        if field.has_presence and field.name != "replay_file" and p.HasField(field.name):
+            value = getattr(p, field.name)
+            who.append(f"{field.name} {str(value).lower() if isinstance(value, bool) else _num(value)}")
+    if p.provoke_times_s:
+        who.append("provoke_collisions at " + ", ".join(_num(t) for t in p.provoke_times_s) + " s")
+    else:
+        who.append(f"provoke_collisions {_num(p.provoke_probability)}")
+    return (
+        f"SETTINGS: anticipation {'on' if c.anticipation else 'off'}, safety policy {policy}, "
+        f"seed {seed}; {robots or 'no robots'}; participant {participant}: {', '.join(who)}."
+    )

@@ -36,13 +36,37 @@ def full_metrics() -> pb.Metrics:
             sensing_range_m=2.0,
         )
     )
+    m.conditions.robots["r2"].max_tcp_speed = 0.25
+    m.conditions.robots["r1"].max_tcp_speed = 1.0
+    p = m.conditions.participant
+    p.input, p.replay_file = pb.INPUT_SOURCE_REPLAY, "/rec/p01.jsonl"
+    p.reaction_time_s, p.peak_hand_speed, p.caution, p.fitts_a_s, p.fitts_b_s = 0.4, 1.0, 0.5, 0.1, 0.2
+    p.pick_dwell_s, p.place_dwell_s, p.place_error_m, p.grip_close_s = 0.3, 0.25, 0.005, 0.15
+    p.grip_open_s, p.max_hold_back_s, p.left_handed = 0.1, 10.0, True
+    p.provoke_probability = 0.5
+    p.provoke_times_s.extend([3.0, 7.5])
     m.task.started, m.task.finished, m.task.completion_s = True, True, 45.5
+    m.task.completion_home_s = 47.25
     m.human.completion_s, m.human.idle_s = 39.25, 1.5
     m.robots["r2"].CopyFrom(
-        pb.RobotMetrics(completion_s=44.0, idle_s=0.5, avg_tcp_speed_mps=0.2, max_tcp_speed_mps=0.5)
+        pb.RobotMetrics(
+            completion_s=44.0,
+            idle_s=0.5,
+            avg_tcp_speed_mps=0.4,
+            max_tcp_speed_mps=0.5,
+            avg_tcp_speed_over_time_mps=0.2,
+            completion_home_s=46.0,
+        )
     )
     m.robots["r1"].CopyFrom(
-        pb.RobotMetrics(completion_s=45.5, idle_s=0.0, avg_tcp_speed_mps=0.3, max_tcp_speed_mps=0.5)
+        pb.RobotMetrics(
+            completion_s=45.5,
+            idle_s=0.0,
+            avg_tcp_speed_mps=0.45,
+            max_tcp_speed_mps=0.5,
+            avg_tcp_speed_over_time_mps=0.3,
+            completion_home_s=47.25,
+        )
     )
     for rid, stops in (("r1", 2), ("r2", 0)):
         m.robots[rid].ssm.CopyFrom(
@@ -88,6 +112,8 @@ def check_field_for_field(msg: Message, data: dict[str, Any]) -> None:
                     check_field_for_field(value[k], got[k])
                 else:
                     assert got[k] == value[k] and type(got[k]) is int
+        elif f.label == FieldDescriptor.LABEL_REPEATED and f.message_type is None:
+            assert got == list(value)
         elif f.label == FieldDescriptor.LABEL_REPEATED:
             assert len(got) == len(value)
             for v, g in zip(value, got, strict=True):

@@ -11,6 +11,8 @@ from collections import Counter
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from hrc import metrics as metrics_schema
+from hrc import scenario as sc
 from hrc.wire import pb
 
 from hrc_logger.files import JsonlFile, LineFile
@@ -44,18 +46,34 @@ class TrialRecorder:
         self.last_task_time = 0.0
         self.closed = False
 
+    def write_settings(self, scenario: pb.Scenario | None) -> None:
+        """The first line of log.txt: the trial's conditions, as the thesis logged its
+        settings."""
+        if scenario is None:
+            self.text.write_line("SETTINGS: unknown (no scenario received from the orchestrator)")
+            return
+        try:
+            s = sc.from_proto(scenario)
+        except (sc.ScenarioError, ValueError) as exc:  # pydantic's errors are ValueErrors
+            self.text.write_line(f"SETTINGS: unreadable scenario ({exc})")
+            return
+        c = metrics_schema.conditions(s)
+        self.text.write_line(
+            metrics_schema.settings_line(s.participant.name, s.scenario.seed, c)
+        )
+
     # ------------------------------------------------------------------ task
     def on_event(self, _key: str, ev: pb.TaskEvent) -> None:
         self.events.write(event_record(ev))
         self.kinds[kind_name(ev.kind)] += 1
         self.last_task_time = max(self.last_task_time, ev.task_time)
-        line = self.thesis.line_for(ev)
-        if line is not None:
+        lines = self.thesis.lines_for(ev)
+        for line in lines:
             self.text.write_line(line)
         if ev.kind == pb.TASK_EVENT_KIND_TASK_FINISHED:
             self.task_finished = True
         if self.view is not None:
-            self.view.event(ev, line)
+            self.view.event(ev, lines[0] if lines else None)
 
     def on_indicators(self, _key: str, ind: pb.Indicators) -> None:
         for r in cue_records(ind):

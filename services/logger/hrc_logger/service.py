@@ -176,6 +176,8 @@ class LoggerService(Service):
 
             self._bus_up.wait()
             self.scenario = fetch_scenario(self.bus, args.scenario_timeout)
+            # log.txt's first line; events wait for the view (_view_up), so none comes before
+            self.recorder.write_settings(self.scenario)
 
             rec = open_recording(
                 self.out / RRD_FILE,

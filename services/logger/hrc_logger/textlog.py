@@ -1,7 +1,9 @@
 """``log.txt``: the thesis-style human-readable log (docs/task-semantics.md#outputs).
 
-One line per event, task time in seconds, in the words of the thesis's Unity log, e.g.
+One line per event, task time in seconds, in the words of the thesis's Unity log, after a
+settings line (the conditions of the trial: ``hrc.metrics.settings_line``), e.g.
 
+    SETTINGS: anticipation on, safety policy retreat, seed 1; r1 max TCP speed 0.5 m/s, ...
     2024-05-02 14:03:11 - TASK STARTED.
     12.35 sec : Near-collision 1 between the robots.
     20.10 sec : Collision 1 occurred between r1 and left hand.
@@ -10,6 +12,7 @@ One line per event, task time in seconds, in the words of the thesis's Unity log
         Waited human for 4.20 sec.
     70.25 sec : Human - task FINISHED. Idle (hands outside the workspace) for 2.10 sec.
     75.40 sec : TASK FINISHED. 1 total collisions.
+    75.400 sec : 1 total near-collisions between the robots.
 
 (The r1 line is one line in log.txt, wrapped here.)
 
@@ -118,6 +121,12 @@ def _task_finished(ev: pb.TaskEvent, c: LogCounters) -> str:
     return f"{secs(ev.task_time)} sec : TASK FINISHED. {n} total collisions."
 
 
+def near_total_line(ev: pb.TaskEvent, c: LogCounters) -> str:
+    """The thesis log's count of near-collisions, written right after TASK FINISHED."""
+    n = ev.task_finished.near_collisions if ev.HasField("task_finished") else c.near_collisions
+    return f"{ev.task_time:.3f} sec : {n} total near-collisions between the robots."
+
+
 def _unreachable(ev: pb.TaskEvent, c: LogCounters) -> str:
     what = f" ({ev.part})" if ev.part else ""
     return (
@@ -176,6 +185,16 @@ class ThesisLog:
             return fmt(ev, self.counters)  # the thesis's start line: always the date and time
         text = " ".join(ev.text.split()) if ev.text.strip() else ""
         return text or fmt(ev, self.counters)
+
+    def lines_for(self, ev: pb.TaskEvent) -> list[str]:
+        """The log.txt lines of ``ev``: its line, and after TASK FINISHED the near-collision
+        count (the thesis log ends with both)."""
+        line = self.line_for(ev)
+        if line is None:
+            return []
+        if ev.kind == K.TASK_EVENT_KIND_TASK_FINISHED:
+            return [line, near_total_line(ev, self.counters)]
+        return [line]
 
 
 def run_end_line(

@@ -18,6 +18,7 @@ def run_offline(trial: SyntheticTrial, out: Path, session: str = "offline") -> T
     view = View(open_recording(out / "recording.rrd", session))
     view.setup(trial.sc)
     rec = TrialRecorder(out, view)
+    rec.write_settings(trial.sc)
     handlers = {
         "world_objects": rec.on_world_objects,
         "world_contacts": rec.on_world_contacts,

@@ -267,7 +267,7 @@ class SyntheticTrial:
                 self._event(
                     k,
                     K.TASK_EVENT_KIND_TASK_FINISHED,
-                    task_finished=pb.TaskFinished(human_robot_collisions=2),
+                    task_finished=pb.TaskFinished(human_robot_collisions=2, near_collisions=1),
                 )
             )
         return out
@@ -327,7 +327,8 @@ class SyntheticTrial:
         m = pb.Metrics(
             scenario=self.sc.info.name, participant=self.sc.participant.name, seed=self.sc.info.seed
         )
-        m.conditions.CopyFrom(self.sc.conditions)
+        m.conditions.anticipation = self.sc.conditions.anticipation
+        m.conditions.safety_policy = self.sc.conditions.safety_policy
         m.task.CopyFrom(
             pb.TaskMetrics(started=True, finished=True, completion_s=self.task_time(self.n - 1))
         )

@@ -32,9 +32,14 @@ def trial_dir(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Synthetic
 
 def test_log_txt_in_thesis_order(trial_dir: tuple[Path, SyntheticTrial]) -> None:
     out, trial = trial_dir
-    lines = (out / "log.txt").read_text().splitlines()
+    settings, *lines = (out / "log.txt").read_text().splitlines()
+    # the thesis's settings first: its speeds, anticipation, policy, the participant
+    assert settings.startswith("SETTINGS: anticipation on, safety policy retreat, seed 1; ")
+    assert "r1 max TCP speed 0.5 m/s, r2 max TCP speed 0.5 m/s;" in settings
+    assert "participant P01: scripted, reaction_time_s " in settings
     assert lines[0] == "2024-05-02 14:03:11 - TASK STARTED."
-    assert lines[-1].endswith("TASK FINISHED. 2 total collisions.")
+    assert lines[-2].endswith("TASK FINISHED. 2 total collisions.")
+    assert lines[-1].endswith(" sec : 1 total near-collisions between the robots.")
     assert sum(" : Collision " in line for line in lines) == trial.expected.collisions == 2
     assert sum(" : Near-collision " in line for line in lines) == trial.expected.near == 1
     assert sum("Continuing after robot-hand collision" in line for line in lines) == 2
@@ -49,6 +54,7 @@ def test_log_txt_in_thesis_order(trial_dir: tuple[Path, SyntheticTrial]) -> None
         "r2",
         "Human",
         "TASK",
+        "1",
     ]
     times = [float(line.split(" sec : ")[0]) for line in lines[1:]]
     assert times == sorted(times)

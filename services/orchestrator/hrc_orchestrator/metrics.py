@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from google.protobuf.message import Message
 
-from hrc.scenario.convert import ssm_to_proto
+from hrc import metrics as metrics_schema
 from hrc.wire import pb
 
 from hrc_orchestrator.task import Task
@@ -29,15 +29,13 @@ def build(task: Task, seed: int, run: pb.RunMetrics | None = None) -> pb.Metrics
     s = task.scenario
     t_end = task.completion_s if task.completion_s is not None else task.now()
     m = pb.Metrics(scenario=s.scenario.name, participant=s.participant.name, seed=int(seed))
-    m.conditions.anticipation = s.conditions.anticipation
-    m.conditions.safety_policy = s.conditions.safety_policy.to_proto()
-    if task.safety.ssm:
-        m.conditions.ssm.CopyFrom(ssm_to_proto(s.conditions.ssm))
+    m.conditions.CopyFrom(metrics_schema.conditions(s))
 
     m.task.SetInParent()
     m.task.started = task.started
-    m.task.finished = task.finished
+    m.task.finished = task.done
     _set_time(m.task, "completion_s", task.completion_s)
+    _set_time(m.task, "completion_home_s", task.completion_home_s)
 
     human_end = task.human.completion_s if task.human.completion_s is not None else t_end
     m.human.SetInParent()
@@ -48,8 +46,10 @@ def build(task: Task, seed: int, run: pb.RunMetrics | None = None) -> pb.Metrics
         r = m.robots[rid]
         _set_time(r, "completion_s", agent.completion_s)
         r.idle_s = _r(agent.idle.value(t_end))
-        r.avg_tcp_speed_mps = _r(agent.avg_speed)
-        r.max_tcp_speed_mps = _r(agent.speed_max)
+        r.avg_tcp_speed_mps = _r(agent.speed.avg_moving)
+        r.max_tcp_speed_mps = _r(agent.speed.max)
+        r.avg_tcp_speed_over_time_mps = _r(agent.speed.avg_over_time)
+        _set_time(r, "completion_home_s", agent.home_s)
         mon = task.safety.ssm.get(rid)
         if mon is not None:
             r.ssm.SetInParent()

@@ -75,6 +75,42 @@ class Motion:
 HOLD = Motion(pb.RobotCommand.KIND_HOLD)
 
 
+MOVING_SPEED_MPS = 1e-3  # a TCP slower than 1 mm/s counts as standing still
+
+
+@dataclass
+class SpeedStats:
+    """TCP speed figures of one arm, one sample per tick (docs/metrics.md):
+
+    - `avg_moving`: the thesis's average, over the ticks in which the TCP moved (speed above
+      MOVING_SPEED_MPS), up to the robot's last placement;
+    - `avg_over_time`: over every tick up to home, standstill included;
+    - `max`: the highest speed up to home.
+    """
+
+    n: int = 0
+    total: float = 0.0
+    n_moving: int = 0
+    total_moving: float = 0.0
+    max: float = 0.0
+
+    def sample(self, speed: float, *, until_done: bool) -> None:
+        self.n += 1
+        self.total += speed
+        self.max = max(self.max, speed)
+        if until_done and speed > MOVING_SPEED_MPS:
+            self.n_moving += 1
+            self.total_moving += speed
+
+    @property
+    def avg_moving(self) -> float:
+        return self.total_moving / self.n_moving if self.n_moving else 0.0
+
+    @property
+    def avg_over_time(self) -> float:
+        return self.total / self.n if self.n else 0.0
+
+
 class RobotAgent:
     """One arm: its phase machine, the command it was sent, its speed and idle figures."""
 
@@ -89,17 +125,15 @@ class RobotAgent:
         self.goal: Motion | None = None  # what the phase wants the arm to do
         self.carrying: str = ""  # part held from grab to placement
         self.dwell_since: float | None = None
-        self.completion_s: float | None = None
+        self.completion_s: float | None = None  # its last placement (the thesis's "done")
+        self.home_s: float | None = None  # back home after it
         self.idle = IntervalClock()
         # command bookkeeping
         self.sent: Motion | None = None
         self.sent_id = 0
         self.state: pb.RobotState | None = None
         self._unreachable_reported = 0
-        # TCP speed statistics (while the task runs and the robot is not finished)
-        self.speed_n = 0
-        self.speed_sum = 0.0
-        self.speed_max = 0.0
+        self.speed = SpeedStats()
 
     # ------------------------------------------------------------------ observations
     @property
@@ -121,13 +155,7 @@ class RobotAgent:
         """One sample per tick of the latest state (states come on change: an unchanged arm
         sends none, and its last state still holds)."""
         if self.state is not None and not self.finished:
-            self.speed_n += 1
-            self.speed_sum += self.state.tcp_speed
-            self.speed_max = max(self.speed_max, self.state.tcp_speed)
-
-    @property
-    def avg_speed(self) -> float:
-        return self.speed_sum / self.speed_n if self.speed_n else 0.0
+            self.speed.sample(self.state.tcp_speed, until_done=self.completion_s is None)
 
     def reached(self, motion: Motion | None) -> bool:
         """The arm reports REACHED for the command that sent exactly `motion`."""
@@ -184,6 +212,8 @@ class RobotAgent:
 
     def start(self, t: float) -> None:
         if self.phase == Phase.NOT_STARTED:
+            if not self.sequence:
+                self._done(t)  # nothing to place: done at once, then home
             self._next_part(t)
 
     def advance(self, t: float, active: bool) -> None:
@@ -264,6 +294,8 @@ class RobotAgent:
         self.board.mark_placed(part_id, t)
         self.board.emit(ev.part_placed(t, self.id, part_id))
         self.carrying = ""
+        if self.index == len(self.sequence) - 1:
+            self._done(t)
         if self.screwing:
             # The dwell counts from now: the goal is unchanged, the arm stays at the hole.
             self.dwell_since = t
@@ -276,13 +308,17 @@ class RobotAgent:
         self.index += 1
         self._next_part(t)
 
+    def _done(self, t: float) -> None:
+        """The last placement: the robot's list is empty (the thesis's "task FINISHED")."""
+        self.completion_s = t
+        self.board.emit(
+            ev.robot_finished(t, self.id, self.speed.max, self.speed.avg_moving, self.idle.total)
+        )
+
     def _home(self, t: float) -> None:
         self.phase = Phase.FINISHED
-        self.completion_s = t
+        self.home_s = t
         self.idle.end(t)
-        self.board.emit(
-            ev.robot_finished(t, self.id, self.speed_max, self.avg_speed, self.idle.total)
-        )
 
     def _check_unreachable(self, t: float) -> None:
         st = self.state

@@ -94,9 +94,11 @@ class Task:
         )
         self.wall_start = ""
         self.started = False
-        self.finished = False
+        self.finished = False  # every agent done and every robot home: the run ends
         self.start_sim_time = 0.0
+        # The thesis's end: the human and every robot done (robots at their last placement).
         self.completion_s: float | None = None
+        self.completion_home_s: float | None = None  # ... and every robot back home
         self.tick = 0
         self.sim_time = 0.0
         self.human_state: pb.HumanState | None = None
@@ -150,7 +152,11 @@ class Task:
             for rid, agent in self.agents.items():
                 agent.advance(t, active=self.safety.override(rid) is None)
             self.safety.swap_stuck_yields(t)
-            if self.human.done and all(a.finished for a in self.agents.values()):
+            agents = self.agents.values()
+            if self.completion_s is None and self.human.done:
+                if all(a.completion_s is not None for a in agents):
+                    self._complete(t)
+            if self.human.done and all(a.finished for a in agents):
                 self._finish(t)
                 out.stop = "task finished"
         if not self.finished:
@@ -204,11 +210,21 @@ class Task:
         for agent in self.agents.values():
             agent.start(0.0)
 
-    def _finish(self, t: float) -> None:
-        self.finished = True
+    @property
+    def done(self) -> bool:
+        """The task is finished in the thesis's sense (the robots may still be heading home)."""
+        return self.completion_s is not None
+
+    def _complete(self, t: float) -> None:
+        """The thesis's TASK FINISHED: the human and every robot done."""
         self.completion_s = t
-        self.safety.finalize(t)
         self.board.emit(ev.task_finished(t, len(self.safety.records), len(self.safety.near_times)))
+
+    def _finish(self, t: float) -> None:
+        """Every robot is home too: the run ends."""
+        self.finished = True
+        self.completion_home_s = t
+        self.safety.finalize(t)
 
     # ------------------------------------------------------------------ outputs
     def _commands(self) -> list[pb.RobotCommand]:

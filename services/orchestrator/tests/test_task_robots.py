@@ -48,9 +48,9 @@ def test_transport_robot_phases_commands_and_world_commands() -> None:
         "to_intermediate",
         "to_place",
         "part_placed",
+        "robot_finished",  # at its last placement (the thesis's "task FINISHED"), then home
         "returning",
         "to_home",
-        "robot_finished",
     ]
     r1 = [c for c in sim.commands if c.robot == "r1"]
     part = s.part("RA1")
@@ -93,10 +93,10 @@ def test_screwing_robot_spawns_at_the_feeder_and_dwells_at_least_screw_time() ->
         "to_intermediate",
         "to_place",
         "part_placed",
+        "robot_finished",
         "screwing",
         "returning",
         "to_home",
-        "robot_finished",
     ]
     world = [w for w in sim.world if not w.HasField("set_grabbable")]
     i_spawn = next(i for i, w in enumerate(world) if w.HasField("spawn"))

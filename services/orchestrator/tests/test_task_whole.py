@@ -115,6 +115,7 @@ METRIC_FIELDS = [
     "conditions",
     "seed",
     "task.completion_s",
+    "task.completion_home_s",
     "human.completion_s",
     "human.idle_s",
     "collisions.human_robot",
@@ -164,15 +165,30 @@ def test_metrics_have_every_field_and_match_the_events() -> None:
     for path in METRIC_FIELDS:
         dig(data, path)
     assert data["seed"] == 7 and data["run"]["mode"] == "lockstep"
-    assert data["conditions"] == {"anticipation": True, "safety_policy": "retreat", "ssm": None}
+    cond = data["conditions"]
+    assert cond["anticipation"] is True and cond["safety_policy"] == "retreat"
+    assert cond["robots"] == {"r1": {"max_tcp_speed": 0.5}, "r2": {"max_tcp_speed": 0.5}}
+    assert cond["participant"]["input"] == "scripted" and cond["participant"]["caution"] == 0.5
+    assert cond["ssm"] is None
     assert data["task"]["completion_s"] == pytest.approx(sim.task.completion_s)
+    assert data["task"]["completion_home_s"] == pytest.approx(sim.task.completion_home_s)
     assert data["human"]["idle_s"] == pytest.approx(data["human"]["completion_s"])  # never in
     for rid in ("r1", "r2"):
         r = data["robots"][rid]
-        assert set(r) == {"completion_s", "idle_s", "avg_tcp_speed_mps", "max_tcp_speed_mps", "ssm"}
+        assert set(r) == {
+            "completion_s",
+            "idle_s",
+            "avg_tcp_speed_mps",
+            "max_tcp_speed_mps",
+            "avg_tcp_speed_over_time_mps",
+            "completion_home_s",
+            "ssm",
+        }
         assert r["ssm"] is None  # only under safety_policy = "ssm"
         assert 0 < r["avg_tcp_speed_mps"] <= r["max_tcp_speed_mps"] <= 0.5 + 1e-9
+        assert 0 < r["avg_tcp_speed_over_time_mps"] < r["avg_tcp_speed_mps"]
         assert r["completion_s"] <= data["task"]["completion_s"]
+        assert r["completion_home_s"] <= data["task"]["completion_home_s"]
     col = data["collisions"]
     assert col["human_robot_count"] == 1 and col["near_count"] == 1
     rec = col["human_robot"][0]
@@ -196,7 +212,12 @@ def test_metrics_of_an_unfinished_task_leave_never_unset() -> None:
     assert not msg.task.HasField("completion_s") and not msg.parts["RA1"].HasField("placed_s")
     assert not msg.HasField("run")
     data = metrics_schema.to_dict(msg)
-    assert data["task"] == {"started": False, "finished": False, "completion_s": None}
+    assert data["task"] == {
+        "started": False,
+        "finished": False,
+        "completion_s": None,
+        "completion_home_s": None,
+    }
     assert data["parts"]["H1"]["grabbed_s"] is None and data["run"] is None
 
 
