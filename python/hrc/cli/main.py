@@ -32,6 +32,7 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from hrc import scenario as sc
+    from hrc.scenario.resolved import resolve
     from hrc.cli.runner import (
         Terminated,
         TrialOptions,
@@ -39,6 +40,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         default_trial_dir,
         run_trial,
         stop_on_signals,
+        write_scenario_copy,
     )
     from hrc.cli.summary import print_summary
 
@@ -79,14 +81,24 @@ def _cmd_run(args: argparse.Namespace) -> int:
             "first grab",
             flush=True,
         )
-    anticipation = s.conditions.anticipation
+    if args.seed is not None and not 0 <= args.seed < 2**64:
+        print(f"--seed must be in [0, 2^64), got {args.seed}", file=sys.stderr)
+        return 2
+    replay = Path(args.replay).resolve() if args.replay else None
+    resolved = resolve(s, seed=args.seed, replay=replay, source=args.input)
     trial_dir = (
         Path(args.out)
         if args.out
-        else default_trial_dir(Path("runs"), s.participant.name, s.scenario.name, anticipation)
+        else default_trial_dir(Path("runs"), s.participant.name, resolved.folder_name())
     )
+    try:
+        # the services load this copy: the trial folder holds exactly what ran
+        scenario_copy = write_scenario_copy(trial_dir, resolved)
+    except OSError as exc:
+        print(f"cannot write the scenario into {trial_dir}: {exc}", file=sys.stderr)
+        return 2
     opts = TrialOptions(
-        scenario=Path(args.scenario).resolve(),
+        scenario=scenario_copy.resolve(),
         out=trial_dir,
         mode=mode,
         seed=args.seed,
@@ -103,7 +115,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         viewer=args.viewer,
         web=args.web,
         record=Path(args.record).resolve() if args.record else None,
-        replay=Path(args.replay).resolve() if args.replay else None,
+        replay=replay,
         input=args.input,
         vr=vr,
     )

@@ -28,6 +28,7 @@ from typing import IO
 from hrc import services
 from hrc.bus import Bus, BusConfig
 from hrc.paths import build_dir
+from hrc.scenario.resolved import Resolved, slug
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
@@ -171,20 +172,27 @@ def free_port() -> int:
         return int(s.getsockname()[1])
 
 
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_\-]+", "-", text).strip("-") or "x"
-
-
-def default_trial_dir(base: Path, participant: str, scenario: str, anticipation: bool) -> Path:
-    """``<base>/<date>/<participant>/<scenario>_<Anticipation|Normal>/``, never reused."""
-    cond = "Anticipation" if anticipation else "Normal"
-    d = base / dt.date.today().isoformat() / _slug(participant) / f"{_slug(scenario)}_{cond}"
+def default_trial_dir(base: Path, participant: str, name: str) -> Path:
+    """``<base>/<date>/<participant>/<name>/``, never reused (``_2``, ``_3``, ... appended);
+    ``name`` is `Resolved.folder_name()`: ``<scenario>_<Anticipation|Normal>[...]_<hash>``."""
+    d = base / dt.date.today().isoformat() / slug(participant) / name
     n = 2
     candidate = d
     while candidate.exists():
         candidate = d.with_name(f"{d.name}_{n}")
         n += 1
     return candidate
+
+
+SCENARIO_COPY = "scenario.toml"
+
+
+def write_scenario_copy(trial_dir: Path, run: Resolved) -> Path:
+    """The resolved scenario into the trial folder: the file every service of the trial loads."""
+    trial_dir.mkdir(parents=True, exist_ok=True)
+    path = trial_dir / SCENARIO_COPY
+    path.write_text(run.toml(), encoding="utf-8")
+    return path
 
 
 def describe_exit(code: int) -> str:

@@ -15,7 +15,7 @@ from google.protobuf.message import Message
 
 from hrc import metrics as metrics_schema
 from hrc.wire import pb
-from hrc.wire.jsonmap import enum_text, message_to_dict
+from hrc.wire.jsonmap import enum_text
 
 
 def _f(v: float | None, unit: str = "", digits: int = 2) -> str:
@@ -29,18 +29,26 @@ def _opt(msg: Message, name: str) -> float | None:
 
 
 def format_summary(m: pb.Metrics, logger: dict[str, Any] | None = None) -> list[str]:
+    c = m.conditions
+    speeds = ", ".join(f"{rid} {c.robots[rid].max_tcp_speed:g} m/s" for rid in sorted(c.robots))
+    policy = enum_text(pb.SafetyPolicy.DESCRIPTOR, c.safety_policy) or "?"
+    source = enum_text(pb.InputSource.DESCRIPTOR, c.participant.input) or "?"
     lines = [
-        f"scenario {m.scenario}, participant {m.participant}, seed {m.seed}, "
-        f"conditions {json.dumps(message_to_dict(m.conditions))}",
-        f"task completion     {_f(_opt(m.task, 'completion_s'), ' s')}",
+        f"scenario {m.scenario}, participant {m.participant}, seed {m.seed}",
+        f"conditions          anticipation {'on' if c.anticipation else 'off'}, policy {policy}, "
+        f"{speeds or 'no robots'}, participant {source} (all: metrics.json)",
+        f"task completion     {_f(_opt(m.task, 'completion_s'), ' s')} "
+        f"(robots home {_f(_opt(m.task, 'completion_home_s'), ' s')})",
         f"human               done {_f(_opt(m.human, 'completion_s'), ' s')}, "
         f"idle {_f(m.human.idle_s, ' s')}",
     ]
     for rid in sorted(m.robots):
         r = m.robots[rid]
         lines.append(
-            f"robot {rid:<13} done {_f(_opt(r, 'completion_s'), ' s')}, "
-            f"idle {_f(r.idle_s, ' s')}, TCP avg {_f(r.avg_tcp_speed_mps, ' m/s', 3)}"
+            f"robot {rid:<13} done {_f(_opt(r, 'completion_s'), ' s')} "
+            f"(home {_f(_opt(r, 'completion_home_s'), ' s')}), idle {_f(r.idle_s, ' s')}, "
+            f"TCP avg moving {_f(r.avg_tcp_speed_mps, ' m/s', 3)}"
+            f" (over time {_f(r.avg_tcp_speed_over_time_mps, ' m/s', 3)})"
             f" max {_f(r.max_tcp_speed_mps, ' m/s', 3)}"
         )
     col = m.collisions

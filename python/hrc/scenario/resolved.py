@@ -1,0 +1,160 @@
+"""The scenario exactly as a trial runs it: the file's settings with the run's overrides applied
+(`hrc run --seed`, `--replay`), written out in full as TOML (`scenario.toml` in the trial folder),
+and the short hash that tells trials apart (docs/task-semantics.md#outputs).
+
+    run = resolve(scenario, seed=7)      # a Resolved: the scenario, the overrides, a hash
+    text = run.toml()                    # every key written, file paths absolute
+
+The text loads back (`hrc.scenario.loads`) into the same settings: `hrc run` starts the services
+on it, so what the trial folder holds is what ran.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from hrc.scenario.enums import InputSource, SafetyPolicy
+from hrc.scenario.models import Scenario, ScenarioInfo
+
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+@dataclass
+class Resolved:
+    scenario: Scenario
+    overrides: list[str] = field(default_factory=list)  # "scenario.seed = 7 (--seed)", ...
+
+    def settings(self) -> dict[str, Any]:
+        """Every setting (defaults filled in), file paths as written."""
+        return self.scenario.model_dump(mode="json", exclude_none=True)
+
+    @property
+    def hash(self) -> str:
+        """8 hex digits of the SHA-256 of the settings: equal for equal settings on any machine."""
+        canonical = json.dumps(self.settings(), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(canonical.encode("utf-8")).hexdigest()[:8]
+
+    def folder_name(self) -> str:
+        """``<scenario>_<Anticipation|Normal>[_<policy>][_<input>][_seed<N>]_<hash>``: the
+        conditions that differ from the defaults, then the hash of everything."""
+        s = self.scenario
+        parts = [slug(s.scenario.name), "Anticipation" if s.conditions.anticipation else "Normal"]
+        if s.conditions.safety_policy != SafetyPolicy.RETREAT:
+            parts.append(str(s.conditions.safety_policy))
+        if s.participant.input != InputSource.SCRIPTED:
+            parts.append(str(s.participant.input))
+        if s.scenario.seed != ScenarioInfo.model_fields["seed"].default:
+            parts.append(f"seed{s.scenario.seed}")
+        parts.append(self.hash)
+        return "_".join(parts)
+
+    def toml(self) -> str:
+        """The scenario file of the trial: a header naming the source and the overrides, then
+        every key, with URDF and replay paths made absolute (the copy runs from any folder)."""
+        data = self.settings()
+        for rid, robot in data.get("robots", {}).items():
+            urdf = self.scenario.urdf_path(rid)
+            if urdf is not None:
+                robot["urdf"] = str(urdf)
+        participant = data.get("participant", {})
+        if "replay_file" in participant:
+            replay = self.scenario.resolve(participant["replay_file"])
+            if replay is not None:
+                participant["replay_file"] = str(replay)
+        source = self.scenario.source_path
+        header = [
+            "# The scenario exactly as this trial ran it (written by `hrc run`): every key, defaults",
+            "# filled in, file paths absolute. Run it again with `hrc run <this file>`.",
+            f"# source: {source if source is not None else '(text)'}",
+        ]
+        header += [f"# override: {o}" for o in self.overrides] or ["# overrides: none"]
+        return "\n".join(header) + "\n\n" + to_toml(data)
+
+
+def slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_\-]+", "-", text).strip("-") or "x"
+
+
+def resolve(
+    scenario: Scenario,
+    *,
+    seed: int | None = None,
+    replay: Path | None = None,
+    source: str | None = None,
+) -> Resolved:
+    """`scenario` with the run's overrides applied (a copy; the given scenario is unchanged):
+    `hrc run --seed`, `--input` (`source`) and `--replay` (which wins over `--input`)."""
+    s = scenario.model_copy(deep=True)
+    overrides: list[str] = []
+    if seed is not None:
+        s.scenario.seed = seed
+        overrides.append(f"scenario.seed = {seed} (--seed)")
+    if source is not None and replay is None and source != s.participant.input:
+        s.participant.input = InputSource(source)
+        overrides.append(f'participant.input = "{source}" (--input)')
+    if replay is not None:
+        s.participant.input = InputSource.REPLAY
+        s.participant.replay_file = str(replay.resolve())
+        overrides.append(
+            f'participant.input = "replay", participant.replay_file = "{replay.resolve()}" '
+            "(--replay)"
+        )
+    return Resolved(s, overrides)
+
+
+# ---------------------------------------------------------------------- TOML
+
+
+def _key(k: str) -> str:
+    return k if _BARE_KEY.fullmatch(k) else json.dumps(k, ensure_ascii=False)
+
+
+def _value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        if not math.isfinite(v):
+            raise ValueError(f"TOML has no place for {v} in a scenario")
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v, ensure_ascii=False)  # a TOML basic string
+    if isinstance(v, list):
+        return "[" + ", ".join(_value(x) for x in v) + "]"
+    if isinstance(v, dict):
+        return "{ " + ", ".join(f"{_key(k)} = {_value(x)}" for k, x in v.items()) + " }"
+    raise TypeError(f"no TOML form for {type(v).__name__}")
+
+
+def _is_table_list(v: Any) -> bool:
+    return isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v)
+
+
+def to_toml(data: dict[str, Any]) -> str:
+    """A scenario-shaped dict as TOML: top-level tables (``[robots.<id>]`` for a table of
+    tables, ``[[parts]]`` for a list of tables), anything deeper inline."""
+    out: list[str] = []
+    tables: list[tuple[str, Any]] = []
+    for k, v in data.items():
+        if isinstance(v, dict) or _is_table_list(v):
+            tables.append((k, v))
+        else:
+            out.append(f"{_key(k)} = {_value(v)}")
+    for k, v in tables:
+        if _is_table_list(v):
+            for item in v:
+                out += ["", f"[[{_key(k)}]]"] + [f"{_key(a)} = {_value(b)}" for a, b in item.items()]
+        elif v and all(isinstance(x, dict) for x in v.values()):
+            for sub, table in v.items():
+                out += ["", f"[{_key(k)}.{_key(sub)}]"]
+                out += [f"{_key(a)} = {_value(b)}" for a, b in table.items()]
+        else:
+            out += ["", f"[{_key(k)}]"] + [f"{_key(a)} = {_value(b)}" for a, b in v.items()]
+    return "\n".join(out).lstrip("\n") + "\n"
