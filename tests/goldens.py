@@ -65,6 +65,10 @@ def normalised(folder: Path) -> dict[str, Any]:
     events = [
         strip_wall(json.loads(line)) for line in (folder / "events.jsonl").read_text().splitlines()
     ]
-    log_lines = (folder / "log.txt").read_text().splitlines()[1:]  # line 0: the date
+    log_lines = [  # all but the start line: its date
+        line
+        for line in (folder / "log.txt").read_text().splitlines()
+        if not line.endswith(" - TASK STARTED.")
+    ]
     metrics = strip_wall(json.loads((folder / "metrics.json").read_text()))
     return {"events.jsonl": events, "log.txt": log_lines, "metrics.json": metrics}
