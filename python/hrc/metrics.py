@@ -70,7 +70,9 @@ def settings_line(participant: str, seed: int, c: pb.TrialConditions) -> str:
     for field in p.DESCRIPTOR.fields:
         if field.has_presence and field.name != "replay_file" and p.HasField(field.name):
             value = getattr(p, field.name)
-            who.append(f"{field.name} {str(value).lower() if isinstance(value, bool) else _num(value)}")
+            who.append(
+                f"{field.name} {str(value).lower() if isinstance(value, bool) else _num(value)}"
+            )
     if p.provoke_times_s:
         who.append("provoke_collisions at " + ", ".join(_num(t) for t in p.provoke_times_s) + " s")
     else:

@@ -61,6 +61,8 @@ class Settings:
     replay: str | None = None
     viewer: bool = False
     web: bool = False
+    web_port: str | None = None  # the rerun web viewer's HTTP port (None: the logger's 9090)
+    grpc_port: str | None = None  # the port the web viewer reads the data from
 
 
 Value = str | bool | tuple[str, ...] | None
@@ -175,6 +177,8 @@ SERVICES: tuple[Service, ...] = (
             Option("--out", "out", required=True),
             Option("--viewer", "viewer"),
             Option("--web", "web"),
+            Option("--web-port", "web_port"),
+            Option("--grpc-port", "grpc_port"),
         ),
         needs=("a display, for --viewer",),
         stop_timeout_s=20,  # it closes the .rrd and flushes its files on SIGTERM

@@ -40,7 +40,13 @@ def full_metrics() -> pb.Metrics:
     m.conditions.robots["r1"].max_tcp_speed = 1.0
     p = m.conditions.participant
     p.input, p.replay_file = pb.INPUT_SOURCE_REPLAY, "/rec/p01.jsonl"
-    p.reaction_time_s, p.peak_hand_speed, p.caution, p.fitts_a_s, p.fitts_b_s = 0.4, 1.0, 0.5, 0.1, 0.2
+    p.reaction_time_s, p.peak_hand_speed, p.caution, p.fitts_a_s, p.fitts_b_s = (
+        0.4,
+        1.0,
+        0.5,
+        0.1,
+        0.2,
+    )
     p.pick_dwell_s, p.place_dwell_s, p.place_error_m, p.grip_close_s = 0.3, 0.25, 0.005, 0.15
     p.grip_open_s, p.max_hold_back_s, p.left_handed = 0.1, 10.0, True
     p.provoke_probability = 0.5

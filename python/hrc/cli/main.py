@@ -32,17 +32,19 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from hrc import scenario as sc
-    from hrc.scenario.resolved import resolve
     from hrc.cli.runner import (
         Terminated,
         TrialOptions,
         VrOptions,
         default_trial_dir,
+        free_port,
         run_trial,
         stop_on_signals,
+        web_viewer_url,
         write_scenario_copy,
     )
     from hrc.cli.summary import print_summary
+    from hrc.scenario.resolved import resolve
 
     try:
         s = sc.load(args.scenario, motion_check=not args.no_reach_check)
@@ -119,7 +121,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
         input=args.input,
         vr=vr,
     )
+    if args.web_port:
+        if not 0 < args.web_port < 65536:
+            print(f"--web-port must be a port number, got {args.web_port}", file=sys.stderr)
+            return 2
+        opts.web_port, opts.grpc_port = args.web_port, free_port()
     print(f"trial {s.scenario.name!r} ({mode}) -> {trial_dir}", flush=True)
+    if args.web:
+        print(f"rerun web viewer: {web_viewer_url(opts)}", flush=True)
     try:
         stop_on_signals()
         result = run_trial(opts, trial_dir)
@@ -303,6 +312,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--viewer", action="store_true", help="spawn the rerun viewer live")
     r.add_argument("--web", action="store_true", help="serve the rerun web viewer")
+    r.add_argument(
+        "--web-port",
+        type=int,
+        default=0,
+        help="with --web: serve the viewer on this port (default 9090; its data port is then "
+        "a free one instead of 9877)",
+    )
     r.add_argument("--record", default=None, help="record the participant's input to FILE (JSONL)")
     r.add_argument(
         "--replay", default=None, help="replay a recording instead of the scenario's input"

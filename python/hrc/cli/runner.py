@@ -12,7 +12,6 @@ import json
 import logging
 import os
 import random
-import re
 import signal
 import socket
 import subprocess
@@ -55,6 +54,8 @@ class TrialOptions:
     start_timeout_s: float = 60.0
     viewer: bool = False
     web: bool = False
+    web_port: int = 0  # > 0: the rerun web viewer's port (its data port then a free one)
+    grpc_port: int = 0
     record: Path | None = None
     replay: Path | None = None
     connect: list[str] = field(default_factory=list)  # extra endpoints for every service (router)
@@ -193,6 +194,17 @@ def write_scenario_copy(trial_dir: Path, run: Resolved) -> Path:
     path = trial_dir / SCENARIO_COPY
     path.write_text(run.toml(), encoding="utf-8")
     return path
+
+
+DEFAULT_WEB_PORT = 9090  # the logger's defaults (services/logger/README.md)
+DEFAULT_GRPC_PORT = 9877
+
+
+def web_viewer_url(opts: TrialOptions) -> str:
+    """What to open for ``--web``: the viewer page, told where the trial's data is."""
+    web = opts.web_port or DEFAULT_WEB_PORT
+    grpc = opts.grpc_port or DEFAULT_GRPC_PORT
+    return f"http://127.0.0.1:{web}/?url=rerun%2Bhttp://127.0.0.1:{grpc}/proxy"
 
 
 def describe_exit(code: int) -> str:
@@ -340,6 +352,8 @@ def trial_settings(
         replay=str(opts.replay) if opts.replay else None,
         viewer=opts.viewer,
         web=opts.web,
+        web_port=str(opts.web_port) if opts.web and opts.web_port else None,
+        grpc_port=str(opts.grpc_port) if opts.web and opts.grpc_port else None,
     )
 
 

@@ -69,8 +69,8 @@ class Resolved:
                 participant["replay_file"] = str(replay)
         source = self.scenario.source_path
         header = [
-            "# The scenario exactly as this trial ran it (written by `hrc run`): every key, defaults",
-            "# filled in, file paths absolute. Run it again with `hrc run <this file>`.",
+            "# The scenario exactly as this trial ran it (written by `hrc run`): every key,",
+            "# defaults filled in, file paths absolute. Run it again: `hrc run <this file>`.",
             f"# source: {source if source is not None else '(text)'}",
         ]
         header += [f"# override: {o}" for o in self.overrides] or ["# overrides: none"]
@@ -150,7 +150,9 @@ def to_toml(data: dict[str, Any]) -> str:
     for k, v in tables:
         if _is_table_list(v):
             for item in v:
-                out += ["", f"[[{_key(k)}]]"] + [f"{_key(a)} = {_value(b)}" for a, b in item.items()]
+                out += ["", f"[[{_key(k)}]]"] + [
+                    f"{_key(a)} = {_value(b)}" for a, b in item.items()
+                ]
         elif v and all(isinstance(x, dict) for x in v.values()):
             for sub, table in v.items():
                 out += ["", f"[{_key(k)}.{_key(sub)}]"]

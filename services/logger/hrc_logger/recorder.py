@@ -58,9 +58,7 @@ class TrialRecorder:
             self.text.write_line(f"SETTINGS: unreadable scenario ({exc})")
             return
         c = metrics_schema.conditions(s)
-        self.text.write_line(
-            metrics_schema.settings_line(s.participant.name, s.scenario.seed, c)
-        )
+        self.text.write_line(metrics_schema.settings_line(s.participant.name, s.scenario.seed, c))
 
     # ------------------------------------------------------------------ task
     def on_event(self, _key: str, ev: pb.TaskEvent) -> None:

@@ -22,6 +22,9 @@ Entities:
 - ``world/contacts/<kind>/<a>_<b>``: contact markers while a contact lasts.
 - ``world/workspace/...``: envelope boxes, continue button, feeders (static).
 - ``events``: a text log of every task event (the log.txt line where there is one).
+
+The layout (scene large, from behind the participant; plots and events beside it) is the
+blueprint of ``hrc_logger.blueprint``, sent at setup.
 """
 
 from __future__ import annotations
@@ -46,6 +49,7 @@ from hrc.scenario.convert import ssm_from_proto
 from hrc.scenario.models import DEFAULT_TICK_HZ, HUMAN
 from hrc.wire import pb
 
+from hrc_logger.blueprint import blueprint
 from hrc_logger.ssm_zone import Zone
 from hrc_logger.textlog import kind_name
 from hrc_logger.urdf_fk import (
@@ -57,6 +61,9 @@ from hrc_logger.urdf_fk import (
 )
 
 log = logging.getLogger(__name__)
+
+HEAD_RADIUS_M = 0.05
+HAND_RADIUS_M = 0.03
 
 ROOT_FRAME = "tf#/"  # rerun's implicit frame of the root entity: the world
 COLORS: dict[str, tuple[int, int, int]] = {
@@ -322,6 +329,7 @@ class View:
     def setup(self, scenario: pb.Scenario | None) -> None:
         """Static content from the scenario; robots from their URDFs."""
         self._log("/", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)  # z up for the whole scene
+        self.rec.send_blueprint(blueprint())  # the scene large, seen from behind the participant
         if scenario is None:
             return
         if scenario.info.tick_hz > 0:
@@ -517,7 +525,8 @@ class View:
         if finite((h.x, h.y, h.z)):
             self._log(
                 "world/human/head",
-                rr.Points3D([[h.x, h.y, h.z]], radii=[0.09], colors=[(230, 190, 160)]),
+                # smaller than life: seen from behind, a life-size head hides the board
+                rr.Points3D([[h.x, h.y, h.z]], radii=[HEAD_RADIUS_M], colors=[(230, 190, 160)]),
             )
         for hand, grip in (("left", hs.left_grip), ("right", hs.right_grip)):
             pos = self.hands.get(hand)
@@ -527,7 +536,13 @@ class View:
             color = (int(240 - 90 * g), int(200 - 110 * g), int(170 - 110 * g))
             self._log(
                 f"world/human/{hand}_hand",
-                rr.Points3D([pos], radii=[0.035], colors=[color], labels=[f"{hand} {g:.1f}"]),
+                rr.Points3D(
+                    [pos],
+                    radii=[HAND_RADIUS_M],
+                    colors=[color],
+                    labels=[f"{hand} {g:.1f}"],
+                    show_labels=False,  # the grip shows as the colour; labels crowd the board
+                ),
             )
             for rid, rv in self.robots.items():
                 pts = (
@@ -582,6 +597,7 @@ class View:
                         colors=[rgba(ov.color, 255 if o.placed else 200)],
                         fill_mode="solid",
                         labels=[label],
+                        show_labels=not o.placed,  # the board fills up: only loose parts named
                     ),
                 )
                 ov.shown = True
@@ -648,6 +664,7 @@ class View:
                     colors=[rgba(color, 170)],
                     fill_mode="solid",
                     labels=[c.text or f"{c.part}"],
+                    show_labels=False,  # the part it is for carries the name
                 ),
             )
         elif c.kind == pb.CUE_KIND_OUTLINE and (

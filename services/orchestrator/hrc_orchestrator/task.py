@@ -153,9 +153,9 @@ class Task:
                 agent.advance(t, active=self.safety.override(rid) is None)
             self.safety.swap_stuck_yields(t)
             agents = self.agents.values()
-            if self.completion_s is None and self.human.done:
-                if all(a.completion_s is not None for a in agents):
-                    self._complete(t)
+            last_placed = all(a.completion_s is not None for a in agents)
+            if self.completion_s is None and self.human.done and last_placed:
+                self._complete(t)
             if self.human.done and all(a.finished for a in agents):
                 self._finish(t)
                 out.stop = "task finished"
