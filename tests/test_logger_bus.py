@@ -199,7 +199,7 @@ def test_log_txt_order_and_counts_match_the_metrics(synthetic_run) -> None:
     ]
     assert len(metrics) == 1 and metrics[0]["final"], "the final metrics (last tick) were drained"
     m = metrics[0]
-    assert lines[0].endswith(" - TASK STARTED.")
+    assert lines[0].startswith("SETTINGS: ") and lines[1].endswith(" - TASK STARTED.")
     assert (
         sum(" : Collision " in line for line in lines) == m["collisions"]["human_robot_count"] == 2
     )
@@ -211,9 +211,12 @@ def test_log_txt_order_and_counts_match_the_metrics(synthetic_run) -> None:
         i for i, line in enumerate(lines) if " : Collision " in line or " : Near-collision " in line
     ]
     assert len(robot_finishes) == 2 and len(human) == 1
-    assert max(collisions) < min(robot_finishes) < max(robot_finishes) < human[0] < len(lines) - 1
-    assert lines[-1].endswith(
+    assert max(collisions) < min(robot_finishes) < max(robot_finishes) < human[0] < len(lines) - 2
+    assert lines[-2].endswith(
         f"TASK FINISHED. {m['collisions']['human_robot_count']} total collisions."
+    )
+    assert lines[-1].endswith(
+        f" {m['collisions']['near_count']} total near-collisions between the robots."
     )
 
 
@@ -269,7 +272,7 @@ def test_sigterm_mid_trial_closes_every_file_readable(tmp_path: Path) -> None:
     out, _trial, done = run_synthetic(tmp_path, term_tick=320)
     assert done.returncode == 1, done.stdout  # the run did not end normally
     lines = (out / "log.txt").read_text().splitlines()
-    assert lines[0].endswith(" - TASK STARTED.")
+    assert lines[0].startswith("SETTINGS: ") and lines[1].endswith(" - TASK STARTED.")
     assert sum(" : Collision " in line for line in lines) == 1  # the one at tick 250
     assert "RUN ENDED WITH AN ERROR: terminated by SIGTERM" in lines[-1]
     records = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
@@ -293,10 +296,13 @@ def test_full_thesis_trial_logger_outputs(tmp_path: Path) -> None:
     assert proc.returncode == 0, proc.stdout + proc.stderr
     metrics = json.loads((out / "metrics.json").read_text())
     lines = (out / "log.txt").read_text().splitlines()
-    assert lines[0].endswith(" - TASK STARTED.")
-    assert lines[-1].startswith(
-        f"{metrics['task']['completion_s']:.2f} sec : TASK FINISHED"
-    ) or lines[-1].endswith("total collisions."), lines[-1]
+    assert lines[0].startswith("SETTINGS: ") and lines[1].endswith(" - TASK STARTED.")
+    assert lines[-2].startswith(
+        f"{metrics['task']['completion_s']:.3f} sec : TASK FINISHED"
+    ) and lines[-2].endswith("total collisions."), lines[-2]
+    assert lines[-1].endswith(
+        f" {metrics['collisions']['near_count']} total near-collisions between the robots."
+    )
     col = metrics["collisions"]
     assert sum(" : Collision " in line for line in lines) == col["human_robot_count"]
     assert sum(" : Near-collision " in line for line in lines) == col["near_count"]

@@ -141,7 +141,10 @@ def test_thesis_run_writes_every_spec_metric(tmp_path: Path) -> None:
     for path in SPEC_FIELDS:
         dig(data, path)
     assert data["scenario"] == "thesis-board" and data["participant"] == "P01"
-    assert data["conditions"] == {"anticipation": True, "safety_policy": "retreat", "ssm": None}
+    cond = data["conditions"]
+    assert cond["anticipation"] is True and cond["safety_policy"] == "retreat"
+    assert cond["robots"] == {"r1": {"max_tcp_speed": 0.5}, "r2": {"max_tcp_speed": 0.5}}
+    assert cond["ssm"] is None
     assert data["task"]["completion_s"] is not None, "the task did not finish"
     assert data["run"]["mode"] == "lockstep" and data["run"]["ticks"] > 0
     assert set(data["robots"]) == {"r1", "r2"}
@@ -157,8 +160,12 @@ def test_thesis_run_writes_every_spec_metric(tmp_path: Path) -> None:
     assert col["human_robot_count"] == len(col["human_robot"])
     assert col["near_count"] == len(col["near"])
     kinds = [ln.kind for ln in lines if ln.kind not in ("MOVE", "HOLD")]
-    assert kinds[0] == "TASK_STARTED" and kinds[-1] == "TASK_FINISHED"
+    # TASK FINISHED at the last placement (the robots then go home: their phases follow)
+    assert kinds[0] == "TASK_STARTED" and kinds.count("TASK_FINISHED") == 1
     assert kinds.count("PART_PLACED") == 18
+    last_placed = max(i for i, k in enumerate(kinds) if k == "PART_PLACED")
+    assert kinds.index("TASK_FINISHED") > last_placed
+    assert set(kinds[kinds.index("TASK_FINISHED") + 1 :]) <= {"ROBOT_PHASE"}
 
 
 def retreat_pose(policy_file: Path, robot: str) -> tuple[float, float, float]:

@@ -99,6 +99,12 @@ def test_the_web_viewer_shows_the_scene_large_from_behind_the_participant(
                 blue, yellow = near(scene, HUMAN_PARTS), near(scene, R1_PARTS)
                 if (blue.sum() > 400 and yellow.sum() > 400) or time.monotonic() > deadline:
                     break
+            # the parts come first (static); give the arms' joint states time to stream in
+            time.sleep(20)
+            page.screenshot(path=str(shot), timeout=120_000)
+            img = np.asarray(Image.open(shot).convert("RGB"))[UI_BARS_PX:-UI_BARS_PX]
+            scene, side = img[:, : int(SCENE_RIGHT * w)], img[:, int(SCENE_RIGHT * w) :]
+            blue, yellow = near(scene, HUMAN_PARTS), near(scene, R1_PARTS)
     finally:
         os.killpg(proc.pid, signal.SIGINT)  # hrc run stops its services and keeps the files
         try:

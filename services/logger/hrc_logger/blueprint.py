@@ -15,7 +15,7 @@ from hrc.geometry import Vec3
 # Behind and well above the participant's head (the scripted participant's eyes are at
 # (0, -0.70, 0.60)), looking down at the board: the head then sits at the board's near edge,
 # where the participant stands, instead of hiding the middle of the board.
-EYE_POSITION: Vec3 = (0.0, -1.00, 1.45)
+EYE_POSITION: Vec3 = (0.0, -1.25, 1.75)
 EYE_TARGET: Vec3 = (0.0, 0.10, 0.0)
 SCENE_SHARE = 3.0  # the scene's width : the side column's width
 SCENE_NAME = "Scene (behind the participant)"
