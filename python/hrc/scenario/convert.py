@@ -12,6 +12,7 @@ from hrc.geometry import pose_yaw_to_pb, vec3_from_pb, vec3_to_pb
 from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy, WireEnum
 from hrc.scenario.errors import Problem, ScenarioError
 from hrc.scenario.models import (
+    DEFAULT_MAX_EXCHANGE_TICKS,
     Box,
     Conditions,
     Part,
@@ -36,7 +37,14 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
     (as written otherwise), `source_toml` = the file's text. The header is left to the sender."""
     msg = pb.Scenario()
     info = scenario.scenario
-    msg.info.CopyFrom(pb.ScenarioInfo(name=info.name, tick_hz=info.tick_hz, seed=info.seed))
+    msg.info.CopyFrom(
+        pb.ScenarioInfo(
+            name=info.name,
+            tick_hz=info.tick_hz,
+            seed=info.seed,
+            max_exchange_ticks=info.max_exchange_ticks,
+        )
+    )
 
     part = scenario.participant
     pc = msg.participant
@@ -224,7 +232,12 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
         continue_button=_vec_back(ws.continue_button) if ws.HasField("continue_button") else None,
     )
     scenario = Scenario(
-        scenario=ScenarioInfo(name=msg.info.name, tick_hz=msg.info.tick_hz, seed=msg.info.seed),
+        scenario=ScenarioInfo(
+            name=msg.info.name,
+            tick_hz=msg.info.tick_hz,
+            seed=msg.info.seed,
+            max_exchange_ticks=msg.info.max_exchange_ticks or DEFAULT_MAX_EXCHANGE_TICKS,
+        ),
         participant=participant,
         conditions=Conditions(
             anticipation=msg.conditions.anticipation,

@@ -24,6 +24,10 @@ from hrc.scenario.paths import resolve_path
 HUMAN = "human"
 
 DEFAULT_TICK_HZ = 240.0
+# Lockstep exchanges of at most this many ticks (docs/ARCHITECTURE.md, "Exchange step"): 8 at
+# 240 Hz = 30 exchanges per simulated second far from the hands; 1 = an exchange every tick.
+DEFAULT_MAX_EXCHANGE_TICKS = 8
+MAX_EXCHANGE_TICKS = 64
 MAX_TICK_HZ = 2000.0
 MAX_TCP_SPEED = 1.5  # m/s, upper bound allowed for any robot
 DEFAULT_NEAR_MARGIN = 0.05  # m, inflated-volume margin for robot-robot near collisions
@@ -83,6 +87,11 @@ class ScenarioInfo(_Strict):
     seed: Annotated[int, Field(ge=0, lt=2**64)] = 1
     # The watchdog: no progress for this long (simulated s) ends the trial; 0: never.
     stall_timeout_s: Annotated[float, Field(ge=0.0, allow_inf_nan=False)] = 60.0
+    # Up to this many ticks per lockstep exchange where no hand can reach an arm meanwhile; 1
+    # gives every reaction one tick, as before exchanges (slower).
+    max_exchange_ticks: Annotated[int, Field(ge=1, le=MAX_EXCHANGE_TICKS)] = (
+        DEFAULT_MAX_EXCHANGE_TICKS
+    )
 
 
 class ScriptedParams(_Strict):

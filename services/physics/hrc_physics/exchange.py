@@ -25,14 +25,15 @@ from dataclasses import dataclass
 
 import pybullet as p
 
+from hrc.scenario.models import DEFAULT_MAX_EXCHANGE_TICKS
+
 from hrc_physics.hands import Hand
 from hrc_physics.robots import KinematicRobot
 
 # m/s: the scenario's upper limit of ``peak_hand_speed`` (hrc.scenario.models); a hand source
-# faster than this (a replay, VR) gets one-tick exchanges only if it says so (--max-span 1).
+# faster than this (a replay, VR) gets one-tick exchanges only if it says so
+# (`max_exchange_ticks = 1` in the scenario, or --max-span 1).
 HAND_SPEED_BOUND = 5.0
-# Exchanges of at most this many ticks (240 Hz: 8 ticks = 30 exchanges per simulated second).
-DEFAULT_MAX_SPAN = 8
 
 
 def _aabb_radius(origin: tuple[float, ...], box: tuple[tuple[float, ...], ...]) -> float:
@@ -88,7 +89,7 @@ class SpanPlanner:
 
     dt: float
     arm_bounds: dict[str, float]  # robot id -> m/s
-    max_span: int = DEFAULT_MAX_SPAN
+    max_span: int = DEFAULT_MAX_EXCHANGE_TICKS
     hand_bound: float = HAND_SPEED_BOUND
 
     def __post_init__(self) -> None:

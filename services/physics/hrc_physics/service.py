@@ -18,7 +18,7 @@ from hrc.services import OBSERVERS, PARTICIPANTS
 from hrc.validate import check_pose
 from hrc.wire import pb
 
-from hrc_physics.exchange import DEFAULT_MAX_SPAN, SpanPlanner, arm_speed_bound
+from hrc_physics.exchange import SpanPlanner, arm_speed_bound
 from hrc_physics.robots import RobotModelError
 from hrc_physics.world import CommandRejected, World, WorldSettings
 
@@ -96,9 +96,9 @@ class PhysicsService(ClockMasterService):
         p.add_argument(
             "--max-span",
             type=int,
-            default=DEFAULT_MAX_SPAN,
+            default=None,
             help="lockstep: at most N ticks per exchange, fewer near a hand-arm contact "
-            "(1: an exchange every tick; default %(default)s)",
+            "(1: an exchange every tick; default: the scenario's max_exchange_ticks)",
         )
         p.add_argument(
             "--solver-iterations",
@@ -111,7 +111,7 @@ class PhysicsService(ClockMasterService):
         super().__init__(args)
         if args.ticks < 0:
             raise ServiceExit(f"--ticks must be >= 0, got {args.ticks}", EXIT_BAD_INPUT)
-        if args.max_span < 1:
+        if args.max_span is not None and args.max_span < 1:
             raise ServiceExit(f"--max-span must be >= 1, got {args.max_span}", EXIT_BAD_INPUT)
         if args.solver_iterations < 1:
             raise ServiceExit(
@@ -147,7 +147,7 @@ class PhysicsService(ClockMasterService):
         self.planner = SpanPlanner(
             dt=1.0 / tick_hz,
             arm_bounds={rid: arm_speed_bound(r) for rid, r in self.world.robots.items()},
-            max_span=args.max_span,
+            max_span=args.max_span or typed.scenario.max_exchange_ticks,
         )
         keys = bus.keys
         self._commands_key = keys.world_commands()
