@@ -1,7 +1,7 @@
 """The protective separation distance of speed and separation monitoring (ISO/TS 15066, 5.5.4)
 and the allowed robot speed derived from it: the one implementation of the formula
-(docs/safety-ssm.md). The orchestrator's policy (hrc_orchestrator.ssm) and the logger's view of the
-protective zone use it.
+(docs/safety-ssm.md). The orchestrator's policy (hrc_orchestrator.ssm), the logger's view of the
+protective zone and the participant client's (the VR bridge's stream) use it.
 
     S_p(v) = S_h + S_r + S_s + C + Z_d + Z_r
     S_h = v_h (T_r + T_s),  T_s = v / a   (the human's approach while the robot reacts and stops)
@@ -17,8 +17,10 @@ velocity-scaling formulation of Marvel and Norcross (2017):
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 from hrc.scenario import Ssm
+from hrc.wire import pb
 
 
 def protective_distance(p: Ssm, robot_speed: float) -> float:
@@ -56,3 +58,47 @@ def stop_distance(p: Ssm) -> float:
 def resume_distance(p: Ssm) -> float:
     """A stopped robot resumes once the separation is at least this (the hysteresis)."""
     return stop_distance(p) + p.resume_margin_m
+
+
+# The zone's colours by state (RGB) and its opacity (of 255): the logger's view and the
+# participant client draw it alike.
+ZONE_COLORS = {
+    "normal": (60, 190, 80),
+    "reduced": (240, 200, 40),
+    "stopped": (220, 40, 40),
+}
+ZONE_ALPHA = 45
+
+
+@dataclass
+class Zone:
+    """A robot's protective zone as the views show it: spheres of radius S_p (at the arm's current
+    speed) around its link origins, in a state: normal, reduced (speed scale below 1) or stopped
+    (between PROTECTIVE_STOP and PROTECTIVE_RESUME). Fed the robot's states and task events."""
+
+    params: Ssm
+    speed: float = 0.0  # the arm's TCP speed (m/s), from its latest state
+    reduced: bool = False  # its speed scale is below 1
+    stopped: bool = False  # between PROTECTIVE_STOP and PROTECTIVE_RESUME
+
+    @property
+    def state(self) -> str:
+        return "stopped" if self.stopped else "reduced" if self.reduced else "normal"
+
+    @property
+    def radius(self) -> float:
+        return protective_distance(self.params, self.speed)
+
+    def observe(self, st: pb.RobotState) -> None:
+        self.speed = st.tcp_speed
+        self.reduced = st.HasField("speed_scale") and st.speed_scale < 1.0
+
+    def event(self, ev: pb.TaskEvent) -> bool:
+        """Takes a protective stop / resume; True if it was one."""
+        if ev.kind == pb.TASK_EVENT_KIND_PROTECTIVE_STOP:
+            self.stopped = True
+        elif ev.kind == pb.TASK_EVENT_KIND_PROTECTIVE_RESUME:
+            self.stopped = False
+        else:
+            return False
+        return True

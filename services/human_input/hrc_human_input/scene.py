@@ -25,6 +25,7 @@ from hrc.scenario.conventions import (
     waiting_cue_id,
 )
 from hrc.scenario.layout import BOARD_SIZE, FLOOR_Z, furniture
+from hrc.ssm import ZONE_ALPHA, ZONE_COLORS
 from hrc.wire import pb
 
 PROTOCOL_VERSION = 1
@@ -145,7 +146,7 @@ def build_scene(msg: pb.Scenario, files: RobotFiles) -> dict[str, Any]:
             }
         )
     button = s.workspace.continue_button
-    return {
+    scene: dict[str, Any] = {
         "type": "scene",
         "protocol": PROTOCOL_VERSION,
         "scenario": s.scenario.name,
@@ -167,6 +168,17 @@ def build_scene(msg: pb.Scenario, files: RobotFiles) -> dict[str, Any]:
         "hand_color": hex_color(HUMAN_COLOR),
         "cues": scene_cues(s, robot_colors),
         "frame_rate_hz": DEFAULT_FRAME_RATE_HZ,
+    }
+    if s.conditions.safety_policy == sc.SafetyPolicy.SSM:
+        scene["ssm_zone"] = ssm_zone_style()
+    return scene
+
+
+def ssm_zone_style() -> dict[str, Any]:
+    """How the page draws the protective zones: the logger view's colours and opacity."""
+    return {
+        "colors": {state: "#{:02x}{:02x}{:02x}".format(*c) for state, c in ZONE_COLORS.items()},
+        "opacity": r4(ZONE_ALPHA / 255),
     }
 
 

@@ -25,7 +25,7 @@ from hrc_human_input.sample import Sample
 from hrc_human_input.scene import RobotFiles, build_scene, scene_cue_json
 from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource
-from hrc_human_input.stream import WorldMirror
+from hrc_human_input.stream import WorldMirror, ssm_zones
 from hrc_human_input.task_view import TaskView
 from hrc_human_input.vr_bridge import (
     CLIENT_DIST,
@@ -232,7 +232,8 @@ class HumanInputService(Service):
         else:
             log.info("open %s to take part", url)
         joints = {r["id"]: list(r["joint_names"]) for r in scene["robots"]}
-        mirror = WorldMirror(joints, {c["id"]: scene_cue_json(c) for c in scene["cues"]})
+        cues = {c["id"]: scene_cue_json(c) for c in scene["cues"]}
+        mirror = WorldMirror(joints, cues, ssm_zones(scenario))
         return VrSource(bridge, mirror)
 
     def register_inputs(self, inputs: Inputs) -> None:

@@ -12,6 +12,8 @@ import json
 from dataclasses import dataclass, field
 from typing import Any
 
+from hrc.scenario.convert import ssm_from_proto
+from hrc.ssm import Zone
 from hrc.wire import pb
 
 from hrc_human_input.sample import Sample
@@ -57,6 +59,15 @@ class RunState:
 
 RobotEntry = tuple[tuple[float, ...], tuple[float, ...], str, int]  # q, tcp, status, command
 ObjectEntry = tuple[tuple[float, ...], tuple[float, ...], str, bool, bool]  # p, q, holder, ...
+ZoneEntry = tuple[float, str]  # radius (m, to the centimetre), state
+ZONE_RESOLUTION_M = 0.01  # a zone is sent again when its radius changes by this
+
+
+def ssm_zones(msg: pb.Scenario) -> dict[str, Zone]:
+    """Per robot, its protective zone under safety_policy = "ssm"; none under another policy."""
+    if msg.conditions.safety_policy != pb.SAFETY_POLICY_SSM:
+        return {}
+    return {r.id: Zone(ssm_from_proto(r.ssm)) for r in msg.robots}
 
 
 @dataclass(frozen=True)
@@ -73,6 +84,7 @@ class Snapshot:
     cue_defs: dict[str, str]  # cue id -> JSON of its live definition, where not the scene's
     hands: dict[str, Any]
     run: str
+    zones: dict[str, ZoneEntry] = field(default_factory=dict)
 
 
 @dataclass
@@ -81,6 +93,7 @@ class WorldMirror:
 
     joint_order: dict[str, list[str]]  # robot -> the scene's joint names
     scene_cues: dict[str, str]  # cue id -> JSON of the scene's definition
+    zones: dict[str, Zone] = field(default_factory=dict)  # ssm only: per robot
     robots: dict[str, RobotEntry] = field(default_factory=dict)
     objects: dict[str, ObjectEntry] = field(default_factory=dict)
     cues: dict[str, bool] = field(default_factory=dict)
@@ -119,6 +132,15 @@ class WorldMirror:
             motion_status(msg.status),
             int(msg.command_id),
         )
+        zone = self.zones.get(msg.robot)
+        if zone is not None:
+            zone.observe(msg)
+
+    def zone_entries(self) -> dict[str, ZoneEntry]:
+        return {
+            rid: (round(z.radius / ZONE_RESOLUTION_M) * ZONE_RESOLUTION_M, z.state)
+            for rid, z in self.zones.items()
+        }
 
     def on_indicators(self, msg: pb.Indicators) -> None:
         for cue in msg.cues:
@@ -132,6 +154,9 @@ class WorldMirror:
 
     def on_task_event(self, msg: pb.TaskEvent) -> None:
         t = msg.header.sim_time
+        zone = self.zones.get(msg.robot)
+        if zone is not None:
+            zone.event(msg)
         if msg.kind == pb.TASK_EVENT_KIND_TASK_STARTED and self.task_start is None:
             self.task_start = t - msg.task_time
         if msg.kind in PERCEIVABLE:
@@ -181,6 +206,7 @@ class WorldMirror:
             dict(self.cue_defs),
             hands_json(sample),
             self.run,
+            self.zone_entries(),
         )
         return snap, events
 
@@ -210,6 +236,7 @@ class ClientView:
     objects: dict[str, ObjectEntry] = field(default_factory=dict)
     cues: dict[str, bool] = field(default_factory=dict)
     cue_defs: dict[str, str] = field(default_factory=dict)
+    zones: dict[str, ZoneEntry] = field(default_factory=dict)
     seq: int = 0
     version: int = 0
 
@@ -228,6 +255,11 @@ def frame_json(view: ClientView, snap: Snapshot, dropped: int) -> str:
     }
     cues = {cid: on for cid, on in snap.cues.items() if view.cues.get(cid) != on}
     defs = {cid: d for cid, d in snap.cue_defs.items() if view.cue_defs.get(cid) != d}
+    zones = {
+        rid: {"radius": r4(e[0]), "state": e[1]}
+        for rid, e in snap.zones.items()
+        if view.zones.get(rid) != e
+    }
     view.seq += 1
     view.version = snap.version
     view.robots, view.objects, view.cues, view.cue_defs = (
@@ -236,8 +268,8 @@ def frame_json(view: ClientView, snap: Snapshot, dropped: int) -> str:
         snap.cues,
         snap.cue_defs,
     )
-    head = json.dumps(
-        {
+    view.zones = snap.zones
+    frame: dict[str, Any] = {
             "type": "frame",
             "seq": view.seq,
             "tick": snap.tick,
@@ -249,9 +281,10 @@ def frame_json(view: ClientView, snap: Snapshot, dropped: int) -> str:
             "hands": snap.hands,
             "run": snap.run,
             "dropped": dropped,
-        },
-        separators=(",", ":"),
-    )
+    }
+    if zones:  # ssm only, on change
+        frame["zones"] = zones
+    head = json.dumps(frame, separators=(",", ":"))
     if not defs:
         return head
     # The live definitions are JSON already: spliced in, not parsed and dumped again.

@@ -7,51 +7,16 @@ red protective stop.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import rerun as rr
 
-from hrc.scenario import Ssm
-from hrc.ssm import protective_distance
-from hrc.wire import pb
-
-ALPHA = 45
-COLORS = {
-    "normal": (60, 190, 80),
-    "reduced": (240, 200, 40),
-    "stopped": (220, 40, 40),
-}
+from hrc.ssm import ZONE_ALPHA as ALPHA
+from hrc.ssm import ZONE_COLORS as COLORS
+from hrc.ssm import Zone as ZoneState
 
 
-@dataclass
-class Zone:
-    params: Ssm
-    speed: float = 0.0  # the arm's TCP speed (m/s), from its latest state
-    reduced: bool = False  # its speed scale is below 1
-    stopped: bool = False  # between PROTECTIVE_STOP and PROTECTIVE_RESUME
-
-    @property
-    def state(self) -> str:
-        return "stopped" if self.stopped else "reduced" if self.reduced else "normal"
-
-    @property
-    def radius(self) -> float:
-        return protective_distance(self.params, self.speed)
-
-    def observe(self, st: pb.RobotState) -> None:
-        self.speed = st.tcp_speed
-        self.reduced = st.HasField("speed_scale") and st.speed_scale < 1.0
-
-    def event(self, ev: pb.TaskEvent) -> bool:
-        """Takes a protective stop / resume; True if it was one."""
-        if ev.kind == pb.TASK_EVENT_KIND_PROTECTIVE_STOP:
-            self.stopped = True
-        elif ev.kind == pb.TASK_EVENT_KIND_PROTECTIVE_RESUME:
-            self.stopped = False
-        else:
-            return False
-        return True
+class Zone(ZoneState):
+    """The zone's state and size (hrc.ssm.Zone, shared with the participant client), drawn."""
 
     def archetype(self, centers: np.ndarray) -> rr.Ellipsoids3D:
         r = self.radius

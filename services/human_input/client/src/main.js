@@ -82,7 +82,8 @@ class App {
     const canvas = document.getElementById('view');
     const aa = params.get('aa');
     const antialias = aa === null ? !softwareWebGl() : aa !== '0';
-    const renderer = new THREE.WebGLRenderer({ canvas, antialias });
+    // the stencil draws each robot's protective zone (ssm) as one volume
+    const renderer = new THREE.WebGLRenderer({ canvas, antialias, stencil: true });
     renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
     renderer.setSize(window.innerWidth, window.innerHeight, false);
     renderer.xr.enabled = true;
@@ -195,7 +196,7 @@ class App {
       case 'scene':
         this.sceneMsg = m;
         this.world.build(m);
-        this.robots.build(m.robots);
+        this.robots.build(m.robots, m.ssm_zone);
         this.hud.message('');
         break;
       case 'frame':
@@ -351,7 +352,9 @@ window.hrcTest = {
       };
     }
     const robots = {};
-    for (const [id, r] of app.robots.robots) robots[id] = { tcp: r.tcp, q: r.q, loaded: r.loaded };
+    for (const [id, r] of app.robots.robots) {
+      robots[id] = { tcp: r.tcp, q: r.q, loaded: r.loaded, zone: r.zone };
+    }
     const cues = {};
     for (const [id, c] of app.world.cues) cues[id] = { on: c.on, visible: c.obj.visible };
     return {
@@ -375,6 +378,34 @@ window.hrcTest = {
   freeze: (on) => {
     window.hrcApp.frozen = !!on;
   },
+  /** The part labels on screen: [{part, text, x0, y0, x1, y1}] (CSS pixels). */
+  labels: () => {
+    const app = window.hrcApp;
+    const cam = app.camera;
+    const right = new THREE.Vector3().setFromMatrixColumn(cam.matrixWorld, 0);
+    const up = new THREE.Vector3().setFromMatrixColumn(cam.matrixWorld, 1);
+    const out = [];
+    for (const [id, p] of app.world.parts) {
+      const l = p.label;
+      if (!l.visible) continue;
+      const c = l.getWorldPosition(new THREE.Vector3());
+      const s = l.getWorldScale(new THREE.Vector3());
+      const xs = [];
+      const ys = [];
+      for (const [a, b] of [[-1, -1], [1, -1], [1, 1], [-1, 1]]) {
+        const w = c.clone().addScaledVector(right, (a * s.x) / 2).addScaledVector(up, (b * s.y) / 2);
+        app.root.worldToLocal(w);
+        const px = projectWith(app, w.toArray());
+        xs.push(px.x);
+        ys.push(px.y);
+      }
+      const text = p.spec.kind || id;
+      out.push({ part: id, text, x0: Math.min(...xs), y0: Math.min(...ys), x1: Math.max(...xs), y1: Math.max(...ys) });
+    }
+    return out;
+  },
+  /** Shows (true) or hides (false) the robots' protective zones (ssm). */
+  showZones: (on) => window.hrcApp.robots.showZones(!!on),
   /** Freezes the page (as freeze(true)) at the first frame in which `part` is held by
    * `holder`, however late this page runs behind the trial. */
   freezeWhen: (part, holder) => {

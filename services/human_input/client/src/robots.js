@@ -23,22 +23,44 @@ function tint(model, color) {
   });
 }
 
+// The protective zone (safety_policy = "ssm"), drawn as the researcher's view draws it: a
+// translucent sphere of the zone's radius around each link origin of the arm, coloured by state.
+// The spheres of one arm are blended once per pixel (the stencil keeps a second layer out), so
+// the zone reads as one volume and the arm inside it keeps its colour; no depth writes, so the
+// arm and the parts behind stay visible.
+const UNIT_SPHERE = new THREE.SphereGeometry(1, 24, 16);
+
+function zoneMaterial(style, ref) {
+  return new THREE.MeshBasicMaterial({
+    color: style.colors.normal,
+    transparent: true,
+    opacity: style.opacity,
+    depthWrite: false,
+    stencilWrite: true,
+    stencilRef: ref,
+    stencilFunc: THREE.NotEqualStencilFunc,
+    stencilZPass: THREE.ReplaceStencilOp,
+  });
+}
+
 export class Robots {
   constructor(parentGroup, onError) {
     this.parent = parentGroup;
     this.onError = onError;
-    this.robots = new Map(); // id -> {spec, model, pending q, tcp}
+    this.robots = new Map(); // id -> {spec, model, pending q, tcp, zone}
+    this.zoneStyle = null; // the scene's ssm_zone: colours by state and opacity
   }
 
-  build(specs) {
+  build(specs, zoneStyle) {
     this.clear();
+    this.zoneStyle = zoneStyle || null;
     for (const spec of specs || []) {
       const holder = new THREE.Group();
       holder.name = `robot:${spec.id}`;
       setPose(holder, spec.base?.xyz);
       holder.rotation.set(0, 0, THREE.MathUtils.degToRad(spec.base?.yaw_deg || 0));
       this.parent.add(holder);
-      const entry = { spec, holder, model: null, q: null, tcp: null, loaded: false };
+      const entry = { spec, holder, model: null, q: null, tcp: null, loaded: false, zone: null };
       this.robots.set(spec.id, entry);
       const loader = new URDFLoader();
       const url = new URL(spec.urdf_url, window.location.href);
@@ -52,6 +74,7 @@ export class Robots {
           entry.model = model;
           entry.loaded = true;
           if (entry.q) this.setJoints(spec.id, entry.q);
+          if (entry.zone) this.setZone(spec.id, entry.zone);
         },
         undefined,
         (err) => this.onError?.(`robot ${spec.id}: cannot load ${spec.urdf_url}: ${err}`),
@@ -75,6 +98,28 @@ export class Robots {
     }
   }
 
+  /** zone: {radius, state} of a frame's `zones`; the spheres follow the links they hang on. */
+  setZone(id, zone) {
+    const r = this.robots.get(id);
+    if (!r || !this.zoneStyle) return;
+    r.zone = zone;
+    if (!r.model) return;
+    if (!r.zoneMeshes) {
+      const index = [...this.robots.keys()].indexOf(id) + 1; // 1.. : its stencil value
+      r.zoneMaterial = zoneMaterial(this.zoneStyle, index);
+      r.zoneMeshes = Object.values(r.model.links).map((link) => {
+        const m = new THREE.Mesh(UNIT_SPHERE, r.zoneMaterial);
+        m.name = `zone:${id}`;
+        m.renderOrder = index; // after the opaque arms, one arm's spheres together
+        link.add(m);
+        return m;
+      });
+    }
+    const color = this.zoneStyle.colors[zone.state] || this.zoneStyle.colors.normal;
+    r.zoneMaterial.color.set(color);
+    for (const m of r.zoneMeshes) m.scale.setScalar(Math.max(zone.radius, 1e-3));
+  }
+
   applyFrame(f) {
     for (const [id, st] of Object.entries(f.robots || {})) {
       if (st.q) this.setJoints(id, st.q);
@@ -83,6 +128,17 @@ export class Robots {
         if (r) r.tcp = st.tcp;
       }
     }
+    for (const [id, zone] of Object.entries(f.zones || {})) this.setZone(id, zone);
+  }
+
+  /** Shows or hides every protective zone (the browser tests compare the two pictures). */
+  showZones(on) {
+    for (const r of this.robots.values()) for (const m of r.zoneMeshes || []) m.visible = on;
+  }
+
+  /** The zone as last received (tests, HUD): {radius, state} or null. */
+  zoneOf(id) {
+    return this.robots.get(id)?.zone || null;
   }
 
   allLoaded() {

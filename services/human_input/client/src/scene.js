@@ -78,6 +78,16 @@ function yawed(obj, yawDeg) {
   return obj;
 }
 
+/** Whose label a participant wants to see: of their own parts only the one to take next (the
+ * one grabbable now) and one in a hand, so the labels of a row of parts never overlap; a robot's
+ * parts until placed. Placed parts keep their label out of the way of the next ones. */
+function labelShown(part) {
+  if (part.placed) return false;
+  if (part.spec.owner !== 'human') return true;
+  const inHand = part.holder === 'left' || part.holder === 'right';
+  return inHand || part.grabbable !== false;
+}
+
 export class World {
   constructor(root) {
     this.root = root;
@@ -322,8 +332,7 @@ export class World {
         m.position.y,
         m.position.z + part.spec.size[2] / 2 + 0.018,
       );
-      // placed parts keep their label out of the way of the next ones
-      part.label.visible = m.visible && !part.placed;
+      part.label.visible = m.visible && labelShown(part);
     }
     for (const cue of this.cues.values()) {
       const { spec, obj } = cue;
