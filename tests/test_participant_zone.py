@@ -23,10 +23,10 @@ from hrc.browser import output_dir
 from hrc.scenario import Ssm
 from hrc.ssm import Zone, protective_distance
 from hrc.wire import pb
-from hrc_human_input.stream import ClientView, WorldMirror, frame_json
 
 from .conftest import ROOT, Trial
 from .test_participant_client import Page, browser, hex_rgb, live, looks_like, metrics
+from hrc_human_input.stream import ClientView, WorldMirror, frame_json
 
 __all__ = ["browser", "live"]  # the fixtures, shared with test_participant_client
 

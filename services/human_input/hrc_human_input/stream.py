@@ -270,17 +270,17 @@ def frame_json(view: ClientView, snap: Snapshot, dropped: int) -> str:
     )
     view.zones = snap.zones
     frame: dict[str, Any] = {
-            "type": "frame",
-            "seq": view.seq,
-            "tick": snap.tick,
-            "t_s": snap.t,
-            "task_t_s": snap.task_t,
-            "robots": robots,
-            "objects": objects,
-            "cues": cues,
-            "hands": snap.hands,
-            "run": snap.run,
-            "dropped": dropped,
+        "type": "frame",
+        "seq": view.seq,
+        "tick": snap.tick,
+        "t_s": snap.t,
+        "task_t_s": snap.task_t,
+        "robots": robots,
+        "objects": objects,
+        "cues": cues,
+        "hands": snap.hands,
+        "run": snap.run,
+        "dropped": dropped,
     }
     if zones:  # ssm only, on change
         frame["zones"] = zones
