@@ -1,12 +1,14 @@
 """The participant's page under safety_policy = "ssm" (docs/safety-ssm.md), in headless Debian
 chromium against a live trial with every real service: the participant's hand, moved with the
-page's own desktop controls, waits over the spot where r1 will put its part; r1 slows, makes a
-protective stop before the hand, and the page draws r1's protective zone red around the arm
-(the arm still visible in it); the hand goes back to rest, r1 resumes and the task finishes.
+page's own desktop controls, takes H1 (which starts the task) and holds it beside the spot where
+r1 will put its part; r1 slows, makes a protective stop before the hand, and the page draws r1's
+protective zone red around the arm (the arm still visible in it); the hand places H1 away from
+there and goes back to rest, r1 resumes and the task finishes.
 The picture is saved as test-output/client/ssm-zone.png.
 
-And the thesis scene from the desktop view, saved as thesis-desktop.png: the part labels a
-participant needs are readable (they do not overlap).
+And the thesis scene from the desktop view, saved as thesis-desktop.png: only the label a
+participant needs is shown (their next part's), none overlap; later, a robot's part on its way is
+labelled.
 """
 
 from __future__ import annotations
@@ -25,14 +27,24 @@ from hrc.ssm import Zone, protective_distance
 from hrc.wire import pb
 
 from .conftest import ROOT, Trial
-from .test_participant_client import Page, browser, hex_rgb, live, looks_like, metrics
+from .test_participant_client import (
+    Page,
+    browser,
+    grab_part,
+    hex_rgb,
+    live,
+    looks_like,
+    metrics,
+    place_part,
+)
 from hrc_human_input.stream import ClientView, WorldMirror, frame_json
 
 __all__ = ["browser", "live"]  # the fixtures, shared with test_participant_client
 
 
-# One transport arm, one part, nobody else (as tests/test_ssm_run.py): the task starts at once
-# and r1 takes RA1 from its table to the board, where the participant's hand waits.
+# One transport arm with one part (as tests/test_ssm_run.py) and one part of the participant's,
+# H1, lying 6 cm in front of RA1's target: the first grab starts the task, then r1 takes RA1
+# from its table to the board, where the participant's hand holds H1.
 SCENARIO = """
 [scenario]
 name = "ssm-zone"
@@ -57,6 +69,13 @@ intermediate = [0.20, 0.25, 0.25]
 retreat = [0.45, 0.45, 0.40]
 
 [[parts]]
+id = "H1"
+owner = "human"
+size = [0.04, 0.04, 0.04]
+start = { xyz = [0.04, 0.10, 0.02], yaw = 0 }
+target = { xyz = [-0.22, -0.12, 0.02], yaw = 0 }
+
+[[parts]]
 id = "RA1"
 owner = "r1"
 size = [0.04, 0.04, 0.06]
@@ -64,7 +83,7 @@ start = { xyz = [0.66, 0.30, 0.03], yaw = 0 }
 target = { xyz = [0.04, 0.16, 0.03], yaw = 0 }
 
 [sequence]
-human = []
+human = ["H1"]
 r1 = ["RA1"]
 
 [workspace]
@@ -143,10 +162,10 @@ def test_the_page_draws_r1s_zone_red_when_the_hand_stops_it(
     first = page.state()["robots"]["r1"]["zone"]
     assert first["state"] in ("normal", "reduced") and 0.1 < first["radius"] < 1.5, first
 
-    # the right hand waits 8 cm over RA1's target, where r1 will bring it
-    target = page.part("RA1")["target"]["xyz"]
-    page.height_to(0.12)
-    page.move_over(target[0], target[1])
+    # the right hand takes H1 (the task starts) and holds it up, beside RA1's target
+    grab_part(page, "H1")
+    page.wait("task started", lambda s: s["run"] == "running", 10)
+    page.height_to(0.10)
     page.wait("r1 stopped", lambda s: s["robots"]["r1"]["zone"]["state"] == "stopped", 90)
     page.page.evaluate("window.hrcTest.freeze(true)")
     s = page.state()
@@ -186,9 +205,9 @@ def test_the_page_draws_r1s_zone_red_when_the_hand_stops_it(
         for y in range(round(tcp_px[1]) - r, round(tcp_px[1]) + r, 2)
     ), "r1 is hidden by its zone"
 
-    # the hand leaves: r1 resumes by itself and finishes
+    # the hand puts H1 away and rests: r1 resumes by itself and finishes
     page.page.evaluate("window.hrcTest.freeze(false)")
-    page.keys("r")
+    place_part(page, "H1")
     page.wait("r1 resumed", lambda s: s["robots"]["r1"]["zone"]["state"] != "stopped", 30)
     page.wait("task finished", lambda s: s["run"] == "finished", 120)
     rc, out, err = trial.communicate(timeout=60)
@@ -219,9 +238,8 @@ def test_the_thesis_scene_on_the_desktop_has_readable_part_labels(
     labels = page.page.evaluate("window.hrcTest.labels()")
     page.screenshot("thesis-desktop.png")
     shown = {lab["part"] for lab in labels}
-    # the participant's next part is labelled, the rest of their row is not (yet)
-    assert "H1" in shown, labels
-    assert not shown & {"H2", "H3", "H4", "H5", "H6"}, labels
+    # the participant's next part is labelled; the others lie on tables, unlabelled (yet)
+    assert shown == {"H1"}, labels
     clashes = [
         (a["text"], b["text"])
         for i, a in enumerate(labels)
@@ -229,4 +247,12 @@ def test_the_thesis_scene_on_the_desktop_has_readable_part_labels(
         if overlap(a, b)
     ]
     assert not clashes, f"overlapping labels: {clashes}"
+
+    # the task starts with H1 taken; r1 brings RA1: that label is shown on its way
+    grab_part(page, "H1")
+    page.wait("r1 carries RA1", lambda s: s["objects"]["RA1"]["holder"] == "r1", 60)
+    page.page.evaluate("window.hrcTest.freeze(true)")
+    labels = page.page.evaluate("window.hrcTest.labels()")
+    page.screenshot("thesis-desktop-carry.png")
+    assert {"H1", "RA1"} <= {lab["part"] for lab in labels}, labels
     assert not page.errors, page.errors

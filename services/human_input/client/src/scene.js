@@ -78,14 +78,13 @@ function yawed(obj, yawDeg) {
   return obj;
 }
 
-/** Whose label a participant wants to see: of their own parts only the one to take next (the
- * one grabbable now) and one in a hand, so the labels of a row of parts never overlap; a robot's
- * parts until placed. Placed parts keep their label out of the way of the next ones. */
+/** Whose label a participant wants to see: the part to take next (the participant's one
+ * grabbable now) and a part on its way (in a hand or a robot's gripper). Parts lying in a row on
+ * a table or placed stay unlabelled, so labels never pile up and overlap. */
 function labelShown(part) {
   if (part.placed) return false;
-  if (part.spec.owner !== 'human') return true;
-  const inHand = part.holder === 'left' || part.holder === 'right';
-  return inHand || part.grabbable !== false;
+  if (part.holder) return true;
+  return part.spec.owner === 'human' && part.grabbable !== false;
 }
 
 export class World {
