@@ -19,13 +19,13 @@ from hrc.browser import headless_chromium, output_dir
 from hrc.cli.runner import free_port
 
 from .conftest import HRC, ROOT
-from hrc_logger.view import HUMAN_COLOR, rgb
+from hrc_logger.view import HUMAN_PART_RGB, rgb
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
 VIEWPORT = {"width": 1600, "height": 900}
 SCENE_RIGHT = 0.74  # the scene's right edge, as a fraction of the width (3 : 1 columns)
-HUMAN_PARTS = HUMAN_COLOR  # the participant's parts
+HUMAN_PARTS = HUMAN_PART_RGB  # the participant's parts (orange)
 R1_PARTS = rgb("yellow")  # r1's parts
 UI_BARS_PX = 50  # the viewer's top bar and bottom time bar (a blue play button)
 
@@ -41,9 +41,16 @@ def wait_for_port(port: int, timeout_s: float) -> None:
     raise AssertionError(f"the web viewer never listened on port {port}")
 
 
-def near(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 60) -> np.ndarray:
-    """Mask of the pixels within `tol` (per channel) of `rgb`."""
-    return np.all(np.abs(img[:, :, :3].astype(int) - np.array(rgb)) <= tol, axis=2)
+def near(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 40) -> np.ndarray:
+    """Mask of the pixels of `rgb`'s hue: chromaticity (each channel over their sum) within
+    tol/1000 of it, not too dark. Shading scales the channels together, so the hue separates
+    the participant's orange from r1's yellow where a per-channel distance would not."""
+    px = img[:, :, :3].astype(float)
+    total = px.sum(axis=2, keepdims=True)
+    chroma = px / np.maximum(total, 1.0)
+    want = np.array(rgb, dtype=float) / sum(rgb)
+    close = np.all(np.abs(chroma - want) <= tol / 1000.0, axis=2)
+    return close & (total[:, :, 0] > 0.35 * sum(rgb))
 
 
 def test_the_web_viewer_shows_the_scene_large_from_behind_the_participant(
@@ -96,15 +103,15 @@ def test_the_web_viewer_shows_the_scene_large_from_behind_the_participant(
                 img = np.asarray(Image.open(shot).convert("RGB"))[UI_BARS_PX:-UI_BARS_PX]
                 w = img.shape[1]
                 scene, side = img[:, : int(SCENE_RIGHT * w)], img[:, int(SCENE_RIGHT * w) :]
-                blue, yellow = near(scene, HUMAN_PARTS), near(scene, R1_PARTS)
-                if (blue.sum() > 400 and yellow.sum() > 400) or time.monotonic() > deadline:
+                human, yellow = near(scene, HUMAN_PARTS), near(scene, R1_PARTS)
+                if (human.sum() > 400 and yellow.sum() > 400) or time.monotonic() > deadline:
                     break
             # the parts come first (static); give the arms' joint states time to stream in
             time.sleep(20)
             page.screenshot(path=str(shot), timeout=120_000)
             img = np.asarray(Image.open(shot).convert("RGB"))[UI_BARS_PX:-UI_BARS_PX]
             scene, side = img[:, : int(SCENE_RIGHT * w)], img[:, int(SCENE_RIGHT * w) :]
-            blue, yellow = near(scene, HUMAN_PARTS), near(scene, R1_PARTS)
+            human, yellow = near(scene, HUMAN_PARTS), near(scene, R1_PARTS)
     finally:
         os.killpg(proc.pid, signal.SIGINT)  # hrc run stops its services and keeps the files
         try:
@@ -113,13 +120,13 @@ def test_the_web_viewer_shows_the_scene_large_from_behind_the_participant(
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
     # The page shows the recording: the participant's parts and r1's parts are in the scene ...
-    assert blue.sum() > 400, f"no participant parts drawn in the scene (see {shot})"
+    assert human.sum() > 400, f"no participant parts drawn in the scene (see {shot})"
     assert yellow.sum() > 400, f"no r1 parts drawn in the scene (see {shot})"
     # ... and the scene is large: the parts on the board and r1's table spread over more than a
     # quarter of the screen's width (the default layout gave the scene a third of the width and
     # of the height)
-    cols = np.flatnonzero(blue | yellow) % scene.shape[1]
+    cols = np.flatnonzero(human | yellow) % scene.shape[1]
     lo, hi = np.percentile(cols, [5, 95])
     assert hi - lo > w / 4, f"the scene is small: parts over {hi - lo:.0f} of {w} px ({shot})"
     # the side column holds the plots, not the scene
-    assert near(side, HUMAN_PARTS, 30).sum() < blue.sum() / 10
+    assert near(side, HUMAN_PARTS, 30).sum() < human.sum() / 10

@@ -15,7 +15,7 @@ from hrc.study import StudyError, load_study
 from hrc.study.report import OUTCOMES, fit_model
 from hrc.study.spec import apply_overrides
 from hrc.study.table import flatten
-from hrc.study.tomlw import dumps
+from hrc.tomlw import dumps
 
 ROOT = project_root()
 MINIMAL = ROOT / "scenarios" / "minimal.toml"

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -21,9 +20,7 @@ from typing import Any
 
 from hrc.scenario.enums import InputSource, SafetyPolicy
 from hrc.scenario.models import Scenario, ScenarioInfo
-
-_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
-
+from hrc.tomlw import dumps
 
 @dataclass
 class Resolved:
@@ -74,7 +71,7 @@ class Resolved:
             f"# source: {source if source is not None else '(text)'}",
         ]
         header += [f"# override: {o}" for o in self.overrides] or ["# overrides: none"]
-        return "\n".join(header) + "\n\n" + to_toml(data)
+        return "\n".join(header) + "\n\n" + dumps(data)
 
 
 def slug(text: str) -> str:
@@ -106,57 +103,3 @@ def resolve(
             "(--replay)"
         )
     return Resolved(s, overrides)
-
-
-# ---------------------------------------------------------------------- TOML
-
-
-def _key(k: str) -> str:
-    return k if _BARE_KEY.fullmatch(k) else json.dumps(k, ensure_ascii=False)
-
-
-def _value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, int):
-        return str(v)
-    if isinstance(v, float):
-        if not math.isfinite(v):
-            raise ValueError(f"TOML has no place for {v} in a scenario")
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v, ensure_ascii=False)  # a TOML basic string
-    if isinstance(v, list):
-        return "[" + ", ".join(_value(x) for x in v) + "]"
-    if isinstance(v, dict):
-        return "{ " + ", ".join(f"{_key(k)} = {_value(x)}" for k, x in v.items()) + " }"
-    raise TypeError(f"no TOML form for {type(v).__name__}")
-
-
-def _is_table_list(v: Any) -> bool:
-    return isinstance(v, list) and bool(v) and all(isinstance(x, dict) for x in v)
-
-
-def to_toml(data: dict[str, Any]) -> str:
-    """A scenario-shaped dict as TOML: top-level tables (``[robots.<id>]`` for a table of
-    tables, ``[[parts]]`` for a list of tables), anything deeper inline."""
-    out: list[str] = []
-    tables: list[tuple[str, Any]] = []
-    for k, v in data.items():
-        if isinstance(v, dict) or _is_table_list(v):
-            tables.append((k, v))
-        else:
-            out.append(f"{_key(k)} = {_value(v)}")
-    for k, v in tables:
-        if _is_table_list(v):
-            for item in v:
-                out += ["", f"[[{_key(k)}]]"] + [
-                    f"{_key(a)} = {_value(b)}" for a, b in item.items()
-                ]
-        elif v and all(isinstance(x, dict) for x in v.values()):
-            for sub, table in v.items():
-                out += ["", f"[{_key(k)}.{_key(sub)}]"]
-                out += [f"{_key(a)} = {_value(b)}" for a, b in table.items()]
-        else:
-            out += ["", f"[{_key(k)}]"] + [f"{_key(a)} = {_value(b)}" for a, b in v.items()]
-    return "\n".join(out).lstrip("\n") + "\n"

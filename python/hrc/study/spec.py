@@ -24,7 +24,7 @@ import numpy as np
 
 from hrc import scenario as sc
 from hrc.scenario.paths import find_project_root, installed_root, resolve_path
-from hrc.study.tomlw import dumps
+from hrc.tomlw import dumps
 
 FORMAT_VERSION = 1  # part of every trial's input hash: bump when a resolved input changes meaning
 DESIGNS = ("factorial", "list")

@@ -44,6 +44,7 @@ import rerun as rr
 from rerun.urdf import UrdfTree
 
 from hrc.geometry import to_array, vec3_from_array, vec3_from_pb, yaw_quat_deg
+from hrc.scenario import colors
 from hrc.scenario.conventions import WAITING_HEIGHT_M, WAITING_TEXT
 from hrc.scenario.convert import ssm_from_proto
 from hrc.scenario.models import DEFAULT_TICK_HZ, HUMAN
@@ -66,35 +67,12 @@ HEAD_RADIUS_M = 0.05
 HAND_RADIUS_M = 0.03
 
 ROOT_FRAME = "tf#/"  # rerun's implicit frame of the root entity: the world
-COLORS: dict[str, tuple[int, int, int]] = {
-    "red": (220, 45, 45),
-    "green": (45, 170, 70),
-    "blue": (50, 100, 225),
-    "yellow": (235, 200, 35),
-    "orange": (240, 140, 35),
-    "purple": (140, 65, 190),
-    "cyan": (40, 200, 210),
-    "magenta": (210, 55, 190),
-    "white": (240, 240, 240),
-    "black": (25, 25, 25),
-    "grey": (128, 128, 128),
-    "gray": (128, 128, 128),
-    "pink": (240, 150, 185),
-    "brown": (135, 85, 45),
-}
-HUMAN_COLOR = (90, 150, 235)
-UNKNOWN_COLOR = (170, 170, 170)
+# Colours come from the one table (hrc.scenario.colors); the participant's parts in their part
+# colour, as physics and the participant's page draw them.
+HUMAN_PART_RGB = colors.rgb(colors.HUMAN_PART_COLOR)
+UNKNOWN_COLOR = colors.UNKNOWN_RGB
+rgb = colors.rgb
 _ENTITY_SAFE = re.compile(r"[^A-Za-z0-9_\-]")
-
-
-def rgb(name: str, default: tuple[int, int, int] = UNKNOWN_COLOR) -> tuple[int, int, int]:
-    """A scenario colour (name or #rrggbb) as RGB; anything else gives ``default``."""
-    n = (name or "").strip().lower()
-    if n in COLORS:
-        return COLORS[n]
-    if re.fullmatch(r"#[0-9a-f]{6}", n):
-        return int(n[1:3], 16), int(n[3:5], 16), int(n[5:7], 16)
-    return default
 
 
 def rgba(c: tuple[int, int, int], a: int) -> tuple[int, int, int, int]:
@@ -274,7 +252,7 @@ class View:
         self.robots: dict[str, RobotView] = {}
         self.objects: dict[str, ObjectView] = {}
         self.parts: dict[str, pb.PartConfig] = {}
-        self.owner_color: dict[str, tuple[int, int, int]] = {HUMAN: HUMAN_COLOR}
+        self.owner_color: dict[str, tuple[int, int, int]] = {HUMAN: HUMAN_PART_RGB}
         self.cues: dict[str, CueView] = {}
         self.hands: dict[str, np.ndarray] = {}
         self.human: StateStream[pb.HumanState] = StateStream()

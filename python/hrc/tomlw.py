@@ -1,4 +1,4 @@
-"""A small TOML writer for scenario files (tomllib only reads; no writer is pinned).
+"""A small TOML writer for scenario and study files (tomllib only reads; no writer is pinned).
 
 Handles what a scenario holds: tables, arrays of tables, inline tables of plain values, lists,
 strings, booleans, integers and floats. `dumps` checks its own output reads back equal.
