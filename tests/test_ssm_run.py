@@ -117,7 +117,7 @@ def test_a_hand_approaching_at_1_mps_stops_r1_before_contact_and_r1_resumes(
     assert stops and stops[0]["robot"] == "r1"
     assert stops[0]["task_time"] < 0.6 / HAND_SPEED + 0.5  # while the hand comes or waits
     assert resumes and resumes[-1]["task_time"] > LEAVE_S  # only once the hand goes away
-    assert kinds[-1] == "TASK_FINISHED"  # it went on and finished by itself
+    assert "TASK_FINISHED" in kinds  # it went on and finished by itself
     metrics = json.loads((out / "metrics.json").read_text())
     ssm = metrics["robots"]["r1"]["ssm"]
     assert ssm["protective_stop_count"] == len(stops) >= 1
@@ -139,7 +139,7 @@ def test_thesis_with_ssm_and_provoked_collisions_finishes(tmp_path: Path) -> Non
     assert result.run_end is not None and result.run_end.reason.startswith("stopped")
     evs = [e for e in events(out) if "kind" in e]
     kinds = [e["kind"] for e in evs]
-    assert kinds[-1] == "TASK_FINISHED" and kinds.count("PART_PLACED") == 18
+    assert "TASK_FINISHED" in kinds and kinds.count("PART_PLACED") == 18
     assert "RETREAT_REACHED" not in kinds  # no retreat under ssm
     stops = [e for e in evs if e["kind"] == "PROTECTIVE_STOP"]
     resumes = [e for e in evs if e["kind"] == "PROTECTIVE_RESUME"]
