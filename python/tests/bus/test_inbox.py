@@ -69,8 +69,14 @@ def test_delivery_order_is_independent_of_arrival_order(session_id: str) -> None
     # ticks < 2 from everyone, tick 2 only from the clock master, nothing of tick 3
     assert ("physics", 2, 5) in first and ("ik_cpp", 2, 6) not in first
     assert all(t < 3 for _, t, _ in first)
-    # robot states (subscribed first) come before world objects
-    assert [s for s, _, _ in first] == ["ik_cpp", "ik_cpp", "physics", "physics", "physics"]
+    # by tick, then within a tick robot states (subscribed first) before world objects
+    assert [(s, t) for s, t, _ in first] == [
+        ("ik_cpp", 0),
+        ("physics", 0),
+        ("ik_cpp", 1),
+        ("physics", 1),
+        ("physics", 2),
+    ]
 
 
 def test_missing_marks_are_reported_after_the_timeout(session_id: str) -> None:
