@@ -48,9 +48,11 @@ def near(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 8) -> np.ndarray
     per-channel distance would not."""
     px = img[:, :, :3].astype(float)
     hi, lo = px.max(axis=2), px.min(axis=2)
-    return (np.abs(_hue_deg(px) - _hue_deg(np.array([[rgb]], dtype=float))[0, 0]) <= tol) & (
-        (hi - lo) > 0.5 * np.maximum(hi, 1.0)
-    ) & (hi > 90)
+    return (
+        (np.abs(_hue_deg(px) - _hue_deg(np.array([[rgb]], dtype=float))[0, 0]) <= tol)
+        & ((hi - lo) > 0.5 * np.maximum(hi, 1.0))
+        & (hi > 90)
+    )
 
 
 def _hue_deg(px: np.ndarray) -> np.ndarray:

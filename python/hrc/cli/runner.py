@@ -35,6 +35,9 @@ log = logging.getLogger(__name__)
 
 # After the clock master's end: how long the others may take to finish their files and leave.
 SERVICES_LEAVE_S = 60.0
+# ... when it died without publishing run/end: the others have no end to finish on (they leave
+# when they notice it gone, or are stopped), so a stop must not wait a minute for them.
+SERVICES_ABANDONED_S = 5.0
 
 
 @dataclass
@@ -101,8 +104,9 @@ class TrialResult:
     wall_s: float = 0.0
 
 
-class Terminated(Exception):
-    """``hrc run`` got SIGTERM or SIGHUP (or its parent died): stop the trial like Ctrl-C."""
+class Terminated(BaseException):
+    """``hrc run`` got SIGTERM or SIGHUP (or its parent died): stop the trial like Ctrl-C.
+    A BaseException, as KeyboardInterrupt: no ``except Exception`` on the way may swallow it."""
 
     def __init__(self, signum: int) -> None:
         super().__init__(signal.Signals(signum).name)
@@ -456,7 +460,10 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         if not failed:
             # the clock master is done; the others leave on run/end.
             # (the logger may still be catching up: it writes every file before it leaves)
-            deadline = time.monotonic() + SERVICES_LEAVE_S
+            ended = watcher is not None and watcher.end is not None
+            master_rc = status[master]
+            leave_s = SERVICES_LEAVE_S if ended or master_rc == 0 else SERVICES_ABANDONED_S
+            deadline = time.monotonic() + leave_s
             while any(rc is None for rc in group.poll().values()) and time.monotonic() < deadline:
                 time.sleep(0.05)
         # judge by how each ended on its own, before we stop the stragglers

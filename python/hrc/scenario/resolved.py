@@ -22,6 +22,7 @@ from hrc.scenario.enums import InputSource, SafetyPolicy
 from hrc.scenario.models import Scenario, ScenarioInfo
 from hrc.tomlw import dumps
 
+
 @dataclass
 class Resolved:
     scenario: Scenario

@@ -16,7 +16,7 @@ from typing import IO, Any
 
 from hrc.study.spec import Study, Trial
 from hrc.study.table import write_table
-from hrc.study.trial import Job, Record, run_job, stop_running
+from hrc.study.trial import Job, Record, allow_trials, run_job, stop_running
 
 log = logging.getLogger(__name__)
 
@@ -101,6 +101,7 @@ def _clock(seconds: float) -> str:
 
 
 def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
+    allow_trials()
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="trial")
     try:
         futures = [pool.submit(run_job, job) for job in jobs]

@@ -61,12 +61,21 @@ class Record:
 # the `hrc run` processes of this process's trials in progress (stop_running ends them)
 _RUNNING: set[subprocess.Popen[str]] = set()
 _LOCK = threading.Lock()
+# set by stop_running: a trial a worker thread starts after it is stopped at once (no trial may
+# begin in the window between the snapshot of those running and the pool's shutdown)
+_STOPPING = threading.Event()
+
+
+def allow_trials() -> None:
+    """A new sweep in this process may start trials again."""
+    _STOPPING.clear()
 
 
 def stop_running() -> None:
     """SIGTERM to every trial in progress here (an interrupted sweep): `hrc run` stops its
     services and exits; the records of these trials are dropped, so they run again next time."""
     with _LOCK:
+        _STOPPING.set()
         procs = list(_RUNNING)
     for proc in procs:
         with contextlib.suppress(ProcessLookupError):
@@ -122,6 +131,10 @@ def run_job(job: Job) -> Record:
     )
     with _LOCK:
         _RUNNING.add(proc)
+        stopping = _STOPPING.is_set()
+    if stopping:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGTERM)
     try:
         stdout, stderr = proc.communicate(timeout=job.timeout_s)
         timed_out = False
