@@ -1,4 +1,6 @@
-"""SIGKILL of any one service during a lockstep run ends the run within 2 s, naming it."""
+"""SIGKILL of any one service during a lockstep run ends the run promptly, naming it: within
+2 s on a quiet machine; the test allows 4 s for a loaded one, still below every timeout a missed
+death would fall back on (the 5 s the others get to leave, the 10 s barrier timeout)."""
 
 from __future__ import annotations
 
@@ -21,4 +23,4 @@ def test_killing_a_service_ends_the_run_naming_it(trial_factory, victim: str) ->
     print(f"{victim}: run ended {elapsed:.2f} s after SIGKILL")
     assert code != 0
     assert f"'{victim}'" in err and "SIGKILL" in err, err
-    assert elapsed < 2.0, f"took {elapsed:.2f} s"
+    assert elapsed < 4.0, f"took {elapsed:.2f} s"

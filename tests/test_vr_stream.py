@@ -200,8 +200,12 @@ def test_a_stalled_client_neither_slows_the_trial_nor_the_others(tmp_path, ik_bi
                 lambda m: m.msg.get("type") == "run" and m.msg["state"] == "finished", 180
             )
             assert done is not None, "the task did not finish with a stalled client attached"
-            driver_frames = [m.msg for m in driver.messages if m.msg.get("type") == "frame"]
-            assert driver_frames[-1]["run"] == "finished"  # it got frames to the end
+            # it got frames to the end (the `run` message is an event; the frame that shows the
+            # end comes at the driver's next frame slot)
+            last = driver.wait_for(
+                lambda m: m.msg.get("type") == "frame" and m.msg["run"] == "finished", 30
+            )
+            assert last is not None, "no frame showed the finished run"
         finally:
             driver.close()
             stalled.close()

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import subprocess
+import sys
 import tempfile
 from pathlib import Path
 
@@ -58,3 +62,45 @@ def test_no_socket_where_its_path_would_be_too_long(monkeypatch) -> None:
     assert local_socket("s1") == Path(tempfile.gettempdir()) / "hrc-s1.sock"
     monkeypatch.setattr(tempfile, "tempdir", "/tmp/" + "x" * 120)
     assert local_socket("s1") is None
+
+
+IDLE_CHILD = (
+    "import os, sys, threading, time\n"
+    "os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))\n"
+    "threading.Thread(target=time.sleep, args=(30,), daemon=True).start()\n"
+    "print('idle', flush=True)\n"
+    "time.sleep(30)\n"
+)
+
+
+@pytest.mark.skipif(not hasattr(os, "SCHED_IDLE"), reason="Linux scheduling policies")
+def test_a_service_under_sched_idle_is_back_to_normal_priority_before_it_is_stopped() -> None:
+    # Under SCHED_IDLE the logger gets no CPU while anything else runs, not even to act on the
+    # stop: stop_all lifts it first, every thread of it.
+    with subprocess.Popen([sys.executable, "-c", IDLE_CHILD], stdout=subprocess.PIPE) as child:
+        try:
+            assert child.stdout is not None and child.stdout.readline() == b"idle\n"
+            tids = [int(t) for t in os.listdir(f"/proc/{child.pid}/task")]
+            assert len(tids) >= 2
+            assert all(os.sched_getscheduler(t) == os.SCHED_IDLE for t in tids)
+            runner.leave_idle_priority(child.pid)
+            assert all(os.sched_getscheduler(t) == os.SCHED_OTHER for t in tids)
+        finally:
+            child.kill()
+    runner.leave_idle_priority(child.pid)  # gone: nothing to do, no error
+
+
+def test_a_service_gets_the_signal_mask_hrc_run_had_not_the_held_stop_signals(tmp_path) -> None:
+    group = runner.ServiceGroup(tmp_path)
+    try:
+        group.start("probe", [sys.executable, "-c", "print(open('/proc/self/status').read())"])
+        assert group.procs["probe"].wait(timeout=30) == 0
+    finally:
+        group.stop_all(grace_s=1.0)
+        group.close()
+    status = (tmp_path / "services" / "probe.log").read_text()
+    blocked = int(next(ln for ln in status.splitlines() if ln.startswith("SigBlk:")).split()[1], 16)
+    assert blocked & (1 << (signal.SIGTERM - 1)) == 0
+    assert blocked & (1 << (signal.SIGINT - 1)) == 0
+    # and hrc run itself holds nothing once the service is started
+    assert not signal.pthread_sigmask(signal.SIG_BLOCK, set()) & runner.STOP_SIGNALS

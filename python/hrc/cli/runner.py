@@ -7,7 +7,9 @@ own log goes to ``<trial>/services/<name>.log``.
 
 from __future__ import annotations
 
+import contextlib
 import datetime as dt
+import functools
 import json
 import logging
 import os
@@ -20,6 +22,7 @@ import tempfile
 import threading
 import time
 import uuid
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
@@ -135,6 +138,31 @@ def die_with_parent(signum: int = signal.SIGTERM) -> None:
         pass
 
 
+STOP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
+
+
+def _service_preexec(mask: Iterable[int]) -> None:
+    """In a service's process before exec: it never outlives hrc run (even one killed with
+    SIGKILL), and it gets the signal mask hrc run had before it held the stop signals."""
+    die_with_parent()
+    signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+
+
+def leave_idle_priority(pid: int) -> None:
+    """A service under SCHED_IDLE (the logger) gets no CPU while anything else wants it, not even
+    to act on a stop: every thread of it goes back to the normal policy first."""
+    if not hasattr(os, "sched_setscheduler"):
+        return
+    try:
+        tids = [int(t) for t in os.listdir(f"/proc/{pid}/task")]
+    except OSError:
+        return
+    for tid in tids:
+        with contextlib.suppress(OSError):
+            if os.sched_getscheduler(tid) == os.SCHED_IDLE:
+                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+
+
 def stop_on_signals() -> None:
     """SIGTERM and SIGHUP (a process manager, a CI timeout, a closed terminal) and the death of
     our own parent end ``hrc run`` as Ctrl-C does: run_trial's cleanup stops every service."""
@@ -235,15 +263,20 @@ class ServiceGroup:
         self._files.append(f)
         env = dict(os.environ, PYTHONUNBUFFERED="1")
         log.debug("starting %s: %s", name, " ".join(argv))
-        # die_with_parent: a service never outlives hrc run, even one killed with SIGKILL
-        self.procs[name] = subprocess.Popen(
-            argv,
-            stdout=f,
-            stderr=subprocess.STDOUT,
-            stdin=subprocess.DEVNULL,
-            env=env,
-            preexec_fn=die_with_parent,
-        )
+        # A stop signal that arrived while Popen runs would leave a service nobody knows of
+        # (the child forked, not yet on the list): held until it is on the list.
+        mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+        try:
+            self.procs[name] = subprocess.Popen(
+                argv,
+                stdout=f,
+                stderr=subprocess.STDOUT,
+                stdin=subprocess.DEVNULL,
+                env=env,
+                preexec_fn=functools.partial(_service_preexec, mask),
+            )
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
     def _reap(self, name: str, p: subprocess.Popen[bytes]) -> int | None:
         """Like ``p.poll()``, but reaps with wait4 to keep the service's CPU time."""
@@ -263,6 +296,7 @@ class ServiceGroup:
     def stop_all(self, grace_s: float = 2.0) -> None:
         for p in self.procs.values():
             if p.poll() is None:
+                leave_idle_priority(p.pid)
                 p.send_signal(signal.SIGTERM)
         deadline = time.monotonic() + grace_s
         while any(r is None for r in self.poll().values()) and time.monotonic() < deadline:
