@@ -81,6 +81,21 @@ def matrix_to_quat_xyzw(r: np.ndarray) -> tuple[float, float, float, float]:
     return float(q[0]), float(q[1]), float(q[2]), float(q[3])
 
 
+def quat_mul_xyzw(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products a * b of (x, y, z, w) quaternions, row by row (N x 4, broadcast)."""
+    ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    return np.stack(
+        [
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+            aw * bw - ax * bx - ay * by - az * bz,
+        ],
+        axis=-1,
+    )
+
+
 def transform(rot: np.ndarray, xyz: Sequence[float] | np.ndarray) -> np.ndarray:
     t = np.eye(4)
     t[:3, :3] = rot
@@ -109,6 +124,29 @@ class Joint:
         if self.kind == "prismatic":
             return self.origin @ transform(np.eye(3), np.asarray(self.axis) * q)
         return self.origin
+
+    def local_columns(self, qs: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``local(q)`` for many joint positions at once, as rerun takes them: translations
+        (N x 3) and unit quaternions (x, y, z, w; w >= 0; N x 4). The view sends a joint's
+        transforms in columns, so one call per column replaces a 4x4 product per row."""
+        q = np.asarray(qs, dtype=np.float64)
+        n = len(q)
+        rot = self.origin[:3, :3]
+        t0 = self.origin[:3, 3]
+        q0 = np.asarray(matrix_to_quat_xyzw(rot))
+        axis = np.asarray(self.axis, dtype=np.float64)
+        if self.kind in ("revolute", "continuous"):
+            half = q / 2.0
+            turn = np.column_stack([np.outer(np.sin(half), axis), np.cos(half)])
+            quats = quat_mul_xyzw(np.broadcast_to(q0, (n, 4)), turn)
+            translations = np.broadcast_to(t0, (n, 3)).copy()
+        else:
+            quats = np.broadcast_to(q0, (n, 4)).copy()
+            shift = np.outer(q, axis) if self.kind == "prismatic" else np.zeros((n, 3))
+            translations = t0 + shift @ rot.T
+        quats /= np.linalg.norm(quats, axis=1, keepdims=True)
+        quats[quats[:, 3] < 0] *= -1.0
+        return translations, quats
 
 
 def _floats(text: str | None, n: int, default: float, what: str) -> tuple[float, ...]:

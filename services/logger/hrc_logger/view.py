@@ -54,6 +54,7 @@ from hrc_logger.blueprint import blueprint
 from hrc_logger.ssm_zone import Zone
 from hrc_logger.textlog import kind_name
 from hrc_logger.urdf_fk import (
+    Joint,
     UrdfError,
     UrdfModel,
     matrix_to_quat_xyzw,
@@ -146,14 +147,30 @@ class StateStream(Generic[S]):
         return out
 
 
+@dataclass(frozen=True)
+class PointRow:
+    """One point of a point entity (the TCP, the head, a hand) at one time."""
+
+    position: npt.NDArray[np.float64]
+    radius: float
+    color: tuple[int, int, int]
+    label: str | None = None
+
+
 @dataclass
 class Series:
-    """One entity's rows not yet sent: joint transforms or scalars, at (tick, sim time)."""
+    """One entity's rows not yet sent, at (tick, sim time): scalars, joint transforms
+    (``joint``: values are joint positions; ``frames``: its (parent, child) frames), part poses
+    (``pose``: values are (translation, xyzw)) or points (``points``: values are PointRows)."""
 
     ticks: list[int] = field(default_factory=list)
     times: list[float] = field(default_factory=list)
-    values: list[Any] = field(default_factory=list)  # scalar, or (translation, xyzw)
-    frames: tuple[str, str] | None = None  # a transform's (parent, child) frame
+    values: list[Any] = field(default_factory=list)  # see the class docstring
+    joint: Joint | None = None
+    frames: tuple[str, str] | None = None  # a joint transform's (parent, child) frame
+    pose: bool = False  # a Transform3D without frames (a part's pose in the world)
+    points: bool = False
+    show_labels: bool | None = None  # points: whether the viewer shows their labels
 
     def send(self, rec: rr.RecordingStream, entity: str) -> None:
         if not self.ticks:
@@ -165,15 +182,32 @@ class Series:
             rr.TimeColumn("tick", sequence=np.asarray(self.ticks, dtype=np.int64)),
             rr.TimeColumn("sim_time", duration=nanos.astype("timedelta64[ns]")),
         ]
-        if self.frames is None:
-            columns = rr.Scalars.columns(scalars=np.asarray(self.values, dtype=np.float64))
-        else:
+        columns: Any
+        if self.points:
+            rows: list[PointRow] = self.values
+            labels = [r.label or "" for r in rows] if rows[0].label is not None else None
+            columns = rr.Points3D.columns(
+                positions=np.asarray([r.position for r in rows], dtype=np.float32),
+                radii=np.asarray([r.radius for r in rows], dtype=np.float32),
+                colors=np.asarray([r.color for r in rows], dtype=np.uint8),
+                labels=labels,
+                show_labels=None if self.show_labels is None else [self.show_labels] * n,
+            )
+        elif self.joint is not None and self.frames is not None:
+            translations, quats = self.joint.local_columns(self.values)
             columns = rr.Transform3D.columns(
-                translation=np.asarray([v[0] for v in self.values], dtype=np.float64),
-                quaternion=np.asarray([v[1] for v in self.values], dtype=np.float64),
+                translation=translations,
+                quaternion=quats,
                 parent_frame=[self.frames[0]] * n,
                 child_frame=[self.frames[1]] * n,
             )
+        elif self.pose:
+            columns = rr.Transform3D.columns(
+                translation=np.asarray([v[0] for v in self.values], dtype=np.float64),
+                quaternion=np.asarray([v[1] for v in self.values], dtype=np.float64),
+            )
+        else:
+            columns = rr.Scalars.columns(scalars=np.asarray(self.values, dtype=np.float64))
         rr.send_columns(entity, indexes=indexes, columns=columns, recording=rec)
         self.ticks, self.times, self.values = [], [], []
 
@@ -262,25 +296,61 @@ class View:
         self.zones: dict[str, Zone] = {}  # ssm only: the protective zone per robot
         self.logged = 0  # rerun log calls (and rows sent in columns), for the service's summary
         self._now = (0, 0.0)  # the time set by _time
+        self._time_sent = False  # rerun has been told _now (set_time before a log call)
         self._series: dict[str, Series] = {}
         self._series_since = 0.0  # sim time of the oldest unsent row
         self._pending_rows = 0
 
     # ------------------------------------------------------------------ helpers
     def _log(self, entity: str, *archetypes: Any, static: bool = False) -> None:
+        if not (static or self._time_sent):
+            self.rec.set_time("tick", sequence=self._now[0])
+            self.rec.set_time("sim_time", duration=self._now[1])
+            self._time_sent = True
         self.rec.log(entity, *archetypes, static=static)
         self.logged += 1
 
     def _time(self, tick: int, sim_time: float) -> None:
-        self.rec.set_time("tick", sequence=int(tick))
-        self.rec.set_time("sim_time", duration=float(sim_time))
-        self._now = (int(tick), float(sim_time))
+        """The time of what follows; rerun is told only before a log call (rows in columns
+        carry their own times), as set_time costs more than most rows."""
+        now = (int(tick), float(sim_time))
+        if now != self._now:
+            self._now = now
+            self._time_sent = False
 
-    def _row(self, entity: str, value: Any, frames: tuple[str, str] | None = None) -> None:
-        """A time-series row at the current time, sent later in columns (flush_series)."""
+    def _row(self, entity: str, value: float) -> None:
+        """A scalar's row at the current time, sent later in columns (flush_series)."""
         series = self._series.get(entity)
         if series is None:
-            series = self._series[entity] = Series(frames=frames)
+            series = self._series[entity] = Series()
+        self._append(series, value)
+
+    def _joint_row(self, rv: RobotView, j: Joint, q: float) -> None:
+        """A joint's position at the current time; its transforms are computed for a whole
+        column at once when sent (Joint.local_columns)."""
+        entity = f"robot_{part(rv.rid)}/joints/{part(j.name)}"
+        series = self._series.get(entity)
+        if series is None:
+            frames = (f"{rv.rid}/{j.parent}", f"{rv.rid}/{j.child}")
+            series = self._series[entity] = Series(joint=j, frames=frames)
+        self._append(series, q)
+
+    def _point(self, entity: str, row: PointRow, show_labels: bool | None = None) -> None:
+        """A point entity's row (one point) at the current time, sent later in columns: a
+        rerun log call per point was most of the logger's CPU after the plots went to columns."""
+        series = self._series.get(entity)
+        if series is None:
+            series = self._series[entity] = Series(points=True, show_labels=show_labels)
+        self._append(series, row)
+
+    def _pose(self, entity: str, translation: Any, xyzw: Any) -> None:
+        """A part's pose at the current time, sent later in columns."""
+        series = self._series.get(entity)
+        if series is None:
+            series = self._series[entity] = Series(pose=True)
+        self._append(series, (translation, xyzw))
+
+    def _append(self, series: Series, value: Any) -> None:
         if not self._pending_rows:
             self._series_since = self._now[1]
         self._pending_rows += 1
@@ -408,19 +478,12 @@ class View:
         )
         for j in rv.model.joints:
             if j.kind == "fixed":
-                self._log_joint(rv, j.name, j.local(0.0), static=True)
+                self._log_fixed_joint(rv, j.name, j.local(0.0))
         rv.chain = rv.model.chain_points({}, rv.base)
 
-    def _log_joint(self, rv: RobotView, name: str, t: np.ndarray, static: bool = False) -> None:
+    def _log_fixed_joint(self, rv: RobotView, name: str, t: np.ndarray) -> None:
         assert rv.model is not None
         j = rv.model.by_name[name]
-        if not static:
-            self._row(
-                f"robot_{part(rv.rid)}/joints/{part(name)}",
-                (t[:3, 3], matrix_to_quat_xyzw(t[:3, :3])),
-                (f"{rv.rid}/{j.parent}", f"{rv.rid}/{j.child}"),
-            )
-            return
         self._log(
             f"robot_{part(rv.rid)}/joints/{part(name)}",
             rr.Transform3D(
@@ -429,7 +492,7 @@ class View:
                 parent_frame=f"{rv.rid}/{j.parent}",
                 child_frame=f"{rv.rid}/{j.child}",
             ),
-            static=static,
+            static=True,
         )
 
     # ------------------------------------------------------------------ robots
@@ -467,14 +530,12 @@ class View:
                 log.warning(
                     "robot %s: joints not in its URDF ignored: %s", rv.rid, ", ".join(unknown)
                 )
-            for name, t in rv.model.joint_transforms(rv.q).items():
-                if rv.model.by_name[name].kind != "fixed":
-                    self._log_joint(rv, name, t)
+            for j in rv.model.joints:
+                if j.kind != "fixed":
+                    self._joint_row(rv, j, float(rv.q.get(j.name, 0.0)))
             rv.chain = rv.model.chain_points(rv.q, rv.base)
         if rv.tcp is not None:
-            self._log(
-                f"world/tcp/{part(rv.rid)}", rr.Points3D([rv.tcp], radii=[0.01], colors=[rv.color])
-            )
+            self._point(f"world/tcp/{part(rv.rid)}", PointRow(rv.tcp, 0.01, rv.color))
         if math.isfinite(st.tcp_speed):
             self._row(f"plots/tcp_speed/{part(rv.rid)}", st.tcp_speed)
         zone = self.zones.get(rv.rid)
@@ -501,10 +562,10 @@ class View:
         self.human.logged(hs)
         h = hs.head.position
         if finite((h.x, h.y, h.z)):
-            self._log(
+            # smaller than life: seen from behind, a life-size head hides the board
+            self._point(
                 "world/human/head",
-                # smaller than life: seen from behind, a life-size head hides the board
-                rr.Points3D([[h.x, h.y, h.z]], radii=[HEAD_RADIUS_M], colors=[(230, 190, 160)]),
+                PointRow(np.array([h.x, h.y, h.z]), HEAD_RADIUS_M, (230, 190, 160)),
             )
         for hand, grip in (("left", hs.left_grip), ("right", hs.right_grip)):
             pos = self.hands.get(hand)
@@ -512,15 +573,10 @@ class View:
                 continue
             g = min(1.0, max(0.0, grip if math.isfinite(grip) else 0.0))
             color = (int(240 - 90 * g), int(200 - 110 * g), int(170 - 110 * g))
-            self._log(
+            self._point(
                 f"world/human/{hand}_hand",
-                rr.Points3D(
-                    [pos],
-                    radii=[HAND_RADIUS_M],
-                    colors=[color],
-                    labels=[f"{hand} {g:.1f}"],
-                    show_labels=False,  # the grip shows as the colour; labels crowd the board
-                ),
+                PointRow(pos, HAND_RADIUS_M, color, f"{hand} {g:.1f}"),
+                show_labels=False,  # the grip shows as the colour; labels crowd the board
             )
             for rid, rv in self.robots.items():
                 pts = (
@@ -579,7 +635,7 @@ class View:
                     ),
                 )
                 ov.shown = True
-            self._log(ent, rr.Transform3D(translation=pos, quaternion=rr.Quaternion(xyzw=quat)))
+            self._pose(ent, pos, quat)
             ov.pos, ov.quat, ov.held_by, ov.placed = pos, quat, o.held_by, o.placed
             ov.next_due = tick + self.every
 

@@ -126,3 +126,28 @@ def test_bad_urdf_is_named(text: str, match: str) -> None:
 def test_missing_file_is_named(tmp_path: Path) -> None:
     with pytest.raises(UrdfError, match=r"nope\.urdf"):
         UrdfModel.from_file(tmp_path / "nope.urdf")
+
+
+MIXED = """<robot name="mixed">
+  <link name="a"/><link name="b"/><link name="c"/><link name="d"/>
+  <joint name="rev" type="revolute"><parent link="a"/><child link="b"/>
+    <origin xyz="0.1 -0.2 0.3" rpy="0.4 -0.5 2.9"/><axis xyz="0.3 0.5 -0.8"/></joint>
+  <joint name="slide" type="prismatic"><parent link="b"/><child link="c"/>
+    <origin xyz="0 0.2 0.1" rpy="1.2 0.3 -0.7"/><axis xyz="0 1 1"/></joint>
+  <joint name="fix" type="fixed"><parent link="c"/><child link="d"/>
+    <origin xyz="0.05 0 0" rpy="3.1 0 0"/></joint>
+</robot>"""
+
+
+@pytest.mark.parametrize("urdf", [MIXED, ARM5.read_text()])
+def test_joint_columns_are_the_joint_transforms_row_by_row(urdf: str) -> None:
+    """The view sends joint transforms in columns (local_columns): each row must be the joint's
+    own transform at that position, as one rerun log call per state showed it."""
+    model = UrdfModel.from_string(urdf)
+    qs = np.random.default_rng(5).uniform(-3.2, 3.2, 40)
+    for j in model.joints:
+        translations, quats = j.local_columns(qs)
+        for q, t, quat in zip(qs, translations, quats, strict=True):
+            local = j.local(float(q))
+            assert np.allclose(t, local[:3, 3], atol=1e-12), j.name
+            assert np.allclose(quat, matrix_to_quat_xyzw(local[:3, :3]), atol=1e-9), j.name
