@@ -69,16 +69,47 @@ def stats_dict(
     }
 
 
-def lower_priority(sched: str, nice: int) -> None:
+def thread_ids(exclude: set[int]) -> list[int]:
+    """This process's threads (Linux: /proc/self/task) but ``exclude``; [0] (the calling
+    thread) where that is not known. Scheduling policy and niceness are per thread on Linux."""
+    try:
+        tids = [int(t) for t in os.listdir("/proc/self/task")]
+    except (OSError, ValueError):
+        return [0]
+    return [t for t in tids if t not in exclude]
+
+
+def lower_priority(sched: str, nice: int, exclude: set[int]) -> bool:
+    """Lowers every thread but ``exclude`` (zenoh's included) as ``--sched`` says; True if
+    they are now SCHED_IDLE."""
+    tids = thread_ids(exclude)
     if sched == "idle" and hasattr(os, "SCHED_IDLE"):
         try:
-            os.sched_setscheduler(0, os.SCHED_IDLE, os.sched_param(0))
-            return
+            for tid in tids:
+                with contextlib.suppress(ProcessLookupError):  # a thread that just ended
+                    os.sched_setscheduler(tid, os.SCHED_IDLE, os.sched_param(0))
+            return True
         except OSError as exc:
             log.warning("SCHED_IDLE refused (%s); using nice %d instead", exc, nice)
             sched = "nice"
     if sched in ("idle", "nice") and nice:
-        os.nice(nice)
+        for tid in tids:
+            with contextlib.suppress(ProcessLookupError):
+                prio = os.getpriority(os.PRIO_PROCESS, tid)
+                os.setpriority(os.PRIO_PROCESS, tid, min(19, prio + nice))
+    return False
+
+
+def restore_priority() -> None:
+    """Every thread back to the normal policy (from SCHED_IDLE)."""
+    for tid in thread_ids(set()):
+        try:
+            os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
+        except ProcessLookupError:
+            pass
+        except OSError as exc:
+            log.debug("could not leave SCHED_IDLE after the run: %s", exc)
+            return
 
 
 class LoggerService(Service):
@@ -139,20 +170,18 @@ class LoggerService(Service):
         super().__init__(args)
         if not args.view_hz > 0:
             raise ServiceExit(f"--view-hz must be > 0, got {args.view_hz}", EXIT_BAD_INPUT)
-        # An observer must never slow the co-simulation down: the barrier's participants get the
-        # CPU first. Its lag behind the clock is measured and reported instead. Set before any
-        # thread starts (zenoh's, rerun's): on Linux the policy is per thread and new threads
-        # inherit it.
         self._view_ready = threading.Event()
         self._view_lock = threading.Lock()
         self._view_abandoned = False
         self._bus_up = threading.Event()
-        # The view's thread starts before the priority is lowered and keeps the normal one (a
-        # thread inherits its creator's): rerun's import and the URDFs must not wait for idle
-        # CPU while the run goes on.
-        threading.Thread(target=self._open_view, name="view-setup", daemon=True).start()
-        lower_priority(args.sched, args.nice)
-        self._lowered = args.sched == "idle"
+        # rerun's import and the URDFs on a thread of their own, at the normal priority: they
+        # must not wait for idle CPU while the run goes on.
+        self._view_thread = threading.Thread(
+            target=self._open_view, name="view-setup", daemon=True
+        )
+        self._view_thread.start()
+        self._priority_set = False  # see _priority
+        self._lowered = False
         self.out = Path(args.out)
         self.out.mkdir(parents=True, exist_ok=True)
         self.handler_errors = 0
@@ -204,16 +233,27 @@ class LoggerService(Service):
         finally:
             self._view_ready.set()
 
-    def _after_end(self) -> None:
-        """Once the run is over nobody waits for CPU on our account: catch up at the normal
-        priority (hrc run waits for our files)."""
+    def _priority(self) -> None:
+        """An observer must never slow the co-simulation down: once the run is on (our first
+        message or tick comes after the token), every thread but the view's set-up gets
+        ``--sched``'s priority (the barrier's participants get the CPU first; the lag behind
+        the clock is measured and reported instead). Not before: at SCHED_IDLE the start-up
+        (imports, zenoh's session, the token) waited for CPU the other services were using
+        while they waited for our token (seconds on a busy machine). Once the run is over
+        nobody waits on our account: catch up at the normal priority (hrc run waits for our
+        files)."""
         obs = self.observer
-        if self._lowered and obs is not None and obs.ended:
+        ended = obs is not None and obs.ended
+        if not self._priority_set:
+            self._priority_set = True
+            if not ended:
+                view = self._view_thread.native_id if self._view_thread.is_alive() else None
+                self._lowered = lower_priority(
+                    self.args.sched, self.args.nice, {view} if view else set()
+                )
+        elif self._lowered and ended:
             self._lowered = False
-            try:
-                os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
-            except OSError as exc:
-                log.debug("could not leave SCHED_IDLE after the run: %s", exc)
+            restore_priority()
 
     def _view_up(self) -> None:
         """Waits (once) until the view is set up or has failed; a run that was stopped waits
@@ -234,8 +274,8 @@ class LoggerService(Service):
     def _guarded(self, handler: Callable[[str, M], None]) -> Callable[[str, M], None]:
         # A failing view update must not cost the text logs anything: log, count, go on.
         def call(key: str, msg: M) -> None:
+            self._priority()
             self._view_up()
-            self._after_end()
             try:
                 handler(key, msg)
             except Exception:
@@ -256,6 +296,7 @@ class LoggerService(Service):
         inputs.input(keys.human_state(), pb.HumanState, g(rec.on_human_state))
 
     def step(self, tick: pb.ClockTick) -> None:
+        self._priority()
         self._view_up()
         if self._first and self.scenario is None and self.view is not None and tick.dt > 0:
             self.view.set_tick_hz(1.0 / tick.dt)
