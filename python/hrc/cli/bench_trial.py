@@ -6,6 +6,7 @@ as a user would and reports:
 
 - ``realtime_factor``: simulated / wall seconds of the run phase (metrics.json ``run``);
 - ``end_to_end_s``: wall seconds of the whole ``hrc run`` (start-up, run, the logger's files);
+  ``phases_s``: where they went (``<trial>/services/timing.json``: prepare, start, run, end);
 - ``cpu_s`` and ``cpu_s_per_sim_s``: CPU seconds of ``hrc run`` and every service (user +
   system), in all and per simulated second; ``cpu_s_by_service``;
 - ``exchanges``, ``mean_span``: clock exchanges and ticks per exchange;
@@ -91,6 +92,7 @@ def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> di
         name: round(v["user_s"] + v["system_s"], 3)
         for name, v in json.loads((out / "services" / "cpu.json").read_text()).items()
     }
+    timing = json.loads((out / "services" / "timing.json").read_text())
     found = _EXCHANGES.search((out / "services" / "physics.log").read_text())
     ticks = int(run["ticks"])
     exchanges = int(found.group(2)) if found else ticks
@@ -104,6 +106,8 @@ def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> di
         "run_wall_s": round(run["wall_s"], 3),
         "realtime_factor": round(run["realtime_factor"], 2),
         "end_to_end_s": round(wall, 3),
+        "phases_s": {k.removesuffix("_s"): v for k, v in timing.items() if k != "exit_by_service_s"},
+        "exit_after_run_end_s": timing["exit_by_service_s"],
         "cpu_s": round(cpu, 3),
         "cpu_s_per_sim_s": round(cpu / sim_s, 4),
         "cpu_s_by_service": by_service,
@@ -142,6 +146,7 @@ def run(args: argparse.Namespace) -> int:
             f"  run phase {f['run_wall_s']} s = {f['realtime_factor']}x real time; "
             f"end to end {f['end_to_end_s']} s"
         )
+        print(f"  phases (s): {f['phases_s']}; exits after run/end (s): {f['exit_after_run_end_s']}")
         print(f"  CPU {f['cpu_s']} s = {f['cpu_s_per_sim_s']} CPU-s per simulated s")
         print(f"  CPU us per exchange: {f['us_per_exchange_by_service']}")
         print(

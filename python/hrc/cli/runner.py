@@ -248,6 +248,49 @@ def describe_exit(code: int) -> str:
     return f"exited with code {code}"
 
 
+def process_age_s() -> float | None:
+    """Seconds since this process started (Linux /proc; None elsewhere): the start of the
+    end-to-end wall of ``hrc run``, imports included."""
+    try:
+        with open("/proc/self/stat") as f:
+            start_ticks = int(f.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/uptime") as f:
+            uptime = float(f.read().split()[0])
+        return max(0.0, uptime - start_ticks / os.sysconf("SC_CLK_TCK"))
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+TIMING_FILE = "timing.json"
+
+
+@dataclass
+class Phases:
+    """Where the wall time of one ``hrc run`` went (``services/timing.json``), all in seconds:
+    ``prepare`` (process start -> services started: imports, the scenario's check, its copy),
+    ``start`` (services started -> the first tick: their imports, sessions, scenario, tokens),
+    ``run`` (the run phase, run/end's wall_s), ``end`` (run/end -> every service gone: the
+    logger catching up, files), ``exit_by_service`` (run/end -> each service's exit)."""
+
+    prepare: float | None = None
+    start: float | None = None
+    run: float | None = None
+    end: float | None = None
+    exit_by_service: dict[str, float] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, object]:
+        def r(v: float | None) -> float | None:
+            return None if v is None else round(v, 3)
+
+        return {
+            "prepare_s": r(self.prepare),
+            "start_s": r(self.start),
+            "run_s": r(self.run),
+            "end_s": r(self.end),
+            "exit_by_service_s": {n: r(v) for n, v in self.exit_by_service.items()},
+        }
+
+
 class ServiceGroup:
     """The child processes of one trial."""
 
@@ -257,6 +300,7 @@ class ServiceGroup:
         self.procs: dict[str, subprocess.Popen[bytes]] = {}
         self._files: list[IO[bytes]] = []
         self.cpu_s: dict[str, tuple[float, float]] = {}  # (user, system) of each ended service
+        self.exited_at: dict[str, float] = {}  # time.monotonic() when each was seen gone
 
     def start(self, name: str, argv: list[str]) -> None:
         f = open(self.logs_dir / f"{name}.log", "wb")
@@ -288,6 +332,8 @@ class ServiceGroup:
             if pid:
                 p.returncode = os.waitstatus_to_exitcode(status)
                 self.cpu_s[name] = (ru.ru_utime, ru.ru_stime)
+        if p.returncode is not None:
+            self.exited_at.setdefault(name, time.monotonic())
         return p.returncode
 
     def poll(self) -> dict[str, int | None]:
@@ -312,6 +358,9 @@ class ServiceGroup:
             n: {"user_s": round(u, 3), "system_s": round(s, 3)} for n, (u, s) in self.cpu_s.items()
         }
         (self.logs_dir / "cpu.json").write_text(json.dumps(data, indent=1) + "\n")
+
+    def write_timing(self, phases: Phases) -> None:
+        (self.logs_dir / TIMING_FILE).write_text(json.dumps(phases.to_dict(), indent=1) + "\n")
 
     def close(self) -> None:
         for f in self._files:
@@ -427,12 +476,14 @@ class _EndWatcher:
 
     def __init__(self, session: str, port: int) -> None:
         self.end: pb.RunEnd | None = None
+        self.end_at: float | None = None  # time.monotonic() when run/end came
         self._event = threading.Event()
         cfg = BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])
         self.bus = Bus(cfg, "cli")
         self.bus.subscribe(self.bus.keys.run_end(), pb.RunEnd, self._on_end)
 
     def _on_end(self, _key: str, end: pb.RunEnd) -> None:
+        self.end_at = time.monotonic()
         self.end = end
         self._event.set()
 
@@ -442,6 +493,18 @@ class _EndWatcher:
 
     def close(self) -> None:
         self.bus.close()
+
+
+def _phases(phases: Phases, t0: float, group: ServiceGroup, watcher: _EndWatcher | None) -> Phases:
+    end_at = watcher.end_at if watcher is not None else None
+    if watcher is None or watcher.end is None or end_at is None:
+        return phases
+    phases.run = watcher.end.wall_s
+    phases.start = max(0.0, end_at - watcher.end.wall_s - t0)
+    phases.exit_by_service = {n: group.exited_at[n] - end_at for n in group.exited_at}
+    if group.exited_at:
+        phases.end = max(group.exited_at.values()) - end_at
+    return phases
 
 
 def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
@@ -463,6 +526,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     group = ServiceGroup(trial_dir)
     watcher: _EndWatcher | None = None
     t0 = time.monotonic()
+    phases = Phases(prepare=process_age_s())
     try:
         # the table lists the clock master first: it listens where everybody else connects.
         for name in services.names():
@@ -499,7 +563,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             leave_s = SERVICES_LEAVE_S if ended or master_rc == 0 else SERVICES_ABANDONED_S
             deadline = time.monotonic() + leave_s
             while any(rc is None for rc in group.poll().values()) and time.monotonic() < deadline:
-                time.sleep(0.05)
+                time.sleep(0.01)  # hrc run returns as soon as the last one has left
         # judge by how each ended on its own, before we stop the stragglers
         status = group.poll()
         group.stop_all(grace_s=0.5 if failed else 2.0)
@@ -538,6 +602,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             watcher.close()
         group.stop_all(grace_s=1.0)
         group.write_cpu()
+        group.write_timing(_phases(phases, t0, group, watcher))
         group.close()
         if sock is not None:
             sock.unlink(missing_ok=True)
