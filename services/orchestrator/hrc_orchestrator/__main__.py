@@ -1,3 +1,6 @@
+from hrc.service import exit_now
+
 from hrc_orchestrator.main import main
 
-raise SystemExit(main())
+# hrc run starts the services as `python -m`: end at once when done (hrc.service.exit_now)
+exit_now(main())
