@@ -54,3 +54,10 @@ def test_a_default_trial_folder_holds_the_scenario_as_it_ran(tmp_path: Path, ik_
     assert log[-2].endswith("TASK FINISHED. 0 total collisions.")
     assert log[-1].endswith("0 total near-collisions between the robots.")
     assert f"{trial.relative_to(tmp_path)}" in proc.stdout
+
+    # where the wall time went (hrc bench trial reads it): every phase, every service's exit
+    t = json.loads((trial / "services" / "timing.json").read_text())
+    assert t["run_s"] == pytest.approx(m["run"]["wall_s"], abs=2e-3)
+    assert all(t[k] is not None and t[k] >= 0 for k in ("prepare_s", "start_s", "end_s"))
+    assert set(t["exit_by_service_s"]) == {"physics", "ik_cpp", "orchestrator", "human_input", "logger"}
+    assert max(t["exit_by_service_s"].values()) == pytest.approx(t["end_s"])
