@@ -59,5 +59,6 @@ def test_a_default_trial_folder_holds_the_scenario_as_it_ran(tmp_path: Path, ik_
     t = json.loads((trial / "services" / "timing.json").read_text())
     assert t["run_s"] == pytest.approx(m["run"]["wall_s"], abs=2e-3)
     assert all(t[k] is not None and t[k] >= 0 for k in ("prepare_s", "start_s", "end_s"))
-    assert set(t["exit_by_service_s"]) == {"physics", "ik_cpp", "orchestrator", "human_input", "logger"}
+    services = {"physics", "ik_cpp", "orchestrator", "human_input", "logger"}
+    assert set(t["exit_by_service_s"]) == services
     assert max(t["exit_by_service_s"].values()) == pytest.approx(t["end_s"])

@@ -106,7 +106,9 @@ def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> di
         "run_wall_s": round(run["wall_s"], 3),
         "realtime_factor": round(run["realtime_factor"], 2),
         "end_to_end_s": round(wall, 3),
-        "phases_s": {k.removesuffix("_s"): v for k, v in timing.items() if k != "exit_by_service_s"},
+        "phases_s": {
+            k.removesuffix("_s"): v for k, v in timing.items() if k != "exit_by_service_s"
+        },
         "exit_after_run_end_s": timing["exit_by_service_s"],
         "cpu_s": round(cpu, 3),
         "cpu_s_per_sim_s": round(cpu / sim_s, 4),
@@ -146,7 +148,8 @@ def run(args: argparse.Namespace) -> int:
             f"  run phase {f['run_wall_s']} s = {f['realtime_factor']}x real time; "
             f"end to end {f['end_to_end_s']} s"
         )
-        print(f"  phases (s): {f['phases_s']}; exits after run/end (s): {f['exit_after_run_end_s']}")
+        print(f"  phases (s): {f['phases_s']}")
+        print(f"  exits after run/end (s): {f['exit_after_run_end_s']}")
         print(f"  CPU {f['cpu_s']} s = {f['cpu_s_per_sim_s']} CPU-s per simulated s")
         print(f"  CPU us per exchange: {f['us_per_exchange_by_service']}")
         print(

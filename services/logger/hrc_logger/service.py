@@ -176,9 +176,7 @@ class LoggerService(Service):
         self._bus_up = threading.Event()
         # rerun's import and the URDFs on a thread of their own, at the normal priority: they
         # must not wait for idle CPU while the run goes on.
-        self._view_thread = threading.Thread(
-            target=self._open_view, name="view-setup", daemon=True
-        )
+        self._view_thread = threading.Thread(target=self._open_view, name="view-setup", daemon=True)
         self._view_thread.start()
         self._priority_set = False  # see _priority
         self._lowered = False
