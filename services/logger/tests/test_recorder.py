@@ -94,6 +94,14 @@ def test_recording_holds_robots_parts_cues_over_the_trial(
         ) == (0, last)
         for hand in ("left", "right"):
             assert s[f"/plots/hand_distance/{hand}/{rid}"].last_tick == last
+        tcp = s[f"/world/tcp/{rid}"]  # sent in columns, as the joints and plots
+        assert {"Points3D:positions", "Points3D:colors"} <= tcp.components, rid
+        assert (tcp.first_tick, tcp.last_tick) == (0, last), rid
+    for ent in ("head", "left_hand", "right_hand"):
+        human = s[f"/world/human/{ent}"]
+        assert {"Points3D:positions", "Points3D:radii"} <= human.components, ent
+        assert human.last_tick == last, ent
+    assert "Points3D:labels" in s["/world/human/left_hand"].components  # the grip, hidden
     for p in trial.sc.parts:
         assert f"/world/targets/{p.id}" in s
         if p.start_given or p.id in trial.expected.parts_moved:
