@@ -349,17 +349,23 @@ class Bus:
         reply_type: type[R],
         request: Message | None = None,
         timeout: float = 10.0,
-        retry_every: float = 0.2,
+        retry_every: float = 0.05,
     ) -> R:
-        """Query until one reply arrives (the server may still be starting) or ``timeout``."""
+        """Query until one reply arrives (the server may still be starting) or ``timeout``.
+
+        A query that reached no server yet may only end at its own timeout: the first tries are
+        short (0.2 s, doubling up to 1 s) so a server that comes up meanwhile is asked again
+        soon; the longer ones leave a slow reply under load time to come."""
         deadline = time.monotonic() + timeout
+        attempt_s = 0.2
         while True:
             left = deadline - time.monotonic()
-            replies = self.get(key, reply_type, request, timeout=max(0.05, min(1.0, left)))
+            replies = self.get(key, reply_type, request, timeout=max(0.05, min(attempt_s, left)))
             if replies:
                 return replies[0]
             if time.monotonic() >= deadline:
                 raise TimeoutError(f"no reply on {key} within {timeout:g} s")
+            attempt_s = min(1.0, attempt_s * 2)
             time.sleep(retry_every)
 
     def serve_stats(self) -> None:
