@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from pathlib import Path
 from typing import cast
@@ -10,6 +9,7 @@ from typing import cast
 import pybullet as p
 
 from hrc.geometry import Pose, Quat, Vec3, vec3, yaw_quat_deg
+from hrc.validate import all_finite
 
 TOOL_LINK = "tool"
 BASE = -1  # pybullet's link index of a body's base
@@ -84,6 +84,9 @@ class KinematicRobot:
         self.joint_names = [n for n, _ in sorted(self.joint_index.items(), key=lambda kv: kv[1])]
         self.positions: list[float] = [0.0] * len(self.movable)
         self._applied: list[float] | None = None
+        # The links' AABB until they move (a joint reset here, or a world step: the first step
+        # after a reset still nudges the links): contacts and span planning ask for it per tick.
+        self._aabb: tuple[Vec3, Vec3] | None = None
         self._order_cache: dict[tuple[str, ...], list[int] | str] = {}
 
     def _indices(self, names: Sequence[str]) -> list[int] | str:
@@ -101,7 +104,7 @@ class KinematicRobot:
 
     def set_state(self, names: Sequence[str], positions: Sequence[float]) -> str | None:
         """Records joint positions (by name; no names: in URDF order). Returns a problem or None."""
-        if not all(math.isfinite(v) for v in positions):
+        if not all_finite(positions):
             return f"robot {self.id}: joint positions contain NaN or infinity"
         if names:
             if len(names) != len(positions):
@@ -131,14 +134,22 @@ class KinematicRobot:
             self.body, self.movable, [[v] for v in self.positions], physicsClientId=self._c
         )
         self._applied = list(self.positions)
+        self._aabb = None
         return True
+
+    def stepped(self) -> None:
+        """The world stepped: the links may have moved (see ``_aabb``)."""
+        self._aabb = None
 
     def aabb(self) -> tuple[Vec3, Vec3]:
         """World AABB of all link colliders (cheap prefilter for the distance queries)."""
+        if self._aabb is not None:
+            return self._aabb
         boxes = [p.getAABB(self.body, link, physicsClientId=self._c) for link in self._links]
         lo = tuple(map(min, zip(*(b[0] for b in boxes), strict=True)))
         hi = tuple(map(max, zip(*(b[1] for b in boxes), strict=True)))
-        return vec3(lo), vec3(hi)
+        self._aabb = (vec3(lo), vec3(hi))
+        return self._aabb
 
     def tool_pose(self) -> Pose:
         s = p.getLinkState(

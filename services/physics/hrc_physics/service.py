@@ -9,13 +9,12 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
-import math
 
 from hrc import scenario as sc
 from hrc.bus import Bus, ClockSettings, Outcome
 from hrc.service import EXIT_BAD_INPUT, ClockMasterService, Inputs, ServiceExit, fetch_scenario
 from hrc.services import OBSERVERS, PARTICIPANTS
-from hrc.validate import check_pose
+from hrc.validate import all_finite, check_pose
 from hrc.wire import pb
 
 from hrc_physics.exchange import SpanPlanner, arm_speed_bound
@@ -42,7 +41,7 @@ def _human_ok(msg: pb.HumanState) -> str | None:
 
 
 def _robot_ok(msg: pb.RobotState) -> str | None:
-    if not all(math.isfinite(v) for v in msg.joint_positions):
+    if not all_finite(msg.joint_positions):
         return f"robot {msg.robot!r}: joint positions contain NaN or infinity"
     return None
 

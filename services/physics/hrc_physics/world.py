@@ -249,6 +249,8 @@ class World:
         c = self.c
         p.stepSimulation(physicsClientId=c)
         self.steps += 1
+        for robot in self.robots.values():
+            robot.stepped()
         self._track_motion()
         for robot in self.robots.values():
             if robot.apply():

@@ -127,3 +127,23 @@ def test_tracker_reports_each_change_once() -> None:
     ended = t.update({})
     assert [(e.kind, e.begin, e.a, e.b) for e in ended] == [(ENV, False, "left", "0")]
     assert t.update({}) == []
+
+
+def _fresh_aabb(robot) -> tuple:
+    """The robot's AABB computed now, past its cache."""
+    robot._aabb = None
+    return robot.aabb()
+
+
+def test_a_robot_aabb_is_reused_only_while_its_links_stay_put(world: World) -> None:
+    robot = next(iter(world.robots.values()))
+    before = robot.aabb()
+    assert robot.aabb() is before  # asked again, nothing moved: the same box
+    robot.set_state([], [0.4] * len(robot.movable))
+    world.step()  # the arm moves in this step
+    moved = robot.aabb()
+    assert moved != before
+    assert moved == _fresh_aabb(robot)
+    for _ in range(3):  # a step alone may still nudge the links: the box is looked at anew
+        world.step()
+        assert robot.aabb() == _fresh_aabb(robot)
