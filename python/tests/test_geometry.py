@@ -176,6 +176,17 @@ def test_wire_round_trips_are_exact() -> None:
     assert g.pose_yaw_from_pb(msg) == g.yaw_pose_deg((0.2, 0.1, 0.0), 30.0)
 
 
+@pytest.mark.parametrize(
+    "pose", [g.Pose((0.1, -0.2, 0.3), (0.0, 0.0, 0.38, 0.92)), g.Pose((0.0,) * 3, (0.0,) * 4)]
+)
+def test_pose_into_pb_writes_the_bytes_pose_to_pb_makes(pose: g.Pose) -> None:
+    built = pb.HumanState(head=g.pose_to_pb(pose))
+    filled = pb.HumanState()
+    g.pose_into_pb(filled.head, pose)
+    assert filled.SerializeToString() == built.SerializeToString()
+    assert filled.HasField("head")  # present even when every value is 0
+
+
 def test_an_unset_orientation_is_the_identity() -> None:
     msg = pb.Pose(position=pb.Vec3(x=1.0))
     assert g.pose_from_pb(msg) == g.Pose((1.0, 0.0, 0.0), g.IDENTITY)

@@ -15,7 +15,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from hrc.geometry import Pose, interpolate_pose, lerp, normalized, pose_from_pb, pose_to_pb
+from hrc.geometry import Pose, interpolate_pose, lerp, normalized, pose_from_pb, pose_into_pb
 from hrc.scenario import InputSource
 from hrc.wire import pb
 
@@ -25,6 +25,7 @@ SAMPLE_KEYS = frozenset({"t", *POSE_NAMES, *GRIP_NAMES})
 POSE_KEYS = frozenset({"position", "orientation"})
 # Anything farther than this from the board origin is certainly a unit or frame mistake.
 MAX_ABS_COORD_M = 10.0
+_SOURCE_NUMBERS: dict[InputSource, pb.InputSource.ValueType] = {}
 
 
 def pose_json(pose: Pose) -> dict[str, list[float]]:
@@ -63,14 +64,15 @@ class Sample:
         return Sample(t, self.head, self.left, self.right, self.left_grip, self.right_grip)
 
     def to_proto(self, source: InputSource) -> pb.HumanState:
-        return pb.HumanState(
-            head=pose_to_pb(self.head),
-            left_hand=pose_to_pb(self.left),
-            right_hand=pose_to_pb(self.right),
-            left_grip=self.left_grip,
-            right_grip=self.right_grip,
-            source=source.to_proto(),
-        )
+        # Once per tick: fields written in place, the source's wire number looked up once.
+        number = _SOURCE_NUMBERS.get(source)
+        if number is None:
+            number = _SOURCE_NUMBERS[source] = source.to_proto()
+        msg = pb.HumanState(left_grip=self.left_grip, right_grip=self.right_grip, source=number)
+        pose_into_pb(msg.head, self.head)
+        pose_into_pb(msg.left_hand, self.left)
+        pose_into_pb(msg.right_hand, self.right)
+        return msg
 
     @staticmethod
     def from_proto(msg: pb.HumanState) -> Sample:
