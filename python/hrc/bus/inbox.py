@@ -13,7 +13,8 @@ import heapq
 import threading
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from operator import attrgetter
 from typing import cast
 
 import zenoh
@@ -25,14 +26,19 @@ from hrc.wire import pb
 Handler = Callable[[str, Message], None]
 
 
-@dataclass(order=True)
+@dataclass(slots=True)
 class _Pending:
     tick: int  # first: an exchange hands over several ticks' messages, oldest tick first
     index: int
     key: str
     sender: str
     seq: int
-    msg: Message = field(compare=False)
+    msg: Message
+
+
+# The delivery order; a C-level key (a dataclass's generated __lt__ costs a Python call per
+# comparison, and every message of every exchange is sorted).
+_ORDER = attrgetter("tick", "index", "key", "sender", "seq")
 
 
 class Inbox:
@@ -132,7 +138,7 @@ class Inbox:
                 self._pending[upto_tick] = [p for p in bucket if p.sender != master]
         if not ready:
             return 0
-        ready.sort()
+        ready.sort(key=_ORDER)
         for p in ready:
             self._handlers[p.index](p.key, p.msg)
         return len(ready)
