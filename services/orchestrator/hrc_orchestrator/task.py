@@ -103,6 +103,10 @@ class Task:
         self.sim_time = 0.0
         self.human_state: pb.HumanState | None = None
         self._grabbable: dict[str, bool] = {}
+        # What the grabbable flags and the cues were last computed from: per tick, and they
+        # change only with these (see _grabbable_changes, _cue_changes).
+        self._grabbable_key: tuple[object, ...] | None = None
+        self._cues_key: tuple[object, ...] | None = None
         self._positions: dict[str, Vec3] = {
             p.id: vec3(p.start.xyz) for p in scenario.parts if p.start is not None
         }
@@ -164,7 +168,7 @@ class Task:
         events, world = self.board.drain()
         out.events = events
         out.world_commands = world + self._grabbable_changes()
-        out.cues = self.cue_board.update(self._desired_cues())
+        out.cues = self._cue_changes()
         if not self.finished and self.watchdog.check(sim_time, out):
             self._stall(out)
         return out
@@ -252,6 +256,11 @@ class Task:
         if self.finished:
             return []
         blocked = self.safety.blocks_grab
+        # HumanAgent.grabbable depends on these only: unchanged, every flag is as sent.
+        key = (self.human.next_part, self.human.held_part, blocked)
+        if key == self._grabbable_key:
+            return []
+        self._grabbable_key = key
         cmds: list[pb.WorldCommand] = []
         for part in self.scenario.parts:
             if part.start is None:  # screws come from the feeder, never grabbable by hand
@@ -263,6 +272,33 @@ class Task:
                     pb.WorldCommand(set_grabbable=pb.SetGrabbable(object=part.id, grabbable=want))
                 )
         return cmds
+
+    def _cue_changes(self) -> list[pb.Cue]:
+        """The cues that go on or off this tick (the board keeps the rest)."""
+        key = self._cue_key()
+        if key == self._cues_key:
+            return []  # the same desired cues as last tick: no change
+        self._cues_key = key
+        return self.cue_board.update(self._desired_cues())
+
+    def _cue_key(self) -> tuple[object, ...]:
+        """Everything :meth:`_desired_cues` reads that can change (the rest is the scenario)."""
+        if self.finished:
+            return ("finished",)
+        h = self.human
+        nxt = h.next_part
+        outline = bool(nxt) and not h.held_part and h.grabbable(nxt, self.safety.blocks_grab)
+        button = self.safety.button_wanted and self.scenario.workspace.continue_button is not None
+        robots: tuple[object, ...] = ()
+        if self.anticipation and self.running:
+            robots = tuple((a.carrying, a.phase == Phase.WAITING) for a in self.agents.values())
+        return (
+            self._positions[nxt] if outline else None,
+            nxt if outline else "",
+            h.held_part if h.target_cue_wanted() else "",
+            button,
+            robots,
+        )
 
     def _desired_cues(self) -> list[pb.Cue]:
         if self.finished:
