@@ -29,9 +29,9 @@ from hrc.bus import Bus, BusConfig, LockstepParticipant
 from hrc.cli.runner import free_port
 from hrc.geometry import IDENTITY, Pose, pose_to_pb, yaw_quat_deg
 from hrc.paths import project_root
+from hrc.scenario.conventions import HAND_SIZE
+from hrc.scenario.models import DEFAULT_MAX_EXCHANGE_TICKS
 from hrc.wire import pb
-
-from hrc_physics.hands import HAND_SIZE
 
 pytestmark = pytest.mark.slow
 
@@ -434,12 +434,13 @@ def test_release_near_and_far_from_the_target(physics_run) -> None:
     pos = rest2.pose.position
     assert pos.z == pytest.approx(0.02, abs=2e-3)  # size z / 2: resting on the board
     assert (pos.x, pos.y) == pytest.approx(far[:2], abs=0.01)
-    # While held or falling it is published with every exchange (at most 8 ticks, physics's
-    # default --max-span); at rest, not at all.
+    # While held or falling it is published with every exchange (at most the scenario's
+    # max_exchange_ticks); at rest, not at all.
+    longest = DEFAULT_MAX_EXCHANGE_TICKS
     ticks_with_h1 = {m.header.tick for m in rec.objects for o in m.objects if o.id == "H1"}
     held = sorted(t for t in ticks_with_h1 if 26 <= t <= t_rel1)
-    assert held and held[0] == 26 and t_rel1 - held[-1] <= 8
-    assert all(b - a <= 8 for a, b in itertools.pairwise(held)), held
+    assert held and held[0] == 26 and t_rel1 - held[-1] <= longest
+    assert all(b - a <= longest for a, b in itertools.pairwise(held)), held
     assert not ticks_with_h1 & set(range(t_rest1 + 1, grabbed[1][0]))
 
 

@@ -115,6 +115,13 @@ class Service:
     def step(self, tick: pb.ClockTick) -> None:
         """The work of one tick (participants and observers): publish the tick's outputs."""
 
+    def next_event_tick(self) -> int:
+        """Participants, after the steps of an exchange: the earliest tick at which the
+        service, holding its inputs, may make a discrete change the others react to (a timer
+        runs out, an arm reaches its target); 0 if none is known. A lower bound, from simulated
+        quantities only (docs/ARCHITECTURE.md, "Exchange step")."""
+        return 0
+
     def finish(self, outcome: Outcome) -> int | None:
         """The run is over (the bus is still open): write what the service writes at the end.
         Returns the exit code, or None for the outcome's (0 ok, 1 failed)."""
@@ -133,10 +140,15 @@ class ClockMasterService(Service):
     def step_world(self, tick: int, sim_time: float) -> None:
         """After the barrier of ``tick``: its inputs are applied; advance to ``tick + 1``."""
 
-    def exchange_span(self, tick: int) -> int:
-        """How many ticks the exchange starting at ``tick`` covers (lockstep), chosen from the
-        simulated state only (docs/ARCHITECTURE.md, "Exchange step"). Default 1."""
+    def max_exchange_ticks(self) -> int:
+        """The longest exchange (lockstep). Default 1."""
         return 1
+
+    def exchange_span(self, tick: int, limit: int) -> int:
+        """How many ticks, at most ``limit`` (> 1: the longest exchange, shortened by the
+        declared events), the exchange starting at ``tick`` covers (lockstep), chosen from the
+        simulated state only (docs/ARCHITECTURE.md, "Exchange step"). Default ``limit``."""
+        return limit
 
     def publish_substep(self, tick: int, sim_time: float) -> None:
         """Inside an exchange, ``tick`` is reached: publish what happened at it (stamped
@@ -217,6 +229,7 @@ def _run_role(service: Service, bus: Bus) -> Outcome:
             service.step_world,
             service.exchange_span,
             service.publish_substep,
+            max_span=service.max_exchange_ticks(),
         )
         return Outcome(end.ok, end.reason, end)
     timeout = service.args.input_timeout
@@ -226,6 +239,7 @@ def _run_role(service: Service, bus: Bus) -> Outcome:
         _stop_on_signals(role)
     else:
         role = LockstepParticipant(bus, input_timeout_s=timeout)
+        role.on_next_event(service.next_event_tick)
     service.register_inputs(role)
     role.on_tick(service.step)
     role.start()

@@ -51,6 +51,40 @@ class ClockSettings:
             raise ValueError(f"ticks must be >= 0, got {self.ticks}")
 
 
+# After a declared event at tick e (TickAck.next_event_tick) the ticks e + 1 .. e + REACTION_TICKS
+# start exchanges: the chain of reactions to it (e.g. a robot's REACHED at e -> the orchestrator's
+# next command at e + 1 -> the IK's motion from e + 2 -> what a placement unblocks at e + 3) then
+# keeps the timing of one-tick exchanges (docs/ARCHITECTURE.md, "Exchange step").
+REACTION_TICKS = 3
+
+
+class DeclaredEvents:
+    """The events the participants declared with their acks, and the longest exchange they
+    allow from a tick on."""
+
+    def __init__(self, reaction_ticks: int = REACTION_TICKS) -> None:
+        self.reaction_ticks = reaction_ticks
+        # Tick 0 is everyone's first change: the first states, commands and cues.
+        self._ticks: set[int] = {0}
+
+    def add(self, tick: int) -> None:
+        if tick > 0:
+            self._ticks.add(tick)
+
+    def limit(self, k: int, n: int) -> int:
+        """At most ``n`` ticks from ``k``, ending the exchange at each declared event e and
+        starting one at each tick e + 1 .. e + reaction_ticks."""
+        d = self.reaction_ticks
+        for e in list(self._ticks):
+            if e + d <= k:
+                self._ticks.discard(e)  # its reactions are past
+            elif k <= e:
+                n = min(n, e - k + 1)
+            else:  # e < k < e + d: a tick of the reaction chain
+                n = 1
+        return max(1, n)
+
+
 class RunFailed(Exception):
     def __init__(self, reason: str, participant: str = "") -> None:
         super().__init__(reason)
@@ -85,7 +119,9 @@ class ClockMaster:
         self._mode = MODES[settings.mode]
         self._publish_world: Callable[[int, float], None] = lambda k, t: None
         self._step_world: Callable[[int, float], None] = lambda k, t: None
-        self._span_of: Callable[[int], int] = lambda k: 1
+        self._span_of: Callable[[int, int], int] = lambda k, n: 1
+        self.events = DeclaredEvents()
+        self.max_span = 1  # the clock master's longest exchange (set by run())
         self._substep: Callable[[int, float], None] = lambda k, t: None
         self._span = 1  # ticks in the current exchange
         self.exchanges = 0
@@ -135,6 +171,7 @@ class ClockMaster:
                 self._acked[name] = ack.header.tick
                 self.compute_us[name] = ack.compute_us
                 self._compute_total[name] += ack.compute_us
+                self.events.add(ack.next_event_tick)
             for m in ack.published:
                 mk = (m.key, m.sender)
                 if m.seq > self._marks.get(mk, 0):
@@ -286,10 +323,11 @@ class ClockMaster:
         state only), 1 in realtime, never past the run's last tick."""
         if self.settings.mode != "lockstep":
             return 1
-        n = max(1, int(self._span_of(k)))
+        cap = self.max_span
         if self.settings.ticks:
-            n = min(n, self.settings.ticks - k)
-        return max(1, n)
+            cap = min(cap, self.settings.ticks - k)
+        cap = self.events.limit(k, cap)
+        return max(1, min(cap, int(self._span_of(k, cap))))
 
     def _publish_tick(self, k: int) -> None:
         """World state of k, then clock tick k (the participants' cue to compute the ticks of
@@ -453,8 +491,9 @@ class ClockMaster:
         self,
         publish_world: Callable[[int, float], None],
         step: Callable[[int, float], None],
-        span: Callable[[int], int] | None = None,
+        span: Callable[[int, int], int] | None = None,
         substep: Callable[[int, float], None] | None = None,
+        max_span: int = 1,
     ) -> pb.RunEnd:
         """Runs the clock to the end and publishes ``run/end``; returns it.
 
@@ -463,7 +502,9 @@ class ClockMaster:
         tick; this thread takes over whenever something must be waited for, and watches the
         timeouts. realtime: everything on this thread.
 
-        ``span(k)``: how many ticks the exchange starting at k covers (lockstep; default 1);
+        ``span(k, n)``: how many ticks (at most n) the exchange starting at k covers
+        (lockstep), at most ``max_span``, and never past an event a participant declared (see
+        :class:`DeclaredEvents`);
         ``substep(t, sim)``: called inside an exchange when tick t is reached, before its
         inputs are applied (the world's reports of t, e.g. contacts that began).
         """
@@ -472,6 +513,7 @@ class ClockMaster:
         self._publish_world, self._step_world = publish_world, step
         if span is not None:
             self._span_of = span
+        self.max_span = max(1, max_span)
         if substep is not None:
             self._substep = substep
         t0 = time.monotonic()

@@ -323,6 +323,13 @@ class LockstepParticipant(ClockFollower):
     def __init__(self, bus: Bus, *, input_timeout_s: float = 10.0) -> None:
         super().__init__(bus, input_timeout_s=input_timeout_s)
         self._ack_pub: Publisher[pb.TickAck] | None = None
+        self._next_event: Callable[[], int] | None = None
+
+    def on_next_event(self, next_event: Callable[[], int]) -> None:
+        """``next_event()``, asked after the exchange's steps: the earliest tick at which the
+        service, holding its inputs, may make a change others react to; 0 if none is known
+        (``TickAck.next_event_tick``, docs/ARCHITECTURE.md "Exchange step")."""
+        self._next_event = next_event
 
     def _declare_publishers(self) -> None:
         self._ack_pub = self.bus.publisher(self.bus.keys.clock_ack(self.name), express=True)
@@ -342,4 +349,6 @@ class LockstepParticipant(ClockFollower):
         # TickAck.compute_us ends here, before the ack is built and published.
         ack = pb.TickAck(participant=self.name, compute_us=int((time.perf_counter() - t0) * 1e6))
         ack.published.extend(self.bus.new_marks(exclude=ack_pub.key))
+        if self._next_event is not None:
+            ack.next_event_tick = self._next_event()
         ack_pub.put(ack, tick.header.tick, tick.header.sim_time)

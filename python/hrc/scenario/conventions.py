@@ -13,6 +13,9 @@ from __future__ import annotations
 HANDS = ("left", "right")  # hand names on the wire (HumanState fields, contacts, events)
 GRIP_CLOSED = 0.5  # a grip >= this holds a part; below it lets go
 GRASP_DISTANCE_M = 0.03  # a closed hand grasps a grabbable part this close to it
+HAND_SIZE = (0.09, 0.18, 0.03)  # m, the hand's box collider (x, y, z in the hand's frame)
+# m: its farthest point from its centre (a turn at w rad/s moves no point faster than w * this)
+HAND_RADIUS_M = 0.5 * (HAND_SIZE[0] ** 2 + HAND_SIZE[1] ** 2 + HAND_SIZE[2] ** 2) ** 0.5
 
 # ---------------------------------------------------------------- the robots
 

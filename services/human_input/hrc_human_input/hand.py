@@ -10,8 +10,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from hrc.geometry import Vec3, distance, wrap_angle_rad
+from hrc.scenario.conventions import HAND_RADIUS_M
 
-from hrc_human_input.motor import MotorParams, Segment, movement_time
+from hrc_human_input.motor import (
+    MIN_JERK_PEAK_FACTOR,
+    MIN_MOVEMENT_TIME_S,
+    MotorParams,
+    Segment,
+    movement_time,
+)
 
 
 @dataclass(frozen=True)
@@ -87,6 +94,46 @@ class Hand:
                 return s.goal
         return self.pos
 
+    def _grip_rate(self, target: float, grip: float) -> float:
+        return 1.0 / (self.motor.grip_close_s if target > grip else self.motor.grip_open_s)
+
+    def grip_crossing_not_before(self, t: float, threshold: float) -> float | None:
+        """A time before which the grip does not cross ``threshold`` (either way) as the hand
+        goes through its plan from time ``t`` (after its advance to ``t``); None if the plan
+        never crosses it. A lower bound: moves not started yet count at their shortest
+        (the peak speed cap), the rest at their planned length."""
+        g, at, pos = self.grip, t, self.pos
+
+        def crosses(v: float) -> bool:
+            return (g < threshold) != (v < threshold)
+
+        if self._grip_target is not None:
+            v = self._grip_target
+            if crosses(v):
+                return at + abs(threshold - g) / self._grip_rate(v, g)
+            at, g = at + abs(v - g) / self._grip_rate(v, g), v
+        if self.segment is not None:
+            at, pos = max(at, self.segment.t_end), self.segment.p1
+        if self._dwell_until is not None:
+            at = max(at, self._dwell_until)
+        for step in self.plan:
+            if isinstance(step, Move):
+                d = distance(pos, step.goal)
+                if d >= 1e-6:
+                    at += max(
+                        MIN_MOVEMENT_TIME_S, MIN_JERK_PEAK_FACTOR * d / self.motor.peak_hand_speed
+                    )
+                pos = step.goal
+            elif isinstance(step, Dwell):
+                at += max(0.0, step.seconds)
+            else:
+                v = min(1.0, max(0.0, step.value))
+                rate = self._grip_rate(v, g)
+                if crosses(v):
+                    return at + abs(threshold - g) / rate
+                at, g = at + abs(v - g) / rate, v
+        return None
+
     # ------------------------------------------------------------------ time
     def advance(self, t: float) -> None:
         if self._t_last is None:
@@ -144,6 +191,10 @@ class Hand:
             mt = movement_time(d, step.width, self.motor, self.rng)
             if d < 1e-6:  # a pure turn of the wrist
                 mt = max(mt, 0.2)
+            # The turn, too, moves no point of the hand faster than the peak speed: a point
+            # then moves at most 2 x peak_hand_speed (hand_speed_bound).
+            turn = abs(yaw1_rad - self.yaw_rad) * HAND_RADIUS_M
+            mt = max(mt, MIN_JERK_PEAK_FACTOR * turn / self.motor.peak_hand_speed)
             self.segment = Segment(t0, mt, self.pos, step.goal, self.yaw_rad, yaw1_rad)
             self.segments.append(self.segment)
         elif isinstance(step, Dwell):

@@ -5,11 +5,16 @@ from __future__ import annotations
 
 import bisect
 import datetime as dt
+import itertools
 import json
 import logging
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
+
+from hrc.geometry import Quat, distance, quat_norm
+from hrc.scenario.conventions import HAND_RADIUS_M, HANDS
 
 from hrc_human_input.sample import Sample, interpolate, parse_sample
 
@@ -102,6 +107,15 @@ def load_recording(path: str | Path) -> Recording:
     return parse_recording(text.splitlines(), str(p))
 
 
+def _turn_rad(a: Quat, b: Quat) -> float:
+    """The angle between two orientations (pi if one is degenerate)."""
+    na, nb = quat_norm(a), quat_norm(b)
+    if na <= 0 or nb <= 0:
+        return math.pi
+    dot = abs(sum(x * y for x, y in zip(a, b, strict=True))) / (na * nb)
+    return 2.0 * math.acos(min(1.0, dot))
+
+
 class Replayer:
     """Plays a recording on simulation time: the sample at t, interpolated between neighbours;
     before the first sample the first one holds, after the last the last one holds."""
@@ -115,6 +129,21 @@ class Replayer:
     @property
     def duration(self) -> float:
         return self._times[-1]
+
+    def hand_speed_bound(self) -> float:
+        """m/s no point of a hand exceeds in this recording: between two samples a hand moves
+        and turns at a constant rate (interpolate), a point at most |v| + w * HAND_RADIUS_M."""
+        bound = 0.0
+        for a, b in itertools.pairwise(self.samples):
+            span = b.t - a.t
+            if span <= 0:
+                continue
+            for name in HANDS:
+                pa, pb_ = a.hand(name), b.hand(name)
+                turn = _turn_rad(pa.orientation, pb_.orientation)
+                move = distance(pa.position, pb_.position) + turn * HAND_RADIUS_M
+                bound = max(bound, move / span)
+        return bound
 
     def sample_at(self, t: float) -> Sample:
         i = bisect.bisect_left(self._times, t)

@@ -133,6 +133,12 @@ class ScriptedParticipant:
         self.log: list[tuple[float, str]] = []  # (time, what) decisions, for tests and debugging
 
     # ------------------------------------------------------------------ helpers
+    def hand_speed_bound(self) -> float:
+        """m/s no point of either hand exceeds: every motion is a Move whose minimum-jerk
+        profile peaks at most at peak_hand_speed, for the hand's centre and, separately, for
+        its turn (Hand._start); a cancel stops the hand where it is."""
+        return 2.0 * self.motor.peak_hand_speed
+
     @property
     def hand(self) -> Hand:
         return self.hands[self.active]

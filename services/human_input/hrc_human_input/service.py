@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import logging
+import math
 import os
 from pathlib import Path
 
@@ -122,6 +123,7 @@ class HumanInputService(Service):
         self.recording: Recording | None = _load(args.replay) if args.replay else None
         self.recorder: Recorder | None = None
         self._last_sent: Sample | None = None
+        self._last_k = 0
 
     def open(self, bus: Bus, stack: contextlib.ExitStack) -> None:
         super().open(bus, stack)
@@ -149,6 +151,9 @@ class HumanInputService(Service):
                 )
             )
         self.publisher = bus.publisher(keys.human_state())
+        self.hand_speed_bound = self.source.hand_speed_bound()
+        self.dt = 1.0 / facts.tick_hz
+        self._last_t = 0.0
         self.keyframe_every = max(1, round(facts.tick_hz))  # once per simulated second
         log.info(
             "participant %r ready (input %s%s)",
@@ -249,11 +254,22 @@ class HumanInputService(Service):
         # receivers nothing (they hold the last state).
         last = self._last_sent
         if last is None or not sample.same_as(last) or k % self.keyframe_every == 0:
-            self.publisher.put(sample.to_proto(self.source.name), k, t)
+            msg = sample.to_proto(self.source.name)
+            msg.hand_speed_bound = self.hand_speed_bound
+            self.publisher.put(msg, k, t)
             self._last_sent = sample
         if self.recorder is not None:
             self.recorder.write(sample)
         self.source.published(k, t, sample)
+        self._last_k, self._last_t = k, t
+
+    def next_event_tick(self) -> int:
+        """The first tick whose grip may cross GRIP_CLOSED (a grab or a release begins)."""
+        at = self.source.next_event_s(self._last_t)
+        if at is None:
+            return 0
+        # the 1e-6 tick margin keeps it a lower bound against rounding
+        return max(self._last_k + 1, math.ceil(at / self.dt - 1e-6))
 
     def finish(self, outcome: Outcome) -> int | None:
         if isinstance(self.source, VrSource):

@@ -9,6 +9,7 @@ from typing import Protocol
 from hrc.bus import Keys
 from hrc.geometry import Pose, look_quat
 from hrc.scenario import InputSource
+from hrc.scenario.conventions import GRIP_CLOSED
 from hrc.service import Inputs
 from hrc.wire import pb
 
@@ -41,6 +42,13 @@ class Source(Protocol):
 
     def summary(self) -> str | None: ...
 
+    def next_event_s(self, t: float) -> float | None:
+        """After the sample of time ``t``: a time before which no grip crosses GRIP_CLOSED
+        (no grab or release can begin) as far as the source knows; None if it knows of none."""
+
+    def hand_speed_bound(self) -> float:
+        """m/s no point of a hand exceeds (HumanState.hand_speed_bound); 0: unknown."""
+
     def published(self, tick: int, t: float, sample: Sample) -> None:
         """The tick's sample is on the bus (the bridge streams the world from here)."""
 
@@ -65,6 +73,17 @@ class ScriptedSource:
         inputs.input(keys.robot_states(), pb.RobotState, lambda _k, m: view.on_robot_state(m))
         inputs.input(keys.task_indicators(), pb.Indicators, lambda _k, m: view.on_indicators(m))
         inputs.input(keys.task_events(), pb.TaskEvent, lambda _k, m: view.on_task_event(m))
+
+    def next_event_s(self, t: float) -> float | None:
+        times = [
+            x
+            for h in self.participant.hands.values()
+            if (x := h.grip_crossing_not_before(t, GRIP_CLOSED)) is not None
+        ]
+        return min(times) if times else None
+
+    def hand_speed_bound(self) -> float:
+        return self.participant.hand_speed_bound()
 
     def summary(self) -> str | None:
         sp = self.participant
@@ -92,6 +111,12 @@ class ReplaySource:
     def register_inputs(self, inputs: Inputs, keys: Keys) -> None:
         pass  # a recording perceives nothing
 
+    def next_event_s(self, t: float) -> float | None:
+        return None  # a recording's grips are not announced ahead (TODO if replays matter)
+
+    def hand_speed_bound(self) -> float:
+        return self.replayer.hand_speed_bound()
+
     def summary(self) -> str | None:
         return None
 
@@ -116,6 +141,12 @@ class VrSource:
     def sample(self, t: float) -> Sample:
         latest = self.bridge.latest()
         return rest_sample(t) if latest is None else latest.at(t)
+
+    def next_event_s(self, t: float) -> float | None:
+        return None  # a live person: realtime, every exchange one tick
+
+    def hand_speed_bound(self) -> float:
+        return 0.0  # unknown
 
     def register_inputs(self, inputs: Inputs, keys: Keys) -> None:
         m = self.mirror

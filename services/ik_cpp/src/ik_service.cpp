@@ -189,6 +189,9 @@ void IkEngine::step() {
 const kin::MotionState& IkEngine::state(std::size_t index) const {
   return arms_.at(index).motion->state();
 }
+uint64_t IkEngine::min_ticks_to_end(std::size_t index) const {
+  return arms_.at(index).motion->min_ticks_to_end();
+}
 void IkEngine::reset(std::size_t index, const Eigen::VectorXd& q) {
   arms_.at(index).motion->reset(q);
 }
@@ -370,6 +373,7 @@ IkService::IkService(Bus& bus, LockstepParticipant& participant, IkEngine& engin
       bus_.keys().robot_commands(),
       [this](const std::string& key, const v2::RobotCommand& c) { on_command(key, c); });
   participant.on_tick([this](const v2::ClockTick& t) { step(t); });
+  participant.on_next_event([this] { return next_event_tick(); });
   bus_.queryable<v2::ReachRequest, v2::ReachReply>(
       bus_.keys().robot_reach(), [this](const v2::ReachRequest& req) {
         v2::ReachReply reply = engine_.reach(req);
@@ -419,8 +423,18 @@ void IkService::step(const v2::ClockTick& tick) {
   const double commands_us = command_us_;
   command_us_ = 0.0;
   compute_times_.add(commands_us + micros_since(t0));
+  last_tick_ = tick.header().tick();
   publish_states(tick.header().tick(), tick.header().sim_time());
   step_times_.add(commands_us + micros_since(t0));
+}
+
+uint64_t IkService::next_event_tick() const {
+  uint64_t best = 0;
+  for (std::size_t i = 0; i < engine_.size(); ++i) {
+    const uint64_t n = engine_.min_ticks_to_end(i);
+    if (n > 0 && (best == 0 || last_tick_ + n < best)) best = last_tick_ + n;
+  }
+  return best;
 }
 
 void IkService::publish_states(uint64_t tick, double sim_time) {

@@ -228,6 +228,7 @@ void LockstepParticipant::process(const v2::ClockTick& tick) {
           std::chrono::steady_clock::now() - t0);
       ack.set_compute_us(static_cast<uint32_t>(std::min<int64_t>(us.count(), UINT32_MAX)));
       for (auto& m : bus_.new_marks(ack_pub_->key())) *ack.add_published() = std::move(m);
+      if (next_event_) ack.set_next_event_tick(next_event_());
       ack_pub_->put(ack, k, tick.header().sim_time());
     }
   } catch (const std::exception& e) {

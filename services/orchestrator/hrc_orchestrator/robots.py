@@ -235,7 +235,7 @@ class RobotAgent:
         if self.phase == Phase.SCREWING:
             if self.dwell_since is None:
                 self.dwell_since = t
-            if t - self.dwell_since >= self.cfg.screw_time_or_default - DWELL_EPS:
+            if self.dwell_over(t):
                 self.dwell_since = None
                 self._enter(Phase.RETURNING, t, self._returning())
             return
@@ -248,6 +248,18 @@ class RobotAgent:
             Phase.TO_HOME: self._home,
         }[self.phase]
         handler(t)
+
+    def dwell_end(self) -> float | None:
+        """While screwing at the hole: the least task time t with
+        ``t - dwell_since >= screw_time`` (advance()'s test; the dwell's end is a timer)."""
+        if self.phase != Phase.SCREWING or self.dwell_since is None:
+            return None
+        return self.dwell_since + self.cfg.screw_time_or_default - DWELL_EPS
+
+    def dwell_over(self, t: float) -> bool:
+        """advance()'s test of the dwell at task time ``t``."""
+        assert self.dwell_since is not None
+        return t - self.dwell_since >= self.cfg.screw_time_or_default - DWELL_EPS
 
     def _returning(self) -> Motion:
         yaw_deg = self.goal.yaw_deg if self.goal is not None else 0.0

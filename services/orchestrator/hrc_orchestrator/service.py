@@ -182,6 +182,9 @@ class OrchestratorService(Service):
         out = self.task.step(k, t, inputs)
         self._publish(out, k, t)
 
+    def next_event_tick(self) -> int:
+        return self.task.next_event_tick()
+
     def _publish(self, out: Outputs, k: int, t: float) -> None:
         # Events first: what happened this tick, then what is done about it.
         for event in out.events:

@@ -12,6 +12,7 @@ sorted, never in hash order.
 from __future__ import annotations
 
 import datetime as dt
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
@@ -172,6 +173,24 @@ class Task:
         if not self.finished and self.watchdog.check(sim_time, out):
             self._stall(out)
         return out
+
+    def next_event_tick(self) -> int:
+        """The first tick after the last one stepped at which a timer of the task runs out
+        (a screw's dwell: the robot then returns), holding the inputs; 0: none
+        (TickAck.next_event_tick)."""
+        if not self.running:
+            return 0
+        best = 0
+        for agent in self.agents.values():
+            end = agent.dwell_end()
+            if end is None:
+                continue
+            # the tick whose task time first passes advance()'s test, as step() computes it
+            k = max(self.tick + 1, math.floor((end + self.start_sim_time) / self.dt) - 1)
+            while not agent.dwell_over(k * self.dt - self.start_sim_time):
+                k += 1
+            best = k if best == 0 else min(best, k)
+        return best
 
     def _stall(self, out: Outputs) -> None:
         """Nothing progressed for the watchdog's timeout: say who waits on what, end."""

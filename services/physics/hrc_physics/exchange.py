@@ -2,37 +2,43 @@
 "Exchange step").
 
 Inside an exchange of n ticks every participant computes from the inputs it held at its start, so
-a contact that began inside it would be acted on only at its end. The hand-robot contact must be
-acted on within one thesis frame, so an exchange of n > 1 ticks is allowed only where no hand can
-touch an arm before it ends: the gap between each active hand and each arm is larger than what
-the two can close in n ticks at their speed bounds,
+a contact that began inside it would be acted on only at its end. What the participants know in
+advance they declare (TickAck.next_event_tick; hrc.bus.clock.DeclaredEvents caps the span); what
+nobody can announce is kept out of long exchanges here, from the gaps and speed bounds:
 
-    gap > n * dt * (hand_speed_bound + arm_speed_bound).
+- a hand-robot contact must be acted on within one thesis frame, so an exchange of n > 1 ticks is
+  allowed only where no hand can touch an arm before it ends: the gap between each active hand
+  and each arm is larger than what the two can close in n ticks at their speed bounds,
+  gap > n * dt * (hand_speed_bound + arm_speed_bound);
+- a robot-robot near-collision (the inflated volumes touch: gap <= the sum of the margins) must
+  begin and end where it would with one-tick exchanges: |gap - margins| > n * dt * (bound_a +
+  bound_b).
 
-A contact can then only begin in an exchange of one tick, exactly as without exchanges. The gap
-and the bounds are simulated quantities, so the step sizes are the same on every run.
+A contact can then only begin in an exchange of one tick or at an exchange boundary, exactly as
+without exchanges. The gap and the bounds are simulated quantities, so the step sizes are the
+same on every run.
 
 Speed bounds: an arm's from its URDF joint velocity limits (every point of it moves at most
 sum_j |qdot_j| * r_j, r_j the farthest any collider beyond joint j can be from it); the hand's
-is :data:`HAND_SPEED_BOUND` (the scenario's cap on a reach's peak speed).
+is what its source declares (HumanState.hand_speed_bound), else :data:`HAND_SPEED_BOUND`.
 """
 
 from __future__ import annotations
 
 import math
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import pybullet as p
 
+from hrc.geometry import Vec3
 from hrc.scenario.models import DEFAULT_MAX_EXCHANGE_TICKS
 
 from hrc_physics.hands import Hand
 from hrc_physics.robots import KinematicRobot
 
-# m/s: the scenario's upper limit of ``peak_hand_speed`` (hrc.scenario.models); a hand source
-# faster than this (a replay, VR) gets one-tick exchanges only if it says so
-# (`max_exchange_ticks = 1` in the scenario, or --max-span 1).
+# m/s: the scenario's upper limit of ``peak_hand_speed`` (hrc.scenario.models), assumed for a
+# hand source that declares no bound of its own (HumanState.hand_speed_bound = 0: live VR).
 HAND_SPEED_BOUND = 5.0
 
 
@@ -85,43 +91,94 @@ def arm_speed_bound(robot: KinematicRobot) -> float:
 
 @dataclass
 class SpanPlanner:
-    """Chooses each exchange's span from the world's hand-arm gaps."""
+    """Chooses each exchange's span from the world's gaps: hand-arm and arm-arm (their inflated
+    volumes)."""
 
     dt: float
     arm_bounds: dict[str, float]  # robot id -> m/s
     max_span: int = DEFAULT_MAX_EXCHANGE_TICKS
     hand_bound: float = HAND_SPEED_BOUND
+    # robot pairs whose inflated volumes touch at a gap <= the margin (near-collisions)
+    arm_pairs: list[tuple[str, str, float]] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         self.histogram: Counter[int] = Counter()  # exchanges planned, by span
 
-    def span(self, client: int, hands: list[Hand], robots: dict[str, KinematicRobot]) -> int:
-        n = self._span(client, hands, robots)
+    def span(
+        self,
+        client: int,
+        hands: list[Hand],
+        robots: dict[str, KinematicRobot],
+        limit: int | None = None,
+    ) -> int:
+        """The span of the next exchange: at most ``limit`` (the declared events' cap, default
+        ``max_span``) and what the gaps allow."""
+        n = min(self.max_span, self.max_span if limit is None else limit)
+        if n > 1:
+            boxes = {rid: r.aabb() for rid, r in robots.items()}
+            n = self._hands(client, hands, robots, boxes, n)
+            n = self._arms(client, robots, boxes, n)
+        n = max(1, n)
         self.histogram[n] += 1
         return n
 
-    def _span(self, client: int, hands: list[Hand], robots: dict[str, KinematicRobot]) -> int:
-        if self.max_span <= 1:
-            return 1
-        n = self.max_span
+    def _hands(
+        self,
+        client: int,
+        hands: list[Hand],
+        robots: dict[str, KinematicRobot],
+        boxes: dict[str, tuple[Vec3, Vec3]],
+        n: int,
+    ) -> int:
         for hand in hands:
+            if n <= 1:
+                return 1
             if not hand.active:
                 continue
             hand_box = p.getAABB(hand.body, -1, physicsClientId=client)
             for rid, robot in robots.items():
                 per_tick = self.dt * (self.hand_bound + self.arm_bounds[rid])
                 need = n * per_tick  # the gap a span of n needs
-                lo, hi = robot.aabb()
-                if _box_gap(hand_box, (lo, hi)) > need:
+                if _box_gap(hand_box, boxes[rid]) > need:
                     continue  # the boxes are farther apart than that: so are the bodies
-                gap = need
-                for pt in p.getClosestPoints(hand.body, robot.body, need, physicsClientId=client):
-                    gap = min(gap, pt[8])
-                # the largest n with n * per_tick < gap
-                n = max(1, min(n, math.ceil(gap / per_tick) - 1))
+                pts = p.getClosestPoints(hand.body, robot.body, need, physicsClientId=client)
+                if not pts:
+                    continue  # farther apart than need
+                n = _fit(n, min(pt[8] for pt in pts), per_tick)
                 if n == 1:
                     return 1
         return n
+
+    def _arms(
+        self,
+        client: int,
+        robots: dict[str, KinematicRobot],
+        boxes: dict[str, tuple[Vec3, Vec3]],
+        n: int,
+    ) -> int:
+        """Two arms' inflated volumes touch at a gap <= margin: a near-collision can only begin
+        (or end) where the gap can cross the margin within the exchange."""
+        for ra, rb, margin in self.arm_pairs:
+            if n <= 1:
+                return 1
+            per_tick = self.dt * (self.arm_bounds[ra] + self.arm_bounds[rb])
+            need = n * per_tick
+            if _box_gap(boxes[ra], boxes[rb]) > margin + need:
+                continue
+            pts = p.getClosestPoints(
+                robots[ra].body, robots[rb].body, margin + need, physicsClientId=client
+            )
+            if not pts:
+                continue  # farther apart than margin + need
+            n = _fit(n, abs(min(pt[8] for pt in pts) - margin), per_tick)
+        return n
+
+
+def _fit(n: int, gap: float, per_tick: float) -> int:
+    """The largest span <= n with span * per_tick < gap (at least 1)."""
+    if per_tick <= 0 or n * per_tick < gap:
+        return n
+    return max(1, min(n, math.ceil(gap / per_tick) - 1))
 
 
 def _box_gap(a: tuple, b: tuple) -> float:

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 import pybullet as p
 
 from hrc.geometry import IDENTITY, Quat, Vec3
+from hrc.scenario.conventions import HAND_SIZE
 
-HAND_SIZE: Vec3 = (0.09, 0.18, 0.03)
 PARKED: Vec3 = (0.0, 0.0, -10.0)  # where a hand waits before its first HumanState
 
 

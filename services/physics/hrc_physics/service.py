@@ -17,7 +17,7 @@ from hrc.services import OBSERVERS, PARTICIPANTS
 from hrc.validate import all_finite, check_pose
 from hrc.wire import pb
 
-from hrc_physics.exchange import SpanPlanner, arm_speed_bound
+from hrc_physics.exchange import HAND_SPEED_BOUND, SpanPlanner, arm_speed_bound
 from hrc_physics.robots import RobotModelError
 from hrc_physics.world import CommandRejected, World, WorldSettings
 
@@ -33,6 +33,9 @@ def _human_ok(msg: pb.HumanState) -> str | None:
         problem = check_pose(getattr(msg, name))
         if problem:
             return f"{name}: {problem}"
+    bound = msg.hand_speed_bound
+    if not (math.isfinite(bound) and bound >= 0.0):
+        return f"hand_speed_bound = {bound} is not a speed (finite, >= 0)"
     for name in ("left_grip", "right_grip"):
         v = getattr(msg, name)
         if not 0.0 <= v <= 1.0:  # also false for NaN
@@ -147,6 +150,10 @@ class PhysicsService(ClockMasterService):
             dt=1.0 / tick_hz,
             arm_bounds={rid: arm_speed_bound(r) for rid, r in self.world.robots.items()},
             max_span=args.max_span or typed.scenario.max_exchange_ticks,
+            arm_pairs=[
+                (a, b, self.world.robots[a].near_margin + self.world.robots[b].near_margin)
+                for a, b in self.world.robot_pairs
+            ],
         )
         keys = bus.keys
         self._commands_key = keys.world_commands()
@@ -196,6 +203,8 @@ class PhysicsService(ClockMasterService):
 
     def _on_human(self, _key: str, msg: pb.HumanState) -> None:
         self.world.set_human(msg)
+        # the source's own bound if it declares one (docs/ARCHITECTURE.md, "Exchange step")
+        self.planner.hand_bound = msg.hand_speed_bound or HAND_SPEED_BOUND
 
     def _on_world_commands(self, _key: str, msg: pb.WorldCommands) -> None:
         self.pending_commands.extend(msg.commands)
@@ -221,8 +230,13 @@ class PhysicsService(ClockMasterService):
         if contacts:
             self._contacts_pub.put(pb.WorldContacts(contacts=contacts), tick, sim_time)
 
-    def exchange_span(self, tick: int) -> int:
-        return self.planner.span(self.world.c, list(self.world.hands.values()), self.world.robots)
+    def max_exchange_ticks(self) -> int:
+        return self.planner.max_span
+
+    def exchange_span(self, tick: int, limit: int) -> int:
+        return self.planner.span(
+            self.world.c, list(self.world.hands.values()), self.world.robots, limit
+        )
 
     def publish_substep(self, tick: int, sim_time: float) -> None:
         """Inside an exchange: the object events and contacts of ``tick``, stamped with it (the

@@ -73,6 +73,9 @@ class IkEngine {
   /// so a caller that keeps its RobotState does not allocate per tick.
   void fill_state(std::size_t index, v2::RobotState& out) const;
   const kin::MotionState& state(std::size_t index) const;
+  /// Ticks, at least, until arm `index`'s motion in progress ends; 0 if none
+  /// (kin::MotionGenerator::min_ticks_to_end).
+  uint64_t min_ticks_to_end(std::size_t index) const;
   /// Puts arm `index` at joints `q` at rest (the motion check starts moves from recorded poses).
   void reset(std::size_t index, const Eigen::VectorXd& q);
   const kin::RobotModel& model(std::size_t index) const;
@@ -143,6 +146,9 @@ class IkService {
   /// has arrived. Runs until keep_going() is false or run/end arrives. Declares alive/<name>.
   /// Returns the number of steps.
   uint64_t run_standalone(double hz, const std::function<bool()>& keep_going);
+  /// After the last step: the first tick at which an arm may end its motion (REACHED), from the
+  /// motion in progress; 0 if no arm moves (TickAck.next_event_tick).
+  uint64_t next_event_tick() const;
 
   /// Rejects commands whose robot field disagrees with the key (the content is the engine's to
   /// check, in IkEngine::apply).
@@ -174,6 +180,7 @@ class IkService {
   uint64_t commands_received_ = 0;
   uint64_t commands_rejected_ = 0;
   bool dt_warned_ = false;
+  uint64_t last_tick_ = 0;   // the last tick stepped
   double command_us_ = 0.0;  // time spent applying the commands delivered for the coming step
   TickTimes compute_times_;
   TickTimes step_times_;

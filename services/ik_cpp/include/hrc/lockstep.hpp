@@ -66,6 +66,11 @@ class LockstepParticipant {
   /// The step of each tick; it publishes the tick's outputs through the Bus.
   void on_tick(Step step) { step_ = std::move(step); }
 
+  /// Asked after the steps of an exchange: the earliest tick at which the service, holding its
+  /// inputs, may make a change others react to; 0 if none is known (TickAck.next_event_tick,
+  /// docs/ARCHITECTURE.md "Exchange step").
+  void on_next_event(std::function<uint64_t()> next_event) { next_event_ = std::move(next_event); }
+
   /// Subscribes to clock and run/end, watches liveliness, serves stats, then declares
   /// alive/<name>: call after every input and subscription of the service exists.
   void start();
@@ -95,6 +100,7 @@ class LockstepParticipant {
   LockstepOptions options_;
   Inbox inbox_;
   Step step_;
+  std::function<uint64_t()> next_event_;
   TypedPublisher* ack_pub_ = nullptr;
   TypedPublisher* control_pub_ = nullptr;
 

@@ -644,6 +644,19 @@ void MotionGenerator::set_speed_scale(double scale) {
   scale_target_ = std::isfinite(scale) ? std::clamp(scale, 0.0, 1.0) : 0.0;
 }
 
+uint64_t MotionGenerator::min_ticks_to_end() const {
+  // A tick margin against rounding: the bound must not exceed the true count.
+  constexpr double kMargin = 1e-6;
+  uint64_t ticks = 0;
+  double t = seg_t_;
+  for (const Segment& seg : segments_) {
+    const double left = std::max(0.0, seg.profile.duration() - t) / dt_ - kMargin;
+    ticks += std::max<uint64_t>(1, static_cast<uint64_t>(std::max(0.0, std::ceil(left))));
+    t = 0.0;
+  }
+  return ticks;
+}
+
 const MotionState& MotionGenerator::step() {
   // The applied scale moves towards the requested one by at most a dt / v_max per tick: the
   // change of speed it causes, v_nominal x d(scale)/dt, then stays below the acceleration limit.

@@ -367,3 +367,39 @@ TEST(Motion, ViaPointsWhenLineAndJointMoveAreBlocked) {
   EXPECT_LT((g.state().tcp.translation() - b).norm(), 0.005);
   EXPECT_GE(max_z, lim.via_height - 1e-6);
 }
+
+// The exchange step's declared event: min_ticks_to_end() never exceeds the ticks the motion
+// in progress still takes, and is exact on a move no joint limit slows (docs/ARCHITECTURE.md).
+TEST(Motion, MinTicksToEndBoundsTheMotionsEnd) {
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
+  MotionLimits lim;
+  lim.max_tcp_speed = 0.5;
+  for (const bool joint_move : {false, true}) {
+    MotionGenerator g(m, base_r1(), 1.0 / 240.0, lim);
+    // a line over the base becomes a joint move (see LineOverTheBaseBecomesAFeasibleJointMove)
+    const Eigen::Vector3d start =
+        joint_move ? Eigen::Vector3d(0.25, 0.55, 0.15) : Eigen::Vector3d(0.35, 0.30, 0.35);
+    ASSERT_TRUE(g.reset_to_pose(start, 0.0));
+    EXPECT_EQ(g.min_ticks_to_end(), 0u);  // at rest
+    MoveCommand c = joint_move ? move_to(0.65, 0.55, 0.15, 30) : move_to(-0.05, 0.10, 0.05, 90);
+    if (!joint_move) c.approach_height = 0.05;
+    ASSERT_EQ(g.move(c), MotionStatus::Moving) << g.state().detail;
+    std::vector<uint64_t> bounds;
+    int ticks = 0;
+    while (g.state().status == MotionStatus::Moving && ticks < 240 * 20) {
+      bounds.push_back(g.min_ticks_to_end());
+      g.step();
+      ++ticks;
+    }
+    ASSERT_EQ(g.state().status, MotionStatus::Reached) << g.state().detail;
+    EXPECT_EQ(g.min_ticks_to_end(), 0u);
+    int exact = 0;
+    for (std::size_t i = 0; i < bounds.size(); ++i) {
+      const auto left = static_cast<uint64_t>(ticks) - i;  // steps until Reached, this one too
+      EXPECT_LE(bounds[i], left) << "tick " << i;
+      EXPECT_GE(bounds[i], 1u);
+      if (bounds[i] == left) ++exact;
+    }
+    if (!joint_move) EXPECT_EQ(exact, ticks) << "a straight move is bounded exactly";
+  }
+}

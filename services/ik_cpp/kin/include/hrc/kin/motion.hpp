@@ -89,6 +89,11 @@ class MotionGenerator {
   double requested_speed_scale() const { return scale_target_; }
   // Advance one tick.
   const MotionState& step();
+  // Ticks, at least, until the motion in progress ends (its status leaves Moving: reached,
+  // holding): the path parameter advances at most dt per tick (time scale and speed scale are
+  // <= 1) and each segment takes at least one tick. 0 if no motion is in progress. Failures
+  // during the move (a waypoint unreachable) may come earlier.
+  uint64_t min_ticks_to_end() const;
 
   const MotionState& state() const { return state_; }
   double dt() const { return dt_; }
