@@ -139,6 +139,36 @@ class ScriptedParticipant:
         its turn (Hand._start); a cancel stops the hand where it is."""
         return 2.0 * self.motor.peak_hand_speed
 
+    def next_timer_s(self, view: TaskView) -> float | None:
+        """The earliest time one of its own timers may make it decide from what it perceives
+        (a reaction time running out, a provoke time, a wait's limit): physics then starts an
+        exchange there, so the decision reads the inputs it would read with one-tick exchanges.
+        A lower bound; None if no timer runs."""
+        ph, times = self.phase, []
+        if ph in (Phase.REACT, Phase.HOLD) and self.go_t is not None:
+            times.append(self.go_t)
+        if self.hold_first is not None and not self.hold_expired:
+            times.append(self.hold_first + self.max_hold)
+        if self.provoke_times and view.task_start is not None:
+            times.append(view.task_start + self.provoke_times[0])
+        if ph == Phase.PROVOKE:
+            times.append(self.phase_since + PROVOKE_GIVE_UP_S)
+        if ph == Phase.RELEASE_CHECK and self.released_at is not None:
+            times += [self.released_at + RELEASE_MIN_S, self.released_at + RELEASE_RETRY_S]
+        if ph == Phase.REACH:
+            segs = self.hand.segments
+            times.append((segs[-1].t_end if segs else self.phase_since) + GRASP_TIMEOUT_S)
+        if ph in (Phase.IDLE, Phase.DONE):
+            times.append(self.phase_since + 1.0)  # hands down after a second of nothing
+        if self.in_collision:
+            times += [self.collision_since + 1.0, self.collision_since + COLLISION_FALLBACK_S]
+        if self.touch_since is not None:
+            times.append(self.touch_since + TOUCH_MAX_S)
+        if self.last_press is not None:
+            times.append(self.last_press + BUTTON_REPEAT_S)
+        later = [x for x in times if x > self.t]
+        return min(later) if later else None
+
     @property
     def hand(self) -> Hand:
         return self.hands[self.active]

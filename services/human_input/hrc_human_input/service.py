@@ -264,12 +264,18 @@ class HumanInputService(Service):
         self._last_k, self._last_t = k, t
 
     def next_event_tick(self) -> int:
-        """The first tick whose grip may cross GRIP_CLOSED (a grab or a release begins)."""
+        """The first tick whose grip may cross GRIP_CLOSED (a grab or a release begins), or the
+        tick before one of the source's timers may make it decide."""
+        ticks = []
+        # the 1e-6 tick margin keeps them lower bounds against rounding
         at = self.source.next_event_s(self._last_t)
-        if at is None:
-            return 0
-        # the 1e-6 tick margin keeps it a lower bound against rounding
-        return max(self._last_k + 1, math.ceil(at / self.dt - 1e-6))
+        if at is not None:
+            ticks.append(math.ceil(at / self.dt - 1e-6))
+        decide = self.source.next_decision_s(self._last_t)
+        if decide is not None:
+            # the tick before: the decision's tick then starts an exchange
+            ticks.append(math.ceil(decide / self.dt - 1e-6) - 1)
+        return max(self._last_k + 1, min(ticks)) if ticks else 0
 
     def finish(self, outcome: Outcome) -> int | None:
         if isinstance(self.source, VrSource):

@@ -46,6 +46,10 @@ class Source(Protocol):
         """After the sample of time ``t``: a time before which no grip crosses GRIP_CLOSED
         (no grab or release can begin) as far as the source knows; None if it knows of none."""
 
+    def next_decision_s(self, t: float) -> float | None:
+        """After the sample of time ``t``: the earliest time a timer of the source may make it
+        decide from its inputs (they must then be those of one-tick exchanges); None: none."""
+
     def hand_speed_bound(self) -> float:
         """m/s no point of a hand exceeds (HumanState.hand_speed_bound); 0: unknown."""
 
@@ -82,6 +86,9 @@ class ScriptedSource:
         ]
         return min(times) if times else None
 
+    def next_decision_s(self, t: float) -> float | None:
+        return self.participant.next_timer_s(self.view)
+
     def hand_speed_bound(self) -> float:
         return self.participant.hand_speed_bound()
 
@@ -114,6 +121,9 @@ class ReplaySource:
     def next_event_s(self, t: float) -> float | None:
         return None  # a recording's grips are not announced ahead (TODO if replays matter)
 
+    def next_decision_s(self, t: float) -> float | None:
+        return None
+
     def hand_speed_bound(self) -> float:
         return self.replayer.hand_speed_bound()
 
@@ -144,6 +154,9 @@ class VrSource:
 
     def next_event_s(self, t: float) -> float | None:
         return None  # a live person: realtime, every exchange one tick
+
+    def next_decision_s(self, t: float) -> float | None:
+        return None
 
     def hand_speed_bound(self) -> float:
         return 0.0  # unknown
