@@ -130,6 +130,19 @@ class Replayer:
     def duration(self) -> float:
         return self._times[-1]
 
+    def grip_crossing_after(self, t: float, threshold: float) -> float | None:
+        """The first time after ``t`` a grip crosses ``threshold`` as played (grips are
+        interpolated linearly between samples); None if none does."""
+        i = max(0, bisect.bisect_right(self._times, t) - 1)
+        for a, b in itertools.pairwise(self.samples[i:]):
+            for ga, gb in ((a.left_grip, b.left_grip), (a.right_grip, b.right_grip)):
+                if (ga < threshold) != (gb < threshold):
+                    u = (threshold - ga) / (gb - ga)
+                    at = a.t + u * (b.t - a.t)
+                    if at > t:
+                        return at
+        return None
+
     def hand_speed_bound(self) -> float:
         """m/s no point of a hand exceeds in this recording: between two samples a hand moves
         and turns at a constant rate (interpolate), a point at most |v| + w * HAND_RADIUS_M."""

@@ -119,7 +119,7 @@ class ReplaySource:
         pass  # a recording perceives nothing
 
     def next_event_s(self, t: float) -> float | None:
-        return None  # a recording's grips are not announced ahead (TODO if replays matter)
+        return self.replayer.grip_crossing_after(t, GRIP_CLOSED)
 
     def next_decision_s(self, t: float) -> float | None:
         return None

@@ -134,6 +134,9 @@ class RobotAgent:
         self.state: pb.RobotState | None = None
         self._unreachable_reported = 0
         self.speed = SpeedStats()
+        self._seen: list[tuple[int, float]] = []  # (tick, TCP speed) of states not yet sampled
+        self._due: list[tuple[int, bool]] = []  # (tick, until_done) of samples not yet taken
+        self._last_speed: float | None = None  # of the latest state sampled
 
     # ------------------------------------------------------------------ observations
     @property
@@ -150,12 +153,28 @@ class RobotAgent:
 
     def observe(self, state: pb.RobotState) -> None:
         self.state = state
+        self._seen.append((state.header.tick, state.tcp_speed))
 
-    def sample_speed(self) -> None:
-        """One sample per tick of the latest state (states come on change: an unchanged arm
-        sends none, and its last state still holds)."""
-        if self.state is not None and not self.finished:
-            self.speed.sample(self.state.tcp_speed, until_done=self.completion_s is None)
+    def sample_speed(self, tick: int, sampling: bool, first: bool) -> None:
+        """One sample per tick t (while ``sampling``) of the latest state stamped before t
+        (states come on change: an unchanged arm sends none, and its last state still holds).
+        Inside an exchange the states of its ticks come only at its end (``first``: the tick
+        opens one): its samples wait until then, so the figures are those of one-tick
+        exchanges."""
+        if sampling and not self.finished:
+            self._due.append((tick, self.completion_s is None))
+        if not first:
+            return
+        seen, j = self._seen, 0
+        for t, until_done in self._due:
+            while j < len(seen) and seen[j][0] < t:
+                self._last_speed = seen[j][1]
+                j += 1
+            if self._last_speed is not None:
+                self.speed.sample(self._last_speed, until_done=until_done)
+        for _tick, speed in seen[j:]:
+            self._last_speed = speed
+        self._seen, self._due = [], []
 
     def reached(self, motion: Motion | None) -> bool:
         """The arm reports REACHED for the command that sent exactly `motion`."""

@@ -179,7 +179,8 @@ class OrchestratorService(Service):
     def step(self, tick: pb.ClockTick) -> None:
         k, t = tick.header.tick, tick.header.sim_time
         inputs, self._pending = self._pending, TaskInputs()
-        out = self.task.step(k, t, inputs)
+        # a clock tick opens an exchange; the exchange's further ticks list no participants
+        out = self.task.step(k, t, inputs, first=bool(tick.participants))
         self._publish(out, k, t)
 
     def next_event_tick(self) -> int:

@@ -122,7 +122,9 @@ class Task:
         return self.sim_time - self.start_sim_time if self.started else 0.0
 
     # ------------------------------------------------------------------ the tick
-    def step(self, tick: int, sim_time: float, inputs: Inputs) -> Outputs:
+    def step(self, tick: int, sim_time: float, inputs: Inputs, first: bool = True) -> Outputs:
+        """``first``: the tick opens an exchange (the inputs of the ticks before it are all
+        here; inside an exchange those of its earlier ticks come at its end)."""
         self.tick, self.sim_time = tick, sim_time
         out = Outputs()
         if self.finished or self.watchdog.message:
@@ -132,9 +134,8 @@ class Task:
             agent = self.agents.get(state.robot)
             if agent is not None:
                 agent.observe(state)
-        if sampling:
-            for agent in self.agents.values():
-                agent.sample_speed()
+        for agent in self.agents.values():
+            agent.sample_speed(tick, sampling, first)
         if inputs.human is not None:
             self.human_state = inputs.human
         if not self.started and not self.human.sequence:
