@@ -7,12 +7,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import pytest
 
-from hrc.geometry import distance, rotate_z_rad
+from hrc.geometry import Pose, distance, rotate_z_rad, yaw_quat_rad
 from hrc.scenario.conventions import GRIP_CLOSED, HAND_RADIUS_M
 
 from hrc_human_input.hand import Dwell, Grip, Hand, Move
 from hrc_human_input.motor import MotorParams
+from hrc_human_input.replay import Recording, Replayer
+from hrc_human_input.sample import Sample
 
 HZ = 240.0
 DT = 1.0 / HZ
@@ -88,3 +91,21 @@ def test_no_point_of_the_hand_moves_faster_than_twice_the_peak_speed() -> None:
         hand = Hand("left", (0.0, 0.0, 0.1), 0.0, motor, np.random.default_rng(seed))
         hand.do(Move((0.1, 0.05, 0.1), math.pi, 0.02), Move((0.5, 0.0, 0.1), 0.0, 0.2))
         assert _fastest_corner(hand, 1200) <= 2.0 * motor.peak_hand_speed
+
+
+def test_a_replay_declares_its_grip_crossings_and_its_fastest_hand() -> None:
+    def sample(t: float, x: float, yaw: float, grip: float) -> Sample:
+        return Sample(t, Pose(), Pose((x, 0.0, 0.1), yaw_quat_rad(yaw)), Pose(), grip, 0.0)
+
+    samples = [
+        sample(0.0, 0.0, 0.0, 0.0),
+        sample(0.5, 0.2, 0.0, 0.0),  # 0.4 m/s
+        sample(1.0, 0.2, math.pi / 2, 1.0),  # a quarter turn in 0.5 s, the grip closes
+        sample(2.0, 0.2, math.pi / 2, 0.0),  # opens
+    ]
+    player = Replayer(Recording(header={}, samples=samples))
+    assert player.grip_crossing_after(0.0, GRIP_CLOSED) == pytest.approx(0.75)
+    assert player.grip_crossing_after(0.75, GRIP_CLOSED) == pytest.approx(1.5)
+    assert player.grip_crossing_after(1.5, GRIP_CLOSED) is None
+    turn = (math.pi / 2) * HAND_RADIUS_M / 0.5
+    assert player.hand_speed_bound() == pytest.approx(max(0.4, turn))
