@@ -34,7 +34,7 @@ def _human_ok(msg: pb.HumanState) -> str | None:
         if problem:
             return f"{name}: {problem}"
     bound = msg.hand_speed_bound
-    if not (math.isfinite(bound) and bound >= 0.0):
+    if not 0.0 <= bound < float("inf"):  # also false for NaN
         return f"hand_speed_bound = {bound} is not a speed (finite, >= 0)"
     for name in ("left_grip", "right_grip"):
         v = getattr(msg, name)
