@@ -169,7 +169,8 @@ class VrSource:
         inputs.input(keys.task_events(), pb.TaskEvent, lambda _k, msg: m.on_task_event(msg))
 
     def published(self, tick: int, t: float, sample: Sample) -> None:
-        self.bridge.publish(*self.mirror.snapshot(tick, t, sample))
+        if self.mirror.world_seen:  # until then the frame would show an empty world
+            self.bridge.publish(*self.mirror.snapshot(tick, t, sample))
 
     def ended(self, ok: bool, reason: str) -> None:
         m = self.mirror

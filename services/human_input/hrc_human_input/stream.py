@@ -105,9 +105,13 @@ class WorldMirror:
     version: int = 0
     last_tick: int = 0
     last_t: float = 0.0
+    # physics's first world/objects (tick 0: every object) has arrived; in realtime a step may
+    # come before it, and a client's first frame must hold the whole world
+    world_seen: bool = False
 
     # ------------------------------------------------------------------ bus handlers
     def on_objects(self, msg: pb.WorldObjects) -> None:
+        self.world_seen = True
         for o in msg.objects:
             p, q = o.pose.position, o.pose.orientation
             self.objects[o.id] = (

@@ -269,3 +269,27 @@ def test_port_in_use_is_a_clear_error() -> None:
         pytest.raises(BridgeConfigError, match="cannot serve"),
     ):
         VrBridge("127.0.0.1", first.bound_port).start()
+
+
+def test_no_frame_goes_out_before_the_world_has_arrived() -> None:
+    # In realtime a tick may be stepped before physics's world/objects of tick 0 arrived: a client
+    # must not get a first frame with an empty world.
+    from hrc_human_input.sources import VrSource
+
+    mirror = WorldMirror({}, {})
+    with (
+        VrBridge("127.0.0.1", 0) as bridge,
+        connect(f"ws://127.0.0.1:{bridge.bound_port}/ws") as ws,
+    ):
+        json.loads(ws.recv(timeout=5))  # hello
+        source = VrSource(bridge, mirror)
+        sample = source.sample(0.0)
+        source.published(0, 0.0, sample)
+        with pytest.raises(TimeoutError):
+            ws.recv(timeout=0.5)
+        part = pb.ObjectState(id="H1", grabbable=True)
+        part.pose.orientation.w = 1.0
+        mirror.on_objects(pb.WorldObjects(objects=[part], full=True))
+        source.published(1, 1 / 240, sample)
+        first = json.loads(ws.recv(timeout=5))
+        assert first["type"] == "frame" and set(first["objects"]) == {"H1"}
