@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from hrc import services
+from hrc import priority, services
 from hrc.cli import runner
 from hrc.cli.runner import TrialOptions, fits_lowlatency, local_socket, service_argv
 from hrc.paths import project_root
@@ -83,11 +83,11 @@ def test_a_service_under_sched_idle_is_back_to_normal_priority_before_it_is_stop
             tids = [int(t) for t in os.listdir(f"/proc/{child.pid}/task")]
             assert len(tids) >= 2
             assert all(os.sched_getscheduler(t) == os.SCHED_IDLE for t in tids)
-            runner.leave_idle_priority(child.pid)
+            priority.leave_idle(child.pid)
             assert all(os.sched_getscheduler(t) == os.SCHED_OTHER for t in tids)
         finally:
             child.kill()
-    runner.leave_idle_priority(child.pid)  # gone: nothing to do, no error
+    priority.leave_idle(child.pid)  # gone: nothing to do, no error
 
 
 def test_a_service_gets_the_signal_mask_hrc_run_had_not_the_held_stop_signals(tmp_path) -> None:

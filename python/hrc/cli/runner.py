@@ -7,7 +7,6 @@ own log goes to ``<trial>/services/<name>.log``.
 
 from __future__ import annotations
 
-import contextlib
 import datetime as dt
 import functools
 import json
@@ -27,7 +26,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
-from hrc import services
+from hrc import priority, services
 from hrc.bus import Bus, BusConfig
 from hrc.paths import build_dir
 from hrc.scenario.resolved import Resolved, slug
@@ -146,21 +145,6 @@ def _service_preexec(mask: Iterable[int]) -> None:
     SIGKILL), and it gets the signal mask hrc run had before it held the stop signals."""
     die_with_parent()
     signal.pthread_sigmask(signal.SIG_SETMASK, mask)
-
-
-def leave_idle_priority(pid: int) -> None:
-    """A service under SCHED_IDLE (the logger) gets no CPU while anything else wants it, not even
-    to act on a stop: every thread of it goes back to the normal policy first."""
-    if not hasattr(os, "sched_setscheduler"):
-        return
-    try:
-        tids = [int(t) for t in os.listdir(f"/proc/{pid}/task")]
-    except OSError:
-        return
-    for tid in tids:
-        with contextlib.suppress(OSError):
-            if os.sched_getscheduler(tid) == os.SCHED_IDLE:
-                os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
 
 
 def stop_on_signals() -> None:
@@ -342,7 +326,7 @@ class ServiceGroup:
     def stop_all(self, grace_s: float = 2.0) -> None:
         for p in self.procs.values():
             if p.poll() is None:
-                leave_idle_priority(p.pid)
+                priority.leave_idle(p.pid)  # the logger: else it may get no CPU to stop
                 p.send_signal(signal.SIGTERM)
         deadline = time.monotonic() + grace_s
         while any(r is None for r in self.poll().values()) and time.monotonic() < deadline:

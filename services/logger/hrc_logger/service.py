@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 
 from hrc.bus import Bus, Observer, Outcome
 from hrc.bus.bus import M
+from hrc.priority import leave_idle, thread_ids
 from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit
 from hrc.wire import pb
 
@@ -69,20 +70,10 @@ def stats_dict(
     }
 
 
-def thread_ids(exclude: set[int]) -> list[int]:
-    """This process's threads (Linux: /proc/self/task) but ``exclude``; [0] (the calling
-    thread) where that is not known. Scheduling policy and niceness are per thread on Linux."""
-    try:
-        tids = [int(t) for t in os.listdir("/proc/self/task")]
-    except (OSError, ValueError):
-        return [0]
-    return [t for t in tids if t not in exclude]
-
-
 def lower_priority(sched: str, nice: int, exclude: set[int]) -> bool:
     """Lowers every thread but ``exclude`` (zenoh's included) as ``--sched`` says; True if
     they are now SCHED_IDLE."""
-    tids = thread_ids(exclude)
+    tids = thread_ids(None, exclude)
     if sched == "idle" and hasattr(os, "SCHED_IDLE"):
         try:
             for tid in tids:
@@ -98,18 +89,6 @@ def lower_priority(sched: str, nice: int, exclude: set[int]) -> bool:
                 prio = os.getpriority(os.PRIO_PROCESS, tid)
                 os.setpriority(os.PRIO_PROCESS, tid, min(19, prio + nice))
     return False
-
-
-def restore_priority() -> None:
-    """Every thread back to the normal policy (from SCHED_IDLE)."""
-    for tid in thread_ids(set()):
-        try:
-            os.sched_setscheduler(tid, os.SCHED_OTHER, os.sched_param(0))
-        except ProcessLookupError:
-            pass
-        except OSError as exc:
-            log.debug("could not leave SCHED_IDLE after the run: %s", exc)
-            return
 
 
 class LoggerService(Service):
@@ -251,7 +230,7 @@ class LoggerService(Service):
                 )
         elif self._lowered and ended:
             self._lowered = False
-            restore_priority()
+            leave_idle()
 
     def _view_up(self) -> None:
         """Waits (once) until the view is set up or has failed; a run that was stopped waits

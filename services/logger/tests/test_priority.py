@@ -13,7 +13,8 @@ import pytest
 # In a child process: the policy must not leak into the test runner.
 CHILD = """
 import json, os, threading
-from hrc_logger.service import lower_priority, restore_priority
+from hrc.priority import leave_idle
+from hrc_logger.service import lower_priority
 stop = threading.Event()
 other = threading.Thread(target=stop.wait); other.start()
 spared = threading.Thread(target=stop.wait); spared.start()
@@ -23,7 +24,7 @@ def policies():
 before = policies()
 lowered = lower_priority("idle", 10, {spared.native_id})
 during = policies()
-restore_priority()
+leave_idle()
 after = policies()
 stop.set()
 print(json.dumps({"lowered": lowered, "before": before, "during": during, "after": after}))
