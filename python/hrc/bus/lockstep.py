@@ -65,6 +65,12 @@ def describe_marks(marks: list[pb.PublishedMark]) -> str:
     return ", ".join(f"{m.key}#{m.seq} from {m.sender}" for m in marks)
 
 
+def opens_exchange(tick: pb.ClockTick) -> bool:
+    """The clock master's tick, which opens an exchange (it lists the participants), not one of
+    the further ticks :func:`exchange_ticks` makes."""
+    return bool(tick.participants)
+
+
 def exchange_ticks(tick: pb.ClockTick) -> list[pb.ClockTick]:
     """The ticks of the exchange a clock tick opens: itself, then (span > 1) one ClockTick
     per further tick, with header.tick and sim_time of that tick (``mode`` and ``dt`` kept)."""
@@ -73,7 +79,7 @@ def exchange_ticks(tick: pb.ClockTick) -> list[pb.ClockTick]:
     k, dt = tick.header.tick, tick.dt
     out = [tick]
     for i in range(1, tick.span):
-        sub = pb.ClockTick(mode=tick.mode, dt=dt)
+        sub = pb.ClockTick(mode=tick.mode, dt=dt)  # no participants: see opens_exchange
         sub.header.session = tick.header.session
         sub.header.sender = tick.header.sender
         sub.header.tick = k + i

@@ -17,6 +17,7 @@ from google.protobuf.message import Message
 from hrc import scenario as scenario_mod
 from hrc.bus import Bus, Outcome
 from hrc.bus.bus import Validator
+from hrc.bus.lockstep import opens_exchange
 from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit
 from hrc.validate import check_pose
 from hrc.wire import pb
@@ -179,8 +180,7 @@ class OrchestratorService(Service):
     def step(self, tick: pb.ClockTick) -> None:
         k, t = tick.header.tick, tick.header.sim_time
         inputs, self._pending = self._pending, TaskInputs()
-        # a clock tick opens an exchange; the exchange's further ticks list no participants
-        out = self.task.step(k, t, inputs, first=bool(tick.participants))
+        out = self.task.step(k, t, inputs, first=opens_exchange(tick))
         self._publish(out, k, t)
 
     def next_event_tick(self) -> int:
