@@ -151,6 +151,9 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
     if (!(c.speed_scale() >= 0.0 && c.speed_scale() <= 1.0))  // also false for NaN
       return "speed_scale " + fmt(c.speed_scale()) + " is outside [0, 1]";
     arm.motion->set_speed_scale(c.speed_scale());
+    // The lookahead assumed scale 1: it holds again only from the next move at scale 1.
+    if (arm.motion->requested_speed_scale() < 1.0 || arm.motion->speed_scale() < 1.0)
+      arm.speed_known = false;
     return {};
   }
   const double nums[] = {c.target().x(),      c.target().y(),    c.target().z(), c.yaw_deg(),
@@ -179,11 +182,37 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
              " is neither MOVE, HOLD nor SPEED_SCALE";
   }
   arm.command_id = c.command_id();
+  plan_speed_bound(arm);
   return {};
 }
 
+void IkEngine::plan_speed_bound(Arm& arm) const {
+  // Thirty simulated seconds: far longer than any move of a task, and a bounded cost per command.
+  const auto lookahead = static_cast<std::size_t>(std::ceil(30.0 / dt_));
+  bool complete = false;
+  arm.speed_suffix = arm.motion->joint_speed_fractions(lookahead, complete);
+  for (Eigen::Index i = arm.speed_suffix.rows() - 1; i > 0; --i)
+    arm.speed_suffix.row(i - 1) = arm.speed_suffix.row(i - 1).cwiseMax(arm.speed_suffix.row(i));
+  arm.steps_taken = 0;
+  arm.speed_known =
+      complete && arm.motion->speed_scale() == 1.0 && arm.motion->requested_speed_scale() == 1.0;
+}
+
 void IkEngine::step() {
-  for (Arm& arm : arms_) arm.motion->step();
+  for (Arm& arm : arms_) {
+    arm.motion->step();
+    ++arm.steps_taken;
+  }
+}
+
+std::optional<Eigen::VectorXd> IkEngine::joint_speed_fraction_bounds(std::size_t index) const {
+  const Arm& arm = arms_.at(index);
+  if (!arm.speed_known) return std::nullopt;
+  // The next step is row steps_taken of the table; past its end nothing moves.
+  const auto next = static_cast<Eigen::Index>(arm.steps_taken);
+  if (next < arm.speed_suffix.rows())
+    return Eigen::VectorXd(arm.speed_suffix.row(next).transpose());
+  return Eigen::VectorXd::Zero(arm.model->dof());
 }
 
 const kin::MotionState& IkEngine::state(std::size_t index) const {
@@ -193,7 +222,10 @@ uint64_t IkEngine::min_ticks_to_end(std::size_t index) const {
   return arms_.at(index).motion->min_ticks_to_end();
 }
 void IkEngine::reset(std::size_t index, const Eigen::VectorXd& q) {
-  arms_.at(index).motion->reset(q);
+  Arm& arm = arms_.at(index);
+  arm.motion->reset(q);
+  arm.speed_suffix.resize(0, arm.model->dof());  // at rest
+  arm.speed_known = true;
 }
 const kin::RobotModel& IkEngine::model(std::size_t index) const { return *arms_.at(index).model; }
 uint64_t IkEngine::command_id(std::size_t index) const { return arms_.at(index).command_id; }
@@ -226,6 +258,13 @@ void IkEngine::fill_state(std::size_t index, v2::RobotState& out) const {
   out.set_motion_kind(to_wire(s.kind));
   out.set_command_id(arm.command_id);
   if (out.detail() != s.detail) out.set_detail(s.detail);
+  auto* bounds = out.mutable_joint_speed_fraction_bounds();
+  if (const std::optional<Eigen::VectorXd> f = joint_speed_fraction_bounds(index)) {
+    if (bounds->size() != n) bounds->Resize(n, 0.0);
+    for (int i = 0; i < n; ++i) bounds->Set(i, (*f)[i]);
+  } else {
+    bounds->Clear();
+  }
   // Unset at scale 1: the policies without speed scaling publish the same bytes as before.
   const double scale = arm.motion->speed_scale();
   if (scale < 1.0) {

@@ -525,3 +525,41 @@ TEST_F(Engine, StateReportsTheMotionKind) {
   engine_.fill_state(0, st);
   EXPECT_EQ(st.motion_kind(), hrc::v2::MOTION_KIND_LINEAR);
 }
+
+TEST_F(Engine, StatesDeclareJointSpeedBoundsThatTheArmKeeps) {
+  RobotState st;
+  engine_.fill_state(0, st);
+  ASSERT_EQ(st.joint_speed_fraction_bounds_size(), st.joint_names_size());  // known at rest
+  for (const double f : st.joint_speed_fraction_bounds()) EXPECT_EQ(f, 0.0);
+  ASSERT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 3)), "");
+  const hrc::kin::RobotModel& m = engine_.model(0);
+  // Every later tick of the move stays within every earlier state's declaration.
+  std::vector<Eigen::VectorXd> declared;
+  double peak = 0.0;
+  for (int k = 0; k < 2000; ++k) {
+    engine_.fill_state(0, st);
+    ASSERT_EQ(st.joint_speed_fraction_bounds_size(), m.dof());
+    declared.emplace_back(Eigen::Map<const Eigen::VectorXd>(st.joint_speed_fraction_bounds().data(),
+                                                            st.joint_speed_fraction_bounds_size()));
+    const Eigen::VectorXd q0 = engine_.state(0).q;
+    engine_.step();
+    const Eigen::ArrayXd f =
+        (engine_.state(0).q - q0).array().abs() / (m.max_velocity().array() * kDt);
+    peak = std::max(peak, f.maxCoeff());
+    for (const Eigen::VectorXd& d : declared)
+      for (int j = 0; j < m.dof(); ++j) ASSERT_LE(f[j], d[j]) << "tick " << k << " joint " << j;
+    if (engine_.state(0).status != hrc::kin::MotionStatus::Moving) break;
+  }
+  EXPECT_GT(peak, 0.0);
+  engine_.fill_state(0, st);
+  for (const double f : st.joint_speed_fraction_bounds()) EXPECT_EQ(f, 0.0);  // at rest again
+  // Under a speed scale < 1 the lookahead does not hold: nothing is declared.
+  ASSERT_EQ(engine_.apply("r1", move(0.30, 0.25, 0.25, 4)), "");
+  RobotCommand scale;
+  scale.set_kind(RobotCommand::KIND_SPEED_SCALE);
+  scale.set_speed_scale(0.5);
+  ASSERT_EQ(engine_.apply("r1", scale), "");
+  engine_.step();
+  engine_.fill_state(0, st);
+  EXPECT_EQ(st.joint_speed_fraction_bounds_size(), 0);
+}

@@ -19,14 +19,19 @@ without exchanges. The gap and the bounds are simulated quantities, so the step 
 same on every run.
 
 Speed bounds: an arm's from its URDF joint velocity limits (every point of it moves at most
-sum_j |qdot_j| * r_j, r_j the farthest any collider beyond joint j can be from it); the hand's
-is what its source declares (HumanState.hand_speed_bound), else :data:`HAND_SPEED_BOUND`.
+sum_j |qdot_j| * r_j, r_j the farthest any collider beyond joint j can be from it), each joint's
+term scaled by what the arm's motion source declares for the coming ticks
+(RobotState.joint_speed_fraction_bounds: joint j no faster than f_j of its limit until a new
+command reaches the arm; all 0 at rest): sum_j f_j * v_j * r_j. An arm commanded in the
+exchange just ended, or without a declaration, counts with its full bound. The
+hand's is what its source declares (HumanState.hand_speed_bound), else :data:`HAND_SPEED_BOUND`.
 """
 
 from __future__ import annotations
 
 import math
 from collections import Counter
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import pybullet as p
@@ -50,8 +55,9 @@ def _aabb_radius(origin: tuple[float, ...], box: tuple[tuple[float, ...], ...]) 
     )
 
 
-def arm_speed_bound(robot: KinematicRobot) -> float:
-    """m/s no point of the arm's colliders exceeds, from the joint velocity limits.
+def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
+    """Per movable joint j, v_j * r_j in m/s: the speed it alone can give any point of the arm's
+    colliders (the arm's bound is their sum, at most sum_j |qdot_j| * r_j).
 
     Each link's reach from joint j is bounded by the chain of joint offsets from j to the link
     plus the link's own radius (link frame to its collider's AABB corners), so it holds in any
@@ -61,12 +67,14 @@ def arm_speed_bound(robot: KinematicRobot) -> float:
     n = p.getNumJoints(body, physicsClientId=c)
     parent: dict[int, int] = {}
     vmax: dict[int, float] = {}
+    names: dict[int, str] = {}
     origin: dict[int, tuple[float, ...]] = {-1: tuple(p.getBasePositionAndOrientation(body, c)[0])}
     for j in range(n):
         info = p.getJointInfo(body, j, physicsClientId=c)
         parent[j] = info[16]
         if info[2] != p.JOINT_FIXED:
             vmax[j] = info[11] if info[11] > 0 else 2 * math.pi
+            names[j] = info[1].decode()
         origin[j] = tuple(p.getLinkState(body, j, physicsClientId=c)[4])
     radius: dict[int, float] = {}
     for link in range(n):
@@ -74,7 +82,7 @@ def arm_speed_bound(robot: KinematicRobot) -> float:
         box = p.getAABB(body, link, physicsClientId=c)
         radius[link] = _aabb_radius(origin[link], box) if shapes else 0.0
     offset = {j: math.dist(origin[j], origin[parent[j]]) for j in range(n)}
-    bound = 0.0
+    terms: dict[str, float] = {}
     for j, v in vmax.items():
         reach = 0.0
         for link in range(n):
@@ -85,8 +93,8 @@ def arm_speed_bound(robot: KinematicRobot) -> float:
                 at = parent[at]
             if at == j:
                 reach = max(reach, length + radius[link])
-        bound += v * reach
-    return bound
+        terms[names[j]] = v * reach
+    return terms
 
 
 @dataclass
@@ -95,7 +103,7 @@ class SpanPlanner:
     volumes)."""
 
     dt: float
-    arm_bounds: dict[str, float]  # robot id -> m/s
+    arm_terms: dict[str, dict[str, float]]  # robot id -> joint -> m/s (arm_speed_terms)
     max_span: int = DEFAULT_MAX_EXCHANGE_TICKS
     hand_bound: float = HAND_SPEED_BOUND
     # robot pairs whose inflated volumes touch at a gap <= the margin (near-collisions)
@@ -103,6 +111,37 @@ class SpanPlanner:
 
     def __post_init__(self) -> None:
         self.histogram: Counter[int] = Counter()  # exchanges planned, by span
+        # robot id -> m/s: the full bound from the URDF, and the one its source's latest
+        # declaration gives (absent: not declared)
+        self.arm_bounds: dict[str, float] = {
+            rid: sum(t.values()) for rid, t in self.arm_terms.items()
+        }
+        self._declared: dict[str, float] = {}
+        self._commanded: set[str] = set()  # arms commanded since the last span was planned
+
+    def declare(self, robot: str, joints: Sequence[str], fractions: Sequence[float]) -> None:
+        """The robot's latest state declares these joint speed fractions for the coming ticks
+        (empty: none); a joint it does not name counts in full."""
+        terms = self.arm_terms.get(robot)
+        if terms is None:
+            return
+        if not fractions:
+            self._declared.pop(robot, None)
+            return
+        given = dict(zip(joints, fractions, strict=True))
+        self._declared[robot] = sum(term * given.get(j, 1.0) for j, term in terms.items())
+
+    def commanded(self, robot: str) -> None:
+        """A command for ``robot`` was sent: its source applies it at the next exchange's first
+        tick, so its declaration does not hold there."""
+        self._commanded.add(robot)
+
+    def bound(self, robot: str) -> float:
+        """m/s no point of the arm exceeds during the next exchange."""
+        declared = self._declared.get(robot)
+        if declared is None or robot in self._commanded:
+            return self.arm_bounds[robot]
+        return declared
 
     def span(
         self,
@@ -116,8 +155,10 @@ class SpanPlanner:
         n = min(self.max_span, self.max_span if limit is None else limit)
         if n > 1:
             boxes = {rid: r.aabb() for rid, r in robots.items()}
-            n = self._hands(client, hands, robots, boxes, n)
-            n = self._arms(client, robots, boxes, n)
+            bounds = {rid: self.bound(rid) for rid in robots}
+            n = self._hands(client, hands, robots, boxes, bounds, n)
+            n = self._arms(client, robots, boxes, bounds, n)
+        self._commanded.clear()
         n = max(1, n)
         self.histogram[n] += 1
         return n
@@ -128,6 +169,7 @@ class SpanPlanner:
         hands: list[Hand],
         robots: dict[str, KinematicRobot],
         boxes: dict[str, tuple[Vec3, Vec3]],
+        bounds: dict[str, float],
         n: int,
     ) -> int:
         for hand in hands:
@@ -137,7 +179,7 @@ class SpanPlanner:
                 continue
             hand_box = p.getAABB(hand.body, -1, physicsClientId=client)
             for rid, robot in robots.items():
-                per_tick = self.dt * (self.hand_bound + self.arm_bounds[rid])
+                per_tick = self.dt * (self.hand_bound + bounds[rid])
                 need = n * per_tick  # the gap a span of n needs
                 if _box_gap(hand_box, boxes[rid]) > need:
                     continue  # the boxes are farther apart than that: so are the bodies
@@ -154,6 +196,7 @@ class SpanPlanner:
         client: int,
         robots: dict[str, KinematicRobot],
         boxes: dict[str, tuple[Vec3, Vec3]],
+        bounds: dict[str, float],
         n: int,
     ) -> int:
         """Two arms' inflated volumes touch at a gap <= margin: a near-collision can only begin
@@ -161,7 +204,7 @@ class SpanPlanner:
         for ra, rb, margin in self.arm_pairs:
             if n <= 1:
                 return 1
-            per_tick = self.dt * (self.arm_bounds[ra] + self.arm_bounds[rb])
+            per_tick = self.dt * (bounds[ra] + bounds[rb])
             need = n * per_tick
             if _box_gap(boxes[ra], boxes[rb]) > margin + need:
                 continue

@@ -17,7 +17,7 @@ from hrc.services import OBSERVERS, PARTICIPANTS
 from hrc.validate import all_finite, check_pose
 from hrc.wire import pb
 
-from hrc_physics.exchange import HAND_SPEED_BOUND, SpanPlanner, arm_speed_bound
+from hrc_physics.exchange import HAND_SPEED_BOUND, SpanPlanner, arm_speed_terms
 from hrc_physics.robots import RobotModelError
 from hrc_physics.world import CommandRejected, World, WorldSettings
 
@@ -46,6 +46,15 @@ def _human_ok(msg: pb.HumanState) -> str | None:
 def _robot_ok(msg: pb.RobotState) -> str | None:
     if not all_finite(msg.joint_positions):
         return f"robot {msg.robot!r}: joint positions contain NaN or infinity"
+    bounds = msg.joint_speed_fraction_bounds
+    if bounds:
+        if len(bounds) != len(msg.joint_names):
+            return (
+                f"robot {msg.robot!r}: {len(bounds)} joint_speed_fraction_bounds for "
+                f"{len(msg.joint_names)} joint_names"
+            )
+        if not all(0.0 <= f < float("inf") for f in bounds):  # also false for NaN
+            return f"robot {msg.robot!r}: joint_speed_fraction_bounds must be finite and >= 0"
     return None
 
 
@@ -148,7 +157,7 @@ class PhysicsService(ClockMasterService):
         stack.callback(self.close)
         self.planner = SpanPlanner(
             dt=1.0 / tick_hz,
-            arm_bounds={rid: arm_speed_bound(r) for rid, r in self.world.robots.items()},
+            arm_terms={rid: arm_speed_terms(r) for rid, r in self.world.robots.items()},
             max_span=args.max_span or typed.scenario.max_exchange_ticks,
             arm_pairs=[
                 (a, b, self.world.robots[a].near_margin + self.world.robots[b].near_margin)
@@ -193,6 +202,8 @@ class PhysicsService(ClockMasterService):
         inputs.input(keys.robot_states(), pb.RobotState, self._on_robot_state, validate=_robot_ok)
         inputs.input(keys.human_state(), pb.HumanState, self._on_human, validate=_human_ok)
         inputs.input(keys.world_commands(), pb.WorldCommands, self._on_world_commands)
+        # Only to know which arms may start a new motion in the next exchange (rare messages).
+        inputs.input(keys.robot_commands(), pb.RobotCommand, self._on_robot_command)
 
     def _on_robot_state(self, key: str, msg: pb.RobotState) -> None:
         robot = msg.robot or self.bus.keys.robot_of(key)
@@ -200,6 +211,11 @@ class PhysicsService(ClockMasterService):
             self.world.set_robot_state(robot, list(msg.joint_names), list(msg.joint_positions))
         except CommandRejected as exc:
             self.bus.reject(key, msg.header.sender, f"robot state rejected: {exc}")
+            return
+        self.planner.declare(robot, msg.joint_names, msg.joint_speed_fraction_bounds)
+
+    def _on_robot_command(self, key: str, _msg: pb.RobotCommand) -> None:
+        self.planner.commanded(self.bus.keys.robot_of(key))
 
     def _on_human(self, _key: str, msg: pb.HumanState) -> None:
         self.world.set_human(msg)

@@ -16,6 +16,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -76,6 +77,11 @@ class IkEngine {
   /// Ticks, at least, until arm `index`'s motion in progress ends; 0 if none
   /// (kin::MotionGenerator::min_ticks_to_end).
   uint64_t min_ticks_to_end(std::size_t index) const;
+  /// Per joint of arm `index`, the most it moves, as a fraction of its velocity limit, on any
+  /// tick from the next one until a new command reaches the arm
+  /// (RobotState.joint_speed_fraction_bounds); empty if not known (under a speed scale < 1, or a
+  /// motion longer than the lookahead).
+  std::optional<Eigen::VectorXd> joint_speed_fraction_bounds(std::size_t index) const;
   /// Puts arm `index` at joints `q` at rest (the motion check starts moves from recorded poses).
   void reset(std::size_t index, const Eigen::VectorXd& q);
   const kin::RobotModel& model(std::size_t index) const;
@@ -92,7 +98,15 @@ class IkEngine {
     std::unique_ptr<kin::MotionGenerator> motion;  // the arm (tick thread only)
     std::unique_ptr<kin::MotionGenerator> probe;   // reach queries (under reach_mutex_)
     uint64_t command_id = 0;
+    // The motion's joint speed fractions, row i the max over the steps from i on (suffix
+    // maxima), for the exchange step's gap rules; steps_taken since it was computed. speed_known
+    // is false when the table does not hold (speed scale < 1, motion past the lookahead).
+    Eigen::MatrixXd speed_suffix;
+    std::size_t steps_taken = 0;
+    bool speed_known = true;
   };
+  // Recomputes arm's speed_suffix for the motion just commanded (kin::joint_speed_fractions).
+  void plan_speed_bound(Arm& arm) const;
 
   double dt_;
   std::vector<Arm> arms_;  // sorted by id

@@ -657,6 +657,30 @@ uint64_t MotionGenerator::min_ticks_to_end() const {
   return ticks;
 }
 
+Eigen::MatrixXd MotionGenerator::joint_speed_fractions(std::size_t max_ticks,
+                                                       bool& complete) const {
+  constexpr double kNoLimit = 2.0 * M_PI;  // rad/s: the same rule as the physics's arm bound
+  const Eigen::VectorXd& vlim = model_.max_velocity();
+  const Eigen::ArrayXd max_step =
+      vlim.unaryExpr([](double v) { return std::isfinite(v) ? v : kNoLimit; }).array() * dt_;
+  std::vector<Eigen::VectorXd> rows;
+  MotionGenerator sim(*this);
+  complete = false;
+  while (rows.size() < max_ticks) {
+    if (sim.segments_.empty()) {
+      complete = true;  // step() no longer changes q
+      break;
+    }
+    const Eigen::VectorXd q0 = sim.state_.q;
+    sim.step();
+    rows.emplace_back((sim.state_.q - q0).array().abs() / max_step);
+  }
+  Eigen::MatrixXd out(static_cast<Eigen::Index>(rows.size()), model_.dof());
+  for (std::size_t i = 0; i < rows.size(); ++i)
+    out.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
+  return out;
+}
+
 const MotionState& MotionGenerator::step() {
   // The applied scale moves towards the requested one by at most a dt / v_max per tick: the
   // change of speed it causes, v_nominal x d(scale)/dt, then stays below the acceleration limit.

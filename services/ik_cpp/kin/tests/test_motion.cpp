@@ -403,3 +403,35 @@ TEST(Motion, MinTicksToEndBoundsTheMotionsEnd) {
     if (!joint_move) EXPECT_EQ(exact, ticks) << "a straight move is bounded exactly";
   }
 }
+
+TEST(Motion, JointSpeedFractionsAreWhatTheStepsDo) {
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
+  MotionLimits lim;
+  lim.max_tcp_speed = 0.5;
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0, lim);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
+  bool complete = false;
+  EXPECT_EQ(g.joint_speed_fractions(100, complete).rows(), 0);  // at rest: nothing moves
+  EXPECT_TRUE(complete);
+  MoveCommand c = move_to(-0.05, 0.10, 0.05, 90);
+  c.approach_height = 0.05;
+  ASSERT_EQ(g.move(c), MotionStatus::Moving) << g.state().detail;
+  for (int k = 0; k < 30; ++k) g.step();  // from the middle of the move
+  const Eigen::MatrixXd predicted = g.joint_speed_fractions(240 * 20, complete);
+  ASSERT_TRUE(complete);
+  ASSERT_GT(predicted.rows(), 100);
+  EXPECT_LE(predicted.maxCoeff(), 1.0 + 1e-9);  // the joint velocity limits hold
+  EXPECT_GT(predicted.maxCoeff(), 0.05);        // it does move
+  // The real steps do exactly what the copy predicted, then stop.
+  for (Eigen::Index i = 0; i < predicted.rows(); ++i) {
+    const Eigen::VectorXd q0 = g.state().q;
+    g.step();
+    const Eigen::ArrayXd f = (g.state().q - q0).array().abs() / (m.max_velocity().array() * g.dt());
+    for (int j = 0; j < m.dof(); ++j) ASSERT_EQ(f[j], predicted(i, j)) << "step " << i;
+  }
+  EXPECT_EQ(g.state().status, MotionStatus::Reached);
+  // A lookahead shorter than the motion says so.
+  ASSERT_EQ(g.move(move_to(0.35, 0.30, 0.35)), MotionStatus::Moving);
+  EXPECT_EQ(g.joint_speed_fractions(10, complete).rows(), 10);
+  EXPECT_FALSE(complete);
+}

@@ -94,6 +94,12 @@ class MotionGenerator {
   // <= 1) and each segment takes at least one tick. 0 if no motion is in progress. Failures
   // during the move (a waypoint unreachable) may come earlier.
   uint64_t min_ticks_to_end() const;
+  // How fast each joint will move from the next tick on, absent new commands and speed-scale
+  // changes: row i, column j is the i-th coming step's |dq_j| / (dt v_j), v_j the joint's
+  // velocity limit (2 pi rad/s where the URDF gives none). Simulated on a copy of this
+  // generator, so it is exactly what step() will do. Stops where the motion ends (nothing moves
+  // after that: `complete` true) or after max_ticks steps (`complete` false: the rest unknown).
+  Eigen::MatrixXd joint_speed_fractions(std::size_t max_ticks, bool& complete) const;
 
   const MotionState& state() const { return state_; }
   double dt() const { return dt_; }
