@@ -24,9 +24,9 @@ from hrc.scenario.paths import resolve_path
 HUMAN = "human"
 
 DEFAULT_TICK_HZ = 240.0
-# Lockstep exchanges of at most this many ticks (docs/ARCHITECTURE.md, "Exchange step"): 8 at
-# 240 Hz = 30 exchanges per simulated second far from the hands; 1 = an exchange every tick.
-DEFAULT_MAX_EXCHANGE_TICKS = 16
+# Lockstep exchanges of at most this many ticks (docs/ARCHITECTURE.md, "Exchange step"): 32 at
+# 240 Hz = 7.5 exchanges per simulated second where nothing is near; 1 = an exchange every tick.
+DEFAULT_MAX_EXCHANGE_TICKS = 32
 MAX_EXCHANGE_TICKS = 64
 MAX_TICK_HZ = 2000.0
 MAX_TCP_SPEED = 1.5  # m/s, upper bound allowed for any robot
