@@ -190,9 +190,18 @@ void IkEngine::plan_speed_bound(Arm& arm) const {
   // Thirty simulated seconds: far longer than any move of a task, and a bounded cost per command.
   const auto lookahead = static_cast<std::size_t>(std::ceil(30.0 / dt_));
   bool complete = false;
-  arm.speed_suffix = arm.motion->joint_speed_fractions(lookahead, complete);
-  for (Eigen::Index i = arm.speed_suffix.rows() - 1; i > 0; --i)
-    arm.speed_suffix.row(i - 1) = arm.speed_suffix.row(i - 1).cwiseMax(arm.speed_suffix.row(i));
+  const Eigen::MatrixXd steps = arm.motion->joint_speed_fractions(lookahead, complete);
+  const Eigen::Index n = steps.rows();
+  arm.speed_table.resize(n, steps.cols());
+  if (speed_window_ == 0) {  // the maximum over the rest of the motion
+    for (Eigen::Index i = n - 1; i >= 0; --i)
+      arm.speed_table.row(i) = i + 1 < n ? steps.row(i).cwiseMax(arm.speed_table.row(i + 1))
+                                          : Eigen::RowVectorXd(steps.row(i));
+  } else {  // the maximum over the window's steps from i on
+    const auto w = static_cast<Eigen::Index>(speed_window_);
+    for (Eigen::Index i = 0; i < n; ++i)
+      arm.speed_table.row(i) = steps.middleRows(i, std::min(w, n - i)).colwise().maxCoeff();
+  }
   arm.steps_taken = 0;
   arm.speed_known =
       complete && arm.motion->speed_scale() == 1.0 && arm.motion->requested_speed_scale() == 1.0;
@@ -210,8 +219,8 @@ std::optional<Eigen::VectorXd> IkEngine::joint_speed_fraction_bounds(std::size_t
   if (!arm.speed_known) return std::nullopt;
   // The next step is row steps_taken of the table; past its end nothing moves.
   const auto next = static_cast<Eigen::Index>(arm.steps_taken);
-  if (next < arm.speed_suffix.rows())
-    return Eigen::VectorXd(arm.speed_suffix.row(next).transpose());
+  if (next < arm.speed_table.rows())
+    return Eigen::VectorXd(arm.speed_table.row(next).transpose());
   return Eigen::VectorXd::Zero(arm.model->dof());
 }
 
@@ -224,7 +233,7 @@ uint64_t IkEngine::min_ticks_to_end(std::size_t index) const {
 void IkEngine::reset(std::size_t index, const Eigen::VectorXd& q) {
   Arm& arm = arms_.at(index);
   arm.motion->reset(q);
-  arm.speed_suffix.resize(0, arm.model->dof());  // at rest
+  arm.speed_table.resize(0, arm.model->dof());  // at rest
   arm.speed_known = true;
 }
 const kin::RobotModel& IkEngine::model(std::size_t index) const { return *arms_.at(index).model; }
@@ -262,8 +271,10 @@ void IkEngine::fill_state(std::size_t index, v2::RobotState& out) const {
   if (const std::optional<Eigen::VectorXd> f = joint_speed_fraction_bounds(index)) {
     if (bounds->size() != n) bounds->Resize(n, 0.0);
     for (int i = 0; i < n; ++i) bounds->Set(i, (*f)[i]);
+    out.set_joint_speed_window_ticks(speed_window_);
   } else {
     bounds->Clear();
+    out.clear_joint_speed_window_ticks();
   }
   // Unset at scale 1: the policies without speed scaling publish the same bytes as before.
   const double scale = arm.motion->speed_scale();

@@ -168,6 +168,8 @@ int run(const std::vector<std::string>& argv) {
     const double dt = opt.standalone_hz > 0 ? 1.0 / opt.standalone_hz : hrc::tick_dt(*scenario);
     const auto t_load = std::chrono::steady_clock::now();
     hrc::IkEngine engine(hrc::robots_from_scenario(*scenario), dt);
+    // The declared joint speeds cover the longest exchange (docs/ARCHITECTURE.md, "Exchange step").
+    engine.set_speed_window(scenario->info().max_exchange_ticks());
     std::string robots;
     for (const auto& id : engine.robot_ids()) robots += (robots.empty() ? "" : ", ") + id;
     if (robots.empty()) {

@@ -531,28 +531,38 @@ TEST_F(Engine, StatesDeclareJointSpeedBoundsThatTheArmKeeps) {
   engine_.fill_state(0, st);
   ASSERT_EQ(st.joint_speed_fraction_bounds_size(), st.joint_names_size());  // known at rest
   for (const double f : st.joint_speed_fraction_bounds()) EXPECT_EQ(f, 0.0);
-  ASSERT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 3)), "");
   const hrc::kin::RobotModel& m = engine_.model(0);
-  // Every later tick of the move stays within every earlier state's declaration.
-  std::vector<Eigen::VectorXd> declared;
-  double peak = 0.0;
-  for (int k = 0; k < 2000; ++k) {
+  const double targets[][2] = {{0.20, 0.25}, {0.35, 0.10}};
+  for (const uint32_t window : {0u, 8u}) {
+    engine_.set_speed_window(window);
+    const double* t = targets[window == 0 ? 0 : 1];
+    ASSERT_EQ(engine_.apply("r1", move(t[0], t[1], 0.25, 3)), "");
+    // Every later tick of the move (within the window) stays within each state's declaration.
+    std::vector<Eigen::VectorXd> declared;
+    double peak = 0.0;
+    for (int k = 0; k < 2000; ++k) {
+      engine_.fill_state(0, st);
+      ASSERT_EQ(st.joint_speed_fraction_bounds_size(), m.dof());
+      EXPECT_EQ(st.joint_speed_window_ticks(), window);
+      declared.emplace_back(Eigen::Map<const Eigen::VectorXd>(
+          st.joint_speed_fraction_bounds().data(), st.joint_speed_fraction_bounds_size()));
+      const Eigen::VectorXd q0 = engine_.state(0).q;
+      engine_.step();
+      const Eigen::ArrayXd f =
+          (engine_.state(0).q - q0).array().abs() / (m.max_velocity().array() * kDt);
+      peak = std::max(peak, f.maxCoeff());
+      const std::size_t first = window == 0 || declared.size() <= window
+                                    ? 0
+                                    : declared.size() - window;
+      for (std::size_t d = first; d < declared.size(); ++d)
+        for (int j = 0; j < m.dof(); ++j)
+          ASSERT_LE(f[j], declared[d][j]) << "window " << window << " tick " << k << " joint " << j;
+      if (engine_.state(0).status != hrc::kin::MotionStatus::Moving) break;
+    }
+    EXPECT_GT(peak, 0.0);
     engine_.fill_state(0, st);
-    ASSERT_EQ(st.joint_speed_fraction_bounds_size(), m.dof());
-    declared.emplace_back(Eigen::Map<const Eigen::VectorXd>(st.joint_speed_fraction_bounds().data(),
-                                                            st.joint_speed_fraction_bounds_size()));
-    const Eigen::VectorXd q0 = engine_.state(0).q;
-    engine_.step();
-    const Eigen::ArrayXd f =
-        (engine_.state(0).q - q0).array().abs() / (m.max_velocity().array() * kDt);
-    peak = std::max(peak, f.maxCoeff());
-    for (const Eigen::VectorXd& d : declared)
-      for (int j = 0; j < m.dof(); ++j) ASSERT_LE(f[j], d[j]) << "tick " << k << " joint " << j;
-    if (engine_.state(0).status != hrc::kin::MotionStatus::Moving) break;
+    for (const double f : st.joint_speed_fraction_bounds()) EXPECT_EQ(f, 0.0);  // at rest again
   }
-  EXPECT_GT(peak, 0.0);
-  engine_.fill_state(0, st);
-  for (const double f : st.joint_speed_fraction_bounds()) EXPECT_EQ(f, 0.0);  // at rest again
   // Under a speed scale < 1 the lookahead does not hold: nothing is declared.
   ASSERT_EQ(engine_.apply("r1", move(0.30, 0.25, 0.25, 4)), "");
   RobotCommand scale;

@@ -116,12 +116,15 @@ class SpanPlanner:
         self.arm_bounds: dict[str, float] = {
             rid: sum(t.values()) for rid, t in self.arm_terms.items()
         }
-        self._declared: dict[str, float] = {}
+        self._declared: dict[str, tuple[float, int]] = {}  # m/s, for this many ticks (0: all)
         self._commanded: set[str] = set()  # arms commanded since the last span was planned
 
-    def declare(self, robot: str, joints: Sequence[str], fractions: Sequence[float]) -> None:
-        """The robot's latest state declares these joint speed fractions for the coming ticks
-        (empty: none); a joint it does not name counts in full."""
+    def declare(
+        self, robot: str, joints: Sequence[str], fractions: Sequence[float], window: int = 0
+    ) -> None:
+        """The robot's latest state declares these joint speed fractions for the next
+        ``window`` ticks (0: all; empty fractions: nothing declared); a joint it does not name
+        counts in full."""
         terms = self.arm_terms.get(robot)
         if terms is None:
             return
@@ -129,18 +132,20 @@ class SpanPlanner:
             self._declared.pop(robot, None)
             return
         given = dict(zip(joints, fractions, strict=True))
-        self._declared[robot] = sum(term * given.get(j, 1.0) for j, term in terms.items())
+        bound = sum(term * given.get(j, 1.0) for j, term in terms.items())
+        self._declared[robot] = (bound, window)
 
     def commanded(self, robot: str) -> None:
         """A command for ``robot`` was sent: its source applies it at the next exchange's first
         tick, so its declaration does not hold there."""
         self._commanded.add(robot)
 
-    def bound(self, robot: str) -> float:
-        """m/s no point of the arm exceeds during the next exchange."""
+    def bound(self, robot: str) -> tuple[float, int]:
+        """m/s no point of the arm exceeds during the next exchange, if it is at most so many
+        ticks long (0: any)."""
         declared = self._declared.get(robot)
         if declared is None or robot in self._commanded:
-            return self.arm_bounds[robot]
+            return self.arm_bounds[robot], 0
         return declared
 
     def span(
@@ -155,7 +160,11 @@ class SpanPlanner:
         n = min(self.max_span, self.max_span if limit is None else limit)
         if n > 1:
             boxes = {rid: r.aabb() for rid, r in robots.items()}
-            bounds = {rid: self.bound(rid) for rid in robots}
+            bounds: dict[str, float] = {}
+            for rid in robots:
+                bounds[rid], window = self.bound(rid)
+                if window:
+                    n = min(n, window)
             n = self._hands(client, hands, robots, boxes, bounds, n)
             n = self._arms(client, robots, boxes, bounds, n)
         self._commanded.clear()

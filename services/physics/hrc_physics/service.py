@@ -212,7 +212,9 @@ class PhysicsService(ClockMasterService):
         except CommandRejected as exc:
             self.bus.reject(key, msg.header.sender, f"robot state rejected: {exc}")
             return
-        self.planner.declare(robot, msg.joint_names, msg.joint_speed_fraction_bounds)
+        self.planner.declare(
+            robot, msg.joint_names, msg.joint_speed_fraction_bounds, msg.joint_speed_window_ticks
+        )
 
     def _on_robot_command(self, key: str, _msg: pb.RobotCommand) -> None:
         self.planner.commanded(self.bus.keys.robot_of(key))

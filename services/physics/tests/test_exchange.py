@@ -28,22 +28,24 @@ def test_each_joint_term_bounds_the_speed_it_gives_the_arm(world: World) -> None
 
 
 def _planner() -> SpanPlanner:
-    return SpanPlanner(dt=1 / 240, arm_terms={"r1": {"a": 2.0, "b": 1.0}, "r2": {"a": 3.0}})
+    terms = {"r1": {"a": 2.0, "b": 1.0}, "r2": {"a": 3.0}}
+    return SpanPlanner(dt=1 / 240, arm_terms=terms, max_span=16)
 
 
 def test_an_arm_counts_what_its_source_declares_else_its_full_bound() -> None:
     planner = _planner()
-    assert planner.bound("r1") == 3.0  # nothing declared yet
-    planner.declare("r1", ["a", "b"], [0.5, 0.25])
-    assert math.isclose(planner.bound("r1"), 0.5 * 2.0 + 0.25 * 1.0)
+    assert planner.bound("r1") == (3.0, 0)  # nothing declared yet
+    planner.declare("r1", ["a", "b"], [0.5, 0.25], 32)
+    bound, window = planner.bound("r1")
+    assert math.isclose(bound, 0.5 * 2.0 + 0.25 * 1.0) and window == 32
     planner.declare("r1", ["a", "b"], [0.0, 0.0])
-    assert planner.bound("r1") == 0.0  # at rest
+    assert planner.bound("r1") == (0.0, 0)  # at rest
     planner.declare("r1", ["a"], [0.0])
-    assert planner.bound("r1") == 1.0  # a joint it does not name counts in full
+    assert planner.bound("r1") == (1.0, 0)  # a joint it does not name counts in full
     planner.declare("r1", ["a", "b"], [])
-    assert planner.bound("r1") == 3.0  # no longer declared (e.g. under a speed scale)
+    assert planner.bound("r1") == (3.0, 0)  # no longer declared (e.g. under a speed scale)
     planner.declare("r9", ["a"], [0.0])  # an unknown robot changes nothing
-    assert planner.bound("r2") == 3.0
+    assert planner.bound("r2") == (3.0, 0)
 
 
 def test_a_commanded_arm_counts_in_full_for_one_exchange(world: World) -> None:
@@ -51,8 +53,9 @@ def test_a_commanded_arm_counts_in_full_for_one_exchange(world: World) -> None:
     planner.arm_terms = {rid: {"x": 1.0} for rid in world.robots}
     planner.arm_bounds = {rid: 1.0 for rid in world.robots}
     rid = next(iter(world.robots))
-    planner.declare(rid, ["x"], [0.0])
+    planner.declare(rid, ["x"], [0.0], 8)
     planner.commanded(rid)
-    assert planner.bound(rid) == 1.0  # its new motion starts at the next exchange's first tick
-    planner.span(world.c, [], world.robots)
-    assert planner.bound(rid) == 0.0  # then its declaration holds again (one exchange only)
+    assert planner.bound(rid) == (1.0, 0)  # its new motion starts at the next exchange's first tick
+    assert planner.span(world.c, [], world.robots) == 16  # the full bound, far from everything
+    assert planner.bound(rid) == (0.0, 8)  # then its declaration holds again (one exchange only)
+    assert planner.span(world.c, [], world.robots) == 8  # and only for the ticks it covers

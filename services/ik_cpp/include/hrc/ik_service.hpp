@@ -82,6 +82,10 @@ class IkEngine {
   /// (RobotState.joint_speed_fraction_bounds); empty if not known (under a speed scale < 1, or a
   /// motion longer than the lookahead).
   std::optional<Eigen::VectorXd> joint_speed_fraction_bounds(std::size_t index) const;
+  /// The bounds above hold for the next `ticks` ticks (the longest exchange: the scenario's
+  /// max_exchange_ticks); 0 (the default): until the motion ends. Set before any command.
+  void set_speed_window(uint32_t ticks) { speed_window_ = ticks; }
+  uint32_t speed_window() const { return speed_window_; }
   /// Puts arm `index` at joints `q` at rest (the motion check starts moves from recorded poses).
   void reset(std::size_t index, const Eigen::VectorXd& q);
   const kin::RobotModel& model(std::size_t index) const;
@@ -98,17 +102,18 @@ class IkEngine {
     std::unique_ptr<kin::MotionGenerator> motion;  // the arm (tick thread only)
     std::unique_ptr<kin::MotionGenerator> probe;   // reach queries (under reach_mutex_)
     uint64_t command_id = 0;
-    // The motion's joint speed fractions, row i the max over the steps from i on (suffix
-    // maxima), for the exchange step's gap rules; steps_taken since it was computed. speed_known
+    // The motion's joint speed fractions, row i the max over the speed window's steps from i
+    // on, for the exchange step's gap rules; steps_taken since it was computed. speed_known
     // is false when the table does not hold (speed scale < 1, motion past the lookahead).
-    Eigen::MatrixXd speed_suffix;
+    Eigen::MatrixXd speed_table;
     std::size_t steps_taken = 0;
     bool speed_known = true;
   };
-  // Recomputes arm's speed_suffix for the motion just commanded (kin::joint_speed_fractions).
+  // Recomputes arm's speed_table for the motion just commanded (kin::joint_speed_fractions).
   void plan_speed_bound(Arm& arm) const;
 
   double dt_;
+  uint32_t speed_window_ = 0;
   std::vector<Arm> arms_;  // sorted by id
   std::vector<std::string> ids_;
   std::mutex reach_mutex_;
