@@ -125,6 +125,36 @@ class Joint:
             return self.origin @ transform(np.eye(3), np.asarray(self.axis) * q)
         return self.origin
 
+    def local_stack(self, qs: np.ndarray) -> np.ndarray:
+        """``local(q)`` for many joint positions at once: N x 4 x 4."""
+        n = len(qs)
+        out = np.broadcast_to(self.origin, (n, 4, 4)).copy()
+        if self.kind in ("revolute", "continuous"):
+            x, y, z = self.axis
+            c, s = np.cos(qs), np.sin(qs)
+            t = 1.0 - c
+            rot = np.empty((n, 3, 3))  # Rodrigues, as axis_angle_matrix, row by row
+            rot[:, 0, 0], rot[:, 0, 1], rot[:, 0, 2] = (
+                t * x * x + c,
+                t * x * y - s * z,
+                t * x * z + s * y,
+            )
+            rot[:, 1, 0], rot[:, 1, 1], rot[:, 1, 2] = (
+                t * x * y + s * z,
+                t * y * y + c,
+                t * y * z - s * x,
+            )
+            rot[:, 2, 0], rot[:, 2, 1], rot[:, 2, 2] = (
+                t * x * z - s * y,
+                t * y * z + s * x,
+                t * z * z + c,
+            )
+            out[:, :3, :3] = self.origin[:3, :3] @ rot
+        elif self.kind == "prismatic":
+            shift = np.outer(qs, np.asarray(self.axis))
+            out[:, :3, 3] += shift @ self.origin[:3, :3].T
+        return out
+
     def local_columns(self, qs: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``local(q)`` for many joint positions at once, as rerun takes them: translations
         (N x 3) and unit quaternions (x, y, z, w; w >= 0; N x 4). The view sends a joint's
@@ -271,6 +301,39 @@ class UrdfModel:
         poses = self.link_poses(q, base)
         order = [self.root] + [j.child for j in self.joints]
         return np.array([poses[link][:3, 3] for link in order])
+
+    def joint_vector(self, q: Mapping[str, float]) -> np.ndarray:
+        """``q`` as one position per joint in tree order (``self.joints``; missing: 0), the
+        input of :meth:`chain_points_columns`."""
+        return np.array([float(q.get(j.name, 0.0)) for j in self.joints])
+
+    def chain_points_columns(self, qs: np.ndarray, base: np.ndarray | None = None) -> np.ndarray:
+        """``chain_points`` for many joint vectors at once (N x len(joints), as
+        :meth:`joint_vector` gives them): N x (1 + len(joints)) x 3. The view computes the
+        hand-robot distances of a whole column in one go instead of a chain per row."""
+        n = len(qs)
+        root = np.eye(4) if base is None else base
+        poses = {self.root: np.broadcast_to(root, (n, 4, 4))}
+        for i, j in enumerate(self.joints):
+            poses[j.child] = poses[j.parent] @ j.local_stack(qs[:, i])
+        order = [self.root] + [j.child for j in self.joints]
+        return np.stack([poses[link][:, :3, 3] for link in order], axis=1)
+
+
+def polyline_distances(p: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    """Row by row ``point_polyline_distance``: points ``p`` (N x 3), polylines ``pts``
+    (N x L x 3, L >= 1) -> N distances."""
+    if pts.shape[1] == 1:
+        return np.asarray(np.linalg.norm(p - pts[:, 0], axis=1))
+    a, b = pts[:, :-1], pts[:, 1:]
+    ab = b - a
+    denom = np.einsum("nij,nij->ni", ab, ab)
+    ap = p[:, None, :] - a
+    safe = np.where(denom > 0, denom, 1.0)
+    t = np.where(denom > 0, np.einsum("nij,nij->ni", ap, ab) / safe, 0.0)
+    t = np.clip(t, 0.0, 1.0)
+    closest = a + ab * t[:, :, None]
+    return np.asarray(np.min(np.linalg.norm(closest - p[:, None, :], axis=2), axis=1))
 
 
 def point_polyline_distance(p: np.ndarray, pts: np.ndarray) -> float:

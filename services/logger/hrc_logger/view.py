@@ -59,6 +59,7 @@ from hrc_logger.urdf_fk import (
     UrdfModel,
     matrix_to_quat_xyzw,
     point_polyline_distance,
+    polyline_distances,
     yaw_transform,
 )
 
@@ -74,6 +75,7 @@ HUMAN_PART_RGB = colors.rgb(colors.HUMAN_PART_COLOR)
 UNKNOWN_COLOR = colors.UNKNOWN_RGB
 rgb = colors.rgb
 _ENTITY_SAFE = re.compile(r"[^A-Za-z0-9_\-]")
+CLEAR = rr.Clear(recursive=False)  # one archetype for every clear (building one costs ~0.2 ms)
 
 
 def rgba(c: tuple[int, int, int], a: int) -> tuple[int, int, int, int]:
@@ -157,20 +159,35 @@ class PointRow:
     label: str | None = None
 
 
+@dataclass(frozen=True)
+class JointEntity:
+    """A movable joint's entity in a robot's joint series; ``index``: its position in the
+    model's joint vector (``UrdfModel.joint_vector``)."""
+
+    entity: str
+    joint: Joint
+    frames: tuple[str, str]  # (parent, child) frame of its transform
+    index: int
+
+
 @dataclass
 class Series:
-    """One entity's rows not yet sent, at (tick, sim time): scalars, joint transforms
-    (``joint``: values are joint positions; ``frames``: its (parent, child) frames), part poses
-    (``pose``: values are (translation, xyzw)) or points (``points``: values are PointRows)."""
+    """One entity's rows not yet sent, at (tick, sim time): scalars, a robot's joint transforms
+    (``joints``: values are joint vectors, sent as one entity per movable joint), part poses
+    (``pose``: values are (translation, xyzw)), points (``points``: values are PointRows) or a
+    hand's distance to a robot (``chain``: values are (hand position, the robot's joint vector);
+    ``polyline``: values are (hand position, points)), computed for the whole column when
+    sent."""
 
     ticks: list[int] = field(default_factory=list)
     times: list[float] = field(default_factory=list)
     values: list[Any] = field(default_factory=list)  # see the class docstring
-    joint: Joint | None = None
-    frames: tuple[str, str] | None = None  # a joint transform's (parent, child) frame
+    joints: list[JointEntity] | None = None
     pose: bool = False  # a Transform3D without frames (a part's pose in the world)
     points: bool = False
     show_labels: bool | None = None  # points: whether the viewer shows their labels
+    chain: tuple[UrdfModel, np.ndarray] | None = None  # (model, base) of the robot
+    polyline: bool = False
 
     def send(self, rec: rr.RecordingStream, entity: str) -> None:
         if not self.ticks:
@@ -183,6 +200,19 @@ class Series:
             rr.TimeColumn("sim_time", duration=nanos.astype("timedelta64[ns]")),
         ]
         columns: Any
+        if self.joints is not None:
+            qs = np.asarray(self.values, dtype=np.float64)
+            for je in self.joints:
+                translations, quats = je.joint.local_columns(qs[:, je.index])
+                columns = rr.Transform3D.columns(
+                    translation=translations,
+                    quaternion=quats,
+                    parent_frame=[je.frames[0]] * n,
+                    child_frame=[je.frames[1]] * n,
+                )
+                rr.send_columns(je.entity, indexes=indexes, columns=columns, recording=rec)
+            self.ticks, self.times, self.values = [], [], []
+            return
         if self.points:
             rows: list[PointRow] = self.values
             labels = [r.label or "" for r in rows] if rows[0].label is not None else None
@@ -193,13 +223,14 @@ class Series:
                 labels=labels,
                 show_labels=None if self.show_labels is None else [self.show_labels] * n,
             )
-        elif self.joint is not None and self.frames is not None:
-            translations, quats = self.joint.local_columns(self.values)
-            columns = rr.Transform3D.columns(
-                translation=translations,
-                quaternion=quats,
-                parent_frame=[self.frames[0]] * n,
-                child_frame=[self.frames[1]] * n,
+        elif self.chain is not None:
+            model, base = self.chain
+            hands = np.asarray([v[0] for v in self.values], dtype=np.float64)
+            chains = model.chain_points_columns(np.asarray([v[1] for v in self.values]), base)
+            columns = rr.Scalars.columns(scalars=polyline_distances(hands, chains))
+        elif self.polyline:
+            columns = rr.Scalars.columns(
+                scalars=np.asarray([point_polyline_distance(p, pts) for p, pts in self.values])
             )
         elif self.pose:
             columns = rr.Transform3D.columns(
@@ -222,7 +253,10 @@ class RobotView:
     tcp: np.ndarray | None = None
     states: StateStream[pb.RobotState] = field(default_factory=StateStream)
     unknown_joints_warned: bool = False
-    chain: np.ndarray | None = None
+    # The joint vector (model.joint_vector) of the last logged state; never changed in place
+    # (hand-distance rows keep it until sent). None without a model.
+    qvec: np.ndarray | None = None
+    chain: np.ndarray | None = None  # link origins at qvec, computed when asked (View._chain)
 
 
 @dataclass
@@ -233,6 +267,7 @@ class ObjectView:
     shown: bool = False
     pos: np.ndarray | None = None
     quat: np.ndarray | None = None
+    pose: tuple[float, ...] = ()  # pos and quat as floats (x, y, z, qx, qy, qz, qw)
     next_due: int = 0
     held_by: str = ""
     placed: bool = False
@@ -242,6 +277,10 @@ class ObjectView:
 class CueView:
     cue: pb.Cue
     visible: bool = False
+    # The archetype last shown and what it was built from (an outline: its part's pose): a
+    # flashing cue is shown again every second, and building an archetype costs ~1 ms.
+    shown: Any = None
+    shown_for: tuple[float, ...] | None = None
 
 
 def open_recording(
@@ -325,15 +364,41 @@ class View:
             series = self._series[entity] = Series()
         self._append(series, value)
 
-    def _joint_row(self, rv: RobotView, j: Joint, q: float) -> None:
-        """A joint's position at the current time; its transforms are computed for a whole
-        column at once when sent (Joint.local_columns)."""
-        entity = f"robot_{part(rv.rid)}/joints/{part(j.name)}"
-        series = self._series.get(entity)
+    def _joints_row(self, rv: RobotView, model: UrdfModel, qvec: np.ndarray) -> None:
+        """A robot's joint positions at the current time; each movable joint's transforms are
+        computed for a whole column at once when sent (Joint.local_columns)."""
+        key = f"robot_{part(rv.rid)}/joints"
+        series = self._series.get(key)
         if series is None:
-            frames = (f"{rv.rid}/{j.parent}", f"{rv.rid}/{j.child}")
-            series = self._series[entity] = Series(joint=j, frames=frames)
-        self._append(series, q)
+            joints = [
+                JointEntity(
+                    f"{key}/{part(j.name)}", j, (f"{rv.rid}/{j.parent}", f"{rv.rid}/{j.child}"), i
+                )
+                for i, j in enumerate(model.joints)
+                if j.kind != "fixed"
+            ]
+            series = self._series[key] = Series(joints=joints)
+        assert series.joints is not None
+        self._append(series, qvec, len(series.joints))
+
+    def _distance_row(self, entity: str, rv: RobotView, hand: np.ndarray) -> None:
+        """A hand's distance to a robot's link chain (segments through its link origins; the
+        TCP without a URDF) at the current time, computed for a whole column when sent."""
+        series = self._series.get(entity)
+        if rv.model is not None and rv.qvec is not None:
+            if series is None:
+                series = self._series[entity] = Series(chain=(rv.model, rv.base))
+            self._append(series, (hand, rv.qvec))
+        elif rv.tcp is not None:
+            if series is None:
+                series = self._series[entity] = Series(polyline=True)
+            self._append(series, (hand, rv.tcp[None, :]))
+
+    def _chain(self, rv: RobotView) -> np.ndarray | None:
+        """The robot's link origins at its last logged state (None without a URDF)."""
+        if rv.chain is None and rv.model is not None and rv.qvec is not None:
+            rv.chain = rv.model.chain_points_columns(rv.qvec[None, :], rv.base)[0]
+        return rv.chain
 
     def _point(self, entity: str, row: PointRow, show_labels: bool | None = None) -> None:
         """A point entity's row (one point) at the current time, sent later in columns: a
@@ -350,14 +415,15 @@ class View:
             series = self._series[entity] = Series(pose=True)
         self._append(series, (translation, xyzw))
 
-    def _append(self, series: Series, value: Any) -> None:
+    def _append(self, series: Series, value: Any, rows: int = 1) -> None:
+        """``rows``: the entity rows this value makes (a robot's joint vector: one per joint)."""
         if not self._pending_rows:
             self._series_since = self._now[1]
-        self._pending_rows += 1
+        self._pending_rows += rows
         series.ticks.append(self._now[0])
         series.times.append(self._now[1])
         series.values.append(value)
-        self.logged += 1
+        self.logged += rows
         every = self.s.series_flush_s
         if every is not None and self._now[1] - self._series_since >= every:
             self.flush_series()
@@ -479,7 +545,7 @@ class View:
         for j in rv.model.joints:
             if j.kind == "fixed":
                 self._log_fixed_joint(rv, j.name, j.local(0.0))
-        rv.chain = rv.model.chain_points({}, rv.base)
+        rv.qvec = rv.model.joint_vector({})
 
     def _log_fixed_joint(self, rv: RobotView, name: str, t: np.ndarray) -> None:
         assert rv.model is not None
@@ -530,10 +596,9 @@ class View:
                 log.warning(
                     "robot %s: joints not in its URDF ignored: %s", rv.rid, ", ".join(unknown)
                 )
-            for j in rv.model.joints:
-                if j.kind != "fixed":
-                    self._joint_row(rv, j, float(rv.q.get(j.name, 0.0)))
-            rv.chain = rv.model.chain_points(rv.q, rv.base)
+            rv.qvec = rv.model.joint_vector(rv.q)
+            rv.chain = None
+            self._joints_row(rv, rv.model, rv.qvec)
         if rv.tcp is not None:
             self._point(f"world/tcp/{part(rv.rid)}", PointRow(rv.tcp, 0.01, rv.color))
         if math.isfinite(st.tcp_speed):
@@ -544,7 +609,8 @@ class View:
             self._log_zone(rv, zone)
 
     def _log_zone(self, rv: RobotView, zone: Zone) -> None:
-        centers = rv.chain if rv.chain is not None else rv.tcp[None] if rv.tcp is not None else None
+        chain = self._chain(rv)
+        centers = chain if chain is not None else rv.tcp[None] if rv.tcp is not None else None
         if centers is not None and finite(np.ravel(centers)):
             self._log(f"world/ssm_zone/{part(rv.rid)}", zone.archetype(np.asarray(centers)))
 
@@ -579,16 +645,7 @@ class View:
                 show_labels=False,  # the grip shows as the colour; labels crowd the board
             )
             for rid, rv in self.robots.items():
-                pts = (
-                    rv.chain
-                    if rv.chain is not None
-                    else (rv.tcp[None, :] if rv.tcp is not None else None)
-                )
-                if pts is not None:
-                    self._row(
-                        f"plots/hand_distance/{hand}/{part(rid)}",
-                        point_polyline_distance(pos, pts),
-                    )
+                self._distance_row(f"plots/hand_distance/{hand}/{part(rid)}", rv, pos)
 
     # ------------------------------------------------------------------ objects
     def world_objects(self, wo: pb.WorldObjects) -> None:
@@ -600,20 +657,24 @@ class View:
             if ov is None:
                 ov = self.objects[o.id] = ObjectView(o.id, (0.03, 0.03, 0.03), UNKNOWN_COLOR)
             p, q = o.pose.position, o.pose.orientation
-            if not finite((p.x, p.y, p.z, q.x, q.y, q.z, q.w)):
+            pose = (p.x, p.y, p.z, q.x, q.y, q.z, q.w)
+            if not finite(pose):
                 continue
-            pos, quat = np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])
             changed_state = o.held_by != ov.held_by or o.placed != ov.placed
-            moved = (
-                ov.pos is None
-                or ov.quat is None
-                or float(np.linalg.norm(pos - ov.pos)) > 5e-4
-                or abs(float(np.dot(quat, ov.quat))) < 0.99999
-            )
-            if not (moved or changed_state or not ov.shown):
-                continue
-            if ov.shown and not (o.id in forced or changed_state) and tick < ov.next_due:
-                continue  # a moving object: at most view_hz updates per simulated second
+            if ov.shown and not changed_state:
+                # Plain floats: most objects of most messages have not moved (numpy's
+                # per-call cost was most of the logger's time here).
+                x, y, z, qx, qy, qz, qw = ov.pose
+                dx, dy, dz = pose[0] - x, pose[1] - y, pose[2] - z
+                moved = (
+                    math.sqrt(dx * dx + dy * dy + dz * dz) > 5e-4
+                    or abs(pose[3] * qx + pose[4] * qy + pose[5] * qz + pose[6] * qw) < 0.99999
+                )
+                if not moved:
+                    continue
+                if o.id not in forced and tick < ov.next_due:
+                    continue  # a moving object: at most view_hz updates per simulated second
+            pos, quat = np.array(pose[:3]), np.array(pose[3:])
             if not timed:
                 self._time(tick, wo.header.sim_time)
                 timed = True
@@ -636,7 +697,8 @@ class View:
                 )
                 ov.shown = True
             self._pose(ent, pos, quat)
-            ov.pos, ov.quat, ov.held_by, ov.placed = pos, quat, o.held_by, o.placed
+            ov.pos, ov.quat, ov.pose = pos, quat, pose
+            ov.held_by, ov.placed = o.held_by, o.placed
             ov.next_due = tick + self.every
 
     # ------------------------------------------------------------------ contacts
@@ -660,7 +722,7 @@ class View:
                     ),
                 )
             elif not c.begin:
-                self._log(ent, rr.Clear(recursive=False))
+                self._log(ent, CLEAR)
 
     # ------------------------------------------------------------------ cues
     def indicators(self, ind: pb.Indicators) -> None:
@@ -670,11 +732,11 @@ class View:
             if c.on:
                 cv = self.cues[c.id] = CueView(pb.Cue())
                 cv.cue.CopyFrom(c)
-                self._show_cue(ent, c)
+                self._show_cue(ent, cv)
                 cv.visible = True
             else:
                 self.cues.pop(c.id, None)
-                self._log(ent, rr.Clear(recursive=False))
+                self._log(ent, CLEAR)
         self._log(
             "status/cues",
             rr.TextDocument(
@@ -682,24 +744,30 @@ class View:
             ),
         )
 
-    def _show_cue(self, ent: str, c: pb.Cue) -> None:
+    def _show_cue(self, ent: str, cv: CueView) -> None:
+        c = cv.cue
+        ov = self.objects.get(c.part) if c.kind == pb.CUE_KIND_OUTLINE else None
+        shown_for = ov.pose if ov is not None else ()
+        if cv.shown is None or cv.shown_for != shown_for:
+            cv.shown, cv.shown_for = self._cue_archetype(c), shown_for
+        self._log(ent, cv.shown)
+
+    def _cue_archetype(self, c: pb.Cue) -> Any:
+        """What shows the cue, from the cue, the scenario and (an outline) its part's pose."""
         color = rgb(c.color, self.owner_color.get(c.robot, (255, 255, 255)))
         pos = vec3_from_pb(c.position)
         given = any(abs(v) > 1e-12 for v in pos) and finite(pos)
         p = self.parts.get(c.part)
         if c.kind == pb.CUE_KIND_TARGET and p is not None:
             size = np.array([p.size.x, p.size.y, p.size.z]) * 1.15
-            self._log(
-                ent,
-                rr.Boxes3D(
-                    half_sizes=[size / 2],
-                    centers=[vec3_from_pb(p.target.xyz)],
-                    quaternions=[yaw_quat_deg(p.target.yaw_deg)],
-                    colors=[rgba(color, 170)],
-                    fill_mode="solid",
-                    labels=[c.text or f"{c.part}"],
-                    show_labels=False,  # the part it is for carries the name
-                ),
+            return rr.Boxes3D(
+                half_sizes=[size / 2],
+                centers=[vec3_from_pb(p.target.xyz)],
+                quaternions=[yaw_quat_deg(p.target.yaw_deg)],
+                colors=[rgba(color, 170)],
+                fill_mode="solid",
+                labels=[c.text or f"{c.part}"],
+                show_labels=False,  # the part it is for carries the name
             )
         elif c.kind == pb.CUE_KIND_OUTLINE and (
             (c.part in self.objects and self.objects[c.part].pos is not None)
@@ -714,46 +782,35 @@ class View:
                 size = np.array([p.size.x, p.size.y, p.size.z])
                 center = to_array(vec3_from_pb(p.start.xyz))
                 quat = to_array(yaw_quat_deg(p.start.yaw_deg))
-            self._log(
-                ent,
-                rr.Boxes3D(
-                    half_sizes=[size * 1.3 / 2],
-                    centers=[center],
-                    quaternions=[quat],
-                    colors=[rgba(color, 255)],
-                    fill_mode="majorwireframe",
-                ),
+            return rr.Boxes3D(
+                half_sizes=[size * 1.3 / 2],
+                centers=[center],
+                quaternions=[quat],
+                colors=[rgba(color, 255)],
+                fill_mode="majorwireframe",
             )
         elif c.kind == pb.CUE_KIND_WAITING:
             rv = self.robots.get(c.robot)
             if not given and rv is not None:
                 pos = vec3_from_array(rv.base[:3, 3] + np.array([0.0, 0.0, WAITING_HEIGHT_M]))
-            self._log(
-                ent,
-                rr.Points3D(
-                    [pos],
-                    radii=[0.02],
-                    colors=[color],
-                    labels=[c.text or WAITING_TEXT],
-                    show_labels=True,
-                ),
+            return rr.Points3D(
+                [pos],
+                radii=[0.02],
+                colors=[color],
+                labels=[c.text or WAITING_TEXT],
+                show_labels=True,
             )
         elif c.kind == pb.CUE_KIND_CONTINUE_BUTTON:
             where = pos if given else list(self.button)
-            self._log(
-                ent,
-                rr.Points3D(
-                    [where],
-                    radii=[0.03],
-                    colors=[rgb(c.color, (255, 60, 60))],
-                    labels=[c.text or "Continue"],
-                    show_labels=True,
-                ),
+            return rr.Points3D(
+                [where],
+                radii=[0.03],
+                colors=[rgb(c.color, (255, 60, 60))],
+                labels=[c.text or "Continue"],
+                show_labels=True,
             )
         else:
-            self._log(
-                ent, rr.Points3D([pos], radii=[0.02], colors=[color], labels=[c.text or c.id])
-            )
+            return rr.Points3D([pos], radii=[0.02], colors=[color], labels=[c.text or c.id])
 
     def tick(self, k: int, sim_time: float) -> None:
         """Blinks the flashing cues on the sim timeline (on for the first half of each period)."""
@@ -772,9 +829,9 @@ class View:
                 timed = True
             ent = cue_entity(cid)
             if on:
-                self._show_cue(ent, cv.cue)
+                self._show_cue(ent, cv)
             else:
-                self._log(ent, rr.Clear(recursive=False))
+                self._log(ent, CLEAR)
             cv.visible = on
 
     # ------------------------------------------------------------------ events
