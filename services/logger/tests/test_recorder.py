@@ -7,7 +7,9 @@ import math
 from collections import Counter
 from pathlib import Path
 
+import numpy as np
 import pytest
+import rerun as rr
 from offline import run_offline
 from synthetic import SyntheticTrial
 
@@ -17,6 +19,7 @@ from hrc.wire import pb
 
 from hrc_logger.records import event_record, metrics_record
 from hrc_logger.rrd import summarize
+from hrc_logger.urdf_fk import point_polyline_distance, yaw_transform
 
 
 @pytest.fixture(scope="module")
@@ -153,3 +156,39 @@ def test_record_mapping_is_flat_and_json_safe() -> None:
     assert math.isclose(rec["collisions"]["human_robot"][0]["delay_s"], 2.0)
     assert rec["run"] is None and rec["task"] is None  # not set by the sender
     json.dumps(rec, allow_nan=False)
+
+
+def _scalar_rows(path: Path, entity: str) -> dict[int, float]:
+    """tick -> value of a scalar entity's rows in a recording."""
+    out: dict[int, float] = {}
+    for chunk in rr.chunk.RrdReader(path).stream():
+        if chunk.entity_path != entity:
+            continue
+        batch = chunk.to_record_batch()
+        ticks = batch.column("tick").to_pylist()
+        values = batch.column("Scalars:scalars").to_pylist()
+        for t, v in zip(ticks, values, strict=True):
+            out[int(t)] = float(v[0])
+    return out
+
+
+def test_hand_distances_are_to_the_chain_of_the_state_logged_with_them(
+    trial_dir: tuple[Path, SyntheticTrial],
+) -> None:
+    """Hand distances are computed per column when sent, from the joint vector each row kept:
+    every row must be the distance to the robot's chain at that row's own state."""
+    out, trial = trial_dir
+    for rid, r in trial.robots.items():
+        model = trial.models[rid]
+        base = yaw_transform([r.base.xyz.x, r.base.xyz.y, r.base.xyz.z], r.base.yaw_deg)
+        for hand in ("left", "right"):
+            rows = _scalar_rows(out / "recording.rrd", f"/plots/hand_distance/{hand}/{rid}")
+            assert len(rows) > 50, (rid, hand)
+            for k, d in rows.items():
+                hs = trial.human_state(k)
+                p = (hs.left_hand if hand == "left" else hs.right_hand).position
+                chain = model.chain_points(
+                    dict(zip(model.movable, trial.q(rid, k), strict=True)), base
+                )
+                expected = point_polyline_distance(np.array([p.x, p.y, p.z]), chain)
+                assert d == pytest.approx(expected, abs=1e-9), (rid, hand, k)

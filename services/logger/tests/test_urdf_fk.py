@@ -18,6 +18,7 @@ from hrc_logger.urdf_fk import (
     UrdfModel,
     matrix_to_quat_xyzw,
     point_polyline_distance,
+    polyline_distances,
     yaw_transform,
 )
 
@@ -151,3 +152,28 @@ def test_joint_columns_are_the_joint_transforms_row_by_row(urdf: str) -> None:
             local = j.local(float(q))
             assert np.allclose(t, local[:3, 3], atol=1e-12), j.name
             assert np.allclose(quat, matrix_to_quat_xyzw(local[:3, :3]), atol=1e-9), j.name
+
+
+@pytest.mark.parametrize("urdf", [MIXED, ARM5.read_text()])
+def test_chain_columns_are_the_chains_row_by_row(urdf: str) -> None:
+    """The view computes hand-robot distances for a whole column (chain_points_columns,
+    polyline_distances): each row must be what the chain and distance of that state give."""
+    model = UrdfModel.from_string(urdf)
+    rng = np.random.default_rng(7)
+    qs = rng.uniform(-3.2, 3.2, (30, len(model.joints)))
+    hands = rng.uniform(-1.0, 1.0, (30, 3))
+    base = yaw_transform([0.45, 0.55, 0.0], 180.0)
+    for j in model.joints:
+        stack = j.local_stack(qs[:, 0])
+        for q, local in zip(qs[:, 0], stack, strict=True):
+            assert np.allclose(local, j.local(float(q)), atol=1e-12), j.name
+    chains = model.chain_points_columns(qs, base)
+    distances = polyline_distances(hands, chains)
+    for q, hand, chain, d in zip(qs, hands, chains, distances, strict=True):
+        named = dict(zip([j.name for j in model.joints], q, strict=True))
+        assert np.allclose(model.joint_vector(named), q)
+        expected = model.chain_points(named, base)
+        assert np.allclose(chain, expected, atol=1e-12)
+        assert d == pytest.approx(point_polyline_distance(hand, expected), abs=1e-12)
+    one = polyline_distances(hands[:2], chains[:2, :1])  # a single point: plain distance
+    assert np.allclose(one, np.linalg.norm(hands[:2] - chains[:2, 0], axis=1))
