@@ -196,7 +196,7 @@ void IkEngine::plan_speed_bound(Arm& arm) const {
   if (speed_window_ == 0) {  // the maximum over the rest of the motion
     for (Eigen::Index i = n - 1; i >= 0; --i)
       arm.speed_table.row(i) = i + 1 < n ? steps.row(i).cwiseMax(arm.speed_table.row(i + 1))
-                                          : Eigen::RowVectorXd(steps.row(i));
+                                         : Eigen::RowVectorXd(steps.row(i));
   } else {  // the maximum over the window's steps from i on
     const auto w = static_cast<Eigen::Index>(speed_window_);
     for (Eigen::Index i = 0; i < n; ++i)
@@ -219,8 +219,7 @@ std::optional<Eigen::VectorXd> IkEngine::joint_speed_fraction_bounds(std::size_t
   if (!arm.speed_known) return std::nullopt;
   // The next step is row steps_taken of the table; past its end nothing moves.
   const auto next = static_cast<Eigen::Index>(arm.steps_taken);
-  if (next < arm.speed_table.rows())
-    return Eigen::VectorXd(arm.speed_table.row(next).transpose());
+  if (next < arm.speed_table.rows()) return Eigen::VectorXd(arm.speed_table.row(next).transpose());
   return Eigen::VectorXd::Zero(arm.model->dof());
 }
 

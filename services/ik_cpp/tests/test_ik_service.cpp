@@ -551,9 +551,8 @@ TEST_F(Engine, StatesDeclareJointSpeedBoundsThatTheArmKeeps) {
       const Eigen::ArrayXd f =
           (engine_.state(0).q - q0).array().abs() / (m.max_velocity().array() * kDt);
       peak = std::max(peak, f.maxCoeff());
-      const std::size_t first = window == 0 || declared.size() <= window
-                                    ? 0
-                                    : declared.size() - window;
+      const std::size_t first =
+          window == 0 || declared.size() <= window ? 0 : declared.size() - window;
       for (std::size_t d = first; d < declared.size(); ++d)
         for (int j = 0; j < m.dof(); ++j)
           ASSERT_LE(f[j], declared[d][j]) << "window " << window << " tick " << k << " joint " << j;
