@@ -50,14 +50,7 @@ def make_validators(robot_ids: list[str]) -> dict[str, Validator]:
                 return f"event on {e.object!r}: {problem}"
         return None
 
-    def human_state(msg: Message) -> str | None:
-        assert isinstance(msg, pb.HumanState)
-        for name in ("head", "left_hand", "right_hand"):
-            if (problem := check_pose(getattr(msg, name))) is not None:
-                return f"{name}: {problem}"
-        return None
-
-    return {"robot_state": robot_state, "world_objects": world_objects, "human_state": human_state}
+    return {"robot_state": robot_state, "world_objects": world_objects}
 
 
 class OrchestratorService(Service):
@@ -156,7 +149,8 @@ class OrchestratorService(Service):
         inputs.input(keys.robot_states(), pb.RobotState, self._on_state, v["robot_state"])
         inputs.input(keys.world_objects(), pb.WorldObjects, self._on_objects, v["world_objects"])
         inputs.input(keys.world_contacts(), pb.WorldContacts, self._on_contacts)
-        inputs.input(keys.human_state(), pb.HumanState, self._on_human, v["human_state"])
+        # Not human/state: the task reads the participant only through physics (contacts,
+        # grabs, separations); its ~3 states per exchange would cost decoding and an inbox entry.
         if self.task.safety.ssm:  # only under ssm does physics publish separations
             inputs.input(keys.world_separation(), pb.Separations, self._on_separations)
 
@@ -172,9 +166,6 @@ class OrchestratorService(Service):
 
     def _on_separations(self, _key: str, msg: Message) -> None:
         self._pending.separations.append(msg)  # type: ignore[arg-type]
-
-    def _on_human(self, _key: str, msg: Message) -> None:
-        self._pending.human = msg  # type: ignore[assignment]
 
     # ------------------------------------------------------------------ one tick
     def step(self, tick: pb.ClockTick) -> None:

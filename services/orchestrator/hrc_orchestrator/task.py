@@ -51,7 +51,6 @@ class Inputs:
     robot_states: list[pb.RobotState] = field(default_factory=list)
     objects: list[pb.WorldObjects] = field(default_factory=list)
     contacts: list[pb.WorldContacts] = field(default_factory=list)
-    human: pb.HumanState | None = None
     separations: list[pb.Separations] = field(default_factory=list)  # ssm only
 
 
@@ -102,7 +101,6 @@ class Task:
         self.completion_home_s: float | None = None  # ... and every robot back home
         self.tick = 0
         self.sim_time = 0.0
-        self.human_state: pb.HumanState | None = None
         self._grabbable: dict[str, bool] = {}
         # What the grabbable flags and the cues were last computed from: per tick, and they
         # change only with these (see _grabbable_changes, _cue_changes).
@@ -136,8 +134,6 @@ class Task:
                 agent.observe(state)
         for agent in self.agents.values():
             agent.sample_speed(tick, sampling, first)
-        if inputs.human is not None:
-            self.human_state = inputs.human
         if not self.started and not self.human.sequence:
             self._start("")  # nothing to grab: the task starts at once
         for msg in inputs.objects:
