@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hrc.geometry import Vec3, distance, wrap_angle_rad
+from hrc.geometry import Pose, Vec3, distance, wrap_angle_rad, yaw_quat_rad
 from hrc.scenario.conventions import HAND_RADIUS_M
 
 from hrc_human_input.motor import (
@@ -51,6 +51,7 @@ class Hand:
         self.name = name
         self.pos = pos
         self.yaw_rad = yaw_rad
+        self._pose_yaw_rad = yaw_rad
         self.grip = 0.0
         self.motor = motor
         self.rng = rng
@@ -61,6 +62,15 @@ class Hand:
         self._grip_target: float | None = None
         self._cursor: float | None = None  # when the current step started / the last one ended
         self._t_last: float | None = None
+        self._pose = Pose(pos, yaw_quat_rad(yaw_rad))  # pose() while pos and yaw_rad stay
+
+    def pose(self) -> Pose:
+        """Where the hand is and its yaw as a pose (rebuilt only when either changed)."""
+        p = self._pose
+        if p.position is not self.pos or self._pose_yaw_rad != self.yaw_rad:
+            p = self._pose = Pose(self.pos, yaw_quat_rad(self.yaw_rad))
+            self._pose_yaw_rad = self.yaw_rad
+        return p
 
     # ------------------------------------------------------------------ commands
     def do(self, *steps: Step) -> None:

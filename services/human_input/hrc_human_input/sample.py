@@ -64,15 +64,20 @@ class Sample:
         return Sample(t, self.head, self.left, self.right, self.left_grip, self.right_grip)
 
     def to_proto(self, source: InputSource) -> pb.HumanState:
-        # Once per tick: fields written in place, the source's wire number looked up once.
+        msg = pb.HumanState()
+        self.into_proto(msg, source)
+        return msg
+
+    def into_proto(self, msg: pb.HumanState, source: InputSource) -> None:
+        """Writes every field but the header and hand_speed_bound into ``msg`` (once per tick:
+        one message filled again and again, the source's wire number looked up once)."""
         number = _SOURCE_NUMBERS.get(source)
         if number is None:
             number = _SOURCE_NUMBERS[source] = source.to_proto()
-        msg = pb.HumanState(left_grip=self.left_grip, right_grip=self.right_grip, source=number)
+        msg.left_grip, msg.right_grip, msg.source = self.left_grip, self.right_grip, number
         pose_into_pb(msg.head, self.head)
         pose_into_pb(msg.left_hand, self.left)
         pose_into_pb(msg.right_hand, self.right)
-        return msg
 
     @staticmethod
     def from_proto(msg: pb.HumanState) -> Sample:

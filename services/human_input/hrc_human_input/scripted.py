@@ -31,7 +31,7 @@ from enum import Enum
 
 import numpy as np
 
-from hrc.geometry import Pose, Vec3, add, distance, look_quat, rotate_z_rad, slerp, yaw_quat_rad
+from hrc.geometry import Pose, Vec3, add, distance, look_quat, rotate_z_rad, slerp
 from hrc.scenario import SafetyPolicy
 from hrc.scenario.conventions import CONTINUE_BUTTON_CUE, GRIP_CLOSED
 from hrc.wire import pb
@@ -110,6 +110,10 @@ class ScriptedParticipant:
         }
         self.head_q = look_quat(HEAD_POS, (0.0, 0.0, 0.0))
         self._head_t: float | None = None
+        self._look_goal: Vec3 | None = None  # _look's last goal, its look, dt and weight
+        self._look_q = self.head_q
+        self._look_dt = -1.0
+        self._look_u = 0.0
         self.phase = Phase.IDLE
         self.phase_since = 0.0
         self.part: str | None = None  # the part being handled
@@ -301,8 +305,8 @@ class ScriptedParticipant:
         return Sample(
             t,
             Pose(HEAD_POS, self.head_q),
-            Pose(left.pos, yaw_quat_rad(left.yaw_rad)),
-            Pose(right.pos, yaw_quat_rad(right.yaw_rad)),
+            left.pose(),
+            right.pose(),
             left.grip,
             right.grip,
         )
@@ -696,11 +700,17 @@ class ScriptedParticipant:
     # ------------------------------------------------------------------ head
     def _look(self, t: float) -> None:
         goal = self.hand.goal() if self.hand.busy else self.hand.pos
-        target_q = look_quat(HEAD_POS, goal)
+        # Per tick: the goal and the tick length rarely change, so their look and weight are
+        # kept (the same values the formulas give: same inputs, same floats).
+        if goal != self._look_goal:
+            self._look_goal, self._look_q = goal, look_quat(HEAD_POS, goal)
         dt = max(0.0, t - (self._head_t if self._head_t is not None else t))
         self._head_t = t
-        u = 1.0 - math.exp(-dt / HEAD_TIME_CONSTANT_S) if dt > 0 else 0.0
-        self.head_q = slerp(self.head_q, target_q, u) if u > 0 else self.head_q
+        if dt != self._look_dt:
+            self._look_dt = dt
+            self._look_u = 1.0 - math.exp(-dt / HEAD_TIME_CONSTANT_S) if dt > 0 else 0.0
+        u = self._look_u
+        self.head_q = slerp(self.head_q, self._look_q, u) if u > 0 else self.head_q
 
     # ------------------------------------------------------------------ analysis
     def reaches(self) -> list:

@@ -152,6 +152,7 @@ class HumanInputService(Service):
             )
         self.publisher = bus.publisher(keys.human_state())
         self.hand_speed_bound = self.source.hand_speed_bound()
+        self._msg = pb.HumanState(hand_speed_bound=self.hand_speed_bound)
         self.dt = 1.0 / facts.tick_hz
         self._last_t = 0.0
         self.keyframe_every = max(1, round(facts.tick_hz))  # once per simulated second
@@ -254,8 +255,9 @@ class HumanInputService(Service):
         # receivers nothing (they hold the last state).
         last = self._last_sent
         if last is None or not sample.same_as(last) or k % self.keyframe_every == 0:
-            msg = sample.to_proto(self.source.name)
-            msg.hand_speed_bound = self.hand_speed_bound
+            # One message filled in place: put() serializes it at once (batched or not).
+            msg = self._msg
+            sample.into_proto(msg, self.source.name)
             self.publisher.put(msg, k, t)
             self._last_sent = sample
         if self.recorder is not None:
