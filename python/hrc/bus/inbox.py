@@ -46,7 +46,11 @@ class Inbox:
 
     def __init__(self, bus: Bus) -> None:
         self._bus = bus
-        self._cond = threading.Condition()
+        # One lock; the condition only for wait_for, notified only while someone waits
+        # (per message: a Condition's Python-level enter and notify cost more than the rest).
+        self._lock = threading.Lock()
+        self._cond = threading.Condition(self._lock)
+        self._waiting = 0
         self._handlers: list[Handler] = []
         self._exprs: list[zenoh.KeyExpr] = []
         # Pending messages by tick, and a heap of those ticks: delivery takes the oldest ticks
@@ -71,23 +75,25 @@ class Inbox:
 
         def on_msg(k: str, msg: M) -> None:
             h = msg.header  # type: ignore[attr-defined]
+            tick, sender, seq = h.tick, h.sender, h.seq
             # A message that fails validation still counts as received: its sender published
             # it (and says so in its marks), so nobody may wait for it forever.
             problem = validate(msg) if validate is not None else None
-            with self._cond:
+            with self._lock:
                 if problem is None:
-                    bucket = self._pending.get(h.tick)
+                    bucket = self._pending.get(tick)
                     if bucket is None:
-                        bucket = self._pending[h.tick] = []
-                        heapq.heappush(self._pending_ticks, h.tick)
-                    bucket.append(_Pending(h.tick, index, k, h.sender, h.seq, msg))
+                        bucket = self._pending[tick] = []
+                        heapq.heappush(self._pending_ticks, tick)
+                    bucket.append(_Pending(tick, index, k, sender, seq, msg))
                 self.arrived += 1
-                mark = (k, h.sender)
-                if h.seq > self._received.get(mark, 0):
-                    self._received[mark] = h.seq
-                self._cond.notify_all()
+                mark = (k, sender)
+                if seq > self._received.get(mark, 0):
+                    self._received[mark] = seq
+                if self._waiting:
+                    self._cond.notify_all()
             if problem is not None:
-                self._bus.reject(k, h.sender, problem)
+                self._bus.reject(k, sender, problem)
 
         self._bus.subscribe(key, msg_type, on_msg)
 
@@ -101,7 +107,7 @@ class Inbox:
 
     def missing(self, marks: list[pb.PublishedMark]) -> list[pb.PublishedMark]:
         """The marks (on keys we subscribe to) whose messages have not all arrived yet."""
-        with self._cond:
+        with self._lock:
             return [
                 m
                 for m in marks
@@ -120,13 +126,17 @@ class Inbox:
                 left = deadline - time.monotonic()
                 if not missing or left <= 0:
                     return missing
-                self._cond.wait(left)
+                self._waiting += 1
+                try:
+                    self._cond.wait(left)
+                finally:
+                    self._waiting -= 1
 
     def deliver(self, upto_tick: int, master: str | None = None) -> int:
         """Hands every message of ticks < ``upto_tick`` to its handler (plus the clock master's of
         tick ``upto_tick`` when ``master`` is given), in deterministic order. Returns the count."""
         ready: list[_Pending] = []
-        with self._cond:
+        with self._lock:
             heap = self._pending_ticks
             while heap and heap[0] < upto_tick:
                 ready.extend(self._pending.pop(heapq.heappop(heap)))
