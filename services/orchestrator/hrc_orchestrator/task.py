@@ -155,8 +155,11 @@ class Task:
                 agent.advance(t, active=self.safety.override(rid) is None)
             self.safety.swap_stuck_yields(t)
             agents = self.agents.values()
-            last_placed = all(a.completion_s is not None for a in agents)
-            if self.completion_s is None and self.human.done and last_placed:
+            if (
+                self.completion_s is None
+                and self.human.done
+                and all(a.completion_s is not None for a in agents)
+            ):
                 self._complete(t)
             if self.human.done and all(a.finished for a in agents):
                 self._finish(t)
@@ -251,7 +254,8 @@ class Task:
         cmds: list[pb.RobotCommand] = []
         for rid, agent in self.agents.items():
             motion = (self.safety.override(rid) if self.running else None) or agent.goal
-            if motion is None or motion == agent.sent:
+            # (the goal is most ticks the very object last sent: no field-by-field compare)
+            if motion is None or motion is agent.sent or motion == agent.sent:
                 continue
             cmds.append(motion.to_proto(rid, agent.record_sent(motion)))
         if self.running:
