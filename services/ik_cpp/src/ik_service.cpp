@@ -187,6 +187,10 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
 }
 
 void IkEngine::plan_speed_bound(Arm& arm) const {
+  if (!declare_speeds_) {
+    arm.speed_known = false;
+    return;
+  }
   // Thirty simulated seconds: far longer than any move of a task, and a bounded cost per command.
   const auto lookahead = static_cast<std::size_t>(std::ceil(30.0 / dt_));
   bool complete = false;
@@ -467,6 +471,9 @@ void IkService::step(const v2::ClockTick& tick) {
     log::warning("the clock's dt " + fmt(tick.dt()) + " s differs from the scenario's " +
                  fmt(engine_.dt()) + " s; the arms step by the scenario's dt");
   }
+  // Commands come before their tick's step: they plan with the previous tick's mode, which is
+  // the run's.
+  engine_.set_declare_speeds(tick.mode() != v2::CLOCK_MODE_REALTIME);
   const auto t0 = std::chrono::steady_clock::now();
   engine_.step();
   const double commands_us = command_us_;

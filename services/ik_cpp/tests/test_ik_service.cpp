@@ -562,6 +562,12 @@ TEST_F(Engine, StatesDeclareJointSpeedBoundsThatTheArmKeeps) {
     engine_.fill_state(0, st);
     for (const double f : st.joint_speed_fraction_bounds()) EXPECT_EQ(f, 0.0);  // at rest again
   }
+  // Without the lookahead (realtime) nothing is declared.
+  engine_.set_declare_speeds(false);
+  ASSERT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 5)), "");
+  engine_.fill_state(0, st);
+  EXPECT_EQ(st.joint_speed_fraction_bounds_size(), 0);
+  engine_.set_declare_speeds(true);
   // Under a speed scale < 1 the lookahead does not hold: nothing is declared.
   ASSERT_EQ(engine_.apply("r1", move(0.30, 0.25, 0.25, 4)), "");
   RobotCommand scale;

@@ -86,6 +86,10 @@ class IkEngine {
   /// max_exchange_ticks); 0 (the default): until the motion ends. Set before any command.
   void set_speed_window(uint32_t ticks) { speed_window_ = ticks; }
   uint32_t speed_window() const { return speed_window_; }
+  /// Whether commands get the lookahead at all (default on). Realtime exchanges are one tick,
+  /// so nothing reads the declaration there, and a long motion's lookahead would cost the tick
+  /// it is commanded in a deadline; off, states declare nothing.
+  void set_declare_speeds(bool on) { declare_speeds_ = on; }
   /// Puts arm `index` at joints `q` at rest (the motion check starts moves from recorded poses).
   void reset(std::size_t index, const Eigen::VectorXd& q);
   const kin::RobotModel& model(std::size_t index) const;
@@ -114,6 +118,7 @@ class IkEngine {
 
   double dt_;
   uint32_t speed_window_ = 0;
+  bool declare_speeds_ = true;
   std::vector<Arm> arms_;  // sorted by id
   std::vector<std::string> ids_;
   std::mutex reach_mutex_;
