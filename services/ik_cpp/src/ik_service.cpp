@@ -325,6 +325,7 @@ v2::ReachReply IkEngine::reach(const v2::ReachRequest& request) {
 
 v2::MotionCheckReply check_moves(const v2::MotionCheckRequest& request, double max_move_s) {
   IkEngine engine(robots_from_scenario(request.scenario()), tick_dt(request.scenario()));
+  engine.set_declare_speeds(false);  // nobody reads them here; the check runs each move anyway
   // Per robot: joints at home, after its last move, and after each labelled move.
   std::vector<Eigen::VectorXd> home, last;
   std::vector<std::map<std::string, Eigen::VectorXd>> after(engine.size());
