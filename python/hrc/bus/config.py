@@ -15,7 +15,10 @@ from hrc.services import CLOCK_MASTER
 Mode = Literal["peer", "client", "router"]
 
 CONNECT_TIMEOUT_MS = 60000
-CONNECT_RETRY = "{ period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2 }"
+# A client that starts before the router listens (they start together) tries again after 10,
+# 20, 40, then every 50 ms: a failed local connect costs microseconds, a late retry costs the
+# start-up up to the whole period (it was 100 ms doubling to 1 s). Same in ik_cpp's bus.cpp.
+CONNECT_RETRY = "{ period_init_ms: 10, period_max_ms: 50, period_increase_factor: 2 }"
 
 
 @dataclass
@@ -51,6 +54,12 @@ class BusConfig:
             cfg.insert_json5("connect/retry", CONNECT_RETRY)
         if self.listen:
             cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
+        if self.mode == "router" and not (self.connect or self.multicast_scouting):
+            # A router's open sleeps the scouting delay (500 ms by default) after binding its
+            # listeners, to let what it scouts or connects to answer first; with neither, only
+            # its clients come, on their own (the clock master's start waits for their tokens).
+            if self.config_file is None:
+                cfg.insert_json5("scouting/delay", "0")
         if self.lowlatency:
             cfg.insert_json5("transport/unicast/lowlatency", "true")
             cfg.insert_json5("transport/unicast/qos/enabled", "false")  # required by lowlatency

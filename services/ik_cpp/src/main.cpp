@@ -97,7 +97,8 @@ std::optional<hrc::v2::Scenario> fetch_scenario(const hrc::Bus& bus, double time
     auto replies = bus.get<hrc::v2::Scenario>(bus.keys().scenario(), nullptr, wait);
     if (!replies.empty()) return std::move(replies.front());
     if (Clock::now() >= deadline) break;
-    std::this_thread::sleep_for(std::chrono::milliseconds(200));
+    // A query no server matched ends at once: ask again soon (the clock waits for our token).
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   return std::nullopt;
 }

@@ -35,7 +35,7 @@ TEST(BusConfig, ClientWithSeveralEndpoints) {
             "  mode: \"client\",\n"
             "  scouting: { multicast: { enabled: true }, gossip: { enabled: true } },\n"
             "  connect: { endpoints: [\"tcp/10.0.0.1:7447\", \"tcp/10.0.0.2:7447\"], "
-            "timeout_ms: 60000, retry: { period_init_ms: 100, period_max_ms: 1000, "
+            "timeout_ms: 60000, retry: { period_init_ms: 10, period_max_ms: 50, "
             "period_increase_factor: 2 } },\n"
             "}\n");
   EXPECT_NO_THROW(c.validate());
