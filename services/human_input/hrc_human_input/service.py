@@ -28,12 +28,11 @@ from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource
 from hrc_human_input.stream import WorldMirror, ssm_zones
 from hrc_human_input.task_view import TaskView
-from hrc_human_input.vr_bridge import (
+from hrc_human_input.vr_options import (
     CLIENT_DIST,
     DEFAULT_HOST,
     DEFAULT_PORT,
     BridgeConfigError,
-    VrBridge,
     check_bind,
 )
 
@@ -206,6 +205,9 @@ class HumanInputService(Service):
             scene = build_scene(scenario, files)
         except ScenarioError as exc:
             raise ServiceExit(f"scenario rejected:\n{exc}", EXIT_BAD_INPUT) from exc
+        # only a live participant needs the bridge's server (websockets, asyncio: start-up CPU)
+        from hrc_human_input.vr_bridge import VrBridge
+
         bridge = VrBridge(
             args.vr_host,
             args.vr_port,

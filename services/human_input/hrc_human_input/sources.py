@@ -4,7 +4,7 @@ participant only); ``summary()`` is its end-of-run log line."""
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
 from hrc.bus import Keys
 from hrc.geometry import Pose, look_quat
@@ -18,7 +18,9 @@ from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import HEAD_POS, REST, ScriptedParticipant
 from hrc_human_input.stream import RunState, WorldMirror
 from hrc_human_input.task_view import TaskView
-from hrc_human_input.vr_bridge import VrBridge
+
+if TYPE_CHECKING:  # the bridge's server is imported only for a live participant
+    from hrc_human_input.vr_bridge import VrBridge
 
 
 def rest_sample(t: float = 0.0) -> Sample:

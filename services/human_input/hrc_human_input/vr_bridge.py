@@ -14,7 +14,6 @@ import asyncio
 import collections
 import contextlib
 import hmac
-import ipaddress
 import json
 import logging
 import socket
@@ -31,16 +30,20 @@ from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
-from hrc.services import VR_DEFAULT_HOST, VR_DEFAULT_PORT
-
 from hrc_human_input.sample import Sample, parse_sample
 from hrc_human_input.scene import PROTOCOL_VERSION, RobotFiles
 from hrc_human_input.stream import ClientView, Snapshot, frame_json
+from hrc_human_input.vr_options import (  # noqa: F401  (re-exported: the bridge's options)
+    CLIENT_DIST,
+    DEFAULT_HOST,
+    DEFAULT_PORT,
+    BridgeConfigError,
+    check_bind,
+    is_loopback,
+)
 
 log = logging.getLogger(__name__)
 
-DEFAULT_HOST = VR_DEFAULT_HOST
-DEFAULT_PORT = VR_DEFAULT_PORT
 MAX_FRAME_BYTES = 64 * 1024
 WS_PATHS = ("/ws", "/")
 PAGE_PATHS = ("/", "/index.html")
@@ -53,8 +56,6 @@ WRITE_LIMIT = 16 * 1024
 SOCKET_SEND_BUFFER = 64 * 1024
 CLOSE_TOO_SLOW = 1013
 DRIVER, SPECTATOR = "driver", "spectator"
-# The participant client's bundle (built by scripts/setup.sh, services/human_input/client/).
-CLIENT_DIST = Path(__file__).resolve().parents[1] / "client" / "dist"
 CONTENT_TYPES = {
     ".html": "text/html; charset=utf-8",
     ".js": "text/javascript; charset=utf-8",
@@ -83,29 +84,6 @@ FALLBACK_NOTE = (
     b"<code>scripts/setup.sh</code> (it bundles services/human_input/client/ into "
     b"client/dist/). This is the minimal fallback page.</p>"
 )
-
-
-class BridgeConfigError(ValueError):
-    """The bridge would be unsafe or cannot start as configured."""
-
-
-def is_loopback(host: str) -> bool:
-    if host in ("localhost", "ip6-localhost"):
-        return True
-    try:
-        return ipaddress.ip_address(host.strip("[]")).is_loopback
-    except ValueError:
-        return False  # a host name other than localhost may resolve to anything
-
-
-def check_bind(host: str, token: str | None) -> None:
-    """A bridge reachable from other machines must require a token."""
-    if not is_loopback(host) and not token:
-        raise BridgeConfigError(
-            f"refusing to bind the VR bridge to {host!r} without a token: anyone on the network "
-            "could drive the participant's hands. Give --vr-token (or HRC_VR_TOKEN), or bind "
-            "127.0.0.1"
-        )
 
 
 def fallback_page() -> bytes:
