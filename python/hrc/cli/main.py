@@ -31,6 +31,10 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
+    # Before numpy's import, here and (inherited) in every service: OpenBLAS's thread pool costs
+    # ~30 ms of CPU per import, and a trial's small matrices never use it (its five processes
+    # share the cores anyway).
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     from hrc import scenario as sc
     from hrc.cli.runner import (
         Terminated,
