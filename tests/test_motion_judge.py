@@ -159,3 +159,25 @@ def test_reported_layout_with_reachable_feeder_runs_to_the_end(
     assert "task finished" in metrics["run"]["end_reason"], metrics["run"]
     events = (tmp_path / "out" / "events.jsonl").read_text()
     assert "unreachable" not in events
+
+
+@pytest.mark.parametrize("name", ["thesis", "board4x4"])
+def test_robots_checked_in_processes_of_their_own_answer_as_one_process(
+    name: str, tmp_path: Path, need_ik: None, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # hrc run's check runs each robot's moves in a process of its own, at the same time; the
+    # answers must be those of one process checking every move in order.
+    from hrc.scenario import motion_check
+
+    scenario = sc.load(scenario_path(name, tmp_path), motion_check=False)
+    moves = motion_check.planned_moves(scenario)
+    spb = sc.to_proto(scenario)
+    monkeypatch.setattr(motion_check, "_cores", lambda: 2)
+    apart = run_check(spb, moves)
+    monkeypatch.setattr(motion_check, "_cores", lambda: 1)
+    together = run_check(spb, moves)
+    assert len({m.command.robot for m in moves}) == 2
+    assert [r.SerializeToString() for r in apart] == [r.SerializeToString() for r in together]
+    assert [r.label for r in apart] == [m.label for m in moves]
+    if name == "board4x4":
+        assert not all(r.feasible for r in apart)

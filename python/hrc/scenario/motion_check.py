@@ -13,8 +13,10 @@ target again (what the orchestrator re-sends when the robots resume).
 from __future__ import annotations
 
 import logging
+import os
 import subprocess
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -165,34 +167,62 @@ class MotionCheckError(Exception):
 def run_check(
     scenario_pb: pb.Scenario, moves: Sequence[PlannedMove], binary: Path | None = None
 ) -> list[pb.MoveCheckResult]:
-    """Plans and runs `moves` with ``hrc-ik --check-moves``; one result per move, in order."""
+    """Plans and runs `moves` with ``hrc-ik --check-moves``; one result per move, in order.
+
+    A robot's moves depend on each other (each starts where an earlier one of the same robot
+    ended), the robots' do not: each robot's moves go to a process of their own, run at the
+    same time (the check is on the path of ``hrc run`` before any service starts)."""
     if binary is None:
         from hrc.paths import ik_binary
 
         binary = ik_binary()
     if not binary.exists():
         raise MotionCheckError(f"{binary} is missing: build services/ik_cpp (scripts/setup.sh)")
-    request = pb.MotionCheckRequest(scenario=scenario_pb)
-    for m in moves:
-        request.moves.add(label=m.label, command=m.command, start=m.start)
-    proc = subprocess.run(
-        [str(binary), "--check-moves"],
-        input=request.SerializeToString(),
-        capture_output=True,
-        check=False,
-        timeout=600,
-    )
-    if proc.returncode != 0:
-        raise MotionCheckError(
-            proc.stderr.decode(errors="replace").strip()
-            or f"hrc-ik --check-moves exited with {proc.returncode}"
+    by_robot: dict[str, list[int]] = {}
+    for i, m in enumerate(moves):
+        by_robot.setdefault(m.command.robot, []).append(i)
+    if len(by_robot) > 1 and _cores() > 1:
+        groups = list(by_robot.values())
+    else:
+        groups = [list(range(len(moves)))]
+
+    def check(group: list[int]) -> subprocess.CompletedProcess[bytes]:
+        request = pb.MotionCheckRequest(scenario=scenario_pb)
+        for i in group:
+            m = moves[i]
+            request.moves.add(label=m.label, command=m.command, start=m.start)
+        return subprocess.run(
+            [str(binary), "--check-moves"],
+            input=request.SerializeToString(),
+            capture_output=True,
+            check=False,
+            timeout=600,
         )
-    reply = pb.MotionCheckReply.FromString(proc.stdout)
-    if len(reply.results) != len(moves):
-        raise MotionCheckError(
-            f"hrc-ik --check-moves answered {len(reply.results)} of {len(moves)} moves"
-        )
-    return list(reply.results)
+
+    with ThreadPoolExecutor(max_workers=len(groups)) as pool:
+        procs = list(pool.map(check, groups))
+    results: list[pb.MoveCheckResult | None] = [None] * len(moves)
+    answered = 0
+    for group, proc in zip(groups, procs, strict=True):
+        if proc.returncode != 0:
+            raise MotionCheckError(
+                proc.stderr.decode(errors="replace").strip()
+                or f"hrc-ik --check-moves exited with {proc.returncode}"
+            )
+        reply = pb.MotionCheckReply.FromString(proc.stdout)
+        answered += len(reply.results)
+        for i, r in zip(group, reply.results, strict=False):
+            results[i] = r
+    if answered != len(moves):
+        raise MotionCheckError(f"hrc-ik --check-moves answered {answered} of {len(moves)} moves")
+    return [r for r in results if r is not None]
+
+
+def _cores() -> int:
+    try:
+        return len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        return os.cpu_count() or 1
 
 
 def check_motion(scenario: Scenario, binary: Path | None = None) -> list[Problem]:
