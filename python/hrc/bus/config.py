@@ -54,12 +54,6 @@ class BusConfig:
             cfg.insert_json5("connect/retry", CONNECT_RETRY)
         if self.listen:
             cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
-        lone_router = self.mode == "router" and not (self.connect or self.multicast_scouting)
-        if lone_router and self.config_file is None:
-            # A router's open sleeps the scouting delay (500 ms by default) after binding its
-            # listeners, to let what it scouts or connects to answer first; with neither, only
-            # its clients come, on their own (the clock master's start waits for their tokens).
-            cfg.insert_json5("scouting/delay", "0")
         if self.lowlatency:
             cfg.insert_json5("transport/unicast/lowlatency", "true")
             cfg.insert_json5("transport/unicast/qos/enabled", "false")  # required by lowlatency

@@ -11,30 +11,6 @@ from hrc.bus import BusConfig
 from hrc.cli.runner import free_port
 
 
-def _open_s(cfg: BusConfig) -> float:
-    t0 = time.monotonic()
-    session = zenoh.open(cfg.to_zenoh())
-    dt = time.monotonic() - t0
-    session.close()
-    return dt
-
-
-def test_a_router_alone_opens_without_the_scouting_delay() -> None:
-    # Zenoh's default sleeps 500 ms after binding; the clock master's start waited for it.
-    cfg = BusConfig(mode="router", listen=[f"tcp/127.0.0.1:{free_port()}"])
-    assert _open_s(cfg) < 0.4
-    assert cfg.to_zenoh().get_json("scouting/delay") == "0"
-
-
-def test_a_router_that_connects_keeps_the_scouting_delay() -> None:
-    cfg = BusConfig(
-        mode="router",
-        listen=[f"tcp/127.0.0.1:{free_port()}"],
-        connect=[f"tcp/127.0.0.1:{free_port()}"],
-    )
-    assert cfg.to_zenoh().get_json("scouting/delay") == "null"  # zenoh's default
-
-
 def test_a_client_started_first_connects_soon_after_the_router_listens() -> None:
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     connected: list[float] = []
