@@ -68,9 +68,12 @@ def test_an_idle_trial_sends_states_only_as_one_keyframe_per_simulated_second(
         with lock:
             states[msg.robot if key != bus.keys.human_state() else "human"].append(msg.header.tick)
 
-    bus.subscribe(bus.keys.clock(), pb.ClockTick, lambda _k, m: clock.append(m.header.tick))
     bus.subscribe(bus.keys.robot_states(), pb.RobotState, on_state)
     bus.subscribe(bus.keys.human_state(), pb.HumanState, on_state)
+    # The clock only once every state subscription is known to deliver (a keyframe of each came):
+    # a keyframe after the first clock tick seen must not fall before one of them took effect.
+    assert wait_until(lambda: all(states.values()), timeout=60), states
+    bus.subscribe(bus.keys.clock(), pb.ClockTick, lambda _k, m: clock.append(m.header.tick))
     # (the scripted participant's head settles within its first ~5 simulated seconds; the test
     # may join late, so it watches at least 5 simulated seconds itself)
     assert wait_until(
