@@ -265,9 +265,7 @@ class ObjectView:
     size: tuple[float, float, float]
     color: tuple[int, int, int]
     shown: bool = False
-    pos: np.ndarray | None = None
-    quat: np.ndarray | None = None
-    pose: tuple[float, ...] = ()  # pos and quat as floats (x, y, z, qx, qy, qz, qw)
+    pose: tuple[float, ...] = ()  # last logged (x, y, z, qx, qy, qz, qw); () before the first
     next_due: int = 0
     held_by: str = ""
     placed: bool = False
@@ -697,7 +695,7 @@ class View:
                 )
                 ov.shown = True
             self._pose(ent, pos, quat)
-            ov.pos, ov.quat, ov.pose = pos, quat, pose
+            ov.pose = pose
             ov.held_by, ov.placed = o.held_by, o.placed
             ov.next_due = tick + self.every
 
@@ -770,13 +768,13 @@ class View:
                 show_labels=False,  # the part it is for carries the name
             )
         elif c.kind == pb.CUE_KIND_OUTLINE and (
-            (c.part in self.objects and self.objects[c.part].pos is not None)
+            (c.part in self.objects and self.objects[c.part].pose)
             or (p is not None and p.start_given)
         ):
             ov = self.objects.get(c.part)
-            # pos and quat are set together (on the object's first world/objects pose)
-            if ov is not None and ov.pos is not None and ov.quat is not None:
-                size, center, quat = np.array(ov.size), ov.pos, ov.quat
+            if ov is not None and ov.pose:  # seen on world/objects
+                size = np.array(ov.size)
+                center, quat = np.array(ov.pose[:3]), np.array(ov.pose[3:])
             else:  # not seen on world/objects yet: where the scenario puts it
                 assert p is not None
                 size = np.array([p.size.x, p.size.y, p.size.z])
