@@ -111,12 +111,13 @@ class SpanPlanner:
 
     def __post_init__(self) -> None:
         self.histogram: Counter[int] = Counter()  # exchanges planned, by span
-        # robot id -> m/s: the full bound from the URDF, and the one its source's latest
-        # declaration gives (absent: not declared)
+        # robot id -> m/s: the full bound from the URDF
         self.arm_bounds: dict[str, float] = {
             rid: sum(t.values()) for rid, t in self.arm_terms.items()
         }
-        self._declared: dict[str, tuple[float, int]] = {}  # m/s, for this many ticks (0: all)
+        # robot id -> its latest declaration (joints, fractions, window ticks); read only when a
+        # span is planned, once per exchange, though a moving arm's states come every tick
+        self._declared: dict[str, tuple[Sequence[str], Sequence[float], int]] = {}
         self._commanded: set[str] = set()  # arms commanded since the last span was planned
 
     def declare(
@@ -125,15 +126,12 @@ class SpanPlanner:
         """The robot's latest state declares these joint speed fractions for the next
         ``window`` ticks (0: all; empty fractions: nothing declared); a joint it does not name
         counts in full."""
-        terms = self.arm_terms.get(robot)
-        if terms is None:
+        if robot not in self.arm_terms:
             return
         if not fractions:
             self._declared.pop(robot, None)
             return
-        given = dict(zip(joints, fractions, strict=True))
-        bound = sum(term * given.get(j, 1.0) for j, term in terms.items())
-        self._declared[robot] = (bound, window)
+        self._declared[robot] = (joints, fractions, window)
 
     def commanded(self, robot: str) -> None:
         """A command for ``robot`` was sent: its source applies it at the next exchange's first
@@ -146,7 +144,10 @@ class SpanPlanner:
         declared = self._declared.get(robot)
         if declared is None or robot in self._commanded:
             return self.arm_bounds[robot], 0
-        return declared
+        joints, fractions, window = declared
+        given = dict(zip(joints, fractions, strict=True))
+        terms = self.arm_terms[robot]
+        return sum(term * given.get(j, 1.0) for j, term in terms.items()), window
 
     def span(
         self,
