@@ -201,8 +201,7 @@ def run_check(
 
     with ThreadPoolExecutor(max_workers=len(groups)) as pool:
         procs = list(pool.map(check, groups))
-    results: list[pb.MoveCheckResult | None] = [None] * len(moves)
-    answered = 0
+    results: list[pb.MoveCheckResult] = [pb.MoveCheckResult()] * len(moves)
     for group, proc in zip(groups, procs, strict=True):
         if proc.returncode != 0:
             raise MotionCheckError(
@@ -210,12 +209,13 @@ def run_check(
                 or f"hrc-ik --check-moves exited with {proc.returncode}"
             )
         reply = pb.MotionCheckReply.FromString(proc.stdout)
-        answered += len(reply.results)
-        for i, r in zip(group, reply.results, strict=False):
+        if len(reply.results) != len(group):
+            raise MotionCheckError(
+                f"hrc-ik --check-moves answered {len(reply.results)} of {len(group)} moves"
+            )
+        for i, r in zip(group, reply.results, strict=True):
             results[i] = r
-    if answered != len(moves):
-        raise MotionCheckError(f"hrc-ik --check-moves answered {answered} of {len(moves)} moves")
-    return [r for r in results if r is not None]
+    return results
 
 
 def _cores() -> int:
