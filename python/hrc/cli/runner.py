@@ -28,6 +28,7 @@ from typing import IO
 
 from hrc import priority, services
 from hrc.bus import Bus, BusConfig
+from hrc.cli.prefork import ForkedProcess, can_fork, fork_service
 from hrc.paths import build_dir
 from hrc.scenario.resolved import Resolved, slug
 from hrc.wire import pb
@@ -281,12 +282,14 @@ class ServiceGroup:
     def __init__(self, trial_dir: Path) -> None:
         self.logs_dir = trial_dir / "services"
         self.logs_dir.mkdir(parents=True, exist_ok=True)
-        self.procs: dict[str, subprocess.Popen[bytes]] = {}
+        self.procs: dict[str, subprocess.Popen[bytes] | ForkedProcess] = {}
         self._files: list[IO[bytes]] = []
         self.cpu_s: dict[str, tuple[float, float]] = {}  # (user, system) of each ended service
         self.exited_at: dict[str, float] = {}  # time.monotonic() when each was seen gone
 
-    def start(self, name: str, argv: list[str]) -> None:
+    def start(self, name: str, argv: list[str], module: str | None = None) -> None:
+        """Starts service ``name`` with command line ``argv``; a Python service (``module``)
+        is forked from this process where that is safe (``hrc.cli.prefork``)."""
         f = open(self.logs_dir / f"{name}.log", "wb")
         self._files.append(f)
         env = dict(os.environ, PYTHONUNBUFFERED="1")
@@ -295,18 +298,22 @@ class ServiceGroup:
         # (the child forked, not yet on the list): held until it is on the list.
         mask = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
         try:
-            self.procs[name] = subprocess.Popen(
-                argv,
-                stdout=f,
-                stderr=subprocess.STDOUT,
-                stdin=subprocess.DEVNULL,
-                env=env,
-                preexec_fn=functools.partial(_service_preexec, mask),
-            )
+            if module is not None and can_fork():
+                in_child = functools.partial(_service_preexec, mask)
+                self.procs[name] = fork_service(module, argv, f.fileno(), env, in_child)
+            else:
+                self.procs[name] = subprocess.Popen(
+                    argv,
+                    stdout=f,
+                    stderr=subprocess.STDOUT,
+                    stdin=subprocess.DEVNULL,
+                    env=env,
+                    preexec_fn=functools.partial(_service_preexec, mask),
+                )
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
-    def _reap(self, name: str, p: subprocess.Popen[bytes]) -> int | None:
+    def _reap(self, name: str, p: subprocess.Popen[bytes] | ForkedProcess) -> int | None:
         """Like ``p.poll()``, but reaps with wait4 to keep the service's CPU time."""
         if p.returncode is None:
             try:
@@ -514,7 +521,8 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     try:
         # the table lists the clock master first: it listens where everybody else connects.
         for name in services.names():
-            group.start(name, service_argv(name, opts, session, port, trial_dir, sock, lowlatency))
+            argv = service_argv(name, opts, session, port, trial_dir, sock, lowlatency)
+            group.start(name, argv, services.service(name).module)
         time.sleep(0.2)
         try:
             watcher = _EndWatcher(session, port)
