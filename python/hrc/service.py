@@ -252,10 +252,16 @@ def exit_now(code: int) -> NoReturn:
     the zenoh / rerun / pybullet runtimes) is skipped: it took 0.3-1.7 s per service after
     the run on a busy machine, and ``hrc run`` waits for every service to leave."""
     logging.shutdown()
+    flush_output()
+    os._exit(code)
+
+
+def flush_output() -> None:
+    """Writes out what stdout and stderr hold (before ``os._exit``, or a fork that would write
+    it twice)."""
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
-    os._exit(code)
 
 
 def run_service(cls: type[Service], argv: list[str] | None = None) -> int:

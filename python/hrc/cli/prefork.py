@@ -30,12 +30,13 @@ import runpy
 import signal
 import sys
 import threading
-import time
 import traceback
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from typing import NoReturn
 
 from setproctitle import setproctitle
+
+from hrc.service import flush_output
 
 START_ENV = "HRC_SERVICE_START"  # "exec": always a new interpreter; "fork" or unset: fork if safe
 
@@ -74,15 +75,8 @@ class ForkedProcess:
     def poll(self) -> int | None:
         return self._wait(os.WNOHANG)
 
-    def wait(self, timeout: float | None = None) -> int | None:
-        if timeout is None:
-            return self._wait(0)
-        deadline = time.monotonic() + timeout
-        while self.poll() is None:
-            if time.monotonic() > deadline:
-                raise TimeoutError(f"process {self.pid} still running after {timeout:g} s")
-            time.sleep(0.01)
-        return self.returncode
+    def wait(self) -> int | None:
+        return self._wait(0)
 
     def send_signal(self, sig: int) -> None:
         if self.returncode is None:
@@ -103,10 +97,7 @@ def fork_service(
     """Forks; the child runs ``module`` as ``__main__`` with ``argv`` (the whole command line
     it would have had, ``python -m module`` included) and never returns. ``in_child`` runs first
     in the child (``hrc run``'s pre-exec: parent-death signal, signal mask)."""
-    # Flushed before the fork, or what is buffered would be written twice.
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
+    flush_output()  # or what is buffered would be written twice
     pid = os.fork()
     if pid == 0:
         _child(module, argv, log_fd, env, in_child)
@@ -122,12 +113,6 @@ def _exit_code(exc: SystemExit) -> int:
     return 1
 
 
-def _reset_signals(handled: Iterable[int]) -> None:
-    for sig in handled:
-        signal.signal(sig, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-
-
 def _child(
     module: str,
     argv: list[str],
@@ -140,7 +125,9 @@ def _child(
         # First: it needs the process's environment strings as they were at its start.
         setproctitle(" ".join(argv))
         # What an interpreter gets from exec that a fork keeps from the parent, undone.
-        _reset_signals((signal.SIGTERM, signal.SIGHUP))
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        signal.signal(signal.SIGHUP, signal.SIG_DFL)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         in_child()
         with open(os.devnull, "rb") as null:
             os.dup2(null.fileno(), 0)
@@ -177,6 +164,4 @@ def _flush_and_run_exit_handlers() -> None:
         atexit._run_exitfuncs()
     with contextlib.suppress(BaseException):
         logging.shutdown()
-    for stream in (sys.stdout, sys.stderr):
-        with contextlib.suppress(Exception):
-            stream.flush()
+    flush_output()
