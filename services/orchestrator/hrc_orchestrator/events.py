@@ -197,6 +197,19 @@ def stalled(t: float, message: str) -> pb.TaskEvent:
     return make(K.TASK_EVENT_KIND_STALLED, t, f"TASK STALLED{message.removeprefix('stalled')}.")
 
 
+def participant_wait(t: float, what: str, quiet_s: float) -> pb.TaskEvent:
+    """A live trial waits on the person (not a stall): what they are expected to do next."""
+    part = what if what != "the continue button" else ""
+    return make(
+        K.TASK_EVENT_KIND_PARTICIPANT_WAIT,
+        t,
+        f"waiting for the participant: {what} (nothing else moved for {quiet_s:.0f} s)",
+        agent="human",
+        part=part,
+        payload=pb.ParticipantWait(quiet_s=quiet_s, what=what),
+    )
+
+
 def task_finished(t: float, collisions: int, near: int) -> pb.TaskEvent:
     return make(
         K.TASK_EVENT_KIND_TASK_FINISHED,

@@ -36,7 +36,12 @@ from hrc_orchestrator.human import HumanAgent
 from hrc_orchestrator.robots import Phase, RobotAgent
 from hrc_orchestrator.safety import Safety
 from hrc_orchestrator.ssm import SsmMonitor
-from hrc_orchestrator.watchdog import Watchdog, describe
+from hrc_orchestrator.watchdog import (
+    PARTICIPANT_WAIT_NOTICE_S,
+    Watchdog,
+    describe,
+    waits_on_participant,
+)
 
 
 def wall_clock_now() -> str:
@@ -90,7 +95,8 @@ class Task:
         self.cue_board = CueBoard()
         self._wall_clock = wall_clock
         self.watchdog = Watchdog(
-            scenario.scenario.stall_timeout_s if stall_timeout_s is None else stall_timeout_s
+            scenario.scenario.stall_timeout_s if stall_timeout_s is None else stall_timeout_s,
+            live=scenario.participant.input == sc.InputSource.VR,
         )
         self.wall_start = ""
         self.started = False
@@ -170,9 +176,29 @@ class Task:
         out.events = events
         out.world_commands = world + self._grabbable_changes()
         out.cues = self._cue_changes()
-        if not self.finished and self.watchdog.check(sim_time, out):
-            self._stall(out)
+        if not self.finished:
+            fired = self.watchdog.check(sim_time, out)
+            if self.watchdog.live:
+                self._participant_wait(sim_time, out, fired)
+            elif fired:
+                self._stall(out)
         return out
+
+    def _participant_wait(self, sim_time: float, out: Outputs, fired: bool) -> None:
+        """A live trial: a wait on the person is announced, never a stall; a robot stuck on its
+        own still ends the trial."""
+        wd = self.watchdog
+        quiet = wd.quiet_s(sim_time)
+        if not fired and (wd.announced or quiet < PARTICIPANT_WAIT_NOTICE_S):
+            return
+        what = waits_on_participant(self)
+        if not what:
+            if fired:
+                self._stall(out)
+            return
+        if not wd.announced:
+            wd.announced = what
+            out.events.append(ev.participant_wait(self.now(), what, quiet))
 
     def next_event_tick(self) -> int:
         """The first tick after the last one stepped at which a timer of the task runs out

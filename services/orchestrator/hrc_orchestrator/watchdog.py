@@ -5,6 +5,12 @@ what.
 Progress is any task event except the human's idle changes and an unreachable report, and any
 cue switching on or off. The message is a pure function of the task's state, so it is the same
 in every run of a scenario and seed.
+
+A live participant is a person, not a process: in a live trial, time the task spends waiting on
+the person (every robot done, not started, waiting for a part that waits on the person, halted or
+stopped by the person's hand, or waiting for the continue button) never ends the trial. The
+watchdog announces the wait once (`PARTICIPANT_WAIT`, after ``PARTICIPANT_WAIT_NOTICE_S``) and
+only the experimenter ends such a trial; a robot that is stuck still ends it.
 """
 
 from __future__ import annotations
@@ -26,8 +32,11 @@ NOT_PROGRESS = frozenset(
         K.TASK_EVENT_KIND_HUMAN_IDLE_BEGIN,
         K.TASK_EVENT_KIND_HUMAN_IDLE_END,
         K.TASK_EVENT_KIND_ROBOT_UNREACHABLE,
+        K.TASK_EVENT_KIND_PARTICIPANT_WAIT,
     }
 )
+# A live trial announces a wait on the participant after this much quiet (simulated = wall s).
+PARTICIPANT_WAIT_NOTICE_S = 10.0
 
 
 def progressed(out: Outputs) -> bool:
@@ -35,19 +44,26 @@ def progressed(out: Outputs) -> bool:
 
 
 class Watchdog:
-    def __init__(self, timeout_s: float) -> None:
+    def __init__(self, timeout_s: float, live: bool = False) -> None:
         self.timeout_s = timeout_s  # <= 0: no watchdog
+        self.live = live  # a person takes part: waits on them are not stalls
         self.last_progress = 0.0  # simulated time
         self.message = ""  # set once it fired
+        self.announced = ""  # live: the part the announced wait on the participant is for
 
     def check(self, sim_time: float, out: Outputs) -> bool:
-        """True once, on the tick the trial has gone `timeout_s` without progress."""
-        if self.message or self.timeout_s <= 0:
+        """True on the ticks the trial has gone `timeout_s` without progress (once, unless
+        :meth:`spare` spares the trial: a live participant keeps the robots waiting)."""
+        if self.message:
             return False
         if progressed(out):
             self.last_progress = sim_time
+            self.announced = ""
             return False
-        return sim_time - self.last_progress >= self.timeout_s - 1e-9
+        return self.timeout_s > 0 and sim_time - self.last_progress >= self.timeout_s - 1e-9
+
+    def quiet_s(self, sim_time: float) -> float:
+        return sim_time - self.last_progress
 
 
 def _xyz(v: tuple[float, float, float]) -> str:
@@ -127,6 +143,40 @@ def _human(task: Task) -> str:
     if h.grabbable(nxt, task.safety.blocks_grab):
         return f"the human has not grabbed {nxt}"
     return f"the human may not grab {nxt} (a collision is open)"
+
+
+def waits_on_participant(task: Task) -> str:
+    """What the participant is expected to do next, when nothing but the participant can move
+    the task on (every robot done, not started, waiting for a part, or held by the person's
+    hand, zone or button); "" when a robot is stuck on its own."""
+    h = task.human
+    safety = task.safety
+    retreating = safety.retreating
+    for rid, agent in task.agents.items():
+        st = agent.state
+        if (
+            st is not None
+            and st.status == pb.MOTION_STATUS_UNREACHABLE
+            and st.command_id == agent.sent_id
+        ):
+            return ""
+        if agent.phase in (Phase.FINISHED, Phase.NOT_STARTED, Phase.WAITING):
+            continue
+        if rid in safety.halted or (rid in safety.ssm and safety.protective_stop(rid)):
+            continue  # the person's hand holds it
+        if (
+            retreating is not None
+            and rid in retreating.retreat
+            and safety.button_wanted
+            and retreating.arrived.get(rid, False)
+        ):
+            continue  # at its retreat pose, for the person's button
+        return ""
+    if safety.button_wanted:
+        return "the continue button"
+    if h.done:
+        return ""
+    return h.held_part or h.next_part
 
 
 def describe(task: Task, stalled_s: float) -> str:

@@ -118,3 +118,55 @@ def test_watchdog_off_and_progress_resets_it() -> None:
     sim = Sim(load("thesis.toml", scenario={"stall_timeout_s": 2.0}))
     sim.run_to_end()  # a normal trial never goes 2 s without an event or a cue change
     assert not sim.kinds(K.TASK_EVENT_KIND_STALLED) and sim.stop == "task finished"
+
+
+# ---------------------------------------------------------------- a live participant
+
+
+def live_thesis(**scenario: object) -> Sim:
+    return Sim(load("thesis.toml", participant={"input": "vr"}, scenario=scenario))
+
+
+def test_a_live_participant_who_never_grabs_is_waited_for_not_stalled() -> None:
+    sim = live_thesis(stall_timeout_s=5.0)
+    sim.human = None  # nobody grabs anything
+    for _ in range(int(30 / sim.dt)):
+        assert not sim.step().stalled
+    waits = sim.kinds(K.TASK_EVENT_KIND_PARTICIPANT_WAIT)
+    # announced once, after 5 s (the notice comes at the watchdog's timeout when it is shorter)
+    assert len(waits) == 1, [e.text for e in waits]
+    assert waits[0].part == "H1" and waits[0].participant_wait.what == "H1"
+    assert "waiting for the participant: H1" in waits[0].text
+    assert waits[0].participant_wait.quiet_s >= 5.0 - 1e-6
+    assert not sim.task.watchdog.message and not sim.kinds(K.TASK_EVENT_KIND_STALLED)
+
+
+def test_a_live_pause_mid_task_is_announced_again_after_progress() -> None:
+    sim = live_thesis()
+    sim.run(lambda x: x.task.started, max_s=20)
+    assert sim.human is not None
+    sim.human.enabled = False  # holds H1 and stays still: the robots end up waiting on it
+    for _ in range(int(150 / sim.dt)):
+        assert not sim.step().stalled
+    waits = sim.kinds(K.TASK_EVENT_KIND_PARTICIPANT_WAIT)
+    assert len(waits) == 1 and waits[0].participant_wait.what == "H1", [e.text for e in waits]
+    assert not sim.kinds(K.TASK_EVENT_KIND_STALLED)
+
+
+def test_a_robot_stuck_on_its_own_still_ends_a_live_trial() -> None:
+    sim = live_thesis(stall_timeout_s=5.0)
+    sim.run(lambda x: x.task.started, max_s=20)
+    robot = sim.robots["r1"]
+
+    def unreachable(s: Sim) -> None:
+        robot.frozen = True
+        robot.status = pb.MOTION_STATUS_UNREACHABLE
+
+    sim.hooks.append(unreachable)
+    out = None
+    for _ in range(int(30 / sim.dt)):
+        out = sim.step()
+        if out.stalled:
+            break
+    assert out is not None and out.stalled.startswith("stalled for 5 s: "), "no stall"
+    assert "r1 cannot make its move" in out.stalled
