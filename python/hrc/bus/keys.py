@@ -76,6 +76,9 @@ class Keys:
     def robot_reach(self) -> str:
         return self._k("robot", "reach")
 
+    def human_clients(self) -> str:
+        return self._k("human", "clients")
+
     def human_state(self) -> str:
         return self._k("human", "state")
 

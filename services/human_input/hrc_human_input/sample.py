@@ -63,6 +63,10 @@ class Sample:
         """The same sample stamped with another time."""
         return Sample(t, self.head, self.left, self.right, self.left_grip, self.right_grip)
 
+    def released(self) -> Sample:
+        """The same poses with both grips open."""
+        return Sample(self.t, self.head, self.left, self.right, 0.0, 0.0)
+
     def to_proto(self, source: InputSource) -> pb.HumanState:
         msg = pb.HumanState()
         self.into_proto(msg, source)

@@ -90,6 +90,14 @@ class HumanInputService(Service):
             help="token VR clients must present (env HRC_VR_TOKEN)",
         )
         p.add_argument(
+            "--vr-driver",
+            default=os.environ.get("HRC_VR_DRIVER") or None,
+            metavar="KEY",
+            help="the participant's key (env HRC_VR_DRIVER): only the page opened with "
+            "?driver=KEY drives the hands, and again after a reload; every other page spectates "
+            "(default: none, the first page drives)",
+        )
+        p.add_argument(
             "--vr-wait",
             type=float,
             default=float(os.environ.get("HRC_VR_WAIT", VR_DEFAULT_WAIT_S)),
@@ -221,6 +229,7 @@ class HumanInputService(Service):
             scene=scene,
             robot_files=files,
             client_dir=args.vr_client_dir,
+            driver_key=args.vr_driver,
         )
         try:
             port = bridge.start()
@@ -242,7 +251,7 @@ class HumanInputService(Service):
         joints = {r["id"]: list(r["joint_names"]) for r in scene["robots"]}
         cues = {c["id"]: scene_cue_json(c) for c in scene["cues"]}
         mirror = WorldMirror(joints, cues, ssm_zones(scenario))
-        return VrSource(bridge, mirror)
+        return VrSource(bridge, mirror, self.bus.publisher(self.bus.keys.human_clients()))
 
     def register_inputs(self, inputs: Inputs) -> None:
         self._inputs = inputs

@@ -4,7 +4,7 @@ participant only); ``summary()`` is its end-of-run log line."""
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Protocol
+from typing import TYPE_CHECKING, Any, Protocol
 
 from hrc.bus import Keys
 from hrc.geometry import Pose, look_quat
@@ -18,6 +18,7 @@ from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import HEAD_POS, REST, ScriptedParticipant
 from hrc_human_input.stream import RunState, WorldMirror
 from hrc_human_input.task_view import TaskView
+from hrc_human_input.vr_options import DRIVER
 
 if TYPE_CHECKING:  # the bridge's server is imported only for a live participant
     from hrc_human_input.vr_bridge import VrBridge
@@ -146,9 +147,10 @@ class VrSource:
 
     name = InputSource.VR
 
-    def __init__(self, bridge: VrBridge, mirror: WorldMirror) -> None:
+    def __init__(self, bridge: VrBridge, mirror: WorldMirror, clients_pub: Any = None) -> None:
         self.bridge = bridge
         self.mirror = mirror
+        self.clients_pub = clients_pub  # human/clients: the experimenter's console
 
     def sample(self, t: float) -> Sample:
         latest = self.bridge.latest()
@@ -173,11 +175,25 @@ class VrSource:
     def published(self, tick: int, t: float, sample: Sample) -> None:
         if self.mirror.world_seen:  # until then the frame would show an empty world
             self.bridge.publish(*self.mirror.snapshot(tick, t, sample))
+        presence = self.bridge.presence() if self.clients_pub is not None else None
+        if presence is not None:
+            clients, changes = presence
+            role = {DRIVER: pb.CLIENT_ROLE_DRIVER}
+            msg = pb.ParticipantClients(
+                clients=[
+                    pb.ParticipantClient(peer=peer, role=role.get(r, pb.CLIENT_ROLE_SPECTATOR))
+                    for peer, r in clients
+                ],
+                changes=changes,
+            )
+            self.clients_pub.put(msg, tick, t)
 
     def ended(self, ok: bool, reason: str) -> None:
         m = self.mirror
-        if ok and m.run != RunState.FAILED:
-            m.set_run(RunState.FINISHED, m.run_reason or reason)
+        if ok and m.run == RunState.FINISHED:
+            pass
+        elif ok:  # the run was stopped before the task finished (the experimenter)
+            m.set_run(RunState.STOPPED, reason)
         elif not ok:
             m.set_run(RunState.FAILED, reason)
         snap, events = m.snapshot(m.last_tick, m.last_t, self.bridge.latest())

@@ -35,6 +35,7 @@ PERCEIVABLE = frozenset(
         pb.TASK_EVENT_KIND_ROBOT_FINISHED,
         pb.TASK_EVENT_KIND_HUMAN_FINISHED,
         pb.TASK_EVENT_KIND_STALLED,
+        pb.TASK_EVENT_KIND_PARTICIPANT_WAIT,
     }
 )
 EVENT_PREFIX = "TASK_EVENT_KIND_"
@@ -53,7 +54,8 @@ def motion_status(status: pb.MotionStatus.ValueType) -> str:
 class RunState:
     WAITING = "waiting_first_grab"
     RUNNING = "running"
-    FINISHED = "finished"
+    FINISHED = "finished"  # the task finished
+    STOPPED = "stopped"  # the experimenter ended the trial before the task finished
     FAILED = "failed"
 
 
@@ -175,6 +177,9 @@ class WorldMirror:
                 "hand": msg.hand,
                 "text": msg.text,
             }
+            if msg.kind == pb.TASK_EVENT_KIND_PARTICIPANT_WAIT:
+                event["quiet_s"] = r4(msg.participant_wait.quiet_s)
+                event["part"] = msg.participant_wait.what
             self.events.append(json.dumps(event, separators=(",", ":")))
         # the run message follows the event that changed it
         if msg.kind == pb.TASK_EVENT_KIND_TASK_STARTED:

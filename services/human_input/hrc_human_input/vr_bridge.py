@@ -37,6 +37,8 @@ from hrc_human_input.vr_options import (  # noqa: F401  (re-exported: the bridge
     CLIENT_DIST,
     DEFAULT_HOST,
     DEFAULT_PORT,
+    DRIVER,
+    SPECTATOR,
     BridgeConfigError,
     check_bind,
     is_loopback,
@@ -55,7 +57,6 @@ EVENT_QUEUE = 256  # events waiting for one client; beyond that it is disconnect
 WRITE_LIMIT = 16 * 1024
 SOCKET_SEND_BUFFER = 64 * 1024
 CLOSE_TOO_SLOW = 1013
-DRIVER, SPECTATOR = "driver", "spectator"
 CONTENT_TYPES = {
     ".html": "text/html; charset=utf-8",
     ".js": "text/javascript; charset=utf-8",
@@ -153,8 +154,14 @@ class VrBridge:
         scene: dict[str, Any] | None = None,
         robot_files: RobotFiles | None = None,
         client_dir: Path | None = CLIENT_DIST,
+        driver_key: str | None = None,
     ) -> None:
         check_bind(host, token)
+        # With a driver key only a page that presents it (?driver=KEY, the participant's link)
+        # drives, and gets the role back when it reconnects; every other page spectates. Without
+        # one, the first page drives and the longest-connected spectator takes over when it
+        # leaves.
+        self.driver_key = driver_key or None
         self.host = host
         self.port = port
         self.token = token or None
@@ -179,6 +186,9 @@ class VrBridge:
         self._pending: Snapshot | None = None
         self._pending_events: list[str] = []
         self._wake_scheduled = False
+        # loop thread -> tick thread (under _lock): who is connected, what changed
+        self._presence: list[str] = []
+        self._presence_changed = False
         # loop thread only
         self._snapshot: Snapshot | None = None
         self._clients: list[Client] = []  # authenticated, in connection order
@@ -214,6 +224,24 @@ class VrBridge:
     def latest(self) -> Sample | None:
         with self._lock:
             return self._latest
+
+    def presence(self) -> tuple[list[tuple[str, str]], list[str]] | None:
+        """The connected clients (peer, role) and the changes since the last call; None when
+        nothing changed."""
+        with self._lock:
+            if not self._presence_changed:
+                return None
+            changes, self._presence = self._presence, []
+            self._presence_changed = False
+            clients = [(c.peer, c.role) for c in self._clients if not c.closing]
+        return clients, changes
+
+    def _note(self, line: str) -> None:
+        """A change of who is connected, for the experimenter's console (and the log)."""
+        log.info("%s", line)
+        with self._lock:
+            self._presence.append(line)
+            self._presence_changed = True
 
     def wait_for_client(self, timeout: float | None) -> bool:
         """True once a client has connected (and authenticated) since the start."""
@@ -385,13 +413,27 @@ class VrBridge:
             self.stats.frames_sent += 1
 
     # ------------------------------------------------------------------ clients and roles
-    def _register(self, ws: ServerConnection, peer: str) -> Client:
+    def _register(self, ws: ServerConnection, peer: str, participant: bool) -> Client:
         c = Client(ws, peer)
-        c.role = DRIVER if not any(o.role == DRIVER for o in self._clients) else SPECTATOR
+        current = next((o for o in self._clients if o.role == DRIVER and not o.closing), None)
+        if self.driver_key is None:
+            c.role = DRIVER if current is None else SPECTATOR
+        else:
+            c.role = DRIVER if participant else SPECTATOR
+            if participant and current is not None:
+                # the participant's page again (a reload, a second tab): the newest one drives
+                current.role = SPECTATOR
+                current.outbox.append(self._hello_json(SPECTATOR, authed=True))
+                current.wake.set()
+                self._note(
+                    f"VR client {current.peer} is now a spectator (the participant's "
+                    f"link was opened again at {peer})"
+                )
         c.due = asyncio.get_running_loop().time()
         self._clients.append(c)
-        self._first_client.set()
-        log.info("VR client %s is the %s", peer, c.role)
+        if c.role == DRIVER or self.driver_key is None:
+            self._first_client.set()
+        self._note(f"VR client {peer} connected as the {c.role}")
         return c
 
     def _unregister(self, c: Client) -> None:
@@ -401,21 +443,26 @@ class VrBridge:
         c.closing = True
         if c.task is not None:
             c.task.cancel()
-        log.info(
-            "VR client %s (%s) left: %d frames, %d dropped, %d bytes",
-            c.peer,
-            c.role,
-            c.frames,
-            c.dropped,
-            c.bytes,
+        self._note(
+            f"VR client {c.peer} ({c.role}) left: {c.frames} frames, {c.dropped} dropped, "
+            f"{c.bytes} bytes"
         )
-        if c.role == DRIVER:
-            nxt = next((o for o in self._clients if not o.closing), None)
-            if nxt is not None:
-                nxt.role = DRIVER
-                log.info("VR client %s is now the driver", nxt.peer)
-                nxt.outbox.append(self._hello_json(nxt.role, authed=True))
-                nxt.wake.set()
+        if c.role != DRIVER:
+            return
+        # The hands open where they are: a part held stays where the hand held it (it is let
+        # go there), never carried off to where the next page starts its hands.
+        with self._lock:
+            if self._latest is not None:
+                self._latest = self._latest.released()
+        if self.driver_key is not None:
+            self._note("no driver: the participant's page is gone (it drives again on reopen)")
+            return
+        nxt = next((o for o in self._clients if not o.closing), None)
+        if nxt is not None:
+            nxt.role = DRIVER
+            self._note(f"VR client {nxt.peer} is now the driver")
+            nxt.outbox.append(self._hello_json(nxt.role, authed=True))
+            nxt.wake.set()
 
     def _hello_json(self, role: str | None, authed: bool) -> str:
         return json.dumps(
@@ -428,9 +475,9 @@ class VrBridge:
             }
         )
 
-    async def _welcome(self, ws: ServerConnection, peer: str) -> Client:
+    async def _welcome(self, ws: ServerConnection, peer: str, participant: bool) -> Client:
         """An authenticated client: its role, hello, the scene, then its stream."""
-        c = self._register(ws, peer)
+        c = self._register(ws, peer, participant)
         await self._send(c, self._hello_json(c.role, authed=True))
         if self.scene_json is not None:
             await self._send(c, self.scene_json)
@@ -487,13 +534,19 @@ class VrBridge:
         authed = self.token is None or self._token_ok(
             query["token"][0] if query.get("token") else None
         )
+        given_key = query["driver"][0] if query.get("driver") else None
+        participant = (
+            self.driver_key is not None
+            and given_key is not None
+            and hmac.compare_digest(given_key.encode(), self.driver_key.encode())
+        )
         self.stats.clients += 1
         _limit_send_buffer(ws)
         log.info("VR client %s connected%s", peer, "" if authed else " (must authenticate)")
         client: Client | None = None
         try:
             if authed:
-                client = await self._welcome(ws, peer)
+                client = await self._welcome(ws, peer, participant)
             else:
                 await ws.send(self._hello_json(None, authed=False))
             async for message in ws:
@@ -509,7 +562,7 @@ class VrBridge:
                     if self.token is None or self._token_ok(obj.get("token")):
                         await ws.send(json.dumps({"type": "auth", "ok": True}))
                         if client is None:
-                            client = await self._welcome(ws, peer)
+                            client = await self._welcome(ws, peer, participant)
                         continue
                     self.stats.auth_failures += 1
                     await self._error_reply(ws, ["wrong token"])
@@ -534,8 +587,11 @@ class VrBridge:
                     await self._error_reply(
                         ws,
                         [
-                            "spectator: another client drives the hands; this one only watches "
-                            "(it becomes the driver when that one leaves)"
+                            "spectator: this page only watches; the participant's link "
+                            "(?driver=...) drives the hands"
+                            if self.driver_key is not None
+                            else "spectator: another client drives the hands; this one only "
+                            "watches (it becomes the driver when that one leaves)"
                         ],
                     )
                     continue

@@ -12,6 +12,7 @@ DEFAULT_HOST = VR_DEFAULT_HOST
 DEFAULT_PORT = VR_DEFAULT_PORT
 # The participant client's bundle (built by scripts/setup.sh, services/human_input/client/).
 CLIENT_DIST = Path(__file__).resolve().parents[1] / "client" / "dist"
+DRIVER, SPECTATOR = "driver", "spectator"  # a client's role (docs/client-protocol.md)
 
 
 class BridgeConfigError(ValueError):

@@ -84,7 +84,10 @@ def test_token_in_query_or_first_message() -> None:
             assert reply["type"] == "error" and "authenticate first" in reply["error"]
             with pytest.raises(ConnectionClosed):
                 ws.recv(timeout=5)
-        assert bridge.latest().left_grip == 0.5
+        # the unauthenticated sample changed nothing; the driver that left opened its hands
+        # where they were
+        last = bridge.latest()
+        assert last.left_grip == 0.0 and last.left.position == tuple(SAMPLE["left"]["position"])
 
 
 def test_serves_the_fallback_page_when_the_client_is_not_built(tmp_path) -> None:
@@ -293,3 +296,54 @@ def test_no_frame_goes_out_before_the_world_has_arrived() -> None:
         source.published(1, 1 / 240, sample)
         first = json.loads(ws.recv(timeout=5))
         assert first["type"] == "frame" and set(first["objects"]) == {"H1"}
+
+
+def hello_role(ws) -> str:
+    while True:
+        msg = json.loads(ws.recv(timeout=5))
+        if msg["type"] == "hello":
+            return msg["role"]
+
+
+def test_the_participants_link_drives_and_gets_the_role_back_on_reopen() -> None:
+    with VrBridge("127.0.0.1", 0, driver_key="k3y") as bridge:
+        port = bridge.bound_port
+        url = f"ws://127.0.0.1:{port}/ws"
+        with connect(url) as watcher:  # the experimenter's page opened first
+            assert hello_role(watcher) == "spectator"
+            assert not bridge.wait_for_client(0.2), "a spectator must not start the trial"
+            with connect(url + "?driver=wrong") as other:
+                assert hello_role(other) == "spectator"
+            with connect(url + "?driver=k3y") as page:
+                assert hello_role(page) == "driver"
+                assert bridge.wait_for_client(1.0)
+                page.send(json.dumps(SAMPLE))  # holds something in the right hand
+                assert wait_for(lambda: bridge.latest() is not None)
+                assert bridge.latest().right_grip == 1.0
+                # a reload: the new page connects before the old one is gone
+                with connect(url + "?driver=k3y") as again:
+                    assert hello_role(again) == "driver"
+                    assert hello_role(page) == "spectator"  # the old page is told
+                    again.send(json.dumps({**SAMPLE, "right_grip": 0.5}))
+                    assert wait_for(lambda: bridge.latest().right_grip == 0.5)
+                    watcher.send(json.dumps(SAMPLE))
+                    while (msg := json.loads(watcher.recv(timeout=5)))["type"] != "error":
+                        pass
+                    assert msg["error"].startswith("spectator:"), msg
+            # the driver left: nobody is promoted, the hands opened where they were
+            last = bridge.latest()
+            assert last.right_grip == 0.0 and last.left_grip == 0.0
+            assert last.right.position == tuple(POSE["position"])
+            watcher.send(json.dumps(SAMPLE))
+            while (msg := json.loads(watcher.recv(timeout=5)))["type"] != "error":
+                pass
+            assert msg["error"].startswith("spectator:"), msg
+        presence = bridge.presence()
+        assert presence is not None
+        _clients, changes = presence
+        text = "\n".join(changes)
+        assert text.count("connected as the driver") == 2, text
+        assert text.count("connected as the spectator") == 2, text
+        assert "is now a spectator (the participant's link was opened again" in text, text
+        assert "no driver: the participant's page is gone" in text, text
+        assert bridge.presence() is None  # nothing new since
