@@ -257,12 +257,14 @@ VR_DEFAULT_PORT = 8765
 VR_DEFAULT_WAIT_S = 300.0
 
 
-def vr_client_url(host: str, port: int, token: str | None = None) -> str:
+def vr_client_url(host: str, port: int, token: str | None = None, driver: str | None = None) -> str:
     """The participant client's page served by human_input's VR bridge on ``host:port`` (with
-    the token in the query when there is one): what ``hrc run --input vr`` prints."""
-    from urllib.parse import quote
+    the token, and the participant's driver key, in the query when given): what ``hrc run
+    --input vr`` prints."""
+    from urllib.parse import urlencode
 
     shown = "127.0.0.1" if host in ("0.0.0.0", "::", "") else host
     if ":" in shown and not shown.startswith("["):
         shown = f"[{shown}]"
-    return f"http://{shown}:{port}/" + (f"?token={quote(token)}" if token else "")
+    query = {k: v for k, v in (("token", token), ("driver", driver)) if v}
+    return f"http://{shown}:{port}/" + (f"?{urlencode(query)}" if query else "")

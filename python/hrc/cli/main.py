@@ -6,6 +6,8 @@ import argparse
 import json
 import logging
 import os
+import re
+import secrets
 import sys
 import time
 from pathlib import Path
@@ -48,6 +50,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         write_scenario_copy,
     )
     from hrc.cli.summary import print_summary
+    from hrc.scenario.models import NAME_PATTERN
     from hrc.scenario.resolved import resolve
 
     try:
@@ -69,12 +72,21 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if args.ticks and args.max_ticks:
         print("give --ticks (exact length) or --max-ticks (a cap), not both", file=sys.stderr)
         return 2
+    if args.participant is not None and not re.fullmatch(NAME_PATTERN, args.participant):
+        print(
+            f"--participant {args.participant!r}: a letter or digit, then letters, digits, _ . -",
+            file=sys.stderr,
+        )
+        return 2
     live = (args.input or s.participant.input.value) == sc.InputSource.VR.value and not args.replay
     mode = args.mode or ("realtime" if live else "lockstep")
     vr: VrOptions | None = None
     if live:
         token = os.environ.get("HRC_VR_TOKEN") or None
-        vr = VrOptions(args.vr_host, args.vr_port, args.vr_wait)
+        # the participant's link carries this key: their page drives, every other one watches
+        driver = os.environ.get("HRC_VR_DRIVER") or secrets.token_urlsafe(9)
+        os.environ["HRC_VR_DRIVER"] = driver  # the services inherit it
+        vr = VrOptions(args.vr_host, args.vr_port, args.vr_wait, driver)
         if mode != "realtime":
             print(
                 "note: a live participant in lockstep mode: simulation time will not follow "
@@ -82,20 +94,25 @@ def _cmd_run(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         wait = f"waiting up to {args.vr_wait:g} s for it" if args.vr_wait > 0 else "not waiting"
+        who = args.participant or s.participant.name
         print(
-            f"live VR trial: open {vr.url(token)} ({wait}); the task clock starts on the "
-            "first grab",
+            f"live VR trial, participant {who}: open {vr.url(token)} ({wait}); the task clock "
+            f"starts on the first grab\n  spectators (the experimenter): {vr.url(token, False)}",
             flush=True,
         )
     if args.seed is not None and not 0 <= args.seed < 2**64:
         print(f"--seed must be in [0, 2^64), got {args.seed}", file=sys.stderr)
         return 2
     replay = Path(args.replay).resolve() if args.replay else None
-    resolved = resolve(s, seed=args.seed, replay=replay, source=args.input)
+    resolved = resolve(
+        s, seed=args.seed, replay=replay, source=args.input, participant=args.participant
+    )
     trial_dir = (
         Path(args.out)
         if args.out
-        else default_trial_dir(Path("runs"), s.participant.name, resolved.folder_name())
+        else default_trial_dir(
+            Path("runs"), resolved.scenario.participant.name, resolved.folder_name()
+        )
     )
     try:
         # the services load this copy: the trial folder holds exactly what ran
@@ -124,6 +141,8 @@ def _cmd_run(args: argparse.Namespace) -> int:
         replay=replay,
         input=args.input,
         vr=vr,
+        participant=resolved.scenario.participant.name,
+        parts_total=len(resolved.scenario.parts),
     )
     if args.web_port:
         if not 0 < args.web_port < 65536:
@@ -300,6 +319,13 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="S",
         help="live trial: wait up to S s for the participant's client, then fail (default 300; "
         "0: start without one)",
+    )
+    r.add_argument(
+        "--participant",
+        default=None,
+        metavar="ID",
+        help="the participant's id (default the scenario's [participant] name): in the trial "
+        "folder's path, metrics.json and the logs",
     )
     r.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     r.add_argument(

@@ -28,6 +28,7 @@ from typing import IO
 
 from hrc import priority, services
 from hrc.bus import Bus, BusConfig
+from hrc.cli.console import LiveConsole
 from hrc.cli.prefork import ForkedProcess, can_fork, fork_service
 from hrc.paths import build_dir
 from hrc.scenario.resolved import Resolved, slug
@@ -41,6 +42,9 @@ SERVICES_LEAVE_S = 60.0
 # ... when it died without publishing run/end: the others have no end to finish on (they leave
 # when they notice it gone, or are stopped), so a stop must not wait a minute for them.
 SERVICES_ABANDONED_S = 5.0
+# Ctrl-C or SIGTERM: how long the services may take to end the run and write their files.
+INTERRUPT_LEAVE_S = 10.0
+EXPERIMENTER = "experimenter"  # the CLI's name on the bus
 
 
 @dataclass
@@ -68,6 +72,8 @@ class TrialOptions:
     validated: bool = False  # the scenario file was fully checked (reach included) just before
     input: str | None = None  # the participant's input, overriding the scenario's
     vr: VrOptions | None = None  # the input is vr: the bridge's options
+    participant: str = ""  # a live trial's participant id (its console shows it)
+    parts_total: int = 0  # a live trial's number of parts (its console counts placements)
     extra: dict[str, list[str]] = field(default_factory=dict)  # per-service extra arguments
 
 
@@ -81,6 +87,7 @@ class VrOptions:
     host: str = services.VR_DEFAULT_HOST
     port: int = services.VR_DEFAULT_PORT
     wait_s: float = services.VR_DEFAULT_WAIT_S  # for the first client; then the trial fails
+    driver: str | None = None  # the participant's key (HRC_VR_DRIVER, which the services read)
 
     def argv(self) -> list[str]:
         return [
@@ -92,8 +99,11 @@ class VrOptions:
             f"{self.wait_s:g}",
         ]
 
-    def url(self, token: str | None) -> str:
-        return services.vr_client_url(self.host, self.port, token)
+    def url(self, token: str | None, participant: bool = True) -> str:
+        """The participant's link (with the driver key) or a spectator's."""
+        return services.vr_client_url(
+            self.host, self.port, token, self.driver if participant else None
+        )
 
 
 @dataclass
@@ -143,7 +153,10 @@ STOP_SIGNALS = frozenset({signal.SIGINT, signal.SIGTERM, signal.SIGHUP})
 
 def _service_preexec(mask: Iterable[int]) -> None:
     """In a service's process before exec: it never outlives hrc run (even one killed with
-    SIGKILL), and it gets the signal mask hrc run had before it held the stop signals."""
+    SIGKILL), it gets the signal mask hrc run had before it held the stop signals, and it has a
+    process group of its own: a Ctrl-C in the terminal reaches hrc run alone, which ends the run
+    over the bus so that every service writes its files (``_interrupted``)."""
+    os.setpgid(0, 0)
     die_with_parent()
     signal.pthread_sigmask(signal.SIG_SETMASK, mask)
 
@@ -470,13 +483,22 @@ class _EndWatcher:
         self.end_at: float | None = None  # time.monotonic() when run/end came
         self._event = threading.Event()
         cfg = BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])
-        self.bus = Bus(cfg, "cli")
+        # the experimenter's side of the trial: what stops it is named so ("stopped by
+        # experimenter: ...")
+        self.bus = Bus(cfg, EXPERIMENTER)
         self.bus.subscribe(self.bus.keys.run_end(), pb.RunEnd, self._on_end)
 
     def _on_end(self, _key: str, end: pb.RunEnd) -> None:
         self.end_at = time.monotonic()
         self.end = end
         self._event.set()
+
+    def stop_run(self, reason: str) -> None:
+        """Asks the clock master to end the run (as a normal stop, with ``reason``): every
+        service then writes its files as at any end (metrics.json among them)."""
+        self.bus.publisher(self.bus.keys.run_control()).put(
+            pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason)
+        )
 
     def failed_end(self, wait_s: float) -> bool:
         """A run/end with ok = false came (waiting up to ``wait_s`` for one)."""
@@ -498,6 +520,30 @@ def _phases(phases: Phases, t0: float, group: ServiceGroup, watcher: _EndWatcher
     return phases
 
 
+def _watch(group: ServiceGroup, console: LiveConsole | None) -> None:
+    """Until a service exits: refreshes the live console (the loop below judges the exit)."""
+    while all(rc is None for rc in group.poll().values()):
+        if console is not None:
+            console.update()
+        time.sleep(0.05)
+
+
+def _interrupted(group: ServiceGroup, watcher: _EndWatcher | None, exc: BaseException) -> None:
+    """Ctrl-C or SIGTERM during the run: the run is ended as a stop by the experimenter, so every
+    service writes its files (metrics.json with that end reason); then the caller stops them."""
+    if watcher is None or watcher.end is not None:
+        return
+    how = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else str(exc)
+    try:
+        watcher.stop_run(f"interrupted ({how})")
+    except Exception as err:  # the bus is gone: the services are stopped as before
+        log.debug("could not ask for the run's end: %s", err)
+        return
+    deadline = time.monotonic() + INTERRUPT_LEAVE_S
+    while any(rc is None for rc in group.poll().values()) and time.monotonic() < deadline:
+        time.sleep(0.05)
+
+
 def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     session = opts.session or f"t{uuid.uuid4().hex[:10]}"
     port = opts.port or free_port()
@@ -516,6 +562,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     trial_dir.mkdir(parents=True, exist_ok=True)
     group = ServiceGroup(trial_dir)
     watcher: _EndWatcher | None = None
+    console: LiveConsole | None = None
     t0 = time.monotonic()
     phases = Phases(prepare=process_age_s())
     try:
@@ -526,10 +573,17 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         time.sleep(0.2)
         try:
             watcher = _EndWatcher(session, port)
+            if opts.vr is not None:
+                console = LiveConsole(watcher.bus, opts.participant, opts.parts_total)
         except Exception as exc:  # the bus is optional for the CLI; process status still works
             log.debug("no run/end watcher: %s", exc)
         failed = ""
         failure = ""
+        try:
+            _watch(group, console)
+        except (KeyboardInterrupt, Terminated) as exc:
+            _interrupted(group, watcher, exc)
+            raise
         while True:
             status = group.poll()
             dead = [n for n, rc in status.items() if rc is not None and rc != 0 and n != master]
@@ -590,6 +644,9 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             return TrialResult(False, 3, trial_dir, msg, failed, end, wall)
         return TrialResult(True, 0, trial_dir, "trial completed", "", end, wall)
     finally:
+        if console is not None:
+            end = watcher.end if watcher is not None else None
+            console.close(end.reason if end is not None else "")
         if watcher is not None:
             watcher.close()
         group.stop_all(grace_s=1.0)

@@ -85,11 +85,16 @@ def resolve(
     seed: int | None = None,
     replay: Path | None = None,
     source: str | None = None,
+    participant: str | None = None,
 ) -> Resolved:
     """`scenario` with the run's overrides applied (a copy; the given scenario is unchanged):
-    `hrc run --seed`, `--input` (`source`) and `--replay` (which wins over `--input`)."""
+    `hrc run --seed`, `--input` (`source`), `--replay` (which wins over `--input`) and
+    `--participant`."""
     s = scenario.model_copy(deep=True)
     overrides: list[str] = []
+    if participant is not None and participant != s.participant.name:
+        s.participant.name = participant
+        overrides.append(f'participant.name = "{participant}" (--participant)')
     if seed is not None:
         s.scenario.seed = seed
         overrides.append(f"scenario.seed = {seed} (--seed)")

@@ -44,6 +44,7 @@ class TrialRecorder:
         self.final_metrics_written = False
         self.task_finished = False
         self.last_task_time = 0.0
+        self.task_start_sim: float | None = None  # simulated time of the first grab
         self.closed = False
 
     def write_settings(self, scenario: pb.Scenario | None) -> None:
@@ -65,6 +66,8 @@ class TrialRecorder:
         self.events.write(event_record(ev))
         self.kinds[kind_name(ev.kind)] += 1
         self.last_task_time = max(self.last_task_time, ev.task_time)
+        if ev.kind == pb.TASK_EVENT_KIND_TASK_STARTED and self.task_start_sim is None:
+            self.task_start_sim = ev.header.sim_time - ev.task_time
         lines = self.thesis.lines_for(ev)
         for line in lines:
             self.text.write_line(line)
@@ -118,7 +121,11 @@ class TrialRecorder:
                 self.events.write(metrics_record(self.last_metrics))  # final = false: say so
             if run_end is not None:
                 self.events.write(run_end_record(run_end))
-            line = run_end_line(run_end, reason, self.task_finished, self.last_task_time)
+            # the closing line carries the time of the end, not that of the last event
+            at = self.last_task_time
+            if run_end is not None and self.task_start_sim is not None:
+                at = max(at, run_end.sim_time - self.task_start_sim)
+            line = run_end_line(run_end, reason, self.task_finished, at)
             if line is not None:
                 self.text.write_line(line)
         finally:
