@@ -6,16 +6,39 @@ import { textTexture } from './scene.js';
 const RUN_TEXT = {
   waiting_first_grab: 'ready: the task starts at your first grab',
   running: 'running',
-  finished: 'finished: thank you',
-  failed: 'failed',
+  finished: 'task finished: thank you',
+  stopped: 'stopped by the experimenter',
+  failed: 'ended by an error',
 };
+const MESSAGE_MIN_MS = 4000; // a warning stays at least this long: long enough to read
+const PANEL_COLUMNS = 44; // the headset's panel wraps the message here (the panel stays narrow)
+
+/** `text`'s lines, each broken at spaces into lines of at most `columns` characters. */
+function wrap(text, columns) {
+  const out = [];
+  for (const line of text.split('\n')) {
+    let cur = '';
+    for (const word of line.split(' ')) {
+      if (cur && cur.length + 1 + word.length > columns) {
+        out.push(cur);
+        cur = word;
+      } else {
+        cur = cur ? `${cur} ${word}` : word;
+      }
+    }
+    out.push(cur);
+  }
+  return out;
+}
 
 export class Hud {
   constructor() {
     this.panel = document.getElementById('status');
     this.help = document.getElementById('help');
     this.msg = document.getElementById('message');
-    this.values = { connection: 'connecting', role: '-', run: '-', task: '-', hand: '' };
+    this.values = { connection: 'connecting', role: '-', run: '-', task: '-', hand: '', wait: '' };
+    this.heldUntil = 0; // a warning on screen until then
+    this.pending = null; // the message that replaces it then
     this.lastText = '';
     this.sprite = null;
   }
@@ -24,11 +47,23 @@ export class Hud {
     this.values[key] = value;
   }
 
-  message(text, isError = false) {
+  /** Shows `text` (kind '' | 'error' | 'warn' | 'over'). A warning stays at least
+   * MESSAGE_MIN_MS; what comes meanwhile (other than another warning or the end) waits. */
+  message(text, kind = '', { force = false } = {}) {
     if (!this.msg) return;
+    const cls = kind === true ? 'error' : kind || '';
+    if (this.msg.className === 'over' && cls !== 'over') return; // the end stays on screen
+    const now = performance.now();
+    if (!force && cls !== 'warn' && cls !== 'over' && now < this.heldUntil) {
+      this.pending = { text, cls };
+      return;
+    }
+    this.pending = null;
+    this.heldUntil = cls === 'warn' ? now + MESSAGE_MIN_MS : 0;
     this.msg.textContent = text;
-    this.msg.className = isError ? 'error' : '';
+    this.msg.className = cls;
     this.msg.style.display = text ? 'block' : 'none';
+    this.shownText = text;
   }
 
   showHelp(show) {
@@ -42,18 +77,25 @@ export class Hud {
       `task time: ${v.task}`,
       `role: ${v.role}   connection: ${v.connection}`,
     ];
+    if (v.wait) out.push(v.wait);
     if (v.hand) out.push(v.hand);
     return out;
   }
 
   /** Called a few times a second (not every frame: the text rarely changes). */
   refresh(root) {
+    if (this.pending && performance.now() >= this.heldUntil) {
+      const { text, cls } = this.pending;
+      this.message(text, cls);
+    }
     const lines = this.lines();
-    const text = lines.join('\n');
+    // the headset has no page overlay: its panel carries the message too
+    const inWorld = this.shownText ? [...lines, '', ...wrap(this.shownText, PANEL_COLUMNS)] : lines;
+    const text = inWorld.join('\n');
     if (text === this.lastText) return;
     this.lastText = text;
-    if (this.panel) this.panel.textContent = text;
-    if (root) this.updateSprite(root, lines);
+    if (this.panel) this.panel.textContent = lines.join('\n');
+    if (root) this.updateSprite(root, inWorld);
   }
 
   // the in-headset panel: a plane beyond the board, facing the participant

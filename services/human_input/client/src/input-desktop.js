@@ -1,12 +1,17 @@
 // Desktop mode: a 3D view from the participant's standpoint; the mouse and keys move the active
 // hand (x/y with the mouse on the plane at the hand's height or the arrow keys, height with the
 // wheel or W/S, yaw with Q/E, grip with Space/G or a click) and switch hands (Tab/H).
+// After a release (and after R) the hand goes back to rest beside the body and stays there: it
+// is "parked" until the mouse is moved on purpose (PARK_PX from where it was) or a key moves it,
+// so a hand that has just placed a part never lingers where a robot is about to come.
 import * as THREE from 'three';
 import { toWorldQuaternion, yawQuat } from './frames.js';
 
 // where a hand rests when it is not used: beside the body, outside the robots' workspace
 const REST = { left: [-0.22, -0.56, 0.1], right: [0.22, -0.56, 0.1] };
 const STEP_M = 0.01;
+const BIG_STEP_M = 0.05; // with Shift
+const PARK_PX = 60; // the mouse takes a parked hand back after moving this far
 const YAW_STEP_DEG = 15;
 const Z_MIN = 0.0;
 const Z_MAX = 0.6;
@@ -16,9 +21,11 @@ const HEAD_Z = 0.6; // eye height above the board (a standing person at a table)
 export const KEY_HELP = [
   'mouse: move the active hand (x/y)',
   'wheel or W/S: hand height',
-  'arrows: move the hand 1 cm',
+  'arrows: move the hand 1 cm (Shift: 5 cm)',
   'Q/E: turn the hand 15\u00b0',
   'Space, G or click: close/open the grip',
+  'opening the grip puts the hand back to rest;',
+  '  move the mouse a little to take it again',
   'Tab or H: switch hand, R: hand to rest',
   'V: participant view / top view, F1: this help',
 ];
@@ -36,6 +43,7 @@ export class DesktopInput {
       right: { p: [...REST.right], yawDeg: 0, grip: 0 },
     };
     this.enabled = false;
+    this.parked = null; // {x, y}: the pointer when the hand went to rest; null: it follows
     this.raycaster = new THREE.Raycaster();
     this.bindings = [];
   }
@@ -100,7 +108,20 @@ export class DesktopInput {
     this.camera.updateMatrixWorld(true);
   }
 
+  /** The active hand back to rest, where it stays until the person takes it again. */
+  park() {
+    this.hand().p = [...REST[this.active]];
+    this.hand().yawDeg = 0;
+    this.parked = this.lastPointer ? { ...this.lastPointer } : { x: -1e9, y: -1e9 };
+    this.changed();
+  }
+
   mouseMove(e) {
+    this.lastPointer = { x: e.clientX, y: e.clientY };
+    if (this.parked) {
+      if (Math.hypot(e.clientX - this.parked.x, e.clientY - this.parked.y) < PARK_PX) return;
+      this.parked = null;
+    }
     const rect = this.canvas.getBoundingClientRect();
     const ndc = new THREE.Vector2(
       ((e.clientX - rect.left) / rect.width) * 2 - 1,
@@ -122,6 +143,7 @@ export class DesktopInput {
   }
 
   moveBy(dx, dy, dz) {
+    this.parked = null;
     const h = this.hand();
     h.p[0] += dx;
     h.p[1] += dy;
@@ -131,21 +153,45 @@ export class DesktopInput {
 
   toggleGrip() {
     const h = this.hand();
-    h.grip = h.grip >= 0.5 ? 0 : 1;
+    const release = h.grip >= 0.5;
+    h.grip = release ? 0 : 1;
+    this.changed();
+    // the release goes out with the hand where it is; once the trial has it, the hand goes
+    // to rest (parking at once could let go of the part at the rest point)
+    if (release) this.parkAfterRelease = this.active;
+  }
+
+  /** With the hands as the trial has them (frames): a release it has taken parks the hand. */
+  serverHands(hands) {
+    const name = this.parkAfterRelease;
+    if (!name || !hands?.[name]) return;
+    if ((hands[name].grip ?? 1) < 0.5 && name === this.active) {
+      this.parkAfterRelease = false;
+      this.park();
+    } else if (name !== this.active) {
+      this.parkAfterRelease = false;
+    }
+  }
+
+  /** A page that becomes the driver starts with both grips open. */
+  releaseGrips() {
+    for (const h of Object.values(this.hands)) h.grip = 0;
+    this.parkAfterRelease = false;
     this.changed();
   }
 
   key(e) {
     if (e.target && e.target.tagName === 'INPUT') return;
     const k = e.key.length === 1 ? e.key.toLowerCase() : e.key;
+    const step = e.shiftKey ? BIG_STEP_M : STEP_M;
     let handled = true;
     switch (k) {
-      case 'ArrowLeft': this.moveBy(-STEP_M, 0, 0); break;
-      case 'ArrowRight': this.moveBy(STEP_M, 0, 0); break;
-      case 'ArrowUp': this.moveBy(0, STEP_M, 0); break;
-      case 'ArrowDown': this.moveBy(0, -STEP_M, 0); break;
-      case 'w': case 'PageUp': this.moveBy(0, 0, STEP_M); break;
-      case 's': case 'PageDown': this.moveBy(0, 0, -STEP_M); break;
+      case 'ArrowLeft': this.moveBy(-step, 0, 0); break;
+      case 'ArrowRight': this.moveBy(step, 0, 0); break;
+      case 'ArrowUp': this.moveBy(0, step, 0); break;
+      case 'ArrowDown': this.moveBy(0, -step, 0); break;
+      case 'w': case 'PageUp': this.moveBy(0, 0, step); break;
+      case 's': case 'PageDown': this.moveBy(0, 0, -step); break;
       case 'q': this.hand().yawDeg += YAW_STEP_DEG; this.changed(); break;
       case 'e': this.hand().yawDeg -= YAW_STEP_DEG; this.changed(); break;
       case ' ': case 'g': this.toggleGrip(); break;
@@ -154,9 +200,7 @@ export class DesktopInput {
         this.changed();
         break;
       case 'r':
-        this.hand().p = [...REST[this.active]];
-        this.hand().yawDeg = 0;
-        this.changed();
+        this.park();
         break;
       case 'v':
         this.view = this.view === 'top' ? 'participant' : 'top';
@@ -198,6 +242,7 @@ export class DesktopInput {
     const h = this.hand();
     const f = (v) => v.toFixed(2);
     return `${this.active} hand (${f(h.p[0])}, ${f(h.p[1])}, ${f(h.p[2])}) yaw ${h.yawDeg}\u00b0 ` +
-      `grip ${h.grip >= 0.5 ? 'closed' : 'open'}`;
+      `grip ${h.grip >= 0.5 ? 'closed' : 'open'}` +
+      (this.parked ? ' - at rest: move the mouse to take it' : '');
   }
 }

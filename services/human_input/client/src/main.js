@@ -1,9 +1,10 @@
 // The participant's page: connects to the bridge, builds the scene it sends, renders it in a
 // headset (WebXR) or on a desktop, and sends the participant's head, hands and grips back.
-// Query parameters: token, mode=desktop|xr, table_height (m), stand=x,y (m), rate (Hz),
+// Query parameters: token, driver (the participant's key: this page drives the hands; without
+// it the page watches), mode=desktop|xr, table_height (m), stand=x,y (m), rate (Hz),
 // test=iwer (loads the WebXR emulation, for the browser tests only).
 import * as THREE from 'three';
-import { Bridge } from './net.js';
+import { Bridge, HEARTBEAT_MS } from './net.js';
 import { World } from './scene.js';
 import { Robots } from './robots.js';
 import { DesktopInput, KEY_HELP } from './input-desktop.js';
@@ -37,6 +38,12 @@ function standParam() {
 }
 
 const KEEPALIVE_MS = 500; // an unchanged sample is still sent this often
+const OVER = new Set(['finished', 'stopped', 'failed']); // the trial is over
+const END_TEXT = {
+  finished: 'The task is finished. Thank you!',
+  stopped: 'The experimenter has stopped the trial.',
+  failed: 'The trial has ended because of a problem:',
+};
 
 /** WebGL drawn by the CPU (SwiftShader, llvmpipe: headless browsers, machines without a GPU),
  * where antialiasing costs about a third of each frame. */
@@ -67,7 +74,9 @@ class App {
     this.rateHz = numberParam('rate', 90, 1, 240);
     this.role = '-';
     this.run = '-';
+    this.runReason = '';
     this.taskT = null;
+    this.collision = null; // {robot, part, until}: the last collision, while it is explained
     this.serverHands = null;
     this.lastSample = '';
     this.lastSentMs = 0;
@@ -134,13 +143,21 @@ class App {
 
     this.bridge = new Bridge({
       token: params.get('token'),
+      driver: params.get('driver'),
       onMessage: (m) => this.onMessage(m),
       onStatus: (s, detail) => {
         this.hud.set('connection', detail ? `${s} (${detail})` : s);
+        if (s === 'lost' && !this.linkLost) {
+          this.linkLost = true;
+          this.hud.message('Connection to the trial lost: reconnecting...', 'error', { force: true });
+        } else if (s === 'connected' && this.linkLost) {
+          this.linkLost = false;
+          this.hud.message('', '', { force: true });
+        }
       },
     });
-    setInterval(() => this.hud.refresh(this.root), 250);
-    setInterval(() => this.bridge.ping(), 1000);
+    setInterval(() => this.refresh(), 250);
+    setInterval(() => this.bridge.heartbeat(), HEARTBEAT_MS);
     renderer.setAnimationLoop((t, frame) => this.onFrame(t, frame));
   }
 
@@ -189,8 +206,12 @@ class App {
   onMessage(m) {
     switch (m.type) {
       case 'hello':
-        if (m.role) this.role = m.role;
-        this.hud.set('role', this.role);
+        if (m.role) {
+          // a page that becomes the driver starts from open hands (never a stale closed grip)
+          if (m.role === 'driver' && this.role !== 'driver') this.desktop.releaseGrips();
+          this.role = m.role;
+        }
+        this.hud.set('role', this.role === 'spectator' ? 'spectator (watching)' : this.role);
         if (m.auth_required) this.hud.message('the bridge needs a token: open the URL with ?token=...', true);
         break;
       case 'scene':
@@ -204,9 +225,12 @@ class App {
         this.frames++;
         this.world.applyFrame(m);
         this.robots.applyFrame(m);
-        if (m.run) this.setRun(m.run);
+        if (m.run && m.run !== this.run) this.setRun(m.run, '');
         if (m.task_t_s !== undefined) this.taskT = m.task_t_s;
-        if (m.hands) this.serverHands = m.hands;
+        if (m.hands) {
+          this.serverHands = m.hands;
+          if (this.role === 'driver') this.desktop.serverHands(m.hands);
+        }
         if (this.freezeOn && this.world.parts.get(this.freezeOn.part)?.holder === this.freezeOn.holder) {
           this.frozen = true; // hrcTest.freezeWhen: the awaited moment is on screen now
           this.freezeOn = null;
@@ -227,8 +251,28 @@ class App {
   }
 
   setRun(state, reason) {
+    if (OVER.has(this.run) && !OVER.has(state)) return; // the end stays the end
+    if (state === this.run && !reason) return;
     this.run = state;
-    this.hud.set('run', reason ? `${state} (${reason})` : state);
+    if (reason) this.runReason = reason;
+    this.hud.set('run', state);
+    if (OVER.has(state)) this.showEnd();
+  }
+
+  /** The trial is over: say how, once, and rest (no sending, no reconnecting, no errors). */
+  showEnd() {
+    const head = END_TEXT[this.run] || 'The trial is over.';
+    // one line of the reason: the log line without its time, the watchdog's first clause
+    const why = this.run === 'failed'
+      ? `\n${String(this.runReason || 'unknown').replace(/^\s*[\d.]+\s*sec\s*:\s*/, '').split(/[;\n]/)[0].slice(0, 160)}`
+      : '';
+    this.waitFor = null;
+    this.hud.set('wait', '');
+    this.collision = null;
+    this.hud.message(`${head}${why}\nPlease wait for the experimenter.`, 'over');
+    this.hud.showHelp(false);
+    this.desktop.disable(); // the hands stay where they are: nothing to do any more
+    this.bridge.rest();
   }
 
   onEvent(ev) {
@@ -236,9 +280,63 @@ class App {
     if (this.events.length > 500) this.events.shift();
     const sound = soundForEvent(ev.kind);
     if (sound) play(sound, ev.kind + (ev.part ? `:${ev.part}` : ''));
-    if (ev.kind === 'collision') this.hud.message('collision: pull your hand back');
-    else if (ev.kind === 'continued' || ev.kind === 'collision_end') this.hud.message('');
-    else if (ev.kind === 'task_finished') this.hud.message('task finished');
+    if (ev.kind !== 'participant_wait') {
+      this.waitFor = null;
+      this.hud.set('wait', '');
+    }
+    if (ev.kind === 'collision') {
+      const part = this.partHeldBy(ev.robot);
+      this.collision = { robot: ev.robot, part, open: true };
+      const goal = part ? ` It brings ${part} to its target (marked).` : '';
+      this.hud.message(
+        `Collision with ${ev.robot}: pull your hand back.\n${ev.robot} backs off, then goes on.${goal}`,
+        'warn',
+      );
+    } else if (ev.kind === 'collision_end' && this.collision) {
+      this.collision.open = false;
+    } else if (ev.kind === 'continued') {
+      const c = this.collision;
+      const where = c && c.part ? ` to ${c.part}'s target (marked): keep your hands clear of it` : '';
+      this.hud.message(`${c ? c.robot : 'The robots'} goes on${where}.`, 'warn');
+      if (c) c.until = performance.now() + 6000;
+    } else if (ev.kind === 'participant_wait') {
+      this.waitSince = performance.now() - 1000 * (ev.quiet_s ?? 10);
+      this.waitFor = ev.part || 'the continue button';
+    } else if (ev.kind === 'task_finished') {
+      this.hud.message('task finished');
+    }
+  }
+
+  /** The part a robot holds now ('' if none). */
+  partHeldBy(robot) {
+    for (const [id, p] of this.world.parts) if (p.holder === robot) return id;
+    return '';
+  }
+
+  /** A few times a second: the panel, the waiting labels, the robot's target after a collision. */
+  refresh() {
+    if (this.waitFor && !OVER.has(this.run)) {
+      const s = Math.round((performance.now() - this.waitSince) / 1000);
+      this.hud.set('wait', `waiting for you: ${this.waitFor}, ${s} s`);
+    }
+    const c = this.collision;
+    if (c && !c.open && c.until && performance.now() > c.until) this.collision = null;
+    this.world.showGoal(this.collision ? this.collision.part : '', this.collision?.robot);
+    this.world.updateWaitingTexts((rid) => this.waitingText(rid));
+    this.hud.refresh(this.root);
+  }
+
+  /** "Waiting for you: H3" for a robot that waits on a part the participant places. */
+  waitingText(rid) {
+    const part = this.partHeldBy(rid);
+    const spec = part && (this.sceneMsg?.parts || []).find((p) => p.id === part);
+    if (!spec) return '';
+    const missing = (spec.after || []).filter((d) => !this.world.parts.get(d)?.placed);
+    if (!missing.length) return '';
+    const owner = (id) => (this.sceneMsg.parts.find((p) => p.id === id) || {}).owner;
+    const mine = missing.filter((d) => owner(d) === 'human');
+    if (mine.length) return `Waiting for you: ${mine.join(', ')}`;
+    return `Waiting for ${owner(missing[0])}: ${missing.join(', ')}`;
   }
 
   // ------------------------------------------------------------------ the frame loop
@@ -267,7 +365,7 @@ class App {
       }
       this.world.followHands(driving ? hands : {});
     }
-    if (driving && this.sceneMsg) this.sendSample(now, hands);
+    if (driving && this.sceneMsg && !OVER.has(this.run)) this.sendSample(now, hands);
     this.world.animate(now);
     this.hud.set('task', this.taskT === null || this.taskT === undefined ? '-' : `${this.taskT.toFixed(1)} s`);
     if (!this.xr.active() && this.mode === 'desktop') this.hud.set('hand', driving ? this.desktop.statusLine() : '');
@@ -346,8 +444,10 @@ window.hrcTest = {
     for (const [id, p] of app.world.parts) {
       objects[id] = {
         p: p.mesh.position.toArray(),
+        q: p.mesh.quaternion.toArray(), // three.js's order: x, y, z, w
         holder: p.holder,
         placed: p.placed,
+        grabbable: p.grabbable === true,
         visible: p.mesh.visible,
       };
     }
@@ -365,6 +465,7 @@ window.hrcTest = {
       frames: app.frames,
       xr: app.xr.active(),
       active_hand: app.desktop.active,
+      parked: app.desktop.parked !== null, // the desktop hand waits at rest for the mouse
       hands: app.xr.active() && app.lastXrHands ? app.lastXrHands : app.desktop.poses(),
       objects,
       robots,
@@ -403,6 +504,13 @@ window.hrcTest = {
       out.push({ part: id, text, x0: Math.min(...xs), y0: Math.min(...ys), x1: Math.max(...xs), y1: Math.max(...ys) });
     }
     return out;
+  },
+  /** The status panel's text as the headset shows it (with the page's message). */
+  panelText: () => window.hrcApp.hud.lastText,
+  /** The robot target shown after a collision: {part, visible} or null. */
+  goal: () => {
+    const g = window.hrcApp.world.goal;
+    return g ? { part: g.part, visible: g.obj.visible } : null;
   },
   /** Shows (true) or hides (false) the robots' protective zones (ssm). */
   showZones: (on) => window.hrcApp.robots.showZones(!!on),

@@ -1,12 +1,20 @@
 // The connection to the bridge (docs/client-protocol.md): one WebSocket, JSON text frames.
 // Sending never waits: a sample is dropped while the socket's send buffer is still full, so a
-// slow network never stalls the render loop.
+// slow network never stalls the render loop. A heartbeat (a ping every HEARTBEAT_MS; frames and
+// pongs keep the link alive) notices a link gone quiet within LOST_MS, even when the socket
+// itself does not close, and reconnects. After the trial's end (rest()) nothing reconnects.
 const MAX_BUFFERED = 64 * 1024;
 const RETRY_MS = [500, 1000, 2000, 4000];
+export const HEARTBEAT_MS = 500;
+export const LOST_MS = 1500;
+const DIAL_MS = 3000;
 
 export class Bridge {
-  constructor({ token, onMessage, onStatus }) {
+  constructor({ token, driver, onMessage, onStatus }) {
     this.token = token;
+    this.driver = driver;
+    this.resting = false; // the trial is over: no reconnects, no errors
+    this.lastHeardMs = performance.now();
     this.onMessage = onMessage;
     this.onStatus = onStatus;
     this.ws = null;
@@ -23,26 +31,36 @@ export class Bridge {
 
   url() {
     const proto = window.location.protocol === 'https:' ? 'wss:' : 'ws:';
-    const q = this.token ? `?token=${encodeURIComponent(this.token)}` : '';
-    return `${proto}//${window.location.host}/ws${q}`;
+    const q = new URLSearchParams();
+    if (this.token) q.set('token', this.token);
+    if (this.driver) q.set('driver', this.driver);
+    const qs = q.toString();
+    return `${proto}//${window.location.host}/ws${qs ? `?${qs}` : ''}`;
   }
 
   setState(s, detail = '') {
+    if (s === 'lost' && this.state !== 'lost') this.lostAtMs = performance.now();
     this.state = s;
     this.onStatus?.(s, detail);
   }
 
   connect() {
+    if (this.resting) return;
     const ws = new WebSocket(this.url());
     this.ws = ws;
-    this.setState('connecting');
+    this.lastHeardMs = performance.now();
+    this.dialedMs = performance.now();
+    this.setState(this.state === 'lost' ? 'lost' : 'connecting', this.state === 'lost' ? 'reconnecting' : '');
     ws.onopen = () => {
+      this.lastHeardMs = performance.now();
       this.retries = 0;
       this.setState('connected');
       ws.send(JSON.stringify({ type: 'subscribe', rate_hz: 90 }));
     };
     ws.onmessage = (ev) => {
+      if (this.ws !== ws) return;
       this.received++;
+      this.lastHeardMs = performance.now();
       let msg;
       try {
         msg = JSON.parse(ev.data);
@@ -57,10 +75,65 @@ export class Bridge {
     };
     ws.onclose = (ev) => {
       if (this.ws !== ws) return;
+      if (this.resting) {
+        this.setState('closed', 'the trial is over');
+        return;
+      }
       const delay = RETRY_MS[Math.min(this.retries++, RETRY_MS.length - 1)];
-      this.setState('disconnected', ev.reason || `code ${ev.code}`);
+      this.setState('lost', 'reconnecting');
       setTimeout(() => this.connect(), delay);
     };
+  }
+
+  /** Called every HEARTBEAT_MS: pings, and gives up on a link that has gone quiet. */
+  heartbeat() {
+    const now = performance.now();
+    const late = this.lastBeatMs !== undefined && now - this.lastBeatMs > 2 * HEARTBEAT_MS;
+    this.lastBeatMs = now;
+    if (late) {
+      // The page itself was busy (a long frame: software rendering on a loaded machine): what
+      // the link sent meanwhile may still wait in the queue behind this timer. That is no loss.
+      this.lastHeardMs = Math.max(this.lastHeardMs, now - HEARTBEAT_MS);
+      this.dialedMs = Math.max(this.dialedMs, now - HEARTBEAT_MS);
+      return;
+    }
+    if (this.resting) {
+      // the bridge stays up a moment after the end; a quiet link then is no loss
+      if (this.state === 'connected' && performance.now() - this.lastHeardMs > LOST_MS) {
+        this.setState('closed', 'the trial is over');
+      }
+      return;
+    }
+    if (this.open()) this.ping();
+    if (this.state === 'connected' && performance.now() - this.lastHeardMs > LOST_MS) {
+      // the socket may take minutes to notice a dead link: drop it and dial again
+      const old = this.ws;
+      this.ws = null;
+      try {
+        old?.close();
+      } catch {
+        // closing a socket that never opened
+      }
+      this.setState('lost', 'reconnecting');
+      this.connect();
+    } else if (this.state !== 'connected' && !this.open() && performance.now() - this.dialedMs > DIAL_MS) {
+      // a dial that neither opens nor fails (a dead network): try again
+      const old = this.ws;
+      this.ws = null;
+      try {
+        old?.close();
+      } catch {
+        // never opened
+      }
+      this.connect();
+    }
+  }
+
+  /** The trial is over: the last frames still come until the bridge closes; then the page
+   * stays as it is, never reconnects, shows no error. */
+  rest() {
+    this.resting = true;
+    if (!this.open()) this.setState('closed', 'the trial is over');
   }
 
   open() {

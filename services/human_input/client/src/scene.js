@@ -93,6 +93,8 @@ export class World {
     this.group = new THREE.Group();
     root.add(this.group);
     this.parts = new Map(); // id -> {mesh, label, spec, holder, placed}
+    this.targetNames = new Map(); // the participant's part id -> the name at its target
+    this.goal = null; // a robot's target shown after a collision: {part, obj}
     this.cues = new Map(); // id -> {spec, obj, on, flashing}
     this.cueOn = new Map();
     this.hands = {};
@@ -110,8 +112,10 @@ export class World {
     this.root.add(this.group);
     this.furniture = null;
     this.parts.clear();
+    this.targetNames.clear();
     this.cues.clear();
     this.hands = {};
+    this.goal = null;
   }
 
   build(scene) {
@@ -227,11 +231,16 @@ export class World {
     this.group.add(mesh);
     this.parts.set(p.id, { mesh, label, spec: p, holder: '', placed: false });
     if (p.owner === 'human' && p.target) {
-      // the participant's targets are always marked on the board
-      const o = outline(p.size, '#e8e8e8', 0.003);
+      // the participant's targets are always marked on the board, with the part's name
+      const o = outline(p.size, '#e8e8e8', 0.006);
       setPose(o, [p.target.xyz[0], p.target.xyz[1], 0.002]);
       yawed(o, p.target.yaw_deg);
       this.group.add(o);
+      const name = labelSprite([p.id], 0.03, { px: 40, bg: 'rgba(30,30,30,0.75)', fg: '#f4f4f4' });
+      name.position.set(p.target.xyz[0], p.target.xyz[1] - p.size[1] / 2 - 0.02, 0.01);
+      name.renderOrder = 9;
+      this.group.add(name);
+      this.targetNames.set(p.id, name);
     }
   }
 
@@ -241,10 +250,14 @@ export class World {
     const part = c.part ? (this.scene.parts || []).find((p) => p.id === c.part) : null;
     if (c.kind === 'target' && part) {
       // a plane in the robot's (or the participant's) colour over the target footprint
+      // drawn over whatever sits on the target (a mounting plate): a cue is never hidden
       obj = new THREE.Mesh(
         new THREE.PlaneGeometry(part.size[0] * 1.3, part.size[1] * 1.3),
-        new THREE.MeshBasicMaterial({ color, transparent: true, opacity: 0.9, depthWrite: false }),
+        new THREE.MeshBasicMaterial({
+          color, transparent: true, opacity: 0.9, depthWrite: false, depthTest: false,
+        }),
       );
+      obj.renderOrder = 6;
       setPose(obj, [c.position[0], c.position[1], 0.003]);
       yawed(obj, part.target?.yaw_deg);
     } else if (c.kind === 'outline' && part) {
@@ -253,6 +266,8 @@ export class World {
     } else if (c.kind === 'waiting') {
       obj = labelSprite([c.text || 'Waiting..'], 0.07, { fg: color, bg: 'rgba(20,20,20,0.8)' });
       setPose(obj, c.position);
+    } else if (c.kind === 'button' && this.scene.safety_policy !== 'retreat_button') {
+      return; // only the retreat_button policy uses the continue button
     } else if (c.kind === 'button') {
       obj = new THREE.Group();
       const base = new THREE.Mesh(
@@ -282,6 +297,51 @@ export class World {
     obj.visible = alwaysShown;
     this.group.add(obj);
     this.cues.set(c.id, { spec: c, obj, on: false, alwaysShown, color: new THREE.Color(color) });
+  }
+
+  /** After a collision: the target of the part the robot carries, in its colour, with its name,
+   * over everything (part '' hides it). */
+  showGoal(part, robot) {
+    if (this.goal && this.goal.part === part) return;
+    if (this.goal) {
+      this.group.remove(this.goal.obj);
+      this.goal.obj.traverse((o) => {
+        o.geometry?.dispose?.();
+        o.material?.map?.dispose?.();
+        o.material?.dispose?.();
+      });
+      this.goal = null;
+    }
+    const spec = part && (this.scene?.parts || []).find((p) => p.id === part);
+    if (!spec) return;
+    const color = (this.scene.robots || []).find((r) => r.id === robot)?.color || spec.color;
+    const obj = outline([spec.size[0] * 1.6, spec.size[1] * 1.6], color, 0.008);
+    obj.traverse((o) => {
+      if (o.material) o.material.depthTest = false;
+      o.renderOrder = 7;
+    });
+    setPose(obj, [spec.target.xyz[0], spec.target.xyz[1], 0.004]);
+    yawed(obj, spec.target.yaw_deg);
+    const name = labelSprite([`${robot} \u2192 ${part}`], 0.028, { fg: color, bg: 'rgba(20,20,20,0.85)' });
+    name.position.set(0, 0, 0.06);
+    obj.add(name);
+    obj.name = 'goal';
+    this.group.add(obj);
+    this.goal = { part, obj };
+  }
+
+  /** The "Waiting.." labels say for what (text('') keeps the scene's text). */
+  updateWaitingTexts(text) {
+    for (const cue of this.cues.values()) {
+      if (cue.spec.kind !== 'waiting' || !cue.on) continue;
+      const want = text(cue.spec.robot) || cue.spec.text || 'Waiting..';
+      if (cue.obj.userData.text === want) continue;
+      cue.obj.userData.text = want;
+      const { tex, aspect } = textTexture([want], { fg: cue.spec.color || '#fff', bg: 'rgba(20,20,20,0.8)' });
+      cue.obj.material.map.dispose();
+      cue.obj.material.map = tex;
+      cue.obj.scale.set(0.07 * aspect, 0.07, 1);
+    }
   }
 
   applyFrame(f) {
@@ -332,6 +392,8 @@ export class World {
         m.position.z + part.spec.size[2] / 2 + 0.018,
       );
       part.label.visible = m.visible && labelShown(part);
+      const name = this.targetNames.get(part.spec.id);
+      if (name) name.visible = !part.placed;
     }
     for (const cue of this.cues.values()) {
       const { spec, obj } = cue;
