@@ -82,7 +82,12 @@ class Trial:
     """``hrc run`` in the background, with a test-side Zenoh session into its bus."""
 
     def __init__(
-        self, scenario: str | Path, out: Path, ticks: int = 0, extra: list[str] = ()
+        self,
+        scenario: str | Path,
+        out: Path,
+        ticks: int = 0,
+        extra: list[str] = (),
+        env: dict[str, str] | None = None,
     ) -> None:
         self.session = f"it{uuid.uuid4().hex[:8]}"
         self.port = free_port()
@@ -107,6 +112,8 @@ class Trial:
             stderr=subprocess.PIPE,
             stdin=subprocess.DEVNULL,
             text=True,
+            env={**os.environ, **(env or {})},
+            start_new_session=True,  # its own process group, as a command typed in a terminal
         )
         self._bus: Bus | None = None
         self.stdout = ""
@@ -184,8 +191,9 @@ def trial_factory(tmp_path: Path, ik_bin: Path) -> Iterator:
         ticks: int = 10**9,
         extra: list[str] = (),
         name: str = "trial",
+        env: dict[str, str] | None = None,
     ) -> Trial:
-        t = Trial(scenario, tmp_path / name, ticks, list(extra))
+        t = Trial(scenario, tmp_path / name, ticks, list(extra), env)
         trials.append(t)
         return t
 

@@ -9,164 +9,41 @@ live trial: `hrc run --input vr` with all five services, the page served by the 
   pixel by pixel (robot colour at its tool, the cue blinking, the parts' colours) and saved to
   test-output/client/ for a person to look at.
 
-World points are turned into page pixels by the page itself (window.hrcTest.project), and every
-position comes from the scene the bridge sent: nothing of the scenario is repeated here.
+The page and the person's moves: tests/participant_page.py.
 """
 
 from __future__ import annotations
 
 import colorsys
-import io
-import json
 import time
-import urllib.request
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import pytest
 
-from hrc.browser import headless_chromium, output_dir
-
-from .conftest import ROOT, Trial, free_port, wait_until
+from .conftest import wait_until
+from .participant_page import (
+    MINIMAL,
+    Live,
+    Page,
+    browser,  # noqa: F401  (a fixture)
+    grab_part,
+    live,  # noqa: F401  (a fixture)
+    metrics,
+    place_part,
+)
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
-CLIENT_DIST = ROOT / "services" / "human_input" / "client" / "dist" / "index.html"
-VIEWPORT = {"width": 1280, "height": 800}
-MAX_TICKS = 240 * 240  # no trial outlives 4 simulated (= wall, realtime) minutes
-
-
-@pytest.fixture(scope="module")
-def browser() -> Iterator[Any]:
-    if not CLIENT_DIST.is_file():
-        pytest.fail(f"{CLIENT_DIST} is missing: scripts/setup.sh builds the participant client")
-    with headless_chromium() as b:
-        yield b
-
-
-@pytest.fixture
-def live(trial_factory: Callable[..., Trial]) -> Callable[..., tuple[Trial, str]]:
-    """Starts a live trial (realtime, input vr); returns it and the page's URL once the bridge
-    serves it."""
-
-    def start(scenario: Path = MINIMAL) -> tuple[Trial, str]:
-        port = free_port()
-        trial = trial_factory(
-            scenario,
-            ticks=0,
-            extra=["--input", "vr", "--vr-port", str(port), "--max-ticks", str(MAX_TICKS)],
-        )
-        url = f"http://127.0.0.1:{port}/"
-
-        def serving() -> bool:
-            if trial.proc.poll() is not None:
-                raise AssertionError(f"hrc run ended early: {trial.communicate()}")
-            try:
-                with urllib.request.urlopen(url, timeout=1) as r:
-                    return r.status == 200
-            except OSError:
-                return False
-
-        assert wait_until(serving, 60, 0.2), "the bridge never served the page"
-        return trial, url
-
-    return start
-
-
-class Page:
-    """The page and its test hooks (window.hrcTest), driven like a person would."""
-
-    def __init__(self, browser: Any, url: str) -> None:
-        self.page = browser.new_page(viewport=VIEWPORT)
-        self.errors: list[str] = []
-        self.page.on("pageerror", lambda e: self.errors.append(str(e)))
-        self.page.goto(url)
-        # generous: on a loaded machine software WebGL renders a frame or two a second
-        self.page.wait_for_function("window.hrcTest && window.hrcTest.ready()", timeout=90_000)
-        assert not self.errors, self.errors
-
-    def state(self) -> dict[str, Any]:
-        return self.page.evaluate("window.hrcTest.state()")  # type: ignore[no-any-return]
-
-    def scene(self) -> dict[str, Any]:
-        return self.page.evaluate("window.hrcApp.sceneMsg")  # type: ignore[no-any-return]
-
-    def part(self, pid: str) -> dict[str, Any]:
-        return next(p for p in self.scene()["parts"] if p["id"] == pid)
-
-    def project(self, xyz: list[float]) -> tuple[float, float]:
-        p = self.page.evaluate("(xyz) => window.hrcTest.project(xyz)", xyz)
-        return p["x"], p["y"]
-
-    def wait(self, what: str, pred: Callable[[dict[str, Any]], bool], timeout: float) -> None:
-        ok = wait_until(lambda: pred(self.state()), timeout, 0.1)
-        assert ok, f"{what}: not within {timeout:g} s; page state {json.dumps(self.state())[:1500]}"
-
-    def keys(self, key: str, n: int = 1) -> None:
-        for _ in range(n):
-            self.page.keyboard.press(key)
-
-    def hand(self) -> dict[str, Any]:
-        s = self.state()
-        return s["hands"][s["active_hand"]]  # type: ignore[no-any-return]
-
-    def height_to(self, z: float) -> None:
-        """W/S move the active hand 1 cm up/down."""
-        steps = round((z - self.hand()["p"][2]) / 0.01)
-        self.keys("w" if steps > 0 else "s", abs(steps))
-        assert abs(self.hand()["p"][2] - z) < 0.006, self.hand()
-
-    def move_over(self, x: float, y: float) -> None:
-        """The mouse moves the hand on the plane at its height: point at (x, y, hand z)."""
-        z = self.hand()["p"][2]
-        px, py = self.project([x, y, z])
-        self.page.mouse.move(px, py, steps=12)
-        p = self.hand()["p"]
-        assert abs(p[0] - x) < 0.004 and abs(p[1] - y) < 0.004, (p, x, y)
-
-    def screenshot(self, name: str) -> Any:
-        from PIL import Image
-
-        png = self.page.screenshot()
-        (output_dir("client") / name).write_bytes(png)
-        return Image.open(io.BytesIO(png)).convert("RGB")
-
-
-def grab_part(page: Page, pid: str) -> None:
-    """Hand over the part, down to its top face, close the grip; the bridge reports the hold."""
-    part = page.part(pid)
-    x, y, z = part["start"]["xyz"]
-    top = z + part["size"][2] / 2
-    page.height_to(max(top + 0.06, 0.10))
-    page.move_over(x, y)
-    page.height_to(top)
-    page.keys(" ")
-    page.wait(f"{pid} held", lambda s: s["objects"][pid]["holder"] in ("left", "right"), 20)
-
-
-def place_part(page: Page, pid: str) -> None:
-    part = page.part(pid)
-    x, y, z = part["target"]["xyz"]
-    top = z + part["size"][2] / 2
-    page.height_to(max(top + 0.06, 0.10))
-    page.move_over(x, y)
-    page.height_to(top)
-    page.keys(" ")
-    page.wait(f"{pid} placed", lambda s: s["objects"][pid]["placed"], 20)
-    page.keys("r")  # the hand back to rest, out of the robots' way
-
-
-def metrics(trial: Trial) -> dict[str, Any]:
-    return json.loads((trial.out / "metrics.json").read_text())  # type: ignore[no-any-return]
-
 
 def test_desktop_page_completes_the_minimal_task(
-    browser: Any, live: Callable[..., tuple[Trial, str]]
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
 ) -> None:
-    trial, url = live()
-    page = Page(browser, url + "?mode=desktop")
+    run = live()
+    trial = run.trial
+    page = Page(browser, run.url + "&mode=desktop")
     s = page.state()
     assert s["role"] == "driver" and s["run"] == "waiting_first_grab", s
     grab_part(page, "H1")
@@ -184,10 +61,10 @@ def test_desktop_page_completes_the_minimal_task(
 
 
 def test_immersive_controller_grabs_and_places_h1(
-    browser: Any, live: Callable[..., tuple[Trial, str]]
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
 ) -> None:
-    _trial, url = live()
-    page = Page(browser, url + "?test=iwer")
+    page = Page(browser, live().url + "&test=iwer")
     page.page.click("#enter-vr")  # a user gesture, as a headset's browser needs
     page.wait("immersive session", lambda s: s["xr"], 20)
     h1 = page.part("H1")
@@ -289,12 +166,14 @@ def slow_minimal(tmp_path: Path) -> Path:
 
 
 def test_pictures_while_a_robot_carries_with_anticipation(
-    browser: Any, live: Callable[..., tuple[Trial, str]], tmp_path: Path
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
+    tmp_path: Path,
 ) -> None:
-    _trial, url = live(slow_minimal(tmp_path))
-    desk = Page(browser, url + "?mode=desktop")
+    run = live(slow_minimal(tmp_path))
+    desk = Page(browser, run.url + "&mode=desktop")
     # a second client: a spectator, in an emulated headset looking down at the board
-    xr = Page(browser, url + "?test=iwer")
+    xr = Page(browser, run.spectator_url + "?test=iwer")
     assert xr.state()["role"] == "spectator"
     xr.page.click("#enter-vr")
     xr.wait("immersive session", lambda s: s["xr"], 20)

@@ -26,17 +26,17 @@ from hrc.scenario import Ssm
 from hrc.ssm import Zone, protective_distance
 from hrc.wire import pb
 
-from .conftest import ROOT, Trial
-from .test_participant_client import (
+from .conftest import ROOT
+from .participant_page import (
+    Live,
     Page,
     browser,
     grab_part,
-    hex_rgb,
     live,
-    looks_like,
     metrics,
     place_part,
 )
+from .test_participant_client import hex_rgb, looks_like
 from hrc_human_input.stream import ClientView, WorldMirror, frame_json
 
 __all__ = ["browser", "live"]  # the fixtures, shared with test_participant_client
@@ -150,10 +150,11 @@ def test_frames_carry_the_zone_on_change_with_hrc_ssm_numbers() -> None:
 @pytest.mark.slow
 @pytest.mark.e2e
 def test_the_page_draws_r1s_zone_red_when_the_hand_stops_it(
-    browser: Any, live: Callable[..., tuple[Trial, str]], tmp_path: Path
+    browser: Any, live: Callable[..., Live], tmp_path: Path
 ) -> None:
-    trial, url = live(ssm_scenario(tmp_path / "scenario"))
-    page = Page(browser, url + "?mode=desktop")
+    run = live(ssm_scenario(tmp_path / "scenario"))
+    trial = run.trial
+    page = Page(browser, run.url + "&mode=desktop")
     scene = page.scene()
     assert scene["safety_policy"] == "ssm"
     style = scene["ssm_zone"]
@@ -230,10 +231,9 @@ def overlap(a: dict[str, Any], b: dict[str, Any]) -> bool:
 @pytest.mark.slow
 @pytest.mark.e2e
 def test_the_thesis_scene_on_the_desktop_has_readable_part_labels(
-    browser: Any, live: Callable[..., tuple[Trial, str]]
+    browser: Any, live: Callable[..., Live]
 ) -> None:
-    _trial, url = live(ROOT / "scenarios" / "thesis.toml")
-    page = Page(browser, url + "?mode=desktop")
+    page = Page(browser, live(ROOT / "scenarios" / "thesis.toml").url + "&mode=desktop")
     page.wait("the parts' state", lambda s: "H1" in s["objects"], 20)
     labels = page.page.evaluate("window.hrcTest.labels()")
     page.screenshot("thesis-desktop.png")

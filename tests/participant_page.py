@@ -1,0 +1,231 @@
+"""The participant's page in headless Debian chromium against a live trial, driven like a
+person would (shared by the browser tests): the browser, a live trial (`hrc run --input vr`),
+the page and its test hooks (window.hrcTest), and the moves of a person at a desktop.
+
+World points are turned into page pixels by the page itself (window.hrcTest.project), and every
+position comes from the scene the bridge sent: nothing of the scenario is repeated here.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+import urllib.request
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hrc.browser import headless_chromium, output_dir
+
+from .conftest import ROOT, Trial, free_port, wait_until
+
+MINIMAL = ROOT / "scenarios" / "minimal.toml"
+THESIS = ROOT / "scenarios" / "thesis.toml"
+CLIENT_DIST = ROOT / "services" / "human_input" / "client" / "dist" / "index.html"
+VIEWPORT = {"width": 1280, "height": 800}
+MAX_TICKS = 240 * 240  # no trial outlives 4 simulated (= wall, realtime) minutes
+DRIVER_KEY = "participant-key"
+
+
+@pytest.fixture(scope="module")
+def browser() -> Iterator[Any]:
+    if not CLIENT_DIST.is_file():
+        pytest.fail(f"{CLIENT_DIST} is missing: scripts/setup.sh builds the participant client")
+    with headless_chromium() as b:
+        yield b
+
+
+@dataclass
+class Live:
+    trial: Trial
+    url: str  # the participant's link (it drives)
+    spectator_url: str  # anybody else's (the experimenter's)
+
+
+@pytest.fixture
+def live(trial_factory: Callable[..., Trial]) -> Callable[..., Live]:
+    """Starts a live trial (realtime, input vr); returns it and the pages' URLs once the bridge
+    serves them."""
+
+    def start(scenario: Path = MINIMAL, max_ticks: int = MAX_TICKS, extra: list[str] = ()) -> Live:
+        port = free_port()
+        trial = trial_factory(
+            scenario,
+            ticks=0,
+            extra=[
+                "--input",
+                "vr",
+                "--vr-port",
+                str(port),
+                "--max-ticks",
+                str(max_ticks),
+                *extra,
+            ],
+            env={"HRC_VR_DRIVER": DRIVER_KEY},
+        )
+        url = f"http://127.0.0.1:{port}/"
+
+        def serving() -> bool:
+            if trial.proc.poll() is not None:
+                raise AssertionError(f"hrc run ended early: {trial.communicate()}")
+            try:
+                with urllib.request.urlopen(url, timeout=1) as r:
+                    return r.status == 200
+            except OSError:
+                return False
+
+        assert wait_until(serving, 60, 0.2), "the bridge never served the page"
+        return Live(trial, f"{url}?driver={DRIVER_KEY}", url)
+
+    return start
+
+
+def with_query(url: str, query: str) -> str:
+    return url + ("&" if "?" in url else "?") + query
+
+
+class Page:
+    """The page and its test hooks (window.hrcTest), driven like a person would."""
+
+    def __init__(self, browser: Any, url: str, ready: bool = True) -> None:
+        """``ready``: wait for the world on the page (a spectator who comes before the
+        participant sees it only once the trial runs)."""
+        self.context = browser.new_context(viewport=VIEWPORT)
+        self.page = self.context.new_page()
+        self.errors: list[str] = []
+        self.page.on("pageerror", lambda e: self.errors.append(str(e)))
+        self.page.goto(url)
+        if ready:
+            self.wait_ready()
+
+    def wait_ready(self) -> None:
+        # generous: on a loaded machine software WebGL renders a frame or two a second
+        self.page.wait_for_function("window.hrcTest && window.hrcTest.ready()", timeout=90_000)
+        assert not self.errors, self.errors
+
+    def state(self) -> dict[str, Any]:
+        return self.page.evaluate("window.hrcTest.state()")  # type: ignore[no-any-return]
+
+    def text(self) -> dict[str, str]:
+        """What the person reads: the status panel and the message."""
+        return self.page.evaluate(  # type: ignore[no-any-return]
+            """() => ({
+                status: document.getElementById('status').textContent,
+                message: document.getElementById('message').style.display === 'none'
+                    ? '' : document.getElementById('message').textContent,
+            })"""
+        )
+
+    def scene(self) -> dict[str, Any]:
+        return self.page.evaluate("window.hrcApp.sceneMsg")  # type: ignore[no-any-return]
+
+    def part(self, pid: str) -> dict[str, Any]:
+        return next(p for p in self.scene()["parts"] if p["id"] == pid)
+
+    def project(self, xyz: list[float]) -> tuple[float, float]:
+        p = self.page.evaluate("(xyz) => window.hrcTest.project(xyz)", xyz)
+        return p["x"], p["y"]
+
+    def wait(self, what: str, pred: Callable[[dict[str, Any]], bool], timeout: float) -> None:
+        ok = wait_until(lambda: pred(self.state()), timeout, 0.1)
+        assert ok, f"{what}: not within {timeout:g} s; page state {json.dumps(self.state())[:1500]}"
+
+    def wait_text(self, what: str, pred: Callable[[dict[str, str]], bool], timeout: float) -> None:
+        ok = wait_until(lambda: pred(self.text()), timeout, 0.05)
+        assert ok, f"{what}: not within {timeout:g} s; the page says {self.text()}"
+
+    def keys(self, key: str, n: int = 1) -> None:
+        for _ in range(n):
+            self.page.keyboard.press(key)
+
+    def hand(self) -> dict[str, Any]:
+        s = self.state()
+        return s["hands"][s["active_hand"]]  # type: ignore[no-any-return]
+
+    def height_to(self, z: float) -> None:
+        """W/S move the active hand 1 cm up/down."""
+        steps = round((z - self.hand()["p"][2]) / 0.01)
+        self.keys("w" if steps > 0 else "s", abs(steps))
+        assert abs(self.hand()["p"][2] - z) < 0.006, self.hand()
+
+    def move_over(self, x: float, y: float) -> None:
+        """The mouse moves the hand on the plane at its height: point at (x, y, hand z). A
+        hand at rest is first taken back with a deliberate move of the mouse."""
+        if self.state()["parked"]:
+            self.take_hand()
+        z = self.hand()["p"][2]
+        px, py = self.project([x, y, z])
+        self.page.mouse.move(px, py, steps=12)
+
+        def there() -> bool:  # a busy page may handle the last (coalesced) move a frame later
+            p = self.hand()["p"]
+            return abs(p[0] - x) < 0.004 and abs(p[1] - y) < 0.004
+
+        assert wait_until(there, 10, 0.05), (self.hand()["p"], x, y)
+
+    def take_hand(self) -> None:
+        """A parked hand follows the mouse again once it has moved on purpose."""
+        rest = self.hand()["p"]
+        px, py = self.project(rest)
+        self.page.mouse.move(px, py + 120, steps=4)
+        self.page.mouse.move(px, py, steps=4)
+        ok = wait_until(lambda: not self.state()["parked"], 10, 0.05)
+        assert ok, "the hand stays parked after a deliberate move of the mouse"
+
+    def screenshot(self, name: str) -> Any:
+        from PIL import Image
+
+        png = self.page.screenshot()
+        (output_dir("client") / name).write_bytes(png)
+        return Image.open(io.BytesIO(png)).convert("RGB")
+
+    def close(self) -> None:
+        self.context.close()
+
+
+def grab_part(page: Page, pid: str, timeout: float = 20) -> None:
+    """Hand over the part, down to its top face, close the grip; the bridge reports the hold."""
+    part = page.part(pid)
+    at = page.state()["objects"][pid]["p"]
+    x, y, z = at
+    top = z + part["size"][2] / 2
+    page.height_to(max(top + 0.06, 0.10))
+    page.move_over(x, y)
+    page.height_to(top)
+    page.keys(" ")
+    page.wait(f"{pid} held", lambda s: s["objects"][pid]["holder"] in ("left", "right"), timeout)
+
+
+def yaw_deg(q: list[float]) -> float:
+    """The yaw of a quaternion [x, y, z, w] (about the world's z, the page's root frame)."""
+    x, y, z, w = q
+    return math.degrees(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
+
+
+def place_part(page: Page, pid: str) -> None:
+    """Turned to the target's yaw (Q/E, 15 degrees a press), over the target, down, open the
+    grip: placed; the page then takes the hand back to rest (it parks after a release)."""
+    part = page.part(pid)
+    x, y, z = part["target"]["xyz"]
+    top = z + part["size"][2] / 2
+    turn = (part["target"]["yaw_deg"] - yaw_deg(page.state()["objects"][pid]["q"])) % 360
+    turn = turn - 360 if turn > 180 else turn
+    page.keys("q" if turn > 0 else "e", round(abs(turn) / 15))
+    page.height_to(max(top + 0.06, 0.10))
+    page.move_over(x, y)
+    page.height_to(top)
+    page.keys(" ")
+    page.wait(f"{pid} placed", lambda s: s["objects"][pid]["placed"], 20)
+    page.wait("the hand back at rest", lambda s: s["parked"], 10)
+
+
+def metrics(trial: Trial) -> dict[str, Any]:
+    return json.loads((trial.out / "metrics.json").read_text())  # type: ignore[no-any-return]
+
+
+def trial_path(trial: Trial, name: str) -> Path:
+    return trial.out / name

@@ -1,0 +1,343 @@
+"""A person at the participant's page in a live trial (`hrc run --input vr`, realtime, all five
+services, headless Debian chromium): pauses never end the trial, a hand that withdraws as the
+page lets it meets no robot, the page says what is going on (a lost link, how the trial ended),
+the participant's link drives again after a reopen, and Ctrl-C keeps the trial's records.
+
+The person is scripted (tests/participant_page.py) but uses only what the page offers: the
+mouse, the keys, what it shows (which part may be grabbed, which parts are placed).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from hrc.wire import pb
+
+from .conftest import wait_until
+from .participant_page import (
+    MINIMAL,
+    THESIS,
+    Live,
+    Page,
+    browser,  # noqa: F401  (a fixture)
+    grab_part,
+    live,  # noqa: F401  (a fixture)
+    metrics,
+    place_part,
+)
+
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+PAUSE_S = 90.0  # a person reading, putting on the headset, asking the experimenter
+
+
+def enter_headset(page: Page) -> Page:
+    """The page enters immersive VR (IWER), standing, looking 38 degrees down at the board."""
+    page.page.click("#enter-vr")
+    page.wait("immersive session", lambda s: s["xr"], 20)
+    page.page.evaluate(
+        """() => {
+            const d = window.hrcXrDevice;
+            d.position.set(0, 1.55, 0);
+            d.quaternion.set(-0.33, 0, 0, 0.944);
+        }"""
+    )
+    return page
+
+
+def pause(run: Live, seconds: float) -> None:
+    """The person does nothing for `seconds`; the trial must go on all along."""
+    ended = wait_until(lambda: run.trial.proc.poll() is not None, seconds, 0.5)
+    assert not ended, f"the trial ended while the person paused: {run.trial.communicate()}"
+
+
+def next_part(page: Page, scene: dict[str, Any]) -> str | None:
+    """The participant's part the page offers now (grabbable), once what it sits on or waits for
+    is placed; None when every one of them is placed."""
+    s = page.state()["objects"]
+    mine = [p for p in scene["parts"] if p["owner"] == "human"]
+    if all(s[p["id"]]["placed"] for p in mine):
+        return None
+    for p in mine:
+        o = s[p["id"]]
+        if not o["placed"] and o.get("grabbable") and all(s[d]["placed"] for d in p["after"]):
+            return str(p["id"])
+    return ""
+
+
+def do_the_task(page: Page, after_first: Callable[[], None] = lambda: None) -> list[str]:
+    """Every part of the participant's, one by one, as the page offers them; the page takes the
+    hand back to rest after each release (nothing else withdraws it)."""
+    scene = page.scene()
+    done: list[str] = []
+    while True:
+        assert wait_until(lambda: next_part(page, scene) != "", 180, 0.2), (
+            f"no part offered after {done}: {json.dumps(page.state()['objects'])[:1500]}"
+        )
+        pid = next_part(page, scene)
+        if pid is None:
+            return done
+        grab_part(page, pid)
+        place_part(page, pid)
+        rest = page.hand()["p"]
+        assert rest[1] < -0.5 and abs(rest[0]) > 0.15, f"the hand at {rest} after {pid}"
+        done.append(pid)
+        if len(done) == 1:
+            after_first()
+
+
+@pytest.mark.timeout(900)
+def test_pauses_never_end_a_live_trial_and_a_withdrawing_hand_meets_no_robot(
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
+) -> None:
+    run = live(THESIS, max_ticks=240 * 720)
+    page = Page(browser, run.url + "&mode=desktop")
+    assert page.state()["role"] == "driver"
+    pause(run, PAUSE_S)  # (a) no grab for 90 s: the watchdog's 60 s pass
+    page.wait_text("the wait shown", lambda t: "waiting for you: H1" in t["status"], 10)
+    assert page.state()["run"] == "waiting_first_grab"
+    done = do_the_task(page, after_first=lambda: pause(run, PAUSE_S))  # (b) a pause mid-task
+    assert len(done) == 6, done
+    page.wait("task finished", lambda s: s["run"] == "finished", 240)
+    rc, out, err = run.trial.communicate(timeout=90)
+    assert rc == 0, (out, err[-3000:])
+    m = metrics(run.trial)
+    assert m["task"]["finished"] is True, m["task"]
+    # (c) the hand left the board after every placement: no robot ever touched it
+    assert m["collisions"]["human_robot_count"] == 0, m["collisions"]
+    # (b) the pause counts as the participant's idle time (hands at rest, outside the workspace)
+    assert m["human"]["idle_s"] >= PAUSE_S, m["human"]
+    assert m["run"]["end_reason"] and "stalled" not in m["run"]["end_reason"], m["run"]
+    # the experimenter's console said who waits for whom
+    assert "waiting for the participant: H1" in out, out
+    assert "waiting for the participant: " + done[1] in out, out
+    assert "connected as the driver" in out and "placed by the participant (1/18)" in out, out
+    assert "task finished at" in out, out
+    events = [json.loads(x) for x in (run.trial.out / "events.jsonl").read_text().splitlines()]
+    waits = [e for e in events if e.get("kind") == "PARTICIPANT_WAIT"]
+    assert len(waits) >= 2, waits
+    assert not page.errors, page.errors
+
+
+def test_the_page_says_when_the_link_is_lost_and_how_the_trial_ended(
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
+) -> None:
+    run = live()
+    page = Page(browser, run.url + "&mode=desktop")
+    xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
+    console: list[str] = []
+    page.page.on("console", lambda m: console.append(f"{m.type}: {m.text}"))
+    page.wait_text("connected", lambda t: "connection: connected" in t["status"], 10)
+    page.screenshot("live-ready.png")
+    xr.screenshot("xr-ready.png")
+    for p in (page, xr):
+        p.context.set_offline(True)
+    off_ms = page.page.evaluate("performance.now()")
+    page.wait_text("lost", lambda t: "connection: lost" in t["status"], 10)
+    lost_ms = page.page.evaluate("window.hrcApp.bridge.lostAtMs")
+    assert lost_ms - off_ms <= 2000, f"'lost' shown {lost_ms - off_ms:.0f} ms after the link went"
+    assert page.text()["message"].startswith("Connection to the trial lost"), page.text()
+    page.screenshot("live-connection-lost.png")
+    assert wait_until(
+        lambda: "connection: lost" in xr.page.evaluate("window.hrcTest.panelText()"), 10
+    ), xr.page.evaluate("window.hrcTest.panelText()")
+    xr.screenshot("xr-connection-lost.png")
+    time.sleep(5)  # the network stays away for 5 s (the person's side; nothing races it)
+    for p in (page, xr):
+        p.context.set_offline(False)
+    page.wait_text("connected again", lambda t: "connection: connected" in t["status"], 20)
+    assert page.text()["message"] == "", page.text()
+    assert page.state()["role"] == "driver", "the participant's page must drive again"
+    grab_part(page, "H1")
+    place_part(page, "H1")
+    page.wait("task finished", lambda s: s["run"] == "finished", 120)
+    page.wait_text(
+        "the end explained",
+        lambda t: (
+            "The task is finished" in t["message"]
+            and "Please wait for the experimenter" in t["message"]
+        ),
+        10,
+    )
+    page.wait_text("the page rests", lambda t: "connection: closed" in t["status"], 10)
+    page.screenshot("live-finished.png")
+    assert wait_until(
+        lambda: "The task is finished" in xr.page.evaluate("window.hrcTest.panelText()"), 10
+    ), xr.page.evaluate("window.hrcTest.panelText()")
+    xr.screenshot("xr-finished.png")
+    mark = len(console)
+    rc, out, err = run.trial.communicate(timeout=90)
+    assert rc == 0, (out, err[-3000:])
+    time.sleep(3)  # the bridge is gone: a quiet page, not a reconnecting one
+    assert "connection: closed" in page.text()["status"], page.text()
+    assert not [c for c in console[mark:] if c.startswith("error")], console[mark:]
+    assert not page.errors and not xr.errors, (page.errors, xr.errors)
+    assert "left" in out and out.count("connected as the driver") >= 2, out
+
+
+def test_the_page_says_why_a_trial_failed(
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
+) -> None:
+    run = live()
+    page = Page(browser, run.url + "&mode=desktop")
+    xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
+    grab_part(page, "H1")
+    bus = run.trial.bus("checker")
+    bus.publisher(bus.keys.run_control()).put(
+        pb.RunControl(command=pb.RunControl.COMMAND_ABORT, reason="the robot controller faulted")
+    )
+    page.wait_text(
+        "the failure explained",
+        lambda t: (
+            "ended because of a problem" in t["message"]
+            and "the robot controller faulted" in t["message"]
+            and "Please wait for the experimenter" in t["message"]
+        ),
+        30,
+    )
+    page.wait_text("the panel", lambda t: "run: ended by an error" in t["status"], 5)
+    page.screenshot("live-failed.png")
+    # in the headset the panel carries the same words
+    assert wait_until(
+        lambda: "ended because of a problem" in xr.page.evaluate("window.hrcTest.panelText()"),
+        10,
+    ), xr.page.evaluate("window.hrcTest.panelText()")
+    xr.screenshot("xr-failed.png")
+    rc, _out, err = run.trial.communicate(timeout=90)
+    assert rc == 3 and "the robot controller faulted" in err, (rc, err[-2000:])
+    assert not page.errors and not xr.errors, (page.errors, xr.errors)
+
+
+def test_ctrl_c_ends_a_live_trial_with_its_records(
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
+) -> None:
+    run = live(extra=["--participant", "L07"])
+    page = Page(browser, run.url + "&mode=desktop")
+    xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
+    assert page.scene()["participant"] == "L07"
+    # a short pause first: the page says the trial waits for the participant
+    page.wait_text("the wait", lambda t: "waiting for you: H1" in t["status"], 60)
+    page.screenshot("live-waiting-for-you.png")
+    assert wait_until(
+        lambda: "waiting for you: H1" in xr.page.evaluate("window.hrcTest.panelText()"), 10
+    ), xr.page.evaluate("window.hrcTest.panelText()")
+    xr.screenshot("xr-waiting-for-you.png")
+    grab_part(page, "H1")
+    page.wait("task started", lambda s: s["run"] == "running", 10)
+    time.sleep(2)  # some task time passes before the experimenter stops
+    # Ctrl-C in the experimenter's terminal: SIGINT to hrc run's whole process group
+    os.killpg(run.trial.proc.pid, signal.SIGINT)
+    page.wait_text("stopped", lambda t: "experimenter has stopped the trial" in t["message"], 30)
+    page.wait_text("the panel", lambda t: "run: stopped by the experimenter" in t["status"], 5)
+    page.screenshot("live-stopped.png")
+    assert wait_until(
+        lambda: "has stopped the trial" in xr.page.evaluate("window.hrcTest.panelText()"), 10
+    ), xr.page.evaluate("window.hrcTest.panelText()")
+    xr.screenshot("xr-stopped.png")
+    rc, out, err = run.trial.communicate(timeout=60)
+    assert rc == 130, (rc, out, err[-2000:])
+    m = metrics(run.trial)
+    assert m["participant"] == "L07"
+    assert "interrupted" in m["run"]["end_reason"], m["run"]
+    assert m["task"]["started"] is True and m["task"]["finished"] is False, m["task"]
+    last = (run.trial.out / "log.txt").read_text().splitlines()[-1]
+    at = float(last.split("sec")[0])
+    assert "interrupted" in last and at >= 2.0, last  # the stop's time, not the grab's
+    assert "waiting for the participant: H1" in out and "L07: " in out, out
+    assert not page.errors and not xr.errors, (page.errors, xr.errors)
+
+
+def test_reopening_the_participants_tab_gives_it_the_driver_role_back(
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
+) -> None:
+    run = live()
+    # the experimenter's page, first: the trial starts when the participant's page comes
+    watcher = Page(browser, run.spectator_url + "?mode=desktop", ready=False)
+    page = Page(browser, run.url + "&mode=desktop")
+    watcher.wait_ready()
+    assert watcher.state()["role"] == "spectator" and page.state()["role"] == "driver"
+    grab_part(page, "H1")
+    page.height_to(0.15)
+    page.move_over(-0.05, -0.25)  # carried half-way, then the tab is closed
+    held = page.state()["hands"][page.state()["active_hand"]]["p"]
+    page.close()
+    # the part is let go where the hand held it, never carried off to a rest point
+    watcher.wait("H1 let go", lambda s: s["objects"]["H1"]["holder"] == "", 20)
+    watcher.wait("H1 lands", lambda s: s["objects"]["H1"]["p"][2] < 0.1, 20)
+    h1 = watcher.state()["objects"]["H1"]["p"]
+    assert abs(h1[0] - held[0]) < 0.05 and abs(h1[1] - held[1]) < 0.05, (h1, held)
+    assert watcher.state()["role"] == "spectator", "a spectator must not take over"
+    again = Page(browser, run.url + "&mode=desktop")
+    assert again.state()["role"] == "driver"
+    assert all(h["grip"] == 0 for h in again.state()["hands"].values()), again.state()["hands"]
+    time.sleep(1)  # the watcher's page keeps its role while the participant drives
+    assert watcher.state()["role"] == "spectator"
+    grab_part(again, "H1")
+    place_part(again, "H1")
+    again.wait("task finished", lambda s: s["run"] == "finished", 120)
+    rc, out, err = run.trial.communicate(timeout=90)
+    assert rc == 0, (out, err[-3000:])
+    assert "no driver: the participant's page is gone" in out, out
+    assert not page.errors and not again.errors and not watcher.errors
+
+
+def test_a_collision_is_explained_until_the_robot_goes_on(
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
+    tmp_path: Path,
+) -> None:
+    slow = MINIMAL.read_text().replace("max_tcp_speed = 0.5", "max_tcp_speed = 0.1")
+    scenario = tmp_path / "minimal-slow.toml"
+    scenario.write_text(slow)
+    run = live(scenario)
+    page = Page(browser, run.url + "&mode=desktop")
+    xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))  # the experimenter
+    grab_part(page, "H1")
+    place_part(page, "H1")
+    # the hand goes where r1 brings RA1, and waits there
+    tx, ty, _ = page.part("RA1")["target"]["xyz"]
+    page.height_to(0.10)
+    page.move_over(tx, ty)
+    page.wait("a collision", lambda s: "collision" in s["events"], 90)
+    page.wait_text("explained", lambda t: "Collision with r1" in t["message"], 5)
+    msg = page.text()["message"]
+    assert "pull your hand back" in msg and "RA1" in msg, msg
+    goal = {"part": "RA1", "visible": True}  # where r1 heads, marked (the panel refreshes it)
+    assert wait_until(lambda: page.page.evaluate("window.hrcTest.goal()") == goal, 5), (
+        page.page.evaluate("window.hrcTest.goal()")
+    )
+    page.screenshot("live-collision.png")
+    xr.wait("the spectator's collision", lambda s: "collision" in s["events"], 30)
+    assert wait_until(
+        lambda: "Collision with r1" in xr.page.evaluate("window.hrcTest.panelText()"), 5
+    ), xr.page.evaluate("window.hrcTest.panelText()")
+    xr.screenshot("xr-collision.png")
+    page.keys("r")  # the person withdraws at once; the warning stays long enough to read
+    seen: list[str] = []
+    t_end = time.monotonic() + 3.5
+    while time.monotonic() < t_end:
+        seen.append(page.text()["message"])
+        time.sleep(0.1)
+    # never a blank: the warning, then what the robot does next (or, at the end, the end)
+    assert "Collision with r1" in seen[0] and all(seen), sorted(set(seen))
+    page.wait("the robots go on", lambda s: "continued" in s["events"], 60)
+    page.wait_text("going on", lambda t: "r1 goes on to RA1's target" in t["message"], 10)
+    assert page.page.evaluate("window.hrcTest.goal()") is not None
+    page.wait("task finished", lambda s: s["run"] == "finished", 120)
+    assert page.page.evaluate("window.hrcTest.goal()") is None
+    rc, out, err = run.trial.communicate(timeout=90)
+    assert rc == 0, (out, err[-3000:])
+    assert "collision 1: r1 and the right hand" in out, out
+    assert not page.errors and not xr.errors, (page.errors, xr.errors)
