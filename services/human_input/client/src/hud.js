@@ -75,7 +75,8 @@ export class Hud {
     const out = [
       `run: ${RUN_TEXT[v.run] || v.run}`,
       `task time: ${v.task}`,
-      `role: ${v.role}   connection: ${v.connection}`,
+      `role: ${v.role}`,
+      `connection: ${v.connection}`,
     ];
     if (v.wait) out.push(v.wait);
     if (v.hand) out.push(v.hand);

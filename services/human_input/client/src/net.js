@@ -6,8 +6,10 @@
 const MAX_BUFFERED = 64 * 1024;
 const RETRY_MS = [500, 1000, 2000, 4000];
 export const HEARTBEAT_MS = 500;
-export const LOST_MS = 1500;
+export const LOST_MS = 1200;
+const SILENT_BEATS = 3; // beats in a row that heard nothing (with LOST_MS): the link is lost
 const DIAL_MS = 3000;
+const DIAL_BEATS = 6;
 
 export class Bridge {
   constructor({ token, driver, onMessage, onStatus }) {
@@ -50,6 +52,8 @@ export class Bridge {
     this.ws = ws;
     this.lastHeardMs = performance.now();
     this.dialedMs = performance.now();
+    this.dialBeats = 0;
+    this.silentBeats = 0;
     this.setState(this.state === 'lost' ? 'lost' : 'connecting', this.state === 'lost' ? 'reconnecting' : '');
     ws.onopen = () => {
       this.lastHeardMs = performance.now();
@@ -61,6 +65,7 @@ export class Bridge {
       if (this.ws !== ws) return;
       this.received++;
       this.lastHeardMs = performance.now();
+      this.heardSinceBeat = true;
       let msg;
       try {
         msg = JSON.parse(ev.data);
@@ -85,48 +90,42 @@ export class Bridge {
     };
   }
 
-  /** Called every HEARTBEAT_MS: pings, and gives up on a link that has gone quiet. */
+  /** Called every HEARTBEAT_MS: pings, and gives up on a link that has gone quiet. Quiet is
+   * judged in beats as well as in time: a page that is itself busy (long frames: software
+   * rendering on a loaded machine) runs its beats late, and what the link sent meanwhile may
+   * still wait behind them; only SILENT_BEATS beats in a row that heard nothing, spanning
+   * LOST_MS, make a lost link. */
   heartbeat() {
     const now = performance.now();
-    const late = this.lastBeatMs !== undefined && now - this.lastBeatMs > 2 * HEARTBEAT_MS;
-    this.lastBeatMs = now;
-    if (late) {
-      // The page itself was busy (a long frame: software rendering on a loaded machine): what
-      // the link sent meanwhile may still wait in the queue behind this timer. That is no loss.
-      this.lastHeardMs = Math.max(this.lastHeardMs, now - HEARTBEAT_MS);
-      this.dialedMs = Math.max(this.dialedMs, now - HEARTBEAT_MS);
-      return;
-    }
+    this.silentBeats = this.heardSinceBeat ? 0 : (this.silentBeats || 0) + 1;
+    this.heardSinceBeat = false;
+    const quiet = this.silentBeats >= SILENT_BEATS && now - this.lastHeardMs > LOST_MS;
     if (this.resting) {
       // the bridge stays up a moment after the end; a quiet link then is no loss
-      if (this.state === 'connected' && performance.now() - this.lastHeardMs > LOST_MS) {
-        this.setState('closed', 'the trial is over');
-      }
+      if (this.state === 'connected' && quiet) this.setState('closed', 'the trial is over');
       return;
     }
     if (this.open()) this.ping();
-    if (this.state === 'connected' && performance.now() - this.lastHeardMs > LOST_MS) {
+    if (this.state === 'connected' && quiet) {
       // the socket may take minutes to notice a dead link: drop it and dial again
-      const old = this.ws;
-      this.ws = null;
-      try {
-        old?.close();
-      } catch {
-        // closing a socket that never opened
-      }
       this.setState('lost', 'reconnecting');
-      this.connect();
-    } else if (this.state !== 'connected' && !this.open() && performance.now() - this.dialedMs > DIAL_MS) {
-      // a dial that neither opens nor fails (a dead network): try again
-      const old = this.ws;
-      this.ws = null;
-      try {
-        old?.close();
-      } catch {
-        // never opened
-      }
-      this.connect();
+      this.redial();
+    } else if (this.state !== 'connected' && !this.open()) {
+      this.dialBeats = (this.dialBeats || 0) + 1;
+      if (this.dialBeats >= DIAL_BEATS && now - this.dialedMs > DIAL_MS) this.redial();
     }
+  }
+
+  /** Drops the socket (a dead link, or a dial that neither opens nor fails) and dials again. */
+  redial() {
+    const old = this.ws;
+    this.ws = null;
+    try {
+      old?.close();
+    } catch {
+      // closing a socket that never opened
+    }
+    this.connect();
   }
 
   /** The trial is over: the last frames still come until the bridge closes; then the page
