@@ -46,10 +46,14 @@ class Live:
     spectator_url: str  # anybody else's (the experimenter's)
 
 
+OPEN_PAGES: list[Page] = []  # closed after each test: a page left open goes on rendering
+
+
 @pytest.fixture
-def live(trial_factory: Callable[..., Trial]) -> Callable[..., Live]:
+def live(trial_factory: Callable[..., Trial]) -> Iterator[Callable[..., Live]]:
     """Starts a live trial (realtime, input vr); returns it and the pages' URLs once the bridge
-    serves them."""
+    serves them. The test's pages are closed after it (software WebGL: every open page renders
+    on the CPU the next test needs)."""
 
     def start(scenario: Path = MINIMAL, max_ticks: int = MAX_TICKS, extra: list[str] = ()) -> Live:
         port = free_port()
@@ -81,7 +85,9 @@ def live(trial_factory: Callable[..., Trial]) -> Callable[..., Live]:
         assert wait_until(serving, 60, 0.2), "the bridge never served the page"
         return Live(trial, f"{url}?driver={DRIVER_KEY}", url)
 
-    return start
+    yield start
+    while OPEN_PAGES:
+        OPEN_PAGES.pop().close()
 
 
 def with_query(url: str, query: str) -> str:
@@ -98,6 +104,7 @@ class Page:
         self.page = self.context.new_page()
         self.errors: list[str] = []
         self.page.on("pageerror", lambda e: self.errors.append(str(e)))
+        OPEN_PAGES.append(self)
         self.page.goto(url)
         if ready:
             self.wait_ready()
@@ -171,7 +178,7 @@ class Page:
         """A parked hand follows the mouse again once it has moved on purpose."""
         rest = self.hand()["p"]
         px, py = self.project(rest)
-        self.page.mouse.move(px, py + 120, steps=4)
+        self.page.mouse.move(px, py - 120, steps=4)  # up: the rest point is near the bottom
         self.page.mouse.move(px, py, steps=4)
         ok = wait_until(lambda: not self.state()["parked"], 10, 0.05)
         assert ok, "the hand stays parked after a deliberate move of the mouse"
@@ -184,6 +191,8 @@ class Page:
         return Image.open(io.BytesIO(png)).convert("RGB")
 
     def close(self) -> None:
+        if self in OPEN_PAGES:
+            OPEN_PAGES.remove(self)
         self.context.close()
 
 
