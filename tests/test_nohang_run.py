@@ -86,3 +86,30 @@ def test_an_infeasible_move_at_run_time_ends_through_the_watchdog(
     assert "r1 cannot make its move #1 (to_pick RA1)" in log_txt.splitlines()[-1]
     events = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
     assert any(e.get("kind") == "STALLED" for e in events)
+
+
+@pytest.mark.slow
+def test_a_live_trial_whose_terminal_closes_ends_with_its_records(trial_factory) -> None:
+    """The experimenter's terminal goes away (SIGHUP to the whole group, then every write to it
+    fails): the console must not break the clean-up; the run ends as an interruption, with
+    metrics.json, and nothing is left running."""
+    trial = trial_factory(
+        ROOT / "scenarios" / "minimal.toml", extra=["--input", "vr", "--vr-wait", "0"]
+    )
+    trial.wait_ticking()
+    pids = trial.service_pids()
+    assert len(pids) == 5, pids
+    assert trial.proc.stdout is not None and trial.proc.stderr is not None
+    trial.proc.stdout.close()  # nobody reads the terminal any more
+    trial.proc.stderr.close()
+    os.killpg(trial.proc.pid, signal.SIGHUP)
+    try:
+        code = trial.proc.wait(timeout=30)
+    except subprocess.TimeoutExpired:
+        pytest.fail("hrc run did not end after its terminal closed")
+    assert code == 128 + signal.SIGHUP
+    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), 3.0), {
+        n: p for n, p in pids.items() if _alive(p)
+    }
+    m = json.loads((trial.out / "metrics.json").read_text())
+    assert "interrupted (SIGHUP)" in m["run"]["end_reason"], m["run"]

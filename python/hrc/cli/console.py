@@ -49,7 +49,7 @@ class LiveConsole:
     def __init__(
         self, bus: Bus, participant: str, parts_total: int, out: TextIO | None = None
     ) -> None:
-        self.out = out or sys.stdout
+        self.out: TextIO | None = out or sys.stdout
         self.tty = self.out.isatty()
         self.participant = participant
         self.parts_total = parts_total
@@ -137,24 +137,33 @@ class LiveConsole:
         with self._lock:
             lines, self._s.lines = self._s.lines, []
         status = self.status(now)
-        out = self.out
+        text = ""
         if self.tty:
             if lines:
-                out.write("\r\x1b[K" + "".join(f"{ln}\n" for ln in lines))
+                text += "\r\x1b[K" + "".join(f"{ln}\n" for ln in lines)
             if lines or status != self._shown:
-                out.write("\r\x1b[K" + status)
+                text += "\r\x1b[K" + status
                 self._shown = status
         else:
-            out.write("".join(f"{ln}\n" for ln in lines))
+            text += "".join(f"{ln}\n" for ln in lines)
             if now - self._printed_at >= STATUS_EVERY_S:
-                out.write(f"status: {status}\n")
+                text += f"status: {status}\n"
                 self._printed_at = now
-        out.flush()
+        self._write(text)
 
     def close(self, end: str = "") -> None:
         self.update()
-        if self.tty and self._shown:
-            self.out.write("\n")
+        text = "\n" if self.tty and self._shown else ""
         if end:
-            self.out.write(f"status: {self.status()}\nrun ended: {end}\n")
-        self.out.flush()
+            text += f"status: {self.status()}\nrun ended: {end}\n"
+        self._write(text)
+
+    def _write(self, text: str) -> None:
+        """A closed terminal or pipe ends the console, never the trial or its clean-up."""
+        if self.out is None or not text:
+            return
+        try:
+            self.out.write(text)
+            self.out.flush()
+        except (OSError, ValueError):  # EIO, EPIPE; ValueError: the file was closed
+            self.out = None

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import os
@@ -30,6 +31,12 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     n_parts = len(s.parts)
     print(f"{args.scenario}: ok ({s.scenario.name}: {len(s.robots)} robots, {n_parts} parts)")
     return 0
+
+
+def _say(message: str) -> None:
+    """To stderr, if there still is one (a closed terminal sends SIGHUP, then fails writes)."""
+    with contextlib.suppress(OSError, ValueError):
+        print(message, file=sys.stderr, flush=True)
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
@@ -156,10 +163,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
         stop_on_signals()
         result = run_trial(opts, trial_dir)
     except KeyboardInterrupt:  # run_trial has stopped the services on its way out
-        print(f"trial interrupted; files so far in {trial_dir}", file=sys.stderr)
+        _say(f"trial interrupted; files so far in {trial_dir}")
         return 130
     except Terminated as exc:  # likewise
-        print(f"trial stopped by {exc}; files so far in {trial_dir}", file=sys.stderr)
+        _say(f"trial stopped by {exc}; files so far in {trial_dir}")
         return 128 + exc.signum
     if not result.ok:
         print(f"trial FAILED: {result.message}", file=sys.stderr)
