@@ -173,11 +173,13 @@ export class DesktopInput {
     }
   }
 
-  /** A page that becomes the driver starts with both grips open. */
+  /** A page that becomes the driver starts with both grips open; true if one was closed. */
   releaseGrips() {
+    const held = Object.values(this.hands).some((h) => h.grip >= 0.5);
     for (const h of Object.values(this.hands)) h.grip = 0;
     this.parkAfterRelease = false;
     this.changed();
+    return held;
   }
 
   key(e) {

@@ -207,8 +207,11 @@ class App {
     switch (m.type) {
       case 'hello':
         if (m.role) {
-          // a page that becomes the driver starts from open hands (never a stale closed grip)
-          if (m.role === 'driver' && this.role !== 'driver') this.desktop.releaseGrips();
+          // A page that (again) becomes the driver starts from open hands, as the bridge has
+          // them: a driver's hands open when its link goes (the part it held lies where it was).
+          if (m.role === 'driver' && this.desktop.releaseGrips() && this.role === 'driver') {
+            this.hud.message('Connection back: your hand let go of the part. Take it again.', 'warn');
+          }
           this.role = m.role;
         }
         this.hud.set('role', this.role === 'spectator' ? 'spectator (watching)' : this.role);
