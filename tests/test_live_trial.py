@@ -230,7 +230,8 @@ def test_ctrl_c_ends_a_live_trial_with_its_records(
     page.wait_text("the wait", lambda t: "waiting for you: H1" in t["status"], 60)
     page.screenshot("live-waiting-for-you.png")
     assert wait_until(
-        lambda: "waiting for you: H1" in xr.page.evaluate("window.hrcTest.panelText()"), 10
+        lambda: "waiting for the participant: H1" in xr.page.evaluate("window.hrcTest.panelText()"),
+        10,
     ), xr.page.evaluate("window.hrcTest.panelText()")
     xr.screenshot("xr-waiting-for-you.png")
     grab_part(page, "H1")

@@ -320,7 +320,8 @@ class App {
   refresh() {
     if (this.waitFor && !OVER.has(this.run)) {
       const s = Math.round((performance.now() - this.waitSince) / 1000);
-      this.hud.set('wait', `waiting for you: ${this.waitFor}, ${s} s`);
+      const who = this.role === 'driver' ? 'you' : 'the participant';
+      this.hud.set('wait', `waiting for ${who}: ${this.waitFor}, ${s} s`);
     }
     const c = this.collision;
     if (c && !c.open && c.until && performance.now() > c.until) this.collision = null;
@@ -338,7 +339,8 @@ class App {
     if (!missing.length) return '';
     const owner = (id) => (this.sceneMsg.parts.find((p) => p.id === id) || {}).owner;
     const mine = missing.filter((d) => owner(d) === 'human');
-    if (mine.length) return `Waiting for you: ${mine.join(', ')}`;
+    const you = this.role === 'driver' ? 'you' : 'the participant';
+    if (mine.length) return `Waiting for ${you}: ${mine.join(', ')}`;
     return `Waiting for ${owner(missing[0])}: ${missing.join(', ')}`;
   }
 
