@@ -98,5 +98,6 @@ def test_on_a_terminal_the_status_line_is_rewritten_in_place() -> None:
     # the event line goes above the status line, which is written again
     assert rest.startswith("\r\x1b[K[task "), repr(rest)
     assert "task started: H1\n\r\x1b[KP01:" in rest, repr(rest)
-    console.close()
-    assert out.getvalue().endswith("\n")
+    console.close("stopped by experimenter: interrupted (Ctrl-C)")
+    tail = out.getvalue()[len(first) + len(rest) :]
+    assert tail == "\nrun ended: stopped by experimenter: interrupted (Ctrl-C)\n", repr(tail)

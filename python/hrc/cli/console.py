@@ -154,8 +154,8 @@ class LiveConsole:
     def close(self, end: str = "") -> None:
         self.update()
         text = "\n" if self.tty and self._shown else ""
-        if end:
-            text += f"status: {self.status()}\nrun ended: {end}\n"
+        if end:  # a terminal shows the last status line already
+            text += ("" if self.tty else f"status: {self.status()}\n") + f"run ended: {end}\n"
         self._write(text)
 
     def _write(self, text: str) -> None:
