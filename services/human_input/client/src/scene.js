@@ -59,7 +59,14 @@ function box(size, color, opts = {}) {
 function outline(size, color, width = 0.004) {
   const g = new THREE.Group();
   const [sx, sy] = size;
-  const mat = new THREE.MeshBasicMaterial({ color });
+  // a marking on a surface: pulled toward the viewer in depth more than the board (see
+  // buildFurniture), so it always shows on the surface it lies on
+  const mat = new THREE.MeshBasicMaterial({
+    color,
+    polygonOffset: true,
+    polygonOffsetFactor: -4,
+    polygonOffsetUnits: -4,
+  });
   for (const [w, h, x, y] of [
     [sx + width, width, 0, sy / 2],
     [sx + width, width, 0, -sy / 2],
@@ -203,7 +210,14 @@ export class World {
       }
     }
     if (scene.board) {
-      const b = box(scene.board.size, scene.board.color || BOARD_COLOR);
+      // The board's top is flush with the table top around it (the same plane, z = 0): drawn
+      // pulled toward the viewer in depth, it wins that tie in every view (without it the
+      // table's brown showed through at some view angles and aspect ratios).
+      const b = box(scene.board.size, scene.board.color || BOARD_COLOR, {
+        polygonOffset: true,
+        polygonOffsetFactor: -2,
+        polygonOffsetUnits: -2,
+      });
       setPose(b, scene.board.center);
       b.name = 'board';
       g.add(b);
