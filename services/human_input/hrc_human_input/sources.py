@@ -21,6 +21,8 @@ from hrc_human_input.task_view import TaskView
 from hrc_human_input.vr_options import DRIVER
 
 if TYPE_CHECKING:  # the bridge's server is imported only for a live participant
+    from hrc.bus.bus import Publisher
+
     from hrc_human_input.vr_bridge import VrBridge
 
 
@@ -147,7 +149,9 @@ class VrSource:
 
     name = InputSource.VR
 
-    def __init__(self, bridge: VrBridge, mirror: WorldMirror, clients_pub: Any = None) -> None:
+    def __init__(
+        self, bridge: VrBridge, mirror: WorldMirror, clients_pub: Publisher[Any] | None = None
+    ) -> None:
         self.bridge = bridge
         self.mirror = mirror
         self.clients_pub = clients_pub  # human/clients: the experimenter's console
@@ -175,8 +179,9 @@ class VrSource:
     def published(self, tick: int, t: float, sample: Sample) -> None:
         if self.mirror.world_seen:  # until then the frame would show an empty world
             self.bridge.publish(*self.mirror.snapshot(tick, t, sample))
-        presence = self.bridge.presence() if self.clients_pub is not None else None
-        if presence is not None:
+        pub = self.clients_pub
+        presence = self.bridge.presence() if pub is not None else None
+        if pub is not None and presence is not None:
             clients, changes = presence
             role = {DRIVER: pb.CLIENT_ROLE_DRIVER}
             msg = pb.ParticipantClients(
@@ -186,13 +191,11 @@ class VrSource:
                 ],
                 changes=changes,
             )
-            self.clients_pub.put(msg, tick, t)
+            pub.put(msg, tick, t)
 
     def ended(self, ok: bool, reason: str) -> None:
         m = self.mirror
-        if ok and m.run == RunState.FINISHED:
-            pass
-        elif ok:  # the run was stopped before the task finished (the experimenter)
+        if ok and m.run != RunState.FINISHED:  # stopped before the task finished: the experimenter
             m.set_run(RunState.STOPPED, reason)
         elif not ok:
             m.set_run(RunState.FAILED, reason)
