@@ -52,8 +52,8 @@ class Watchdog:
         self.announced = ""  # live: the part the announced wait on the participant is for
 
     def check(self, sim_time: float, out: Outputs) -> bool:
-        """True on the ticks the trial has gone `timeout_s` without progress (once, unless
-        :meth:`spare` spares the trial: a live participant keeps the robots waiting)."""
+        """True on the ticks the trial has gone `timeout_s` without progress: once, as the
+        trial then ends, unless it waits on a live participant (Task._participant_wait)."""
         if self.message:
             return False
         if progressed(out):
