@@ -52,6 +52,9 @@ PAGE_PATHS = ("/", "/index.html")
 DEFAULT_RATE_HZ = 90.0
 MAX_RATE_HZ = 240.0
 EVENT_QUEUE = 256  # events waiting for one client; beyond that it is disconnected (1013)
+# The participant's page gone (driver key): its hands open this long after, unless the same page
+# comes back first (a redial after a lost link keeps the part in the hand).
+RELEASE_GRACE_S = 3.0
 # Bytes waiting for a client before a send waits (websockets' buffer, then the socket's): small,
 # so a client that reads late gets the latest state, not a backlog.
 WRITE_LIMIT = 16 * 1024
@@ -140,6 +143,8 @@ class Client:
     bytes: int = 0
     task: asyncio.Task[None] | None = None
     closing: bool = False
+    page: str = ""  # the page's own id (?page=...): the same page after a redial
+    resumed: bool = False  # a driver that is the same page as the one before (nothing released)
 
 
 class VrBridge:
@@ -186,6 +191,9 @@ class VrBridge:
         self._pending: Snapshot | None = None
         self._pending_events: list[str] = []
         self._wake_scheduled = False
+        # loop thread only: the driver page that left, and its pending release
+        self._gone_page = ""
+        self._release: asyncio.TimerHandle | None = None
         # loop thread -> tick thread (under _lock): who is connected, what changed
         self._presence: list[str] = []
         self._presence_changed = False
@@ -413,13 +421,25 @@ class VrBridge:
             self.stats.frames_sent += 1
 
     # ------------------------------------------------------------------ clients and roles
-    def _register(self, ws: ServerConnection, peer: str, participant: bool) -> Client:
-        c = Client(ws, peer)
+    def _register(self, ws: ServerConnection, peer: str, participant: bool, page: str) -> Client:
+        c = Client(ws, peer, page=page)
         current = next((o for o in self._clients if o.role == DRIVER and not o.closing), None)
         if self.driver_key is None:
             c.role = DRIVER if current is None else SPECTATOR
         else:
             c.role = DRIVER if participant else SPECTATOR
+            if participant:
+                # the same page again (a redial) takes its hands back as they are; another page
+                # (a reload, a reopened tab) starts from open hands
+                before = current.page if current is not None else self._gone_page
+                c.resumed = bool(page) and page == before
+                if self._release is not None:
+                    self._release.cancel()
+                    self._release = None
+                    if not c.resumed:
+                        self._release_hands()
+                elif current is not None and not c.resumed:
+                    self._release_hands()
             if participant and current is not None:
                 # the participant's page again (a reload, a second tab): the newest one drives
                 current.role = SPECTATOR
@@ -449,14 +469,17 @@ class VrBridge:
         )
         if c.role != DRIVER:
             return
-        # The hands open where they are: a part held stays where the hand held it (it is let
-        # go there), never carried off to where the next page starts its hands.
-        with self._lock:
-            if self._latest is not None:
-                self._latest = self._latest.released()
         if self.driver_key is not None:
+            # unless the same page is back within RELEASE_GRACE_S (a redial), the hands open
+            self._gone_page = c.page
+            if self._release is not None:
+                self._release.cancel()
+            self._release = asyncio.get_running_loop().call_later(
+                RELEASE_GRACE_S, self._release_hands
+            )
             self._note("no driver: the participant's page is gone (it drives again on reopen)")
             return
+        self._release_hands()
         nxt = next((o for o in self._clients if not o.closing), None)
         if nxt is not None:
             nxt.role = DRIVER
@@ -464,7 +487,17 @@ class VrBridge:
             nxt.outbox.append(self._hello_json(nxt.role, authed=True))
             nxt.wake.set()
 
-    def _hello_json(self, role: str | None, authed: bool) -> str:
+    def _release_hands(self) -> None:
+        """The hands open where they are: a part held stays where the hand held it (it is let
+        go there), never carried off to where the next page starts its hands."""
+        self._release = None
+        with self._lock:
+            if self._latest is not None and (self._latest.left_grip or self._latest.right_grip):
+                self._latest = self._latest.released()
+                self._presence.append("the participant's hands opened where they were")
+                self._presence_changed = True
+
+    def _hello_json(self, role: str | None, authed: bool, resumed: bool = False) -> str:
         return json.dumps(
             {
                 "type": "hello",
@@ -472,13 +505,16 @@ class VrBridge:
                 **self.hello,
                 "protocol": PROTOCOL_VERSION,
                 "role": role,
+                "resumed": resumed,
             }
         )
 
-    async def _welcome(self, ws: ServerConnection, peer: str, participant: bool) -> Client:
+    async def _welcome(
+        self, ws: ServerConnection, peer: str, participant: bool, page: str
+    ) -> Client:
         """An authenticated client: its role, hello, the scene, then its stream."""
-        c = self._register(ws, peer, participant)
-        await self._send(c, self._hello_json(c.role, authed=True))
+        c = self._register(ws, peer, participant, page)
+        await self._send(c, self._hello_json(c.role, authed=True, resumed=c.resumed))
         if self.scene_json is not None:
             await self._send(c, self.scene_json)
         c.task = asyncio.get_running_loop().create_task(self._sender(c))
@@ -535,6 +571,7 @@ class VrBridge:
             query["token"][0] if query.get("token") else None
         )
         given_key = query["driver"][0] if query.get("driver") else None
+        page = query["page"][0][:64] if query.get("page") else ""
         participant = (
             self.driver_key is not None
             and given_key is not None
@@ -546,7 +583,7 @@ class VrBridge:
         client: Client | None = None
         try:
             if authed:
-                client = await self._welcome(ws, peer, participant)
+                client = await self._welcome(ws, peer, participant, page)
             else:
                 await ws.send(self._hello_json(None, authed=False))
             async for message in ws:
@@ -562,7 +599,7 @@ class VrBridge:
                     if self.token is None or self._token_ok(obj.get("token")):
                         await ws.send(json.dumps({"type": "auth", "ok": True}))
                         if client is None:
-                            client = await self._welcome(ws, peer, participant)
+                            client = await self._welcome(ws, peer, participant, page)
                         continue
                     self.stats.auth_failures += 1
                     await self._error_reply(ws, ["wrong token"])

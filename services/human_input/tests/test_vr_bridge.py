@@ -17,6 +17,7 @@ from hrc.wire import pb
 from hrc_human_input.stream import ClientView, WorldMirror, event_kind, frame_json
 from hrc_human_input.vr_bridge import (
     EVENT_QUEUE,
+    RELEASE_GRACE_S,
     BridgeConfigError,
     VrBridge,
     check_bind,
@@ -330,10 +331,11 @@ def test_the_participants_link_drives_and_gets_the_role_back_on_reopen() -> None
                     while (msg := json.loads(watcher.recv(timeout=5)))["type"] != "error":
                         pass
                     assert msg["error"].startswith("spectator:"), msg
-            # the driver left: nobody is promoted, the hands opened where they were
+            # the driver left: nobody is promoted, the hands open where they were (after the
+            # grace in which the same page could have come back)
+            assert wait_for(lambda: bridge.latest().right_grip == 0.0, 10)
             last = bridge.latest()
-            assert last.right_grip == 0.0 and last.left_grip == 0.0
-            assert last.right.position == tuple(POSE["position"])
+            assert last.left_grip == 0.0 and last.right.position == tuple(POSE["position"])
             watcher.send(json.dumps(SAMPLE))
             while (msg := json.loads(watcher.recv(timeout=5)))["type"] != "error":
                 pass
@@ -347,3 +349,25 @@ def test_the_participants_link_drives_and_gets_the_role_back_on_reopen() -> None
         assert "is now a spectator (the participant's link was opened again" in text, text
         assert "no driver: the participant's page is gone" in text, text
         assert bridge.presence() is None  # nothing new since
+
+
+def test_the_same_page_back_after_a_redial_keeps_the_part_in_its_hand() -> None:
+    with VrBridge("127.0.0.1", 0, driver_key="k3y") as bridge:
+        url = f"ws://127.0.0.1:{bridge.bound_port}/ws?driver=k3y"
+        with connect(url + "&page=p1") as page:
+            assert hello_role(page) == "driver"
+            page.send(json.dumps(SAMPLE))  # the right hand holds something
+            assert wait_for(lambda: bridge.latest() is not None)
+        # its link went; it dials again at once: resumed, nothing let go
+        with connect(url + "&page=p1") as again:
+            while (msg := json.loads(again.recv(timeout=5)))["type"] != "hello":
+                pass
+            assert msg["role"] == "driver" and msg["resumed"] is True
+            time.sleep(RELEASE_GRACE_S + 0.5)  # the grace has passed: still held
+            assert bridge.latest().right_grip == 1.0
+            # a reload (another page) while this one is still there: the hands open at once
+            with connect(url + "&page=p2") as reloaded:
+                while (msg := json.loads(reloaded.recv(timeout=5)))["type"] != "hello":
+                    pass
+                assert msg["role"] == "driver" and msg["resumed"] is False
+                assert bridge.latest().right_grip == 0.0

@@ -207,9 +207,10 @@ class App {
     switch (m.type) {
       case 'hello':
         if (m.role) {
-          // A page that (again) becomes the driver starts from open hands, as the bridge has
-          // them: a driver's hands open when its link goes (the part it held lies where it was).
-          if (m.role === 'driver' && this.desktop.releaseGrips() && this.role === 'driver') {
+          // A page that becomes the driver starts from open hands, as the bridge has them (a
+          // driver's hands open when its page is gone); the same page back after a redial
+          // (`resumed`) keeps its hands and what they hold.
+          if (m.role === 'driver' && !m.resumed && this.desktop.releaseGrips() && this.role === 'driver') {
             this.hud.message('Connection back: your hand let go of the part. Take it again.', 'warn');
           }
           this.role = m.role;

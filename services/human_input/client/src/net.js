@@ -15,6 +15,9 @@ export class Bridge {
   constructor({ token, driver, onMessage, onStatus }) {
     this.token = token;
     this.driver = driver;
+    // this page's own id: after a redial the bridge knows it is the same page (its hands, and
+    // a part in them, are kept as they are)
+    this.pageId = Math.random().toString(36).slice(2, 12);
     this.resting = false; // the trial is over: no reconnects, no errors
     this.lastHeardMs = performance.now();
     this.onMessage = onMessage;
@@ -36,6 +39,7 @@ export class Bridge {
     const q = new URLSearchParams();
     if (this.token) q.set('token', this.token);
     if (this.driver) q.set('driver', this.driver);
+    q.set('page', this.pageId);
     const qs = q.toString();
     return `${proto}//${window.location.host}/ws${qs ? `?${qs}` : ''}`;
   }
