@@ -47,19 +47,20 @@ export class Hud {
     this.values[key] = value;
   }
 
-  /** Shows `text` (kind '' | 'error' | 'warn' | 'over'). A warning stays at least
-   * MESSAGE_MIN_MS; what comes meanwhile (other than another warning or the end) waits. */
+  /** Shows `text` (kind '' | 'error' | 'alert' | 'warn' | 'over'). An alert (a collision) or
+   * a warning stays at least MESSAGE_MIN_MS; what comes meanwhile waits for its turn (the
+   * latest wins), except an alert, which is shown at once, and the end. */
   message(text, kind = '', { force = false } = {}) {
     if (!this.msg) return;
     const cls = kind === true ? 'error' : kind || '';
     if (this.msg.className === 'over' && cls !== 'over') return; // the end stays on screen
     const now = performance.now();
-    if (!force && cls !== 'warn' && cls !== 'over' && now < this.heldUntil) {
+    if (!force && cls !== 'alert' && cls !== 'over' && now < this.heldUntil) {
       this.pending = { text, cls };
       return;
     }
     this.pending = null;
-    this.heldUntil = cls === 'warn' ? now + MESSAGE_MIN_MS : 0;
+    this.heldUntil = cls === 'warn' || cls === 'alert' ? now + MESSAGE_MIN_MS : 0;
     this.msg.textContent = text;
     this.msg.className = cls;
     this.msg.style.display = text ? 'block' : 'none';

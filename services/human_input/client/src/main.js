@@ -294,7 +294,7 @@ class App {
       const goal = part ? ` It brings ${part} to its target (marked).` : '';
       this.hud.message(
         `Collision with ${ev.robot}: pull your hand back.\n${ev.robot} backs off, then goes on.${goal}`,
-        'warn',
+        'alert',
       );
     } else if (ev.kind === 'collision_end' && this.collision) {
       this.collision.open = false;
