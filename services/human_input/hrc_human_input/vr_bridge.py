@@ -492,10 +492,13 @@ class VrBridge:
         go there), never carried off to where the next page starts its hands."""
         self._release = None
         with self._lock:
-            if self._latest is not None and (self._latest.left_grip or self._latest.right_grip):
+            held = self._latest is not None and bool(
+                self._latest.left_grip or self._latest.right_grip
+            )
+            if held and self._latest is not None:
                 self._latest = self._latest.released()
-                self._presence.append("the participant's hands opened where they were")
-                self._presence_changed = True
+        if held:
+            self._note("the participant's hands opened where they were")
 
     def _hello_json(self, role: str | None, authed: bool, resumed: bool = False) -> str:
         return json.dumps(

@@ -333,12 +333,11 @@ class App {
 
   /** "Waiting for you: H3" for a robot that waits on a part the participant places. */
   waitingText(rid) {
-    const part = this.partHeldBy(rid);
-    const spec = part && (this.sceneMsg?.parts || []).find((p) => p.id === part);
+    const spec = this.world.parts.get(this.partHeldBy(rid))?.spec;
     if (!spec) return '';
     const missing = (spec.after || []).filter((d) => !this.world.parts.get(d)?.placed);
     if (!missing.length) return '';
-    const owner = (id) => (this.sceneMsg.parts.find((p) => p.id === id) || {}).owner;
+    const owner = (id) => this.world.parts.get(id)?.spec.owner;
     const mine = missing.filter((d) => owner(d) === 'human');
     const you = this.role === 'driver' ? 'you' : 'the participant';
     if (mine.length) return `Waiting for ${you}: ${mine.join(', ')}`;

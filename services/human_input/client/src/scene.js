@@ -326,7 +326,7 @@ export class World {
       });
       this.goal = null;
     }
-    const spec = part && (this.scene?.parts || []).find((p) => p.id === part);
+    const spec = part && this.parts.get(part)?.spec;
     if (!spec) return;
     const color = (this.scene.robots || []).find((r) => r.id === robot)?.color || spec.color;
     const obj = outline([spec.size[0] * 1.6, spec.size[1] * 1.6], color, 0.008);
