@@ -12,7 +12,7 @@ mkdirSync(join(dist, 'assets'), { recursive: true });
 const common = {
   bundle: true,
   format: 'esm',
-  minify: true,
+  minify: !process.env.HRC_NO_MINIFY, // HRC_NO_MINIFY=1: readable stack traces while debugging
   sourcemap: false,
   target: ['chrome110', 'firefox115', 'safari16'],
   logLevel: 'warning',

@@ -2,6 +2,7 @@
 // its base, tinted in its colour and moved by the joint positions streamed in `frame`s.
 import * as THREE from 'three';
 import URDFLoader from 'urdf-loader';
+import { mergeGeometries } from 'three/addons/utils/BufferGeometryUtils.js';
 import { setPose } from './frames.js';
 
 // The URDF's own colours are kept for the dark/grey parts; its coloured links take the robot's
@@ -15,12 +16,57 @@ function tint(model, color) {
       const mat = new THREE.MeshStandardMaterial({ roughness: 0.6, metalness: 0.1 });
       const base = m?.color ? m.color.clone() : new THREE.Color('#bbb');
       const hsl = base.getHSL({});
-      // saturated links (the URDF's accent colour) become the robot's colour
-      mat.color = hsl.s > 0.3 ? c.clone() : base.lerp(c, 0.15);
+      // saturated links (the URDF's accent colour) become the robot's colour; the grey ones
+      // take a third of it, so a base stands out from a grey floor and reads as this robot's
+      mat.color = hsl.s > 0.3 ? c.clone() : base.lerp(c, 0.35);
       return mat;
     });
     if (o.material.length === 1) o.material = o.material[0];
   });
+}
+
+/** One mesh per link (a draw call each, not one per visual): the link's own visuals, in their
+ * tinted colours as vertex colours, merged in the link's frame. Visuals of other kinds (lines)
+ * and meshes that come later stay as they are. */
+function mergePerLink(model) {
+  model.updateMatrixWorld(true);
+  for (const link of Object.values(model.links)) {
+    const own = [];
+    link.traverse((o) => {
+      if (!o.isMesh || Array.isArray(o.material)) return;
+      let up = o.parent;
+      while (up && !up.isURDFLink) up = up.parent;
+      if (up === link) own.push(o);
+    });
+    if (own.length === 1) own[0].name = `link:${link.name}`; // (the probes of the tests find it)
+    if (own.length < 2) continue;
+    const toLink = new THREE.Matrix4().copy(link.matrixWorld).invert();
+    const pieces = own.map((o) => {
+      let g = o.geometry.index ? o.geometry.toNonIndexed() : o.geometry.clone();
+      for (const name of Object.keys(g.attributes)) if (name !== 'position' && name !== 'normal') g.deleteAttribute(name);
+      if (!g.attributes.normal) g.computeVertexNormals();
+      g.applyMatrix4(new THREE.Matrix4().multiplyMatrices(toLink, o.matrixWorld));
+      const c = o.material.color || new THREE.Color('#bbb');
+      const n = g.attributes.position.count;
+      const rgb = new Float32Array(n * 3);
+      for (let i = 0; i < n; i++) rgb.set([c.r, c.g, c.b], i * 3);
+      g.setAttribute('color', new THREE.BufferAttribute(rgb, 3));
+      return g;
+    });
+    const merged = mergeGeometries(pieces, false);
+    for (const g of pieces) g.dispose();
+    if (!merged) continue; // shapes that do not merge stay as they are
+    for (const o of own) {
+      o.parent.remove(o);
+      o.geometry.dispose();
+    }
+    const mesh = new THREE.Mesh(
+      merged,
+      new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.6, metalness: 0.1 }),
+    );
+    mesh.name = `link:${link.name}`;
+    link.add(mesh);
+  }
 }
 
 // The protective zone (safety_policy = "ssm"), drawn as the researcher's view draws it: a
@@ -70,6 +116,7 @@ export class Robots {
         url.href,
         (model) => {
           tint(model, spec.color || '#ff8800');
+          mergePerLink(model);
           holder.add(model);
           entry.model = model;
           entry.loaded = true;
@@ -139,6 +186,16 @@ export class Robots {
   /** The zone as last received (tests, HUD): {radius, state} or null. */
   zoneOf(id) {
     return this.robots.get(id)?.zone || null;
+  }
+
+  /** How many robots' joints changed since the last call. */
+  movedSinceLastAsked() {
+    let n = 0;
+    for (const r of this.robots.values()) {
+      if (r.q && r.seenQ && r.q.some((v, i) => Math.abs(v - r.seenQ[i]) > 1e-6)) n++;
+      r.seenQ = r.q;
+    }
+    return n;
   }
 
   allLoaded() {

@@ -3,6 +3,8 @@
 // colours, positions, texts) comes from the bridge; nothing of a scenario is written here.
 import * as THREE from 'three';
 import { setPose } from './frames.js';
+import { Batch, PartsView, outlineBars } from './batch.js';
+import { handGeometry } from './hand-model.js';
 
 const FLASH_HZ = 2; // a lit cue blinks: on for the first half of each period
 const TABLE_COLORS = { human: '#8c7359' };
@@ -34,16 +36,18 @@ export function textTexture(lines, { fg = '#111', bg = 'rgba(255,255,255,0.85)',
   lines.forEach((l, i) => ctx.fillText(l, px / 2, px * 0.3 + i * px * 1.25));
   const tex = new THREE.CanvasTexture(canvas);
   tex.colorSpace = THREE.SRGBColorSpace;
-  return { tex, aspect: canvas.width / canvas.height };
+  // emFraction: the font's em as a share of the texture's height (for its angular size)
+  return { tex, aspect: canvas.width / canvas.height, emFraction: px / canvas.height };
 }
 
 /** A sprite `height` metres tall showing `lines`, always facing the viewer. */
 export function labelSprite(lines, height, opts) {
-  const { tex, aspect } = textTexture(lines, opts);
+  const { tex, aspect, emFraction } = textTexture(lines, opts);
   const mat = new THREE.SpriteMaterial({ map: tex, depthTest: false, transparent: true });
   const s = new THREE.Sprite(mat);
   s.scale.set(height * aspect, height, 1);
   s.renderOrder = 10;
+  s.userData.emFraction = emFraction;
   return s;
 }
 
@@ -67,12 +71,7 @@ function outline(size, color, width = 0.004) {
     polygonOffsetFactor: -4,
     polygonOffsetUnits: -4,
   });
-  for (const [w, h, x, y] of [
-    [sx + width, width, 0, sy / 2],
-    [sx + width, width, 0, -sy / 2],
-    [width, sy + width, sx / 2, 0],
-    [width, sy + width, -sx / 2, 0],
-  ]) {
+  for (const [w, h, x, y] of outlineBars(sx, sy, width)) {
     const bar = new THREE.Mesh(new THREE.PlaneGeometry(w, h), mat);
     bar.position.set(x, y, 0);
     g.add(bar);
@@ -83,6 +82,12 @@ function outline(size, color, width = 0.004) {
 function yawed(obj, yawDeg) {
   obj.rotation.set(0, 0, THREE.MathUtils.degToRad(yawDeg || 0));
   return obj;
+}
+
+// the participant's target outlines and the workspace marking: drawn over the surface they lie
+// on (see buildFurniture), unlit
+function markingMaterial() {
+  return new THREE.MeshBasicMaterial({ polygonOffset: true, polygonOffsetFactor: -4, polygonOffsetUnits: -4 });
 }
 
 /** Whose label a participant wants to see: the part to take next (the participant's one
@@ -99,7 +104,8 @@ export class World {
     this.root = root;
     this.group = new THREE.Group();
     root.add(this.group);
-    this.parts = new Map(); // id -> {mesh, label, spec, holder, placed}
+    this.parts = new Map(); // id -> {mesh (a pose, drawn by partsView), label, spec, holder, placed}
+    this.partsView = new PartsView(this.group);
     this.targetNames = new Map(); // the participant's part id -> the name at its target
     this.goal = null; // a robot's target shown after a collision: {part, obj}
     this.cues = new Map(); // id -> {spec, obj, on, flashing}
@@ -110,6 +116,10 @@ export class World {
 
   clear() {
     this.root.remove(this.group);
+    this.partsView.dispose();
+    for (const h of Object.values(this.hands)) {
+      for (const shape of Object.values(h.palm.userData.shapes)) shape.dispose();
+    }
     this.group.traverse((o) => {
       o.geometry?.dispose?.();
       o.material?.map?.dispose?.();
@@ -117,6 +127,7 @@ export class World {
     });
     this.group = new THREE.Group();
     this.root.add(this.group);
+    this.partsView = new PartsView(this.group);
     this.furniture = null;
     this.parts.clear();
     this.targetNames.clear();
@@ -130,23 +141,35 @@ export class World {
     this.scene = scene;
     this.buildFurniture();
     const g = this.group;
+    const marks = new Batch();
     for (const e of scene.envelope || []) {
       // the robots' workspace: a faint floor marking only, not a wall in the view
       const size = [e.max[0] - e.min[0], e.max[1] - e.min[1]];
-      const o = outline(size, '#a9b0a0', 0.002);
-      o.position.set((e.max[0] + e.min[0]) / 2, (e.max[1] + e.min[1]) / 2, 0.0015);
-      g.add(o);
+      marks.outline(size, '#a9b0a0', 0.002, [(e.max[0] + e.min[0]) / 2, (e.max[1] + e.min[1]) / 2, 0.0015]);
+    }
+    for (const p of scene.parts || []) {
+      // the participant's targets are always marked on the board (named by addPart)
+      if (p.owner === 'human' && p.target) {
+        marks.outline(p.size, '#e8e8e8', 0.006, [p.target.xyz[0], p.target.xyz[1], 0.002], p.target.yaw_deg);
+      }
+    }
+    this.markings = marks.mesh(markingMaterial());
+    if (this.markings) {
+      this.markings.name = 'markings';
+      g.add(this.markings);
     }
     for (const p of scene.parts || []) this.addPart(p);
     for (const c of scene.cues || []) this.addCue(c);
     const handColor = scene.hand_color || '#3a7bff';
     for (const h of ['left', 'right']) {
+      const shapes = { open: handGeometry(h, false), closed: handGeometry(h, true) };
+      const palm = new THREE.Mesh(
+        shapes.open,
+        new THREE.MeshStandardMaterial({ color: handColor, roughness: 0.5 }),
+      );
+      palm.userData.shapes = shapes;
       const hand = new THREE.Group();
-      const palm = box([0.08, 0.1, 0.025], handColor, { roughness: 0.5 });
       hand.add(palm);
-      const thumb = box([0.025, 0.05, 0.02], handColor);
-      thumb.position.set(h === 'right' ? -0.05 : 0.05, 0.0, 0);
-      hand.add(thumb);
       hand.name = `hand:${h}`;
       hand.visible = false;
       g.add(hand);
@@ -162,6 +185,8 @@ export class World {
         new THREE.MeshBasicMaterial({ color: handColor, depthTest: false, transparent: true }),
       );
       ring.renderOrder = 5;
+      plumb.name = `plumb:${h}`;
+      ring.name = `ring:${h}`;
       g.add(plumb, ring);
       this.hands[h] = { obj: hand, palm, grip: 0, plumb, ring };
     }
@@ -183,32 +208,26 @@ export class World {
     this.furniture = g;
     this.group.add(g);
     const floorZ = -(this.root.userData.tableHeight ?? -(scene.floor_z ?? -0.75));
-    const floor = new THREE.Mesh(
-      new THREE.PlaneGeometry(8, 8),
-      new THREE.MeshStandardMaterial({ color: FLOOR_COLOR, roughness: 1 }),
-    );
-    floor.position.z = floorZ;
-    floor.name = 'floor';
-    g.add(floor);
+    // floor, tables and legs never move: one mesh, one draw call
+    const still = new Batch();
+    still.add(new THREE.PlaneGeometry(8, 8), FLOOR_COLOR, new THREE.Matrix4().makeTranslation(0, 0, floorZ));
     for (const t of scene.tables || []) {
-      const m = box(t.size, t.color || TABLE_COLORS[t.id] || OTHER_TABLE_COLOR);
-      setPose(m, t.center);
-      m.name = `table:${t.id}`;
-      g.add(m);
+      still.box(t.size, t.color || TABLE_COLORS[t.id] || OTHER_TABLE_COLOR, t.center);
       const legH = t.center[2] - t.size[2] / 2 - floorZ;
       if (legH > 0.05) {
         for (const sx of [-1, 1])
           for (const sy of [-1, 1]) {
-            const leg = box([0.04, 0.04, legH], '#555');
-            leg.position.set(
+            still.box([0.04, 0.04, legH], '#555', [
               t.center[0] + sx * (t.size[0] / 2 - 0.03),
               t.center[1] + sy * (t.size[1] / 2 - 0.03),
               t.center[2] - t.size[2] / 2 - legH / 2,
-            );
-            g.add(leg);
+            ]);
           }
       }
     }
+    const furniture = still.mesh(new THREE.MeshStandardMaterial({ roughness: 0.85 }));
+    furniture.name = 'furniture';
+    g.add(furniture);
     if (scene.board) {
       // The board's top is flush with the table top around it (the same plane, z = 0): drawn
       // pulled toward the viewer in depth, it wins that tie in every view (without it the
@@ -225,14 +244,10 @@ export class World {
   }
 
   addPart(p) {
-    const mesh = box(p.size, p.color || '#aaaaaa', { roughness: 0.6 });
+    const mesh = new THREE.Object3D(); // the part's pose: partsView draws it
     mesh.name = `part:${p.id}`;
-    const edges = new THREE.LineSegments(
-      new THREE.EdgesGeometry(mesh.geometry),
-      new THREE.LineBasicMaterial({ color: '#222' }),
-    );
-    mesh.add(edges);
     const label = labelSprite([p.kind || p.id], 0.028, { px: 40 });
+    label.name = `label:${p.id}`;
     label.position.set(0, 0, p.size[2] / 2 + 0.018);
     this.group.add(label);
     if (p.start) {
@@ -245,14 +260,11 @@ export class World {
     this.group.add(mesh);
     this.parts.set(p.id, { mesh, label, spec: p, holder: '', placed: false });
     if (p.owner === 'human' && p.target) {
-      // the participant's targets are always marked on the board, with the part's name
-      const o = outline(p.size, '#e8e8e8', 0.006);
-      setPose(o, [p.target.xyz[0], p.target.xyz[1], 0.002]);
-      yawed(o, p.target.yaw_deg);
-      this.group.add(o);
+      // the part's name at its target (the outline is one of the markings)
       const name = labelSprite([p.id], 0.03, { px: 40, bg: 'rgba(30,30,30,0.75)', fg: '#f4f4f4' });
       name.position.set(p.target.xyz[0], p.target.xyz[1] - p.size[1] / 2 - 0.02, 0.01);
       name.renderOrder = 9;
+      name.name = `target-name:${p.id}`;
       this.group.add(name);
       this.targetNames.set(p.id, name);
     }
@@ -277,6 +289,7 @@ export class World {
     } else if (c.kind === 'outline' && part) {
       obj = outline([part.size[0] * 1.3, part.size[1] * 1.3], color, 0.006);
       obj.userData.followPart = c.part;
+      obj.userData.outlineSize = [part.size[0] * 1.3, part.size[1] * 1.3];
     } else if (c.kind === 'waiting') {
       obj = labelSprite([c.text || 'Waiting..'], 0.07, { fg: color, bg: 'rgba(20,20,20,0.8)' });
       setPose(obj, c.position);
@@ -395,16 +408,16 @@ export class World {
     }
   }
 
-  /** Per rendered frame: labels follow parts, cues blink, outlines follow their part. */
+  /** Per rendered frame: labels follow parts, cues blink, outlines follow their part. A test
+   * may hold the blink lit or unlit (`flashHeld`: true / false; null: it blinks). */
   animate(nowMs) {
-    const lit = flashOn(nowMs);
+    const lit = this.flashHeld ?? flashOn(nowMs);
     for (const part of this.parts.values()) {
       const m = part.mesh;
-      part.label.position.set(
-        m.position.x,
-        m.position.y,
-        m.position.z + part.spec.size[2] / 2 + 0.018,
-      );
+      // a label above its part; under it while a robot carries it (the gripper is above)
+      const byRobot = part.holder && part.holder !== 'left' && part.holder !== 'right';
+      const dz = (part.spec.size[2] / 2 + 0.018) * (byRobot ? -1 : 1);
+      part.label.position.set(m.position.x, m.position.y, m.position.z + dz);
       part.label.visible = m.visible && labelShown(part);
       const name = this.targetNames.get(part.spec.id);
       if (name) name.visible = !part.placed;
@@ -429,6 +442,7 @@ export class World {
         }
       }
     }
+    this.partsView.sync([...this.parts.values()]);
   }
 
   setHand(name, p, q, grip) {
@@ -442,8 +456,9 @@ export class World {
     h.plumb.position.set(p[0], p[1], floorZ + len / 2);
     h.ring.position.set(p[0], p[1], floorZ);
     h.grip = grip;
-    // a closed hand is drawn thinner and darker, an open one flat
-    h.palm.scale.set(1, grip >= 0.5 ? 0.7 : 1, grip >= 0.5 ? 1.8 : 1);
+    // a closed hand: fingers curled under the palm, a little lighter
+    const shapes = h.palm.userData.shapes;
+    h.palm.geometry = grip >= 0.5 ? shapes.closed : shapes.open;
     h.palm.material.emissive?.setRGB(grip >= 0.5 ? 0.1 : 0, grip >= 0.5 ? 0.1 : 0, 0);
   }
 
