@@ -1,5 +1,10 @@
 // The small status panel: run state, task time, role (driver or spectator), connection; the
-// desktop key help; the last message. In a headset the same text floats beyond the board.
+// desktop key help; the last message. In a headset the same text is a narrow panel that
+// follows the gaze lazily: above the middle of the view (over the board, between the robots),
+// PANEL_DIST_M away, so the arms always pass in front of it and it never hides a robot; it stays
+// where it is while the gaze moves a little, and glides back once the head turns more than
+// PANEL_TURN_DEG or tilts more than PANEL_TILT_DEG (enough to look up at it and read it) from
+// where it was put. Its text's em is PANEL_EM_DEG tall.
 import * as THREE from 'three';
 import { textTexture } from './scene.js';
 
@@ -11,7 +16,13 @@ const RUN_TEXT = {
   failed: 'ended by an error',
 };
 const MESSAGE_MIN_MS = 4000; // a warning stays at least this long: long enough to read
-const PANEL_COLUMNS = 44; // the headset's panel wraps the message here (the panel stays narrow)
+const PANEL_COLUMNS = 30; // the headset's panel wraps its lines here (it stays narrow)
+const PANEL_DIST_M = 2.4; // beyond the robots from where the person stands
+const PANEL_UP_DEG = 27; // its centre above the gaze it follows
+const PANEL_TURN_DEG = 15; // it glides back when the head turns this far from where it was put
+const PANEL_TILT_DEG = 35; // ... or tilts this far (more than PANEL_UP_DEG: it can be looked at)
+const PANEL_EM_DEG = 1.15; // its text's em, seen from the eye
+const PANEL_PX = 32; // the texture's em (px)
 
 /** `text`'s lines, each broken at spaces into lines of at most `columns` characters. */
 function wrap(text, columns) {
@@ -71,11 +82,14 @@ export class Hud {
     if (this.help) this.help.style.display = show ? 'block' : 'none';
   }
 
-  lines() {
+  /** `inWorld`: the headset's panel, whose task time counts whole seconds (its texture is
+   * drawn anew when its text changes: once a second, not ten times). */
+  lines(inWorld = false) {
     const v = this.values;
+    const task = inWorld ? String(v.task).replace(/\.\d s$/, ' s') : v.task;
     const out = [
       `run: ${RUN_TEXT[v.run] || v.run}`,
-      `task time: ${v.task}`,
+      `task time: ${task}`,
       `role: ${v.role}`,
       `connection: ${v.connection}`,
     ];
@@ -91,33 +105,84 @@ export class Hud {
       this.message(text, cls);
     }
     const lines = this.lines();
+    if (this.panel) this.panel.textContent = lines.join('\n');
     // the headset has no page overlay: its panel carries the message too
-    const inWorld = this.shownText ? [...lines, '', ...wrap(this.shownText, PANEL_COLUMNS)] : lines;
+    const panelLines = this.lines(true);
+    const all = this.shownText ? [...panelLines, '', this.shownText] : panelLines;
+    const inWorld = wrap(all.join('\n'), PANEL_COLUMNS);
     const text = inWorld.join('\n');
     if (text === this.lastText) return;
     this.lastText = text;
-    if (this.panel) this.panel.textContent = lines.join('\n');
     if (root) this.updateSprite(root, inWorld);
   }
 
-  // the in-headset panel: a plane beyond the board, facing the participant
+  /** Per XR frame: the panel follows the gaze of `eye` (a camera) lazily. */
+  follow(eye) {
+    const s = this.sprite;
+    if (!s || !s.visible) return;
+    const p = eye.getWorldPosition(new THREE.Vector3());
+    const gaze = eye.getWorldDirection(new THREE.Vector3());
+    if (!this.anchor || this.farFrom(gaze)) {
+      this.gliding = true;
+      this.anchor = this.anchor || gaze.clone();
+    }
+    const now = performance.now();
+    const dt = Math.min(1, (now - (this.lastFollowMs ?? now)) / 1000);
+    this.lastFollowMs = now;
+    if (this.gliding) {
+      // about 0.3 s to catch up, whatever the frame rate: a glide, not a jump
+      this.anchor.lerp(gaze, 1 - Math.exp(-dt / 0.1)).normalize();
+      if (this.anchor.angleTo(gaze) < 0.01) {
+        this.anchor.copy(gaze);
+        this.gliding = false;
+      }
+    }
+    // the anchor's direction turned up by PANEL_UP_DEG, about the horizontal axis across it
+    const across = new THREE.Vector3().crossVectors(this.anchor, new THREE.Vector3(0, 1, 0));
+    if (across.lengthSq() < 1e-6) across.set(1, 0, 0);
+    across.normalize();
+    const dir = this.anchor.clone().applyAxisAngle(across, THREE.MathUtils.degToRad(PANEL_UP_DEG));
+    s.position.copy(p).addScaledVector(dir, PANEL_DIST_M);
+    s.lookAt(p); // its face (+z) towards the eye, upright
+    this.emM = 2 * PANEL_DIST_M * Math.tan(THREE.MathUtils.degToRad(PANEL_EM_DEG) / 2);
+    this.scalePanel();
+  }
+
+  /** The gaze has turned or tilted too far from the anchor for the panel to stay. */
+  farFrom(gaze) {
+    const yaw = (v) => Math.atan2(v.x, -v.z);
+    const pitch = (v) => Math.asin(THREE.MathUtils.clamp(v.y, -1, 1));
+    let turn = Math.abs(yaw(gaze) - yaw(this.anchor));
+    turn = Math.min(turn, 2 * Math.PI - turn);
+    const tilt = Math.abs(pitch(gaze) - pitch(this.anchor));
+    return turn > THREE.MathUtils.degToRad(PANEL_TURN_DEG) || tilt > THREE.MathUtils.degToRad(PANEL_TILT_DEG);
+  }
+
+  scalePanel() {
+    const s = this.sprite;
+    const h = ((this.emM || 0.04) * s.userData.texHeight) / PANEL_PX;
+    s.scale.set(h * s.userData.aspect, h, 1);
+  }
+
+  // the in-headset panel: a plane in the scene (not the world: it follows the head)
   updateSprite(root, lines) {
-    const { tex, aspect } = textTexture(lines, { px: 32, bg: 'rgba(20,20,30,0.85)', fg: '#eee' });
+    const { tex, aspect } = textTexture(lines, { px: PANEL_PX, bg: 'rgba(20,20,30,0.85)', fg: '#eee' });
     if (!this.sprite) {
       this.sprite = new THREE.Mesh(
         new THREE.PlaneGeometry(1, 1),
         new THREE.MeshBasicMaterial({ map: tex, transparent: true }),
       );
-      this.sprite.rotation.set(Math.PI / 2, 0, 0.6, 'ZXY'); // upright, turned to the participant
-      this.sprite.position.set(-0.75, 0.35, 0.3); // left of the board, clear of the robots
+      this.sprite.name = 'panel';
       this.sprite.visible = false;
-      root.add(this.sprite);
+      root.parent.add(this.sprite);
     } else {
       this.sprite.material.map.dispose();
       this.sprite.material.map = tex;
     }
-    const h = 0.04 * lines.length;
-    this.sprite.scale.set(h * aspect, h, 1);
+    this.sprite.userData.texHeight = tex.image.height;
+    this.sprite.userData.aspect = aspect;
+    this.sprite.userData.emFraction = PANEL_PX / tex.image.height; // the em's share of its height
+    this.scalePanel();
   }
 
   setInWorld(visible) {

@@ -232,7 +232,7 @@ export class DesktopInput {
     this.camera.getWorldQuaternion(hq);
     const poses = this.poses();
     return {
-      head: { position: [hp.x, hp.y, hp.z], orientation: toWorldQuaternion(hq) },
+      head: { position: [hp.x, hp.y, hp.z], orientation: toWorldQuaternion(this.root, hq) },
       left: { position: poses.left.p, orientation: poses.left.q },
       right: { position: poses.right.p, orientation: poses.right.q },
       left_grip: poses.left.grip,

@@ -1,8 +1,8 @@
 // Immersive mode: WebXR `immersive-vr` in the `local-floor` space. Each controller's grip pose
 // drives its hand, squeeze or trigger (the larger) its grip; the headset is the head. The XR
 // frame loop only reads poses and sends (never waits for the network). Calibration: the A/X
-// button (or the page's button) takes the table height from the right controller resting on the
-// table top and the standing point from where the head is.
+// button takes the table height from the right controller resting on the table top, and the
+// standing point and the direction the participant faces (the head's heading) from the head.
 import * as THREE from 'three';
 import { toWorldPosition, toWorldQuaternion, yawQuat } from './frames.js';
 
@@ -82,8 +82,9 @@ export class XrInput {
   heading(q) {
     const fwd = new THREE.Vector3(0, 0, -1).applyQuaternion(q); // XR: -z is forward
     if (Math.hypot(fwd.x, fwd.z) < 0.2) fwd.set(0, 1, 0).applyQuaternion(q); // pointing down
-    // XR (x, -z) is world (x, y); an identity hand's fingers point along world +y
-    return yawQuat(Math.atan2(-fwd.x, -fwd.z));
+    // in the world's axes (the calibration's yaw included); an identity hand's fingers point +y
+    fwd.applyQuaternion(this.root.quaternion.clone().invert());
+    return yawQuat(Math.atan2(-fwd.x, fwd.y));
   }
 
   /** The calibration from the present poses: the table height from the right (else left)
@@ -91,7 +92,17 @@ export class XrInput {
   calibration(hands) {
     const h = hands.right || hands.left;
     const head = this.headXr();
-    return { tableHeight: h ? h.xr.y : null, origin: head ? [head.x, head.z] : null };
+    return { tableHeight: h ? h.xr.y : null, origin: head ? [head.x, head.z] : null, yawRad: this.headYaw() };
+  }
+
+  /** The head's heading about the vertical (0: XR -z, positive to the left); null when it looks
+   * (nearly) straight up or down. */
+  headYaw() {
+    const q = new THREE.Quaternion();
+    this.renderer.xr.getCamera().getWorldQuaternion(q);
+    const fwd = new THREE.Vector3(0, 0, -1).applyQuaternion(q);
+    if (Math.hypot(fwd.x, fwd.z) < 0.2) return null;
+    return Math.atan2(-fwd.x, -fwd.z);
   }
 
   headXr() {
@@ -107,7 +118,7 @@ export class XrInput {
     const hq = new THREE.Quaternion();
     cam.getWorldPosition(hp);
     cam.getWorldQuaternion(hq);
-    const s = { head: { position: toWorldPosition(this.root, hp), orientation: toWorldQuaternion(hq) } };
+    const s = { head: { position: toWorldPosition(this.root, hp), orientation: toWorldQuaternion(this.root, hq) } };
     for (const name of ['left', 'right']) {
       const h = hands[name];
       if (!h) continue;
