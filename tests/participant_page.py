@@ -10,7 +10,9 @@ from __future__ import annotations
 
 import io
 import json
+import logging
 import math
+import time
 import urllib.request
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
@@ -23,12 +25,15 @@ from hrc.browser import headless_chromium, output_dir
 
 from .conftest import ROOT, Trial, free_port, wait_until
 
+log = logging.getLogger(__name__)
+
 MINIMAL = ROOT / "scenarios" / "minimal.toml"
 THESIS = ROOT / "scenarios" / "thesis.toml"
 CLIENT_DIST = ROOT / "services" / "human_input" / "client" / "dist" / "index.html"
 VIEWPORT = {"width": 1280, "height": 800}
 MAX_TICKS = 240 * 240  # no trial outlives 4 simulated (= wall, realtime) minutes
 DRIVER_KEY = "participant-key"
+STALL_TIMEOUT_S = 600  # simulated s: longer than MAX_TICKS, so a slow test never meets it
 
 
 @pytest.fixture(scope="module")
@@ -67,6 +72,9 @@ def live(trial_factory: Callable[..., Trial]) -> Iterator[Callable[..., Live]]:
                 str(port),
                 "--max-ticks",
                 str(max_ticks),
+                # a robot stuck on its own still ends the trial, but never while a test looks
+                "--stall-timeout",
+                str(STALL_TIMEOUT_S),
                 *extra,
             ],
             env={"HRC_VR_DRIVER": DRIVER_KEY},
@@ -230,6 +238,119 @@ def place_part(page: Page, pid: str) -> None:
     page.keys(" ")
     page.wait(f"{pid} placed", lambda s: s["objects"][pid]["placed"], 20)
     page.wait("the hand back at rest", lambda s: s["parked"], 10)
+
+
+# ---------------------------------------------------------------- what a person sees
+
+PROBE_R = 3  # px: the window around a probe point compared with the thing hidden
+PROBE_MIN_PIXELS = 5  # of its 49 pixels that must change for the thing to count as seen
+PIXEL_DIFF = 30  # |dR| + |dG| + |dB| above this: the pixel changed (grey on grey: ~40)
+
+
+def rendered_frames(page: Page, n: int = 2) -> None:
+    """Waits until the page has rendered ``n`` more frames (a change is then on screen)."""
+    n0 = page.page.evaluate("window.hrcTest.rendered()")
+    page.page.wait_for_function(
+        "n => window.hrcTest.rendered() >= n", arg=n0 + n, timeout=90_000, polling=50
+    )
+
+
+def changed_pixels(a: Any, b: Any, xy: tuple[float, float], r: int = PROBE_R) -> int:
+    x0, y0 = round(xy[0]), round(xy[1])
+    w, h = a.size
+    n = 0
+    for x in range(max(0, x0 - r), min(w, x0 + r + 1)):
+        for y in range(max(0, y0 - r), min(h, y0 + r + 1)):
+            pa, pb = a.getpixel((x, y)), b.getpixel((x, y))
+            n += sum(abs(u - v) for u, v in zip(pa, pb, strict=True)) > PIXEL_DIFF
+    return n
+
+
+@dataclass
+class Seen:
+    """How many of a thing's probe points the person sees (and where the others were)."""
+
+    seen: int
+    total: int
+    misses: list[str]
+
+
+def what_is_seen(
+    page: Page, view: str, only: tuple[str, ...] = (), others: tuple[Page, ...] = ()
+) -> dict[str, Seen]:
+    """For each thing the page names (board, each robot's links, parts, hands, lit cues, the
+    status panel): a picture with everything, then one with that thing hidden
+    (window.hrcTest.hide); the thing is seen at a probe point where the two pictures differ.
+    Colours play no part, so a part in its robot's colour cannot stand in for the robot.
+
+    The picture is held still meanwhile (frames frozen, cues held lit); the ``others`` pages
+    stop rendering meanwhile (software WebGL: the CPU goes to the page looked at). Pictures are
+    saved as test-output/client/<view>.png (everything) and <view>-without-<thing>.png."""
+    for other in others:
+        other.page.evaluate("window.hrcTest.pause(true)")
+    try:
+        return _what_is_seen(page, view, only)
+    finally:
+        for other in others:
+            other.page.evaluate("window.hrcTest.pause(false)")
+
+
+def _what_is_seen(page: Page, view: str, only: tuple[str, ...]) -> dict[str, Seen]:
+    t0 = time.monotonic()
+    page.wait("the headset's panel in place", lambda s: not s["panel_moving"], 30)
+    page.page.evaluate("window.hrcTest.freeze(true); window.hrcTest.flash(true)")
+    rendered_frames(page)
+    full = page.screenshot(f"{view}.png")
+    probes: dict[str, list[list[float]]] = page.page.evaluate("window.hrcTest.probes()")
+    status_box = page.page.evaluate(
+        """() => {
+            const r = document.getElementById('status').getBoundingClientRect();
+            return r.width > 0 ? [r.left + r.width / 2, r.top + r.height / 2] : null;
+        }"""
+    )
+    in_xr = page.state()["xr"]
+    out: dict[str, Seen] = {}
+    for name in sorted(probes.keys() | ({"panel"} if status_box and not in_xr else set())):
+        if only and not any(name == o or name.startswith(o + ":") for o in only):
+            continue
+        points = probes.get(name, [])
+        pixels = [page.project(p) for p in points]
+        if name == "panel" and not in_xr:
+            pixels = [(status_box[0], status_box[1])]
+        page.page.evaluate("(n) => window.hrcTest.hide(n, true)", name)
+        rendered_frames(page)
+        without = page.screenshot(f"{view}-without-{name.replace(':', '-')}.png")
+        page.page.evaluate("(n) => window.hrcTest.hide(n, false)", name)
+        log.info("%s: %s probed (%.1f s so far)", view, name, time.monotonic() - t0)
+        misses = []
+        for point, px in zip(points or [None], pixels, strict=True):
+            n = changed_pixels(full, without, px)
+            if n < PROBE_MIN_PIXELS:
+                misses.append(f"{point} at px ({px[0]:.0f}, {px[1]:.0f}): {n} pixels change")
+        out[name] = Seen(len(pixels) - len(misses), len(pixels), misses)
+    rendered_frames(page)
+    page.page.evaluate("window.hrcTest.flash(null); window.hrcTest.freeze(false)")
+    return out
+
+
+def assert_whole_scene(
+    seen: dict[str, Seen], view: str, robots: list[str], need: tuple[str, ...] = ()
+) -> None:
+    """Board, every robot at its base, middle and wrist, the parts, the hands, the lit cues and
+    the status panel are seen (some of the points of the board, the parts, the panel and an
+    outline's corners may be covered by a hand, an arm or the part it surrounds); with
+    ``need``, only those things."""
+    names = need or ("board", "parts", "hands", "panel", *(f"robot:{r}" for r in robots))
+    missing = [n for n in names if n not in seen]
+    assert not missing, f"{view}: nothing to probe for {missing}"
+    assert any(n.startswith("cue:") for n in seen), f"{view}: no cue is lit"
+    bad = []
+    for name, s in seen.items():
+        every = name.startswith(("robot:", "cue:target", "hands"))
+        enough = s.total if every else 0.4 * s.total
+        if s.seen < max(1, enough):
+            bad.append(f"{name}: seen at {s.seen} of {s.total} points; {s.misses}")
+    assert not bad, f"{view}: " + "; ".join(bad)
 
 
 def metrics(trial: Trial) -> dict[str, Any]:

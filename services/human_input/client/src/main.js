@@ -82,6 +82,11 @@ class App {
     this.lastSentMs = 0;
     this.frameMs = []; // intervals between rendered frames
     this.workMs = []; // the page's own work per frame (update + render call)
+    this.renderMs = []; // of which the render call
+    this.movingN = []; // robots whose joints moved since the frame before
+    this.rendered = 0; // frames rendered
+    this.drawCalls = 0; // in the last frame
+    this.hidden = new Map(); // what a test hides (hrcTest.hide): name -> reasons
     this.events = [];
     this.frames = 0;
     this.sceneMsg = null;
@@ -186,13 +191,14 @@ class App {
     }
   }
 
-  calibrate({ tableHeight, origin }) {
+  calibrate({ tableHeight, origin, yawRad }) {
     if (tableHeight !== null && tableHeight > 0.3 && tableHeight < 1.6) this.tableHeight = tableHeight;
-    placeRoot(this.root, this.tableHeight, this.stand, origin || this.root.userData.origin);
+    const yaw = yawRad ?? this.root.userData.yawRad;
+    placeRoot(this.root, this.tableHeight, this.stand, origin || this.root.userData.origin, yaw);
     if (this.sceneMsg) this.world.buildFurniture(); // the floor moves with the table height
-    const text = `calibrated: table height ${this.tableHeight.toFixed(2)} m (A again to redo)`;
-    this.hud.message(text);
-    this.hud.set('hand', text); // the panel is what a headset shows
+    const deg = Math.round(THREE.MathUtils.radToDeg(yaw));
+    // the panel is what a headset shows (no message: it would say it twice)
+    this.hud.set('hand', `calibrated: table ${this.tableHeight.toFixed(2)} m high, facing ${deg}\u00b0 (A: redo)`);
   }
 
   resize() {
@@ -317,8 +323,10 @@ class App {
     return '';
   }
 
-  /** A few times a second: the panel, the waiting labels, the robot's target after a collision. */
+  /** A few times a second: the panel, the waiting labels, the robot's target after a collision
+   * (held still, like the frames, while a test freezes the picture). */
   refresh() {
+    if (this.frozen) return;
     if (this.waitFor && !OVER.has(this.run)) {
       const s = Math.round((performance.now() - this.waitSince) / 1000);
       const who = this.role === 'driver' ? 'you' : 'the participant';
@@ -363,7 +371,9 @@ class App {
     }
     this.lastFrameAt = now;
     const driving = this.role === 'driver';
-    const hands = driving ? this.localHands() : this.spectatorHands();
+    // a spectator's controllers draw nothing and send nothing, but calibrate its view (A/X)
+    const own = driving || this.xr.active() ? this.localHands() : null;
+    const hands = driving ? own : this.spectatorHands();
     if (hands) {
       for (const name of ['left', 'right']) {
         if (hands[name]) this.world.setHand(name, hands[name].p, hands[name].q, hands[name].grip);
@@ -374,9 +384,32 @@ class App {
     this.world.animate(now);
     this.hud.set('task', this.taskT === null || this.taskT === undefined ? '-' : `${this.taskT.toFixed(1)} s`);
     if (!this.xr.active() && this.mode === 'desktop') this.hud.set('hand', driving ? this.desktop.statusLine() : '');
+    if (this.xr.active()) this.hud.follow(this.renderer.xr.getCamera());
+    if (this.hidden.size) this.applyHidden();
+    const updated = performance.now();
     this.renderer.render(this.scene, this.camera);
-    this.workMs.push(performance.now() - now);
+    const done = performance.now();
+    this.workMs.push(done - now);
+    this.renderMs.push(done - updated);
+    this.drawCalls = this.renderer.info.render.calls; // this frame's, all views
+    this.rendered++;
+    this.movingN.push(this.robots.movedSinceLastAsked()); // the bench counts frames of 2
     if (this.workMs.length > 2000) this.workMs.shift();
+    if (this.renderMs.length > 2000) this.renderMs.shift();
+    if (this.movingN.length > 2000) this.movingN.shift();
+  }
+
+  /** What a test hides (hrcTest.hide) is kept off every view: moved to a layer no camera
+   * renders (objects rebuilt since, as the board after a calibration, are caught here too). */
+  applyHidden() {
+    for (const [name, reasons] of this.hidden) {
+      const off = reasons.size > 0;
+      for (const obj of testObjects(this, name)) {
+        if (obj instanceof HTMLElement) obj.style.visibility = off ? 'hidden' : '';
+        else obj.traverse((o) => o.layers.set(off ? 31 : 0));
+      }
+      if (!off) this.hidden.delete(name);
+    }
   }
 
   spectatorHands() {
@@ -406,6 +439,120 @@ class App {
 }
 
 // ------------------------------------------------------------------ hooks for the browser tests
+/** The things a test can hide (and probe) by name: board, furniture, markings, parts, labels,
+ * robot:<id>, hands, cue:<id>, panel (the headset's panel and the page's status box). */
+function testObjects(app, name) {
+  const w = app.world;
+  const [kind, id] = name.split(/:(.*)/s);
+  switch (kind) {
+    case 'board':
+    case 'furniture':
+      return w.furniture ? [w.furniture.getObjectByName(kind)].filter(Boolean) : [];
+    case 'markings':
+      return w.markings ? [w.markings] : [];
+    case 'parts':
+      return [w.partsView.boxes, w.partsView.edges].filter(Boolean);
+    case 'labels':
+      return [...w.parts.values()].map((p) => p.label);
+    case 'robot': {
+      const r = app.robots.robots.get(id);
+      return r ? [r.holder] : [];
+    }
+    case 'hands':
+      return Object.values(w.hands).flatMap((h) => [h.obj, h.plumb, h.ring]);
+    case 'cue': {
+      const c = w.cues.get(id);
+      return c ? [c.obj] : [];
+    }
+    case 'panel':
+      return [app.hud.sprite, document.getElementById('status')].filter(Boolean);
+    default:
+      throw new Error(`hrcTest: nothing called '${name}'`);
+  }
+}
+
+/** A point of `obj` in the root's (world) frame. */
+function rootLocal(app, obj, local = new THREE.Vector3()) {
+  const v = obj.localToWorld(local.clone());
+  return app.root.worldToLocal(v).toArray();
+}
+
+/** Where each thing a person should see is, as world points to look at: {name: [[x, y, z]..]}
+ * (a robot's links: the centres of the shapes of its base, its middle link and its wrist, the
+ * link before the last, whose tool a held part and its label may cover; an outline cue: its
+ * corners, as the part it surrounds covers its middle). */
+function probePoints(app) {
+  const w = app.world;
+  const out = {};
+  const board = app.sceneMsg?.board;
+  if (board) {
+    const [cx, cy, cz] = board.center;
+    const [sx, sy, sz] = board.size;
+    out.board = [];
+    for (const fx of [-0.35, 0, 0.35]) for (const fy of [-0.3, 0.3]) out.board.push([cx + fx * sx, cy + fy * sy, cz + sz / 2]);
+  }
+  for (const [rid, r] of app.robots.robots) {
+    if (!r.model) continue;
+    const shapes = [];
+    r.model.traverse((o) => {
+      if (o.isMesh && o.name.startsWith('link:')) shapes.push(o);
+    });
+    // from the base out: by how many links lie between a shape and the model
+    const depth = (o) => {
+      let n = 0;
+      for (let up = o.parent; up; up = up.parent) n += up.isURDFLink ? 1 : 0;
+      return n;
+    };
+    shapes.sort((a, b) => depth(a) - depth(b));
+    const pick = [shapes[0], shapes[Math.floor(shapes.length / 2)], shapes[Math.max(0, shapes.length - 2)]];
+    out[`robot:${rid}`] = pick.filter(Boolean).map((m) => {
+      m.geometry.computeBoundingBox();
+      return rootLocal(app, m, m.geometry.boundingBox.getCenter(new THREE.Vector3()));
+    });
+  }
+  out.parts = [...w.parts.values()]
+    .filter((p) => p.mesh.visible)
+    .map((p) => [p.mesh.position.x, p.mesh.position.y, p.mesh.position.z + p.spec.size[2] / 2]);
+  out.hands = Object.values(w.hands).filter((h) => h.obj.visible).map((h) => h.obj.position.toArray());
+  for (const [id, c] of w.cues) {
+    if (!c.on || c.spec.kind === 'button') continue;
+    const size = c.obj.userData.outlineSize;
+    out[`cue:${id}`] = size
+      ? [[-1, -1], [1, -1], [1, 1], [-1, 1]].map(([a, b]) => rootLocal(app, c.obj, new THREE.Vector3((a * size[0]) / 2, (b * size[1]) / 2, 0)))
+      : [rootLocal(app, c.obj)];
+  }
+  // the panel's middle and four points around it (an arm may pass in front of some)
+  const panel = app.hud.sprite;
+  if (panel?.visible) {
+    out.panel = [[0, 0], [-0.25, -0.25], [0.25, -0.25], [0.25, 0.25], [-0.25, 0.25]].map(([x, y]) =>
+      rootLocal(app, panel, new THREE.Vector3(x, y, 0)),
+    );
+  }
+  return out;
+}
+
+/** The eye a picture is taken from: the XR view's first camera, or the desktop camera. */
+function eyeCamera(app) {
+  return app.renderer.xr.isPresenting ? app.renderer.xr.getCamera().cameras[0] : app.camera;
+}
+
+/** Each text on screen (part labels, target names, "Waiting.." labels, the headset's panel):
+ * its em's angular height (degrees) from the eye, and its distance (m). */
+function textSizes(app) {
+  const eye = new THREE.Vector3();
+  eyeCamera(app).getWorldPosition(eye);
+  const out = [];
+  app.scene.traverseVisible((o) => {
+    const em = o.userData.emFraction;
+    if (!em || !o.layers.test(eyeCamera(app).layers)) return;
+    const c = o.getWorldPosition(new THREE.Vector3());
+    const s = o.getWorldScale(new THREE.Vector3());
+    const d = c.distanceTo(eye);
+    const emM = s.y * em;
+    out.push({ what: o.name || 'text', em_deg: THREE.MathUtils.radToDeg(2 * Math.atan(emM / 2 / d)), distance_m: d });
+  });
+  return out;
+}
 function projectWith(app, xyz) {
   const v = new THREE.Vector3(...xyz);
   app.root.localToWorld(v);
@@ -471,6 +618,7 @@ window.hrcTest = {
       xr: app.xr.active(),
       active_hand: app.desktop.active,
       parked: app.desktop.parked !== null, // the desktop hand waits at rest for the mouse
+      panel_moving: !!app.hud.gliding, // the headset's panel glides after the gaze
       hands: app.xr.active() && app.lastXrHands ? app.lastXrHands : app.desktop.poses(),
       objects,
       robots,
@@ -524,16 +672,69 @@ window.hrcTest = {
   freezeWhen: (part, holder) => {
     window.hrcApp.freezeOn = { part, holder };
   },
-  /** The page's frame times (ms), oldest first: `intervals` between rendered frames and the
-   * `work` of each (update + render call); `reset` clears them. */
+  /** The page's frame times (ms), oldest first: `intervals` between rendered frames, the
+   * `work` of each (update + render call), its `render` call alone, and how many robots were
+   * `moving` in it; `reset` clears them. */
   frameTimes: (reset = false) => {
     const app = window.hrcApp;
-    const out = { intervals: [...app.frameMs], work: [...app.workMs] };
-    if (reset) {
-      app.frameMs.length = 0;
-      app.workMs.length = 0;
-    }
+    const out = {
+      intervals: [...app.frameMs],
+      work: [...app.workMs],
+      render: [...app.renderMs],
+      moving: [...app.movingN],
+    };
+    if (reset) for (const a of [app.frameMs, app.workMs, app.renderMs, app.movingN]) a.length = 0;
     return out;
+  },
+  /** The last frame's draw calls, and the views it drew (an immersive frame draws one per eye). */
+  drawCalls: () => {
+    const app = window.hrcApp;
+    const views = app.renderer.xr.isPresenting ? app.renderer.xr.getCamera().cameras.length : 1;
+    return { calls: app.drawCalls, views };
+  },
+  /** Stops (true) or restarts (false) rendering, so that another page of the same browser
+   * gets the CPU (software WebGL); the link to the bridge stays up. */
+  pause: (on) => {
+    const app = window.hrcApp;
+    app.renderer.setAnimationLoop(on ? null : (t, frame) => app.onFrame(t, frame));
+  },
+  /** Frames rendered so far (a test waits for new ones after a change). */
+  rendered: () => window.hrcApp.rendered,
+  /** Hides (true) or shows again (false) a thing by name (testObjects); `reason` keeps one
+   * test's hiding apart from another's: a thing is hidden while any reason hides it. */
+  hide: (name, on, reason = 'check') => {
+    const app = window.hrcApp;
+    testObjects(app, name); // an unknown name is an error now, not a silent no-op
+    const reasons = app.hidden.get(name) || new Set();
+    if (on) reasons.add(reason);
+    else reasons.delete(reason);
+    app.hidden.set(name, reasons);
+  },
+  /** World points where each thing should be seen: {name: [[x, y, z], ...]}. */
+  probes: () => probePoints(window.hrcApp),
+  /** The texts on screen with their angular size: [{what, em_deg, distance_m}]. */
+  textSizes: () => textSizes(window.hrcApp),
+  /** Holds the cues' blink lit (true) or unlit (false); null: they blink again. */
+  flash: (phase) => {
+    window.hrcApp.world.flashHeld = phase === null ? null : !!phase;
+  },
+  /** The headset panel's corners as page pixels and as angles from the eye's view direction
+   * [{x, y, visible, az_deg, el_deg}] (null outside immersive mode). */
+  panelCorners: () => {
+    const app = window.hrcApp;
+    const s = app.hud.sprite;
+    if (!s || !s.visible) return null;
+    const eye = eyeCamera(app);
+    return [[-0.5, -0.5], [0.5, -0.5], [0.5, 0.5], [-0.5, 0.5]].map(([x, y]) => {
+      const local = new THREE.Vector3(x, y, 0);
+      const v = s.localToWorld(local.clone()).applyMatrix4(eye.matrixWorldInverse); // eye frame
+      const deg = THREE.MathUtils.radToDeg;
+      return {
+        ...projectWith(app, rootLocal(app, s, local)),
+        az_deg: deg(Math.atan2(v.x, -v.z)),
+        el_deg: deg(Math.atan2(v.y, -v.z)),
+      };
+    });
   },
 };
 
