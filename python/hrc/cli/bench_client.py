@@ -174,11 +174,14 @@ def percentile(xs: list[float], q: float) -> float:
 
 @dataclass
 class BenchContext:
-    """What a figure function gets: the running trial's page URL and scenario."""
+    """What a figure function gets: the running trial's page URL and scenario, and
+    ``robots_busy()``, a context in which the driver keeps provoking collisions (both robots
+    retreat and go on: both move)."""
 
     url: str
     scenario: Path
     n: int
+    robots_busy: Callable[[], contextlib.AbstractContextManager[None]]
 
 
 EXTRA_FIGURES: list[Callable[[BenchContext], dict[str, Any]]] = [page_figures]
@@ -190,6 +193,7 @@ def live_trial(
 ) -> Iterator[tuple[str, Callable[[], TrialResult | None]]]:
     """A live trial running in a thread; yields (session, result getter); stops it at the end."""
     session, port = f"bc{uuid.uuid4().hex[:8]}", free_port()
+    loaded = sc.load(scenario, motion_check=False)
     opts = TrialOptions(
         scenario=scenario,
         out=out,
@@ -198,6 +202,8 @@ def live_trial(
         session=session,
         port=port,
         stall_timeout_s=stall_timeout_s,
+        participant=loaded.participant.name,
+        parts_total=len(loaded.parts),
         input="vr",
         vr=VrOptions(port=vr_port, wait_s=60.0),
     )
@@ -228,6 +234,42 @@ def connect_when_up(url: str, timeout: float = 90.0, **kw: Any) -> LiveClient:
             if time.monotonic() > end:
                 raise
             time.sleep(0.2)
+
+
+def _collide_again_and_again(
+    driver: LiveClient, held: Vec, robots: list[str], stop: threading.Event
+) -> None:
+    """Touches each robot in turn, waits for the robots to go on, again, until ``stop``."""
+    k = 0
+    while not stop.is_set():
+        rid = robots[k % len(robots)]
+        k += 1
+        with driver.cond:
+            tcp = driver.robots.get(rid, {}).get("tcp")
+            mark = len(driver.messages)
+        if tcp is None:
+            stop.wait(0.5)
+            continue
+        driver.hands((tcp[0], tcp[1], tcp[2] + 0.02), held, 0.0, 1.0)
+        driver.wait_for(lambda m: m.msg.get("kind") == "collision", 3.0, mark)
+        driver.hands(REST_LEFT, held, 0.0, 1.0)
+        driver.wait_for(lambda m: m.msg.get("kind") == "continued", 15.0, mark)
+        stop.wait(0.5)
+
+
+@contextlib.contextmanager
+def robots_kept_busy(driver: LiveClient, held: Vec, robots: list[str]) -> Iterator[None]:
+    stop = threading.Event()
+    worker = threading.Thread(
+        target=_collide_again_and_again, args=(driver, held, robots, stop), daemon=True
+    )
+    worker.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        worker.join(20)
+        driver.hands(REST_LEFT, held, 0.0, 1.0)
 
 
 def towards(a: list[float], b: list[float], goal: Vec, at_least: float) -> bool:
@@ -318,7 +360,10 @@ def measure(n: int, scenario: Path) -> dict[str, Any]:
                 },
             )
             ctx = BenchContext(
-                url.replace("ws://", "http://").removesuffix("/ws") + "/", scenario, n
+                url.replace("ws://", "http://").removesuffix("/ws") + "/",
+                scenario,
+                n,
+                lambda: robots_kept_busy(driver, held, robots),
             )
             for extra in EXTRA_FIGURES:
                 figures.update(extra(ctx))
@@ -327,6 +372,24 @@ def measure(n: int, scenario: Path) -> dict[str, Any]:
             spectator.close()
     figures["load_average"] = [round(x, 2) for x in os.getloadavg()]
     return figures
+
+
+def _page_line(key: str, fig: dict[str, Any]) -> str:
+    """The page's figures of one mode (bench_page) in three lines."""
+    if "full" not in fig:
+        return f"{key}: {fig}"
+    full, cpu, goal = fig["full"], fig["cpu_only"], fig["goal"]
+    return (
+        f"{key}: page work per frame (update + render call) p50 {cpu['work_ms']['p50']:.2f} ms"
+        f"  p95 {cpu['work_ms']['p95']:.2f} ms at {cpu['viewport']} (goal p95 <= "
+        f"{goal['work_ms_p95']:g} ms), {full['draw_calls']['per_view']:g} draw calls per view "
+        f"(goal <= {goal['draw_calls_per_view']}): {'met' if goal['met'] else 'NOT met'}\n"
+        f"  at {full['viewport']}: work p50 {full['work_ms']['p50']:.2f} ms  p95 "
+        f"{full['work_ms']['p95']:.2f} ms, frame interval p50 {full['interval_ms']['p50']} ms; "
+        f"rasterisation (chromium's GPU process) {full['cpu_ms_per_frame']['gpu']} CPU ms per "
+        f"frame; frames {full['frames']} ({full['frames_both_robots_moving']} with both robots "
+        "moving)"
+    )
 
 
 def _retreat_frames(
@@ -428,6 +491,6 @@ def run(args: argparse.Namespace) -> int:
             "clients",
             "load_average",
         }:
-            print(f"{key}: {value}")
+            print(_page_line(key, value) if key.startswith("page_") else f"{key}: {value}")
     print(f"load average {figures['load_average']}")
     return 0

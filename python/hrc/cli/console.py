@@ -121,7 +121,8 @@ class LiveConsole:
             spectators = len(s.clients) - len(drivers)
             who = f"driver {drivers[0]}" if drivers else "no driver"
             parts = [
-                f"{self.participant}: {who}, {spectators} spectator(s)",
+                (f"{self.participant}: " if self.participant else "")
+                + f"{who}, {spectators} spectator(s)",
                 RUN_WORDS.get(s.run, s.run),
                 f"task {self._task_s(now):.1f} s",
                 f"placed {s.placed}/{self.parts_total}",
