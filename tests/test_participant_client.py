@@ -16,6 +16,7 @@ The page and the person's moves: tests/participant_page.py.
 from __future__ import annotations
 
 import colorsys
+import math
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -215,7 +216,11 @@ def test_pictures_while_a_robot_carries_with_anticipation(
         assert found_near(img, page.project(s["objects"]["RA1"]["p"]), desk.part("RA1")["color"], 6)
         h1_at = s["objects"]["H1"]["p"]
         top = [h1_at[0], h1_at[1], h1_at[2] + h1["size"][2] / 2]
-        assert found_near(img, page.project(top), h1["color"], 4), f"{view}: H1"
+        # H1 in its colour, unless a hand is over it (on a loaded machine a page may freeze
+        # before the hand that let H1 go is back at rest)
+        drawn_hands = page.page.evaluate("window.hrcTest.probes().hands")
+        hand_over = any(math.dist(h[:2], h1_at[:2]) < 0.08 for h in drawn_hands)
+        assert hand_over or found_near(img, page.project(top), h1["color"], 4), f"{view}: H1"
         # the cue blinks: seen lit and seen unlit within a window (pictures come slowly on a
         # loaded machine; the frames are frozen meanwhile, the blinking goes on)
         cue_px = page.project([cue["position"][0], cue["position"][1], 0.003])

@@ -109,7 +109,8 @@ export class Hud {
     // the headset has no page overlay: its panel carries the message too
     const panelLines = this.lines(true);
     const all = this.shownText ? [...panelLines, '', this.shownText] : panelLines;
-    const inWorld = wrap(all.join('\n'), PANEL_COLUMNS);
+    this.saying = all.join('\n'); // what it says, before its lines are wrapped
+    const inWorld = wrap(this.saying, PANEL_COLUMNS);
     const text = inWorld.join('\n');
     if (text === this.lastText) return;
     this.lastText = text;

@@ -658,8 +658,8 @@ window.hrcTest = {
     }
     return out;
   },
-  /** The status panel's text as the headset shows it (with the page's message). */
-  panelText: () => window.hrcApp.hud.lastText,
+  /** What the headset's status panel says (with the page's message), its lines unwrapped. */
+  panelText: () => window.hrcApp.hud.saying ?? '',
   /** The robot target shown after a collision: {part, visible} or null. */
   goal: () => {
     const g = window.hrcApp.world.goal;
