@@ -19,6 +19,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -140,11 +141,24 @@ def check_draw_calls(page: Page, view: str) -> None:
 
 
 @pytest.mark.timeout(900)  # six views, ten pictures each, in software WebGL
+def slow_thesis(tmp_path: Path) -> Path:
+    """The thesis board with robots at 0.15 m/s: r1's carry of RA1 lasts seconds, so a page
+    that runs seconds behind on a loaded machine (the bridge drops frames for a slow client)
+    still gets frames in which r1 holds it."""
+    text = THESIS.read_text().replace("max_tcp_speed = 0.5", "max_tcp_speed = 0.15")
+    assert text.count("max_tcp_speed = 0.15") == 2
+    path = tmp_path / "thesis-slow.toml"
+    path.write_text(text)
+    return path
+
+
 def test_every_view_shows_the_whole_scene(
     browser: Any,  # noqa: F811
     live: Callable[..., Live],  # noqa: F811
+    tmp_path: Path,
 ) -> None:
-    run = live(THESIS, max_ticks=240 * 1200)  # 20 minutes: the test never meets the end
+    # 20 minutes of ticks: the test never meets the end
+    run = live(slow_thesis(tmp_path), max_ticks=240 * 1200)
     desk = open_page(browser, run.url + "&mode=desktop")
     watcher = open_page(browser, run.spectator_url + "?mode=desktop")
     headset = open_page(browser, run.spectator_url + "?test=iwer")
@@ -160,7 +174,7 @@ def test_every_view_shows_the_whole_scene(
     for page in (desk, watcher, headset):
         page.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1')")
     for page in (desk, watcher, headset):
-        page.wait("r1 carries RA1", lambda s: s["objects"]["RA1"]["holder"] == "r1", 60)
+        page.wait("r1 carries RA1", lambda s: s["objects"]["RA1"]["holder"] == "r1", 120)
 
     for page, view in (
         (desk, "desktop-driver"),
