@@ -20,7 +20,7 @@ const PANEL_COLUMNS = 30; // the headset's panel wraps its lines here (it stays 
 const PANEL_DIST_M = 2.4; // beyond the robots from where the person stands
 const PANEL_UP_DEG = 27; // its centre above the gaze it follows
 const PANEL_TURN_DEG = 15; // it glides back when the head turns this far from where it was put
-const PANEL_TILT_DEG = 35; // ... or tilts this far (more than PANEL_UP_DEG: it can be looked at)
+const PANEL_TILT_DEG = 30; // ... or tilts this far (more than PANEL_UP_DEG: it can be looked at)
 const PANEL_EM_DEG = 1.15; // its text's em, seen from the eye
 const PANEL_PX = 32; // the texture's em (px)
 
@@ -186,7 +186,13 @@ export class Hud {
     this.scalePanel();
   }
 
+  /** The panel is put anew where the gaze is at the next frame (entering VR, a calibration). */
+  replacePanel() {
+    this.anchor = null;
+  }
+
   setInWorld(visible) {
+    this.replacePanel();
     if (this.sprite) this.sprite.visible = visible;
   }
 }

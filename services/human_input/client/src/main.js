@@ -197,6 +197,7 @@ class App {
     placeRoot(this.root, this.tableHeight, this.stand, origin || this.root.userData.origin, yaw);
     if (this.sceneMsg) this.world.buildFurniture(); // the floor moves with the table height
     const deg = Math.round(THREE.MathUtils.radToDeg(yaw));
+    this.hud.replacePanel();
     // the panel is what a headset shows (no message: it would say it twice)
     this.hud.set('hand', `calibrated: table ${this.tableHeight.toFixed(2)} m high, facing ${deg}\u00b0 (A: redo)`);
   }
