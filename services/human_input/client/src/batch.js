@@ -3,6 +3,17 @@
 import * as THREE from 'three';
 import { mergeGeometries } from 'three/addons/utils/BufferGeometryUtils.js';
 
+/** `geometry` with a `color` attribute: `color` (a THREE.Color or a CSS colour) at every
+ * vertex, so that pieces of several colours merge into one mesh. */
+export function painted(geometry, color) {
+  const c = color instanceof THREE.Color ? color : new THREE.Color(color);
+  const n = geometry.attributes.position.count;
+  const rgb = new Float32Array(n * 3);
+  for (let i = 0; i < n; i++) rgb.set([c.r, c.g, c.b], i * 3);
+  geometry.setAttribute('color', new THREE.BufferAttribute(rgb, 3));
+  return geometry;
+}
+
 /** Collects geometries (each with its colour and pose) and makes one mesh of them. */
 export class Batch {
   constructor() {
@@ -14,12 +25,7 @@ export class Batch {
     const g = geometry; // every piece is indexed (Box/Plane/Cylinder geometries): they merge
     g.deleteAttribute('uv');
     g.applyMatrix4(matrix);
-    const c = new THREE.Color(color);
-    const n = g.attributes.position.count;
-    const rgb = new Float32Array(n * 3);
-    for (let i = 0; i < n; i++) rgb.set([c.r, c.g, c.b], i * 3);
-    g.setAttribute('color', new THREE.BufferAttribute(rgb, 3));
-    this.pieces.push(g);
+    this.pieces.push(painted(g, color));
   }
 
   /** A box `size` at `center` (yaw about z in degrees). */

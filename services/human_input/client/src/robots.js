@@ -3,6 +3,7 @@
 import * as THREE from 'three';
 import URDFLoader from 'urdf-loader';
 import { mergeGeometries } from 'three/addons/utils/BufferGeometryUtils.js';
+import { painted } from './batch.js';
 import { setPose } from './frames.js';
 
 // The URDF's own colours are kept for the dark/grey parts; its coloured links take the robot's
@@ -46,12 +47,7 @@ function mergePerLink(model) {
       for (const name of Object.keys(g.attributes)) if (name !== 'position' && name !== 'normal') g.deleteAttribute(name);
       if (!g.attributes.normal) g.computeVertexNormals();
       g.applyMatrix4(new THREE.Matrix4().multiplyMatrices(toLink, o.matrixWorld));
-      const c = o.material.color || new THREE.Color('#bbb');
-      const n = g.attributes.position.count;
-      const rgb = new Float32Array(n * 3);
-      for (let i = 0; i < n; i++) rgb.set([c.r, c.g, c.b], i * 3);
-      g.setAttribute('color', new THREE.BufferAttribute(rgb, 3));
-      return g;
+      return painted(g, o.material.color || '#bbb');
     });
     const merged = mergeGeometries(pieces, false);
     for (const g of pieces) g.dispose();
