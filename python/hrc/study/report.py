@@ -255,7 +255,11 @@ class ModelResult:
     method: str = "MixedLM (REML), random intercept per participant"
 
 
-def _term(name: str, names: dict[str, str], reference: dict[str, str]) -> str:
+def _term(
+    name: str, names: dict[str, str], reference: dict[str, str], covs: dict[str, str] | None = None
+) -> str:
+    if covs and name in covs:
+        return f"{covs[name].replace('_', ' ')} (per step)"
     m = re.fullmatch(r"C\((f\d+)\)\[T\.(.*)\]", name)
     if m:
         factor = names[m.group(1)]
@@ -279,15 +283,30 @@ def _fit(
 
 
 def fit_model(
-    data: pd.DataFrame, outcome: Outcome, factors: list[str], levels: dict[str, list[str]]
+    data: pd.DataFrame,
+    outcome: Outcome,
+    factors: list[str],
+    levels: dict[str, list[str]],
+    covariates: tuple[str, ...] = (),
 ) -> ModelResult:
-    """One outcome's mixed model; every degenerate case gives notes, never an exception."""
+    """One outcome's mixed model; every degenerate case gives notes, never an exception.
+    `covariates`: numeric columns entered as they are (a live trial's order position)."""
     import pandas as pd
     import statsmodels.formula.api as smf
 
     notes: list[str] = []
-    d = data[[outcome.name, "participant", *factors]].dropna()
-    d = d.rename(columns={outcome.name: "y", **{f: f"f{i}" for i, f in enumerate(factors)}})
+    d = data[[outcome.name, "participant", *factors, *covariates]].dropna()
+    d = d.rename(
+        columns={
+            outcome.name: "y",
+            **{f: f"f{i}" for i, f in enumerate(factors)},
+            **{c: f"c{i}" for i, c in enumerate(covariates)},
+        }
+    )
+    for i in range(len(covariates)):
+        d[f"c{i}"] = pd.to_numeric(d[f"c{i}"], errors="coerce")
+    covs = [f"c{i}" for i in range(len(covariates)) if d[f"c{i}"].nunique() > 1]
+    cov_names = {f"c{i}": c for i, c in enumerate(covariates)}
     names = {f"f{i}": f for i, f in enumerate(factors)}
     used = [f"f{i}" for i, f in enumerate(factors) if d[f"f{i}"].nunique() > 1]
     for key in names:
@@ -307,7 +326,7 @@ def fit_model(
         order = [lv for lv in levels[names[key]] if lv in set(d[key])]
         d[key] = pd.Categorical(d[key], categories=order)
     reference = {names[k]: str(d[k].cat.categories[0]) for k in used}
-    formula = "y ~ " + (" + ".join(f"C({k})" for k in used) or "1")
+    formula = "y ~ " + (" + ".join([*(f"C({k})" for k in used), *covs]) or "1")
     groups = d["participant"].nunique()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -339,7 +358,7 @@ def fit_model(
             continue
         rows.append(
             (
-                _term(term, names, reference),
+                _term(term, names, reference, cov_names),
                 float(res.params[term]),
                 float(ci.loc[term, 0]),
                 float(ci.loc[term, 1]),
@@ -383,7 +402,10 @@ def write_report(sweep_dir: Path) -> Path:
     figdir = sweep_dir / FIGURES
     figdir.mkdir(exist_ok=True)
     factors = [f for f in meta.get("factors", {}) if f in df.columns]
-    data = df[df["outcome"] == "ok"].copy()
+    if "participant_kind" not in df.columns:  # a table from before live participants
+        df["participant_kind"] = "simulated"
+    practice = df["practice"].fillna(False).astype(bool) if "practice" in df.columns else False
+    data = df[(df["outcome"] == "ok") & ~practice].copy()
     for f in factors:
         data[f] = data[f].map(str)
     for outcome in OUTCOMES:
@@ -400,7 +422,9 @@ def write_report(sweep_dir: Path) -> Path:
         + ", ".join(f"{v} {html.escape(str(k))}" for k, v in counts.items())
         + f"; {df['participant'].nunique()} participants; base scenario "
         f"<code>{html.escape(Path(str(meta.get('scenario', '?'))).name)}</code>. "
-        f"Statistics use the {n_ok} trials that ended ok.</p>"
+        f"Statistics use the {len(data)} trials that ended ok"
+        + (f" ({n_ok - len(data)} practice trials left out)" if n_ok > len(data) else "")
+        + ".</p>"
     )
     parts.append("<h2>Design</h2>")
     parts.append(
@@ -414,9 +438,13 @@ def write_report(sweep_dir: Path) -> Path:
     parts.append("<h3>Participants</h3>")
     parts.append(
         _table(
-            ["participant", *[_label(c) for c in params]],
+            ["participant", "kind", *[_label(c) for c in params]],
             [
-                [html.escape(str(r["participant"])), *[_fmt(r[c]) for c in params]]
+                [
+                    html.escape(str(r["participant"])),
+                    html.escape(str(r["participant_kind"])),
+                    *[_fmt(r[c]) for c in params],
+                ]
                 for _, r in people.iterrows()
             ],
         )
@@ -500,6 +528,9 @@ def write_report(sweep_dir: Path) -> Path:
             var = "" if m.group_var is None else f"; participant variance {_fmt(m.group_var)}"
             parts.append(f"<p class='muted'>{html.escape(m.method)}{var}</p>")
 
+    parts.extend(_kinds_section(data, factors, levels, figdir))
+    parts.extend(_questionnaire_section(data, df, meta, factors, levels, figdir))
+
     parts.append("<h2>Failed trials</h2>")
     bad = df[df["outcome"] != "ok"]
     if bad.empty:
@@ -507,7 +538,8 @@ def write_report(sweep_dir: Path) -> Path:
     else:
         body = [
             [
-                html.escape(str(r.trial)),
+                html.escape(str(r.trial))
+                + (f" <span class='muted'>({html.escape(str(r.participant))})</span>"),
                 html.escape(str(r.outcome)),
                 f"<pre>{html.escape(str(r.reason)[:1200])}</pre>",
             ]
@@ -520,4 +552,222 @@ def write_report(sweep_dir: Path) -> Path:
     page = f"<!doctype html><html><head>{head}</head><body>" + "\n".join(parts) + "</body></html>\n"
     out = sweep_dir / "report.html"
     out.write_text(page, encoding="utf-8")
+    return out
+
+
+# ---------------------------------------------------------------- people and simulations
+
+
+def _condition_order(
+    data: pd.DataFrame, factors: list[str], levels: dict[str, list[str]]
+) -> list[str]:
+    """The conditions present, in the study's order of the factor levels."""
+    rows = data[factors].astype(str).drop_duplicates().itertuples(index=False)
+    rank = sorted(
+        rows,
+        key=lambda r: [
+            levels[f].index(v) if v in levels[f] else 99 for f, v in zip(factors, r, strict=True)
+        ],
+    )
+    return [", ".join(f"{_label(f)} = {v}" for f, v in zip(factors, r, strict=True)) for r in rank]
+
+
+def _condition(data: pd.DataFrame, factors: list[str]) -> pd.Series:
+    return (
+        data[factors]
+        .astype(str)
+        .agg(
+            lambda row: ", ".join(f"{_label(f)} = {v}" for f, v in zip(factors, row, strict=True)),
+            axis=1,
+        )
+    )
+
+
+def _kinds_section(
+    data: pd.DataFrame, factors: list[str], levels: dict[str, list[str]], figdir: Path
+) -> list[str]:
+    """Live and simulated (and replayed) participants side by side: each outcome by condition
+    and kind, with CIs; for the live trials, the mixed model with the order position."""
+    import matplotlib.pyplot as plt
+
+    kinds = [k for k in ("live", "simulated", "replay") if k in set(data["participant_kind"])]
+    if "live" not in kinds:
+        return []
+    out = ["<h2>Live and simulated participants</h2>"]
+    out.append(
+        "<p class='muted'>Each outcome by condition, one column per kind of participant: mean "
+        "[95 % bootstrap CI] (n). Live: people in the headset or at the desktop "
+        "(<code>hrc session</code>); simulated: the scripted participant; replay: recorded "
+        "movements that do not react.</p>"
+    )
+    conds = _condition(data, factors) if factors else None
+    order = _condition_order(data, factors, levels) if factors else ["(all)"]
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    for outcome in OUTCOMES:
+        if outcome.name not in data:
+            continue
+        body: list[list[str]] = []
+        fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(order)), 2.6))
+        for j, kind in enumerate(kinds):
+            ms: list[float] = []
+            errs: list[list[float]] = [[], []]
+            for c in order:
+                sel = data["participant_kind"] == kind
+                if conds is not None:
+                    sel &= conds == c
+                m, lo, hi = bootstrap_ci(data.loc[sel, outcome.name].to_numpy(dtype=float), rng)
+                ms.append(m)
+                errs[0].append(m - lo if np.isfinite(m) else 0)
+                errs[1].append(hi - m if np.isfinite(m) else 0)
+            x = np.arange(len(order)) + (j - (len(kinds) - 1) / 2) * 0.12
+            ax.errorbar(x, ms, yerr=errs, fmt="o", capsize=4, label=kind)
+        for c in order:
+            row = [html.escape(c)]
+            for kind in kinds:
+                sel = data["participant_kind"] == kind
+                if conds is not None:
+                    sel &= conds == c
+                vals = data.loc[sel, outcome.name].to_numpy(dtype=float)
+                m, lo, hi = bootstrap_ci(vals, rng)
+                n = int(np.isfinite(vals).sum())
+                row.append(f"{_fmt(m)} [{_fmt(lo)}, {_fmt(hi)}] ({n})" if n else DASH)
+            body.append(row)
+        ax.set_xticks(range(len(order)), [c.replace(", ", "\n") for c in order], fontsize=7)
+        ax.set_ylabel(outcome.unit)
+        ax.legend(fontsize=7, frameon=False)
+        ax.grid(axis="y", alpha=0.3)
+        fig.tight_layout()
+        name = f"kinds_{outcome.name}.png"
+        fig.savefig(figdir / name, dpi=90)
+        plt.close(fig)
+        out.append(
+            f"<h3>{outcome.title} ({outcome.unit})</h3><div class='outcome'>"
+            + _table(["condition", *kinds], body)
+            + f"<img src='{FIGURES}/{name}' alt='{outcome.title} by kind'></div>"
+        )
+    live = data[data["participant_kind"] == "live"]
+    out.append("<h3>Live trials: mixed models with the order position</h3>")
+    out.append(
+        "<p class='muted'><code>outcome ~ factors + order_position</code>, random intercept per "
+        "participant: the order position (1, 2, ... in the participant's session) takes up "
+        "learning and fatigue that counterbalancing spreads over the conditions.</p>"
+    )
+    for outcome in OUTCOMES:
+        if outcome.name not in live:
+            continue
+        model = fit_model(live, outcome, factors, levels, ("order_position",))
+        out.append(_model_html(outcome.title, outcome.unit, model))
+    return out
+
+
+def _model_html(title: str, unit: str, m: ModelResult) -> str:
+    parts = [f"<h4>{html.escape(title)} ({html.escape(unit)})</h4>"]
+    parts.extend(f"<p class='note'>{html.escape(n)}</p>" for n in m.notes)
+    if m.rows:
+        body = [
+            [html.escape(t), _fmt(e), f"[{_fmt(lo)}, {_fmt(hi)}]", _pval(p)]
+            for t, e, lo, hi, p in m.rows
+        ]
+        parts.append(_table(["term", "estimate", "95 % CI", "p"], body))
+        var = "" if m.group_var is None else f"; participant variance {_fmt(m.group_var)}"
+        parts.append(f"<p class='muted'>{html.escape(m.method)}{var}</p>")
+    return "".join(parts)
+
+
+def _questionnaire_section(
+    data: pd.DataFrame,
+    df: pd.DataFrame,
+    meta: dict[str, Any],
+    factors: list[str],
+    levels: dict[str, list[str]],
+    figdir: Path,
+) -> list[str]:
+    """Questionnaire scores by condition with CIs (after each trial), per participant (at the
+    end), and a mixed model of each after-trial score with the order position."""
+    import matplotlib.pyplot as plt
+
+    qs = meta.get("questionnaires") or {}
+    if not qs:
+        return []
+    out = ["<h2>Questionnaires</h2>"]
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    live = data[data["participant_kind"] == "live"]
+    conds = _condition(live, factors) if factors and len(live) else None
+    order = _condition_order(live, factors, levels) if conds is not None else []
+    for qid, q in qs.items():
+        cols = [f"q.{qid}.{s}" for s in [*q.get("scores", []), *q.get("items", [])]]
+        cols = [c for c in cols if c in df.columns]
+        title = html.escape(str(q.get("title", qid)))
+        if not cols:
+            out.append(f"<h3>{title}</h3><p class='note'>No answers yet.</p>")
+            continue
+        if q.get("when") == "end":
+            people = df[df["participant_kind"] == "live"].drop_duplicates("participant")
+            body = []
+            for c in cols:
+                vals = pd_numeric(people[c])
+                m, lo, hi = bootstrap_ci(vals, rng)
+                body.append(
+                    [
+                        html.escape(c),
+                        str(int(np.isfinite(vals).sum())),
+                        _fmt(m),
+                        f"[{_fmt(lo)}, {_fmt(hi)}]",
+                    ]
+                )
+            out.append(
+                f"<h3>{title} <span class='muted'>(end of the session, one answer per "
+                "participant)</span></h3>" + _table(["column", "n", "mean", "95 % CI"], body)
+            )
+            continue
+        head = ["column", *order]
+        body = []
+        for c in cols:
+            row = [html.escape(c)]
+            for cond in order:
+                assert conds is not None
+                vals = pd_numeric(live.loc[conds == cond, c])
+                m, lo, hi = bootstrap_ci(vals, rng)
+                n = int(np.isfinite(vals).sum())
+                row.append(f"{_fmt(m)} [{_fmt(lo)}, {_fmt(hi)}] ({n})" if n else DASH)
+            body.append(row)
+        out.append(
+            f"<h3>{title} <span class='muted'>(after each trial; practice left out)</span></h3>"
+            "<p class='muted'>Mean [95 % bootstrap CI] (n) by condition.</p>" + _table(head, body)
+        )
+        scores = [c for c in cols if c.rsplit(".", 1)[1] in q.get("scores", [])]
+        if scores and order:
+            fig, ax = plt.subplots(figsize=(max(4.0, 1.4 * len(order)), 2.6))
+            for j, c in enumerate(scores):
+                ms: list[float] = []
+                errs: list[list[float]] = [[], []]
+                for cond in order:
+                    assert conds is not None
+                    m, lo, hi = bootstrap_ci(pd_numeric(live.loc[conds == cond, c]), rng)
+                    ms.append(m)
+                    errs[0].append(m - lo if np.isfinite(m) else 0)
+                    errs[1].append(hi - m if np.isfinite(m) else 0)
+                x = np.arange(len(order)) + (j - (len(scores) - 1) / 2) * 0.1
+                ax.errorbar(x, ms, yerr=errs, fmt="o", capsize=4, label=c)
+            ax.set_xticks(range(len(order)), [c.replace(", ", "\n") for c in order], fontsize=7)
+            ax.legend(fontsize=7, frameon=False)
+            ax.grid(axis="y", alpha=0.3)
+            fig.tight_layout()
+            name = f"questionnaire_{_safe(qid)}.png"
+            fig.savefig(figdir / name, dpi=90)
+            plt.close(fig)
+            out.append(f"<img src='{FIGURES}/{name}' alt='{title} by condition'>")
+            for c in scores:
+                d = live.assign(**{c: pd_numeric(live[c])})
+                model = fit_model(
+                    d, Outcome(c, c, "", re.escape(c)), factors, levels, ("order_position",)
+                )
+                out.append(_model_html(f"{c} ~ factors + order position", "score", model))
+    return out
+
+
+def pd_numeric(values: Any) -> npt.NDArray[np.float64]:
+    import pandas as pd
+
+    out: npt.NDArray[np.float64] = pd.to_numeric(values, errors="coerce").to_numpy(dtype=float)
     return out

@@ -24,6 +24,8 @@ import numpy as np
 
 from hrc import scenario as sc
 from hrc.scenario.paths import find_project_root, installed_root, resolve_path
+from hrc.study import live as live_spec
+from hrc.study.live import LiveSpec, LiveTrialPlan
 from hrc.tomlw import dumps
 
 FORMAT_VERSION = 1  # part of every trial's input hash: bump when a resolved input changes meaning
@@ -111,6 +113,35 @@ class Study:
     dists: dict[str, Dist]
     text: str
     trials: list[Trial] = field(default_factory=list)
+    live: LiveSpec | None = None
+    # the parsed base scenario (paths made portable) and where it is: live trials resolve from it
+    base_raw: dict[str, Any] = field(default_factory=dict)
+    base_folder: Path | None = None
+
+    def live_trials(self, participant: str) -> list[LiveTrial]:
+        """A live participant's trials in their session's order (practice first), each with its
+        resolved scenario: the condition's values, the participant's id, input "vr"."""
+        if self.live is None or participant not in self.live.participants:
+            raise KeyError(participant)
+        out: list[LiveTrial] = []
+        for plan in self.live.plan(participant, self.conditions, self.repetitions, trial_id):
+            cond = self.conditions[plan.condition_index]
+            overrides = {"participant.name": participant, "participant.input": "vr", **cond}
+            text = dumps(apply_overrides(self.base_raw, overrides))
+            out.append(LiveTrial(plan, cond, text, input_hash(text, plan.seed)))
+        return out
+
+
+@dataclass(frozen=True)
+class LiveTrial:
+    plan: LiveTrialPlan
+    condition: dict[str, Any]
+    scenario_text: str
+    input_hash: str
+
+    @property
+    def id(self) -> str:
+        return self.plan.id
 
 
 # ---------------------------------------------------------------- factor paths
@@ -348,7 +379,8 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
         raise StudyError([f"toml: not valid TOML: {exc}"], path) from exc
     folder = path.resolve().parent
     problems: list[str] = []
-    for extra in sorted(set(raw) - {"study", "factors", "conditions", "participants"}):
+    tables = {"study", "factors", "conditions", "participants", "live", "questionnaires"}
+    for extra in sorted(set(raw) - tables):
         problems.append(f"{extra}: unknown table")
     head = raw.get("study")
     if not isinstance(head, dict):
@@ -371,7 +403,18 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
     if base is None:
         problems.append(f"study.scenario: no such scenario file {base_written!r}")
     conditions = _conditions(raw, design, problems)
-    people, dists = _people(raw.get("participants"), folder, problems)
+    live = live_spec.parse(raw.get("live"), raw.get("questionnaires"), folder, conditions, problems)
+    if live is not None and "participants" not in raw:
+        people: list[Person] = []  # a study with people only
+        dists: dict[str, Dist] = {}
+    else:
+        people, dists = _people(raw.get("participants"), folder, problems)
+    if live is not None:
+        clash = set(live.participants) & {p.id for p in people}
+        if clash:
+            problems.append(
+                f"live.participants: {sorted(clash)[0]!r} is also a simulated participant's id"
+            )
     if problems or base is None:
         raise StudyError(problems, path)
 
@@ -403,6 +446,9 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
         people=people,
         dists=dists,
         text=text,
+        live=live,
+        base_raw=base_raw,
+        base_folder=base.parent,
     )
     seen: set[str] = set()
     checked: set[str] = set()
@@ -440,6 +486,27 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
                 study.trials.append(
                     Trial(tid, cond, person, rep, seed, scen_text, input_hash(scen_text, seed))
                 )
+    if live is not None:
+        for cond in conditions:  # a live trial's scenario: the condition with input "vr"
+            overrides = {
+                "participant.name": live.participants[0],
+                "participant.input": "vr",
+                **cond,
+            }
+            try:
+                sc.loads(
+                    dumps(apply_overrides(base_raw, overrides)),
+                    folder=base.parent,
+                    project_root=root,
+                )
+            except (TypeError, ValueError) as exc:
+                problems.append(f"{_cond_name(cond)} (live): {exc}")
+            except sc.ScenarioError as exc:
+                for p in exc.problems:
+                    line = f"{_cond_name(cond)} (live): {p.key}: {p.message}"
+                    if line not in seen:
+                        seen.add(line)
+                        problems.append(line)
     ids = [t.id for t in study.trials]
     dup = sorted({i for i in ids if ids.count(i) > 1})
     if dup:

@@ -154,9 +154,7 @@ def sweep(
 ) -> list[Record]:
     """Run the trials of `study` not already done in `out`; write the manifest, the tables and
     a copy of the study; return every trial's record (in the study's order)."""
-    out.mkdir(parents=True, exist_ok=True)
-    shutil.copyfile(study.path, out / "study.toml")
-    (out / "study.json").write_text(json.dumps(describe(study), indent=1), encoding="utf-8")
+    write_study_files(study, out)
     manifest = Manifest(out / MANIFEST)
     todo = [t for t in study.trials if not manifest.done(t)]
     skipped = len(study.trials) - len(todo)
@@ -185,8 +183,17 @@ def _cores() -> int:
         return os.cpu_count() or 1
 
 
+def write_study_files(study: Study, out: Path) -> None:
+    """`study.toml` (a copy) and `study.json` (what `hrc report` needs) in the study folder."""
+    out.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(study.path, out / "study.toml")
+    (out / "study.json").write_text(json.dumps(describe(study), indent=1), encoding="utf-8")
+
+
 def describe(study: Study) -> dict[str, Any]:
     """What `hrc report` needs to know about the study (beside the table)."""
+    live = study.live
+    asked = {"after_trial": live.after_trial, "end": live.end} if live else {}
     return {
         "name": study.name,
         "scenario": str(study.scenario),
@@ -196,4 +203,15 @@ def describe(study: Study) -> dict[str, Any]:
         "participants": [p.id for p in study.people],
         "participant_parameters": list(study.dists),
         "trials": len(study.trials),
+        "live_participants": live.participants if live else [],
+        "questionnaires": {
+            q.id: {
+                "title": q.title,
+                "when": when,
+                "scores": q.score_names(),
+                "items": [i.id for i in q.items if i.kind in ("scale", "likert")],
+            }
+            for when, qs in asked.items()
+            for q in qs
+        },
     }

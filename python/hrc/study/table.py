@@ -1,11 +1,17 @@
 """The sweep's table: one row per trial (`trials.parquet`, `trials.csv`).
 
-Columns: study, trial, every factor by its dotted key, participant, its parameters
-(`participant.<name>`), replay, seed, repetition, outcome, reason, exit_code, wall_s, then every
-field of metrics.json flattened with dots (a list becomes its length). The metrics are read
-generically: a field added to metrics.json becomes a column without a change here. A metric
-column named like a study column (e.g. `participant`, `seed`) is left out: the study's value is
-the one the trial was given.
+Columns: study, trial, every factor by its dotted key, participant, participant_kind
+(`simulated`, `replay`, `live`), order_position (a live participant's trials: 1, 2, ...; 0 for
+practice), practice, its parameters (`participant.<name>`), replay, seed, repetition, outcome,
+reason, exit_code, wall_s, then every field of metrics.json flattened with dots (a list becomes
+its length), then the questionnaires' answers and scores (`q.<questionnaire>.<item>`; those
+asked at the end of a session are on each of the participant's rows).
+
+The sweep's trials come from its records, the live participants' from their sessions
+(`sessions/<id>/session.json`): `write_study_table` writes both, whoever calls it. The metrics
+are read generically: a field added to metrics.json becomes a column without a change here. A
+metric column named like a study column (e.g. `participant`, `seed`) is left out: the study's
+value is the one the trial was given.
 """
 
 from __future__ import annotations
@@ -23,6 +29,9 @@ STUDY_COLUMNS = (
     "study",
     "trial",
     "participant",
+    "participant_kind",
+    "order_position",
+    "practice",
     "replay",
     "seed",
     "repetition",
@@ -57,6 +66,9 @@ def rows(study: Study, records: list[Record]) -> list[dict[str, Any]]:
             "trial": t.id,
             **{k: t.condition.get(k) for k in study.factors},
             "participant": t.person.id,
+            "participant_kind": "replay" if t.person.replay else "simulated",
+            "order_position": None,
+            "practice": False,
             **{f"participant.{k}": v for k, v in t.person.params.items()},
             "replay": str(t.person.replay) if t.person.replay else None,
             "seed": t.seed,
@@ -72,10 +84,63 @@ def rows(study: Study, records: list[Record]) -> list[dict[str, Any]]:
     return out
 
 
-def frame(study: Study, records: list[Record]) -> pd.DataFrame:
+def live_rows(study: Study, out: Path) -> list[dict[str, Any]]:
+    """One row per trial of the live sessions in `out` that has run (pending ones are left
+    out), in session order."""
+    from hrc.session.state import all_sessions
+    from hrc.study.trial import read_metrics
+
+    result: list[dict[str, Any]] = []
+    for s in all_sessions(out):
+        session_q = _answers(s.end_answers, s.end_scores)
+        for t in s.trials:
+            if not t.attempts and t.status == "pending":
+                continue
+            last = t.attempts[-1] if t.attempts else None
+            row: dict[str, Any] = {
+                "study": study.name,
+                "trial": t.id,
+                **{k: t.condition.get(k) for k in study.factors},
+                "participant": s.participant,
+                "participant_kind": "live",
+                "order_position": t.order_position,
+                "practice": t.practice,
+                "replay": None,
+                "seed": t.seed,
+                "repetition": t.repetition,
+                "outcome": t.status,
+                "reason": t.reason,
+                "exit_code": last.exit_code if last else None,
+                "wall_s": last.wall_s if last else None,
+                "attempts": len(t.attempts),
+            }
+            if t.status in ("ok", "stalled"):
+                for key, value in flatten(
+                    read_metrics(out / "trials" / t.id / "metrics.json") or {}
+                ).items():
+                    row.setdefault(key, value)
+            row.update(_answers(t.answers, t.scores))
+            row.update(session_q)
+            result.append(row)
+    return result
+
+
+def _answers(
+    answers: dict[str, dict[str, Any]], scores: dict[str, dict[str, Any]]
+) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    for qid, items in answers.items():
+        for item, value in items.items():
+            out[f"q.{qid}.{item}"] = value
+        for name, value in (scores.get(qid) or {}).items():
+            out[f"q.{qid}.{name}"] = value
+    return out
+
+
+def frame(study: Study, records: list[Record], out: Path | None = None) -> pd.DataFrame:
     import pandas as pd
 
-    data = rows(study, records)
+    data = rows(study, records) + (live_rows(study, out) if out is not None else [])
     columns: list[str] = []
     for row in data:  # first-seen order: study columns, then metrics as metrics.json lists them
         columns.extend(k for k in row if k not in columns)
@@ -87,7 +152,22 @@ def frame(study: Study, records: list[Record]) -> pd.DataFrame:
 
 
 def write_table(study: Study, records: list[Record], out: Path) -> pd.DataFrame:
-    df = frame(study, records)
-    df.to_parquet(out / "trials.parquet", index=False)
-    df.to_csv(out / "trials.csv", index=False)
+    """The table of the sweep's `records` and of every live session in `out` (written to
+    temporary files, then renamed: a reader never sees half a table)."""
+    import os
+
+    df = frame(study, records, out)
+    for name, write in (("trials.parquet", df.to_parquet), ("trials.csv", df.to_csv)):
+        tmp = out / f".{name}.tmp"
+        write(tmp, index=False)
+        os.replace(tmp, out / name)
     return df
+
+
+def write_study_table(study: Study, out: Path) -> pd.DataFrame:
+    """The table from what is on disk: the sweep's manifest and the live sessions."""
+    from hrc.study.sweep import MANIFEST, Manifest
+
+    manifest = Manifest(out / MANIFEST)
+    records = [manifest.records[t.id] for t in study.trials if t.id in manifest.records]
+    return write_table(study, records, out)

@@ -148,26 +148,31 @@ def run_job(job: Job) -> Record:
     wall = round(time.monotonic() - t0, 3)
     (trial_dir).mkdir(parents=True, exist_ok=True)
     (trial_dir / "hrc-run.log").write_text(stdout + stderr, encoding="utf-8")
-    metrics = _read_metrics(trial_dir / "metrics.json")
-    run = (metrics or {}).get("run") or {}
+    metrics = read_metrics(trial_dir / "metrics.json")
     rec = Record(job.trial, job.input_hash, "ok", "", proc.returncode, wall, host, time.time())
     rec.metrics = metrics
-    if timed_out:
-        rec.outcome = "failed"
-        rec.reason = f"timed out after {job.timeout_s:g} s of wall time (hrc run stopped)"
-    elif run.get("end_reason") == "stalled" or run.get("stall"):
-        rec.outcome = "stalled"
-        rec.reason = str(run.get("stall") or _tail(stderr, 1))
-    elif proc.returncode != 0:
-        rec.outcome = "failed"
-        rec.reason = f"hrc run exited with code {proc.returncode}: {_tail(stderr)}"
-    elif metrics is None:
-        rec.outcome = "failed"
-        rec.reason = "hrc run succeeded but wrote no readable metrics.json"
+    timeout = f"timed out after {job.timeout_s:g} s of wall time (hrc run stopped)"
+    rec.outcome, rec.reason = judge(proc.returncode, metrics, stderr, timeout if timed_out else "")
     return rec
 
 
-def _read_metrics(path: Path) -> dict[str, Any] | None:
+def judge(
+    returncode: int | None, metrics: dict[str, Any] | None, stderr: str, stopped: str = ""
+) -> tuple[str, str]:
+    """(outcome, reason) of one `hrc run`: `stopped` names why it was stopped, if it was."""
+    run = (metrics or {}).get("run") or {}
+    if stopped:
+        return "failed", stopped
+    if run.get("end_reason") == "stalled" or run.get("stall"):
+        return "stalled", str(run.get("stall") or _tail(stderr, 1))
+    if returncode != 0:
+        return "failed", f"hrc run exited with code {returncode}: {_tail(stderr)}"
+    if metrics is None:
+        return "failed", "hrc run succeeded but wrote no readable metrics.json"
+    return "ok", ""
+
+
+def read_metrics(path: Path) -> dict[str, Any] | None:
     try:
         data = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, ValueError):

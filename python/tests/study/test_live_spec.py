@@ -1,0 +1,106 @@
+"""The study file's [live] table (hrc.study.live, via load_study): checked in full, and each
+live participant's trials in their counterbalanced order."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from hrc.paths import project_root
+from hrc.study import StudyError, load_study
+
+MINIMAL = project_root() / "scenarios" / "minimal.toml"
+
+
+def study(tmp_path: Path, live: str, extra: str = "", factors: str = "") -> Path:
+    (tmp_path / "consent.md").write_text("# Consent\nYes?\n")
+    (tmp_path / "cues.md").write_text("Cues on.\n")
+    factors = (
+        factors
+        or '"conditions.anticipation" = [true, false]\n"robots.*.max_tcp_speed" = [0.25, 0.5]'
+    )
+    path = tmp_path / "study.toml"
+    path.write_text(
+        f'[study]\nname = "s"\nscenario = "{MINIMAL}"\n[factors]\n{factors}\n'
+        f"{extra}\n[live]\n{live}"
+    )
+    return path
+
+
+def test_each_live_participant_does_every_condition_in_a_williams_order(tmp_path: Path) -> None:
+    s = load_study(
+        study(tmp_path, 'n = 4\npractice = 2\nconsent = "consent.md"'), motion_check=False
+    )
+    assert s.live is not None and s.live.participants == ["L01", "L02", "L03", "L04"]
+    assert s.people == [] and s.trials == []  # people only: no simulated trials
+    firsts = []
+    for pid in s.live.participants:
+        trials = s.live_trials(pid)
+        assert [t.plan.practice for t in trials] == [True, True, False, False, False, False]
+        assert [t.plan.order_position for t in trials] == [0, 0, 1, 2, 3, 4]
+        assert trials[0].condition == s.conditions[0]  # practice: the first condition by default
+        order = [t.plan.condition_index for t in trials if not t.plan.practice]
+        assert sorted(order) == [0, 1, 2, 3]
+        firsts.append(order[0])
+        for t in trials:  # a live trial's scenario: the participant's id, input vr
+            assert 'input = "vr"' in t.scenario_text and f'name = "{pid}"' in t.scenario_text
+        assert len({t.id for t in trials}) == 6 and trials[0].id.startswith("practice1_")
+    assert sorted(firsts) == [0, 1, 2, 3]  # each condition first once across the square
+
+
+def test_the_practice_condition_and_per_condition_instructions_are_named_by_factor_values(
+    tmp_path: Path,
+) -> None:
+    live = (
+        'participants = ["A7", "B2"]\npractice = 1\norder = "fixed"\n'
+        'practice_condition = { "conditions.anticipation" = false, '
+        '"robots.*.max_tcp_speed" = 0.5 }\n'
+        '[[live.instruction]]\nwhen = { "conditions.anticipation" = true }\nfile = "cues.md"\n'
+    )
+    s = load_study(study(tmp_path, live), motion_check=False)
+    assert s.live is not None
+    trials = s.live_trials("B2")
+    assert trials[0].condition == {"conditions.anticipation": False, "robots.*.max_tcp_speed": 0.5}
+    shown = [bool(s.live.instruction_for(t.condition)) for t in trials[1:]]
+    assert shown == [True, True, False, False]  # fixed order: anticipation true first
+    with pytest.raises(KeyError):
+        s.live_trials("L01")
+
+
+def test_every_problem_of_a_live_table_is_listed(tmp_path: Path) -> None:
+    live = (
+        'participants = ["L01", "L01"]\norder = "balanced"\npractice = -1\nmin_break_s = "5"\n'
+        'consent = "missing.md"\nafter_trial = ["tlx", "nasa"]\nend = ["tlx"]\ncolour = 1\n'
+        'practice_condition = { "conditions.anticipation" = "maybe" }\n'
+    )
+    with pytest.raises(StudyError) as err:
+        load_study(study(tmp_path, live), motion_check=False)
+    text = "\n".join(err.value.problems)
+    for want in (
+        "live.colour: unknown key",
+        "live.participants: an id is listed twice",
+        "live.order: one of williams, latin, random, fixed (got 'balanced')",
+        "live.practice: an integer >= 0 (got -1)",
+        "live.min_break_s: seconds, 0..3600 (got '5')",
+        "live.consent: cannot read 'missing.md'",
+        "live.after_trial: no questionnaire 'nasa'",
+        "live.end: 'tlx' is also asked after each trial",
+        "live.practice_condition: no condition has these values",
+    ):
+        assert want in text, f"{want!r} not in:\n{text}"
+
+
+def test_questionnaires_need_a_live_table_and_ids_must_not_clash(tmp_path: Path) -> None:
+    path = tmp_path / "s.toml"
+    path.write_text(
+        f'[study]\nname = "s"\nscenario = "{MINIMAL}"\n[participants]\nn = 1\n'
+        '[questionnaires.q]\nitems = [{ id = "a", text = "A?" }]\n'
+    )
+    with pytest.raises(StudyError, match="questionnaires: only with a \\[live\\] table"):
+        load_study(path, motion_check=False)
+    with pytest.raises(StudyError, match="'P01' is also a simulated participant's id"):
+        load_study(
+            study(tmp_path, 'participants = ["P01"]', extra="[participants]\nn = 1\n"),
+            motion_check=False,
+        )

@@ -1,0 +1,116 @@
+"""Questionnaire items, checks and scores (hrc.study.questionnaires)."""
+
+from __future__ import annotations
+
+import pytest
+
+from hrc.study.questionnaires import SSQ, builtin, parse, tlx_pairs
+
+TLX = {
+    "mental": 55,
+    "physical": 20,
+    "temporal": 40,
+    "performance": 25,
+    "effort": 50,
+    "frustration": 10,
+}
+
+
+def test_raw_tlx_is_the_mean_of_the_six_scales() -> None:
+    q = builtin("tlx")
+    assert q.item_ids() == list(TLX)
+    assert q.check(TLX) == []
+    assert q.score(TLX) == {"raw": 33.3333}
+
+
+def test_weighted_tlx_weighs_each_scale_by_the_pairs_it_won() -> None:
+    problems: list[str] = []
+    q = parse("tlx_w", {"kind": "nasa_tlx", "weighted": True}, problems)
+    assert not problems and q is not None
+    assert len(tlx_pairs()) == 15
+    # the first of each pair wins: mental 5 times, physical 4, ... frustration never
+    answers = dict(TLX)
+    for item in q.items:
+        if item.kind == "choice":
+            answers[item.id] = item.options[0]
+    assert q.check(answers) == []
+    weighted = (55 * 5 + 20 * 4 + 40 * 3 + 25 * 2 + 50 * 1 + 10 * 0) / 15
+    assert q.score(answers) == {"raw": 33.3333, "weighted": round(weighted, 4)}
+
+
+def test_ssq_scores_use_the_published_weights() -> None:
+    q = builtin("ssq")
+    assert len(q.items) == 16
+    none = {k: 0 for k, _, _ in SSQ}
+    assert q.score(none) == {"nausea": 0.0, "oculomotor": 0.0, "disorientation": 0.0, "total": 0.0}
+    # nausea (N, D) rated 2: N sum 2, D sum 2
+    one = {**none, "nausea": 2}
+    s = q.score(one)
+    assert s["nausea"] == round(2 * 9.54, 4) and s["disorientation"] == round(2 * 13.92, 4)
+    assert s["oculomotor"] == 0 and s["total"] == round(4 * 3.74, 4)
+    # every cluster has seven symptoms
+    for c in "NOD":
+        assert sum(c in loads for _, _, loads in SSQ) == 7
+
+
+def test_answers_out_of_range_or_missing_are_named() -> None:
+    q = builtin("tlx")
+    bad = {**TLX, "mental": 57, "effort": 101}
+    del bad["frustration"]
+    assert q.check(bad) == [
+        "mental: should be 0, 5, ..., 100",
+        "effort: should be 0, 5, ..., 100",
+        "frustration: missing",
+    ]
+    assert q.check({**TLX, "extra": 1}) == ["extra: not an item"]
+
+
+def test_a_likert_questionnaire_scores_its_mean_with_reversed_items() -> None:
+    problems: list[str] = []
+    q = parse(
+        "trust",
+        {
+            "points": 7,
+            "anchors": ["strongly disagree", "strongly agree"],
+            "items": [
+                {"id": "safe", "text": "I felt safe."},
+                {"id": "nervous", "text": "The robots made me nervous.", "reverse": True},
+                {"id": "which", "kind": "choice", "text": "Which robot?", "options": ["r1", "r2"]},
+                {"id": "comment", "kind": "text", "text": "Anything else?"},
+            ],
+        },
+        problems,
+    )
+    assert not problems and q is not None
+    assert [i.required for i in q.items] == [True, True, True, False]
+    answers = {"safe": 6, "nervous": 2, "which": "r2"}
+    assert q.check(answers) == []
+    assert q.score(answers) == {"mean": 6.0}  # (6 + (8 - 2)) / 2
+    assert q.check({**answers, "safe": 8}) == ["safe: should be an integer 1..7"]
+
+
+@pytest.mark.parametrize(
+    ("spec", "problem"),
+    [
+        ({"items": []}, "questionnaires.q.items: a list of items"),
+        ({"items": [{"id": "a"}]}, "questionnaires.q.items[0].text: the question, as text"),
+        (
+            {"points": 1, "items": [{"id": "a", "text": "A?"}]},
+            "questionnaires.q.items[0].points: an integer 2..11",
+        ),
+        (
+            {"items": [{"id": "a", "text": "A?", "kind": "choice", "options": ["x"]}]},
+            "options: two or more",
+        ),
+        (
+            {"kind": "essay", "items": [{"id": "a", "text": "A?"}]},
+            "questionnaires.q.kind: one of nasa_tlx",
+        ),
+        ({"items": [{"id": "a", "text": "A?"}, {"id": "a", "text": "B?"}]}, "'a' is used twice"),
+        ({"kind": "ssq", "weighted": True}, "questionnaires.q.weighted"),
+    ],
+)
+def test_a_bad_questionnaire_is_named(spec: dict, problem: str) -> None:
+    problems: list[str] = []
+    parse("q", spec, problems)
+    assert any(problem in p for p in problems), problems

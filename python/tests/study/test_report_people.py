@@ -1,0 +1,108 @@
+"""`hrc report` with live participants (hrc.study.report): live and simulated side by side,
+questionnaire scores by condition, the order position in the live trials' model, practice
+trials kept in the table and left out of the statistics. The table is made here: what is
+tested is the report of it."""
+
+from __future__ import annotations
+
+import json
+import re
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hrc.study.report import write_report
+
+FACTOR = "conditions.anticipation"
+
+
+def table(folder: Path) -> None:
+    rng = np.random.default_rng(5)
+    rows = []
+    for kind, prefix in (("simulated", "P"), ("live", "L")):
+        for k in range(1, 7):
+            pid = f"{prefix}{k:02d}"
+            order = [True, False] if k % 2 else [False, True]  # counterbalanced
+            if kind == "live":  # a practice trial, far off: it must not count
+                rows.append(
+                    dict(kind=kind, pid=pid, ant=True, pos=0, practice=True, t=500.0, tlx=99)
+                )
+            for pos, ant in enumerate(order, start=1):
+                # anticipation saves 3 s; live people 10 s slower and 2 s faster each trial
+                t = 40.0 - 3.0 * ant + rng.normal(0, 0.5)
+                if kind == "live":
+                    t += 10.0 - 2.0 * pos
+                tlx = 50 - 10 * ant + int(rng.integers(-5, 6)) if kind == "live" else None
+                rows.append(
+                    dict(
+                        kind=kind,
+                        pid=pid,
+                        ant=ant,
+                        pos=pos if kind == "live" else None,
+                        practice=False,
+                        t=t,
+                        tlx=tlx,
+                    )
+                )
+    df = pd.DataFrame(
+        {
+            "study": "people",
+            "trial": [f"{r['pid']}_{r['ant']}_{r['pos']}" for r in rows],
+            FACTOR: [r["ant"] for r in rows],
+            "participant": [r["pid"] for r in rows],
+            "participant_kind": [r["kind"] for r in rows],
+            "order_position": [r["pos"] for r in rows],
+            "practice": [r["practice"] for r in rows],
+            "outcome": "ok",
+            "reason": "",
+            "task.completion_s": [r["t"] for r in rows],
+            "q.tlx.raw": [r["tlx"] for r in rows],
+        }
+    )
+    df.to_parquet(folder / "trials.parquet", index=False)
+    meta = {
+        "name": "people",
+        "scenario": "minimal.toml",
+        "factors": {FACTOR: [True, False]},
+        "questionnaires": {
+            "tlx": {
+                "title": "NASA Task Load Index",
+                "when": "after_trial",
+                "scores": ["raw"],
+                "items": [],
+            }
+        },
+    }
+    (folder / "study.json").write_text(json.dumps(meta))
+
+
+def text(html: str) -> str:
+    return re.sub(r"\s+", " ", re.sub(r"<[^>]+>", " ", html))
+
+
+def test_live_and_simulated_side_by_side_with_the_order_position_in_the_model(
+    tmp_path: Path,
+) -> None:
+    table(tmp_path)
+    page = write_report(tmp_path).read_text()
+    plain = text(page)
+    assert "Statistics use the 24 trials that ended ok (6 practice trials left out)" in plain
+    assert "<th>condition</th><th>live</th><th>simulated</th>" in page
+    # live people 10 - 2 * 1.5 = 7 s slower on average than the simulated, in each condition
+    m = re.search(r"anticipation = True ([\d.]+) \[[^\]]+\] \(6\) ([\d.]+) \[", plain)
+    assert m, plain[:3000]
+    assert float(m.group(1)) - float(m.group(2)) == pytest.approx(7.0, abs=1.0)
+    assert (tmp_path / "figures" / "kinds_task_completion_s.png").is_file()
+    # the live trials' model: anticipation about -3 s, the order position about -2 s per step
+    live = plain[plain.index("Live trials: mixed models") :]
+    m = re.search(r"order position \(per step\) (-?[\d.]+) \[(-?[\d.]+), (-?[\d.]+)\]", live)
+    assert m, live[:2000]
+    assert float(m.group(1)) == pytest.approx(-2.0, abs=0.7)
+    # the questionnaire by condition: practice answers (99) left out
+    q = plain[plain.index("Questionnaires") :]
+    m = re.search(r"q\.tlx\.raw ([\d.]+) \[[^\]]+\] \(6\) ([\d.]+) \[[^\]]+\] \(6\)", q)
+    assert m, q[:1500]
+    assert float(m.group(1)) < 45 < float(m.group(2)) < 56  # anticipation on, off
+    assert "q.tlx.raw ~ factors + order position" in q
