@@ -216,6 +216,44 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_session(args: argparse.Namespace) -> int:
+    from hrc.cli.runner import Terminated, stop_on_signals
+    from hrc.session.run import Options, Session, SessionEnd
+    from hrc.session.web import check_bind
+    from hrc.study import StudyError, load_study
+
+    try:
+        study = load_study(args.study, motion_check=not args.no_reach)
+    except StudyError as exc:
+        print(str(exc), file=sys.stderr)
+        print(f"study rejected: {len(exc.problems)} problem(s); nothing was run", file=sys.stderr)
+        return 2
+    token = os.environ.get("HRC_VR_TOKEN") or None
+    problem = check_bind(args.host, token)
+    if problem:
+        print(f"session: {problem}", file=sys.stderr)
+        return 2
+    out = Path(args.out) if args.out else Path("runs") / "studies" / study.name
+    opts = Options(out, args.host, args.port, args.vr_port, token, args.page_mode or "")
+    try:
+        session = Session(study, args.participant, opts)
+    except (SessionEnd, ValueError) as exc:
+        print(f"session: {exc}", file=sys.stderr)
+        return getattr(exc, "code", 2)
+    try:
+        stop_on_signals()
+        return session.run()
+    except KeyboardInterrupt:
+        _say(f"session interrupted; resume with the same command (saved in {session.path})")
+        return 130
+    except Terminated as exc:
+        _say(f"session stopped by {exc}; resume with the same command (saved in {session.path})")
+        return 128 + exc.signum
+    except OSError as exc:
+        print(f"session: {exc}", file=sys.stderr)
+        return 2
+
+
 def _cmd_report(args: argparse.Namespace) -> int:
     from hrc.study.report import ReportError, write_report
 
@@ -435,6 +473,31 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-reach", action="store_true", help="skip the motion check of the resolved scenarios"
     )
     sw.set_defaults(func=_cmd_sweep)
+
+    ss = sub.add_parser(
+        "session", help="run a live participant's session of a study (docs/studies.md)"
+    )
+    ss.add_argument("study", help="study TOML file with a [live] table")
+    ss.add_argument("--participant", required=True, metavar="ID", help="a [live] participant id")
+    ss.add_argument("--out", default=None, help="study folder (default runs/studies/<name>/)")
+    ss.add_argument(
+        "--host",
+        default=os.environ.get("HRC_VR_HOST", VR_DEFAULT_HOST),
+        help="address of the session's page and of each trial's bridge (non-loopback needs "
+        "HRC_VR_TOKEN)",
+    )
+    ss.add_argument("--port", type=int, default=8770, help="the session page's port (8770)")
+    ss.add_argument(
+        "--vr-port", type=int, default=0, help="each trial's bridge port (default: a free one)"
+    )
+    ss.add_argument(
+        "--page-mode",
+        choices=["desktop", "xr"],
+        default=None,
+        help="the mode in the printed link (default: the page picks: xr where WebXR is)",
+    )
+    ss.add_argument("--no-reach", action="store_true", help="skip the motion check")
+    ss.set_defaults(func=_cmd_session)
 
     rp = sub.add_parser("report", help="write report.html for a sweep folder")
     rp.add_argument("sweep_dir")

@@ -1,0 +1,202 @@
+"""The session's web server: the participant's page (the same client as a live trial's) and
+one WebSocket, `/session`, through which the page shows the screens between trials and sends
+back what the participant did (docs/client-protocol.md, "Sessions").
+
+An asyncio loop in its own thread; the session's main thread calls `show` and reads `inbox`.
+Only the page that presents the participant's key (`?driver=KEY`) talks to the session; a
+newer page with the key replaces an older one (a reopened tab).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import hmac
+import json
+import logging
+import queue
+import threading
+from http import HTTPStatus
+from typing import Any
+from urllib.parse import parse_qs, unquote, urlsplit
+
+from websockets.asyncio.server import ServerConnection, serve
+from websockets.datastructures import Headers
+from websockets.exceptions import ConnectionClosed
+from websockets.http11 import Request, Response
+
+from hrc_human_input.vr_bridge import CLIENT_DIST, CONTENT_TYPES, page_html, safe_file
+from hrc_human_input.vr_options import is_loopback
+
+log = logging.getLogger(__name__)
+
+MAX_MESSAGE_BYTES = 256 * 1024  # a questionnaire's answers with free text
+
+
+def check_bind(host: str, token: str | None) -> str:
+    """A problem with serving the session on `host` ("" if none): off loopback, anyone on
+    the network could answer for the participant without a token."""
+    if not is_loopback(host) and not token:
+        return (
+            f"refusing to serve the session on {host!r} without a token (HRC_VR_TOKEN): anyone "
+            "on the network could take the participant's place; or bind 127.0.0.1"
+        )
+    return ""
+
+
+def _first(query: dict[str, list[str]], key: str) -> str | None:
+    values = query.get(key)
+    return values[0] if values else None
+
+
+def _response(status: HTTPStatus, body: bytes, ctype: str) -> Response:
+    headers = Headers(
+        [("Content-Type", ctype), ("Content-Length", str(len(body))), ("Cache-Control", "no-store")]
+    )
+    return Response(status.value, status.phrase, headers, body)
+
+
+class SessionServer:
+    def __init__(self, host: str, port: int, driver_key: str, token: str | None = None) -> None:
+        self.host, self.port = host, port
+        self.driver_key = driver_key
+        self.token = token
+        self.inbox: queue.Queue[tuple[str, dict[str, Any]]] = queue.Queue()
+        self._screen: dict[str, Any] | None = None
+        self._page: ServerConnection | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop: asyncio.Event | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._thread: threading.Thread | None = None
+        self.bound_port = 0
+        self._html = page_html(CLIENT_DIST)
+
+    # ------------------------------------------------------------------ main thread
+    def start(self, timeout: float = 10.0) -> int:
+        self._thread = threading.Thread(target=self._run, name="session-web", daemon=True)
+        self._thread.start()
+        if not self._ready.wait(timeout) or self._error is not None:
+            raise OSError(
+                f"cannot serve the session page on {self.host}:{self.port}: {self._error}"
+            )
+        return self.bound_port
+
+    def stop(self) -> None:
+        if self._loop is not None and self._stop is not None and self._loop.is_running():
+            self._loop.call_soon_threadsafe(self._stop.set)
+        if self._thread is not None:
+            self._thread.join(timeout=5)
+
+    def __enter__(self) -> SessionServer:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
+
+    def show(self, screen: dict[str, Any]) -> None:
+        """What the page shows now (kept: a page that (re)connects gets it first)."""
+        text = json.dumps({"type": "screen", **screen})
+        self._screen = json.loads(text)
+        loop = self._loop
+        if loop is not None:
+            with contextlib.suppress(RuntimeError):
+                loop.call_soon_threadsafe(self._send_current, text)
+
+    def connected(self) -> bool:
+        return self._page is not None
+
+    # ------------------------------------------------------------------ loop thread
+    def _run(self) -> None:
+        try:
+            asyncio.run(self._main())
+        except BaseException as exc:
+            self._error = exc
+            self._ready.set()
+
+    async def _main(self) -> None:
+        self._loop = asyncio.get_running_loop()
+        self._stop = asyncio.Event()
+        async with serve(
+            self._handler,
+            self.host,
+            self.port,
+            process_request=self._http,
+            max_size=MAX_MESSAGE_BYTES,
+            ping_interval=5,
+            ping_timeout=10,
+        ) as server:
+            self.bound_port = int(next(iter(server.sockets)).getsockname()[1])
+            self._ready.set()
+            await self._stop.wait()
+
+    def _send_current(self, text: str) -> None:
+        page = self._page
+        if page is not None:
+            asyncio.get_running_loop().create_task(self._send(page, text))
+
+    @staticmethod
+    async def _send(ws: ServerConnection, text: str) -> None:
+        with contextlib.suppress(ConnectionClosed):
+            await ws.send(text)
+
+    def _key_ok(self, given: str | None, expected: str | None) -> bool:
+        if expected is None:
+            return True
+        return given is not None and hmac.compare_digest(given.encode(), expected.encode())
+
+    def _http(self, connection: ServerConnection, request: Request) -> Response | None:
+        parts = urlsplit(request.path)
+        if request.headers.get("Upgrade", "").lower() != "websocket":
+            path = unquote(parts.path)
+            if path in ("/", "/index.html"):
+                return _response(HTTPStatus.OK, self._html, CONTENT_TYPES[".html"])
+            found = (
+                safe_file(CLIENT_DIST / "assets", path.removeprefix("/assets/"))
+                if path.startswith("/assets/")
+                else None
+            )
+            if found is None:
+                return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain")
+            ctype = CONTENT_TYPES.get(found.suffix.lower(), "application/octet-stream")
+            return _response(HTTPStatus.OK, found.read_bytes(), ctype)
+        query = parse_qs(parts.query)
+        if parts.path != "/session":
+            return _response(
+                HTTPStatus.NOT_FOUND, b"the session's endpoint is /session\n", "text/plain"
+            )
+        if not self._key_ok(_first(query, "token"), self.token):
+            return _response(HTTPStatus.UNAUTHORIZED, b"wrong token\n", "text/plain")
+        if not self._key_ok(_first(query, "driver"), self.driver_key):
+            return _response(
+                HTTPStatus.FORBIDDEN,
+                b"only the participant's page (its link's driver key) takes part in the session\n",
+                "text/plain",
+            )
+        return None
+
+    async def _handler(self, ws: ServerConnection) -> None:
+        old, self._page = self._page, ws
+        if old is not None:  # a reopened tab: the newest page is the participant's
+            with contextlib.suppress(ConnectionClosed):
+                await old.close(4000, "another page of the participant took over")
+        self.inbox.put(("connected", {}))
+        if self._screen is not None:
+            await self._send(ws, json.dumps(self._screen))
+        try:
+            async for raw in ws:
+                if isinstance(raw, bytes):
+                    continue
+                try:
+                    msg = json.loads(raw)
+                except ValueError:
+                    continue
+                if isinstance(msg, dict) and isinstance(msg.get("type"), str):
+                    self.inbox.put(("page", msg))
+        except ConnectionClosed:
+            pass
+        finally:
+            if self._page is ws:
+                self._page = None
+                self.inbox.put(("gone", {}))
