@@ -6,7 +6,9 @@ import { dirname, join } from 'node:path';
 import { fileURLToPath } from 'node:url';
 
 const here = dirname(fileURLToPath(import.meta.url));
-const dist = join(here, 'dist');
+// --out DIR: build elsewhere (a developer's build beside the one a trial serves; HRC_CLIENT_DIST)
+const outAt = process.argv.indexOf('--out');
+const dist = outAt > 0 ? process.argv[outAt + 1] : join(here, 'dist');
 rmSync(dist, { recursive: true, force: true });
 mkdirSync(join(dist, 'assets'), { recursive: true });
 const common = {

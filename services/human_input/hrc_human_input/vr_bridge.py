@@ -557,7 +557,12 @@ class VrBridge:
         except OSError:
             return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")
         ctype = CONTENT_TYPES.get(found.suffix.lower(), "application/octet-stream")
-        return _response(HTTPStatus.OK, body, ctype)
+        resp = _response(HTTPStatus.OK, body, ctype)
+        if path.startswith("/robots/"):
+            # a session's page (`hrc session`) comes from another port of this host and loads
+            # the robots from here: static files, served to anybody already
+            resp.headers["Access-Control-Allow-Origin"] = "*"
+        return resp
 
     def _token_ok(self, given: Any) -> bool:
         return (

@@ -4,14 +4,18 @@ participant checks them too, but never imports the bridge's server (websockets, 
 from __future__ import annotations
 
 import ipaddress
+import os
 from pathlib import Path
 
 from hrc.services import VR_DEFAULT_HOST, VR_DEFAULT_PORT
 
 DEFAULT_HOST = VR_DEFAULT_HOST
 DEFAULT_PORT = VR_DEFAULT_PORT
-# The participant client's bundle (built by scripts/setup.sh, services/human_input/client/).
-CLIENT_DIST = Path(__file__).resolve().parents[1] / "client" / "dist"
+# The participant client's bundle (built by scripts/setup.sh, services/human_input/client/);
+# HRC_CLIENT_DIST serves another build (a developer's, built with build.mjs --out DIR).
+CLIENT_DIST = Path(
+    os.environ.get("HRC_CLIENT_DIST") or Path(__file__).resolve().parents[1] / "client" / "dist"
+)
 DRIVER, SPECTATOR = "driver", "spectator"  # a client's role (docs/client-protocol.md)
 
 

@@ -78,6 +78,15 @@ export class Hud {
     this.shownText = text;
   }
 
+  /** A new trial of a session: the last one's end leaves the screen. */
+  clearEnd() {
+    if (!this.msg) return;
+    this.msg.className = '';
+    this.heldUntil = 0;
+    this.pending = null;
+    this.message('');
+  }
+
   showHelp(show) {
     if (this.help) this.help.style.display = show ? 'block' : 'none';
   }

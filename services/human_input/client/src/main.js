@@ -2,7 +2,8 @@
 // headset (WebXR) or on a desktop, and sends the participant's head, hands and grips back.
 // Query parameters: token, driver (the participant's key: this page drives the hands; without
 // it the page watches), mode=desktop|xr, table_height (m), stand=x,y (m), rate (Hz),
-// test=iwer (loads the WebXR emulation, for the browser tests only).
+// session=1 (the page of `hrc session`: its screens between trials, each trial's bridge on the
+// port the session names), test=iwer (loads the WebXR emulation, for the browser tests only).
 import * as THREE from 'three';
 import { Bridge, HEARTBEAT_MS } from './net.js';
 import { World } from './scene.js';
@@ -12,6 +13,9 @@ import { XrInput } from './input-xr.js';
 import { Hud } from './hud.js';
 import { play, soundForEvent, unlockAudio } from './audio.js';
 import { DEFAULT_STAND, DEFAULT_TABLE_HEIGHT, placeRoot } from './frames.js';
+import { FormView, FORM_H, FORM_W } from './form.js';
+import { FormXr } from './form-xr.js';
+import { SessionLink } from './session.js';
 
 const params = new URLSearchParams(window.location.search);
 
@@ -146,9 +150,20 @@ class App {
     });
     for (const ev of ['pointerdown', 'keydown']) window.addEventListener(ev, unlockAudio);
 
+    this.bridge = null;
+    if (params.get('session')) this.startSession();
+    else this.connectBridge('');
+    setInterval(() => this.refresh(), 250);
+    setInterval(() => this.bridge?.heartbeat(), HEARTBEAT_MS);
+    renderer.setAnimationLoop((t, frame) => this.onFrame(t, frame));
+  }
+
+  /** The link to a trial's bridge: the page's own server (`host` ''), or a session's trial. */
+  connectBridge(host) {
     this.bridge = new Bridge({
       token: params.get('token'),
       driver: params.get('driver'),
+      host,
       onMessage: (m) => this.onMessage(m),
       onStatus: (s, detail) => {
         this.hud.set('connection', detail ? `${s} (${detail})` : s);
@@ -161,9 +176,79 @@ class App {
         }
       },
     });
-    setInterval(() => this.refresh(), 250);
-    setInterval(() => this.bridge.heartbeat(), HEARTBEAT_MS);
-    renderer.setAnimationLoop((t, frame) => this.onFrame(t, frame));
+  }
+
+  // ------------------------------------------------------------------ a session's screens
+  startSession() {
+    this.form = new FormView({ onSend: (msg) => this.session.send(msg) });
+    const c = this.form.canvas;
+    c.id = 'form';
+    document.body.appendChild(c);
+    this.formXr = new FormXr({ renderer: this.renderer, scene: this.scene, form: this.form });
+    c.addEventListener('click', (e) => {
+      const r = c.getBoundingClientRect();
+      this.form.click(((e.clientX - r.left) * FORM_W) / r.width, ((e.clientY - r.top) * FORM_H) / r.height);
+    });
+    window.addEventListener('keydown', (e) => {
+      if (this.form.visible() && this.form.key(e)) e.preventDefault();
+    });
+    this.hud.set('connection', 'session: connecting');
+    this.session = new SessionLink({
+      token: params.get('token'),
+      driver: params.get('driver'),
+      onScreen: (m) => this.onScreen(m),
+      onStatus: (s) => {
+        if (!this.bridge || OVER.has(this.run)) this.hud.set('connection', `session: ${s}`);
+        if (s === 'replaced') this.hud.message('This page was replaced by another page of the participant.', 'over');
+      },
+    });
+  }
+
+  onScreen(m) {
+    if (m.kind === 'trial') {
+      if (this.trialPort !== m.port) this.startTrial(m.port);
+    } else if (this.trialPort) {
+      // between trials: the last trial's world stays in view, but it is over (a trial the
+      // session stopped included); the next one is a new world
+      this.bridge?.rest();
+      this.trialPort = null;
+      this.sceneMsg = null;
+      this.frames = 0;
+    }
+    this.form.keyboardWanted = this.xr.active();
+    this.form.show(m);
+    this.showForm();
+  }
+
+  /** The form over the page (desktop), or on its panel (headset: FormXr, per frame). */
+  showForm() {
+    const desktop = this.form.visible() && !this.xr.active();
+    this.form.canvas.style.display = desktop ? 'block' : 'none';
+    if (this.form.visible()) this.hud.clearEnd();
+  }
+
+  /** A trial of the session begins: its bridge is on `port` of this page's host. */
+  startTrial(port) {
+    this.bridge?.rest();
+    this.trialPort = port;
+    const host = `${window.location.hostname}:${port}`;
+    this.robots.baseUrl = `${window.location.protocol}//${host}/`;
+    this.run = '-';
+    this.runReason = '';
+    this.taskT = null;
+    this.collision = null;
+    this.waitFor = null;
+    this.serverHands = null;
+    this.events = [];
+    this.frames = 0;
+    this.sceneMsg = null;
+    this.hud.clearEnd();
+    this.hud.set('run', '-');
+    if (this.mode === 'desktop') {
+      this.desktop.enable();
+      this.hud.showHelp(this.helpShown);
+    }
+    this.connectBridge(host);
   }
 
   setupModeUi(xrOk) {
@@ -280,10 +365,11 @@ class App {
     this.waitFor = null;
     this.hud.set('wait', '');
     this.collision = null;
-    this.hud.message(`${head}${why}\nPlease wait for the experimenter.`, 'over');
+    const next = this.session ? 'The next screen follows in a moment.' : 'Please wait for the experimenter.';
+    this.hud.message(`${head}${why}\n${next}`, 'over');
     this.hud.showHelp(false);
     this.desktop.disable(); // the hands stay where they are: nothing to do any more
-    this.bridge.rest();
+    this.bridge?.rest();
   }
 
   onEvent(ev) {
@@ -382,6 +468,11 @@ class App {
       this.world.followHands(driving ? hands : {});
     }
     if (driving && this.sceneMsg && !OVER.has(this.run)) this.sendSample(now, hands);
+    if (this.form) {
+      this.formXr.update(this.xr.active() && this.form.visible());
+      const overlay = this.form.visible() && !this.xr.active();
+      if ((this.form.canvas.style.display === 'block') !== overlay) this.showForm();
+    }
     this.world.animate(now);
     this.hud.set('task', this.taskT === null || this.taskT === undefined ? '-' : `${this.taskT.toFixed(1)} s`);
     if (!this.xr.active() && this.mode === 'desktop') this.hud.set('hand', driving ? this.desktop.statusLine() : '');
@@ -432,7 +523,7 @@ class App {
     }
     const text = JSON.stringify(sample);
     if (text === this.lastSample && now - this.lastSentMs < KEEPALIVE_MS) return;
-    if (this.bridge.send(sample)) {
+    if (this.bridge?.send(sample)) {
       this.lastSample = text;
       this.lastSentMs = now;
     }
@@ -614,7 +705,7 @@ window.hrcTest = {
       role: app.role,
       run: app.run,
       task_t_s: app.taskT,
-      connection: app.bridge.state,
+      connection: app.bridge ? app.bridge.state : 'none',
       frames: app.frames,
       xr: app.xr.active(),
       active_hand: app.desktop.active,
@@ -625,7 +716,8 @@ window.hrcTest = {
       robots,
       cues,
       events: app.events.map((e) => e.kind + (e.part ? `:${e.part}` : '')),
-      sent: app.bridge.sent,
+      sent: app.bridge ? app.bridge.sent : 0,
+      screen: app.form?.screen ? { kind: app.form.screen.kind, id: app.form.screen.id } : null,
     };
   },
   /** Stops (true) or resumes (false) applying the bridge's frames, so that a screenshot and
@@ -661,6 +753,33 @@ window.hrcTest = {
   },
   /** What the headset's status panel says (with the page's message), its lines unwrapped. */
   panelText: () => window.hrcApp.hud.saying ?? '',
+  /** The session's screen: its kind, id, the page of a questionnaire, the answers so far,
+   * whether it was sent, and its widgets (canvas px) [{id, kind, label, x, y, w, h,
+   * disabled}]; null outside a session. */
+  form: () => {
+    const f = window.hrcApp?.form;
+    if (!f || !f.screen) return null;
+    return {
+      kind: f.screen.kind,
+      id: f.screen.id,
+      title: f.screen.title || f.screen.questionnaire?.title || '',
+      visible: f.visible(),
+      page: f.page,
+      keyboard: f.keyboardFor || null,
+      answers: { ...f.answers },
+      sent: f.sent,
+      in_headset: !!window.hrcApp.formXr?.panel.visible,
+      widgets: f.widgets.map(({ id, kind, label, x, y, w, h, disabled }) => ({ id, kind: kind || 'button', label, x, y, w, h, disabled: !!disabled })),
+    };
+  },
+  /** A point of the form (canvas px) where a person would aim: page pixels {x, y} on the
+   * desktop, XR (local-floor) coordinates {xr: [x, y, z]} on the headset's panel. */
+  formPoint: (x, y) => {
+    const app = window.hrcApp;
+    if (app.formXr?.panel.visible) return { xr: app.formXr.worldPoint(x, y) };
+    const r = app.form.canvas.getBoundingClientRect();
+    return { x: r.left + (x * r.width) / FORM_W, y: r.top + (y * r.height) / FORM_H };
+  },
   /** The robot target shown after a collision: {part, visible} or null. */
   goal: () => {
     const g = window.hrcApp.world.goal;

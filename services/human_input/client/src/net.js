@@ -12,8 +12,9 @@ const DIAL_MS = 3000;
 const DIAL_BEATS = 6;
 
 export class Bridge {
-  constructor({ token, driver, onMessage, onStatus }) {
+  constructor({ token, driver, onMessage, onStatus, host = '' }) {
     this.token = token;
+    this.host = host; // host:port of the trial's bridge ('': the page's own server)
     this.driver = driver;
     // this page's own id: after a redial the bridge knows it is the same page (its hands, and
     // a part in them, are kept as they are)
@@ -41,7 +42,7 @@ export class Bridge {
     if (this.driver) q.set('driver', this.driver);
     q.set('page', this.pageId);
     const qs = q.toString();
-    return `${proto}//${window.location.host}/ws${qs ? `?${qs}` : ''}`;
+    return `${proto}//${this.host || window.location.host}/ws${qs ? `?${qs}` : ''}`;
   }
 
   setState(s, detail = '') {

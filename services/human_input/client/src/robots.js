@@ -91,6 +91,7 @@ export class Robots {
     this.onError = onError;
     this.robots = new Map(); // id -> {spec, model, pending q, tcp, zone}
     this.zoneStyle = null; // the scene's ssm_zone: colours by state and opacity
+    this.baseUrl = ''; // where the robots' files are served ('': the page's own server)
   }
 
   build(specs, zoneStyle) {
@@ -105,7 +106,7 @@ export class Robots {
       const entry = { spec, holder, model: null, q: null, tcp: null, loaded: false, zone: null };
       this.robots.set(spec.id, entry);
       const loader = new URDFLoader();
-      const url = new URL(spec.urdf_url, window.location.href);
+      const url = new URL(spec.urdf_url, this.baseUrl || window.location.href);
       const base = url.href.slice(0, url.href.lastIndexOf('/'));
       loader.packages = () => base; // package:// meshes live beside the URDF on the bridge
       loader.load(

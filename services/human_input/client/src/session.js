@@ -1,0 +1,62 @@
+// The link to a session (`hrc session`, docs/client-protocol.md "Sessions"): one WebSocket to
+// /session on the page's own server. It carries the screens between trials and what the
+// participant answers; it redials whenever it drops (the session outlives a lost link: the
+// server sends the screen showing now again on reconnection).
+const RETRY_MS = [500, 1000, 2000, 3000];
+
+export class SessionLink {
+  constructor({ token, driver, onScreen, onStatus }) {
+    this.token = token;
+    this.driver = driver;
+    this.onScreen = onScreen;
+    this.onStatus = onStatus;
+    this.retries = 0;
+    this.state = 'connecting';
+    this.connect();
+  }
+
+  url() {
+    const proto = window.location.protocol === 'https:' ? 'wss:' : 'ws:';
+    const q = new URLSearchParams();
+    if (this.token) q.set('token', this.token);
+    if (this.driver) q.set('driver', this.driver);
+    return `${proto}//${window.location.host}/session?${q}`;
+  }
+
+  connect() {
+    const ws = new WebSocket(this.url());
+    this.ws = ws;
+    ws.onopen = () => {
+      this.retries = 0;
+      this.state = 'connected';
+      this.onStatus?.('connected');
+    };
+    ws.onmessage = (ev) => {
+      let msg;
+      try {
+        msg = JSON.parse(ev.data);
+      } catch {
+        return;
+      }
+      if (msg.type === 'screen') this.onScreen(msg);
+    };
+    ws.onclose = (ev) => {
+      if (this.ws !== ws) return;
+      this.state = 'lost';
+      // 4000: another page of the participant took over; it is the one that goes on
+      if (ev.code === 4000) {
+        this.onStatus?.('replaced');
+        return;
+      }
+      this.onStatus?.('lost');
+      const delay = RETRY_MS[Math.min(this.retries++, RETRY_MS.length - 1)];
+      setTimeout(() => this.connect(), delay);
+    };
+  }
+
+  send(obj) {
+    if (!this.ws || this.ws.readyState !== WebSocket.OPEN) return false;
+    this.ws.send(JSON.stringify(obj));
+    return true;
+  }
+}
