@@ -217,6 +217,47 @@ def grab_part(page: Page, pid: str, timeout: float = 20) -> None:
     page.wait(f"{pid} held", lambda s: s["objects"][pid]["holder"] in ("left", "right"), timeout)
 
 
+def controller_to(page: Page, xyz: list[float], side: str = "right") -> None:
+    """The emulated controller at a world point (through the page's calibration), level."""
+    xr = page.page.evaluate("(p) => window.hrcTest.worldToXr(p)", xyz)
+    page.page.evaluate(
+        """([side, x, y, z]) => {
+            const c = window.hrcXrDevice.controllers[side];
+            c.position.set(x, y, z);
+            c.quaternion.set(0, 0, 0, 1);
+        }""",
+        [side, *xr],
+    )
+
+
+def squeeze(page: Page, v: float, side: str = "right") -> None:
+    page.page.evaluate(
+        "([s, v]) => window.hrcXrDevice.controllers[s].updateButtonValue('squeeze', v)", [side, v]
+    )
+
+
+def controller_places(page: Page, pid: str) -> None:
+    """The right controller takes `pid` (over it, down, squeeze) and puts it on its target
+    (over, down, let go), then moves away so that the robots can finish."""
+    part = page.part(pid)
+    x, y, z = page.state()["objects"][pid]["p"]
+    top = z + part["size"][2] / 2
+    tx, ty, tz = part["target"]["xyz"]
+    ttop = tz + part["size"][2] / 2
+    controller_to(page, [x, y, top + 0.08])
+    page.wait("right hand tracked", lambda s: abs(s["hands"]["right"]["p"][0] - x) < 0.005, 10)
+    controller_to(page, [x, y, top])
+    rendered_frames(page, 3)
+    squeeze(page, 1.0)
+    page.wait(f"{pid} held", lambda s: s["objects"][pid]["holder"] == "right", 20)
+    for xyz in ([x, y, top + 0.08], [tx, ty, ttop + 0.08], [tx, ty, ttop]):
+        controller_to(page, xyz)
+        rendered_frames(page, 3)
+    squeeze(page, 0.0)
+    page.wait(f"{pid} placed", lambda s: f"part_placed:{pid}" in s["events"], 20)
+    controller_to(page, [x - 0.4, y - 0.2, top + 0.1])
+
+
 def yaw_deg(q: list[float]) -> float:
     """The yaw of a quaternion [x, y, z, w] (about the world's z, the page's root frame)."""
     x, y, z, w = q

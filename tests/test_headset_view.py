@@ -32,6 +32,7 @@ from .participant_page import (
     Page,
     assert_whole_scene,
     browser,  # noqa: F401  (a fixture)
+    controller_to,
     grab_part,
     live,  # noqa: F401  (a fixture)
     what_is_seen,
@@ -82,19 +83,6 @@ def enter_vr(page: Page, height_m: float = 1.6) -> None:
     head(page, height_m, STANDING_PITCH_DEG)
 
 
-def controller(page: Page, side: str, xyz: list[float]) -> None:
-    """The controller at a world point (through the page's calibration), held level."""
-    xr = page.page.evaluate("(p) => window.hrcTest.worldToXr(p)", xyz)
-    page.page.evaluate(
-        """([side, [x, y, z]]) => {
-            const c = window.hrcXrDevice.controllers[side];
-            c.position.set(x, y, z);
-            c.quaternion.set(0, 0, 0, 1);
-        }""",
-        [side, xr],
-    )
-
-
 def calibrate_sitting(page: Page, table_m: float, yaw_deg: float) -> None:
     """A person sitting at a table `table_m` high, turned `yaw_deg` to the left: the head at
     1.2 m looking 30 degrees down, the right controller on the table top, A pressed."""
@@ -140,7 +128,6 @@ def check_draw_calls(page: Page, view: str) -> None:
     assert 0 < per_view <= MAX_DRAW_CALLS_PER_VIEW, f"{view}: {d}"
 
 
-@pytest.mark.timeout(900)  # six views, ten pictures each, in software WebGL
 def slow_thesis(tmp_path: Path) -> Path:
     """The thesis board with robots at 0.15 m/s: r1's carry of RA1 lasts seconds, so a page
     that runs seconds behind on a loaded machine (the bridge drops frames for a slow client)
@@ -152,6 +139,7 @@ def slow_thesis(tmp_path: Path) -> Path:
     return path
 
 
+@pytest.mark.timeout(900)  # six views, ten pictures each, in software WebGL
 def test_every_view_shows_the_whole_scene(
     browser: Any,  # noqa: F811
     live: Callable[..., Live],  # noqa: F811
@@ -200,7 +188,7 @@ def test_every_view_shows_the_whole_scene(
     driver.wait("the driver role back", lambda s: s["role"] == "driver", 30)
     enter_vr(driver)
     for side, x in (("left", -0.2), ("right", 0.2)):
-        controller(driver, side, [x, -0.5, 0.12])
+        controller_to(driver, [x, -0.5, 0.12], side)
     driver.wait(
         "both hands tracked",
         lambda s: (
@@ -225,7 +213,7 @@ def test_every_view_shows_the_whole_scene(
 
     calibrate_sitting(driver, 0.72, -25)
     for side, x in (("left", -0.2), ("right", 0.2)):
-        controller(driver, side, [x, -0.5, 0.12])
+        controller_to(driver, [x, -0.5, 0.12], side)
     # (a hand is the controller's grip, a few cm from its origin: turned with the calibration)
     driver.wait(
         "the hands where the calibrated table puts them",

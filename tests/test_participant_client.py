@@ -31,6 +31,7 @@ from .participant_page import (
     Page,
     assert_whole_scene,
     browser,  # noqa: F401  (a fixture)
+    controller_places,
     grab_part,
     live,  # noqa: F401  (a fixture)
     metrics,
@@ -73,26 +74,6 @@ def test_immersive_controller_grabs_and_places_h1(
     page = Page(browser, live().url + "&test=iwer")
     page.page.click("#enter-vr")  # a user gesture, as a headset's browser needs
     page.wait("immersive session", lambda s: s["xr"], 20)
-    h1 = page.part("H1")
-    x, y, z = h1["start"]["xyz"]
-    top = z + h1["size"][2] / 2
-    tx, ty, tz = h1["target"]["xyz"]
-
-    def controller_to(xyz: list[float]) -> None:
-        xr = page.page.evaluate("(p) => window.hrcTest.worldToXr(p)", xyz)
-        page.page.evaluate(
-            """([x, y, z]) => {
-                const c = window.hrcXrDevice.controllers.right;
-                c.position.set(x, y, z);
-                c.quaternion.set(0, 0, 0, 1);
-            }""",
-            xr,
-        )
-
-    def squeeze(v: float) -> None:
-        page.page.evaluate(
-            "(v) => window.hrcXrDevice.controllers.right.updateButtonValue('squeeze', v)", v
-        )
 
     # calibration: the right controller on the (real) table top, A pressed -> the table height
     # is its grip's height (the grip centre sits 1-2 cm from the emulated controller's origin)
@@ -109,26 +90,12 @@ def test_immersive_controller_grabs_and_places_h1(
 
     assert wait_until(lambda: abs(board_y() - 1.05) < 0.025, 10), board_y()
     page.page.evaluate("window.hrcXrDevice.controllers.right.updateButtonValue('a-button', 0)")
-    controller_to([x, y, top + 0.08])
-    page.wait("right hand tracked", lambda s: abs(s["hands"]["right"]["p"][0] - x) < 0.005, 10)
-    controller_to([x, y, top])
-    time.sleep(0.3)
-    squeeze(1.0)
-    page.wait("H1 held", lambda s: s["objects"]["H1"]["holder"] == "right", 20)
-    controller_to([x, y, top + 0.08])
-    time.sleep(0.3)
-    controller_to([tx, ty, tz + h1["size"][2] / 2 + 0.08])
-    time.sleep(0.3)
-    controller_to([tx, ty, tz + h1["size"][2] / 2])
-    time.sleep(0.3)
-    squeeze(0.0)
-    page.wait("H1 placed", lambda s: "part_placed:H1" in s["events"], 20)
+    controller_places(page, "H1")  # and away, so the robots can finish
     sounds = page.page.evaluate("window.hrcAudioLog")
     chimes = [a for a in sounds if a["cause"] == "part_placed:H1"]
     assert [a["sound"] for a in chimes] == ["chime"], sounds
     # the audio graph really ran: the context was started, not left suspended
     assert chimes[0]["state"] == "running", sounds
-    controller_to([x - 0.4, y - 0.2, top + 0.1])  # away, so the robots can finish
     page.screenshot("xr-after-placing.png")
     assert not page.errors, page.errors
 

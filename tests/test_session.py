@@ -1,0 +1,267 @@
+"""A study with people (`hrc session`, docs/studies.md "Running a study with people"): a live
+participant's session in headless Debian chromium, the desktop page as the participant —
+consent, instructions, a practice trial, two trials in the participant's counterbalanced
+order, NASA-TLX after each and a Likert item at the end — with the page closed during the
+second trial and the session resumed by the same command; then the study's table and report
+with these live rows beside the simulated participants. The same session in an emulated
+headset (IWER) is answered with the controller's ray.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+import pytest
+
+from .conftest import HRC, ROOT, wait_until
+from .participant_page import (  # noqa: F401  (browser: a fixture)
+    MINIMAL,
+    OPEN_PAGES,
+    Page,
+    browser,
+    controller_places,
+)
+from .session_page import (
+    TLX_ANSWERS,
+    Pointer,
+    Session,
+    answer_questionnaire,
+    do_trial,
+    form,
+    wait_enabled,
+    wait_screen,
+    widget,
+    write_study,
+)
+
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+
+LIVE = """[live]
+participants = ["L01", "L02", "L03"]
+order = "williams"
+practice = 1
+practice_condition = { "conditions.anticipation" = true }
+min_break_s = 4
+consent = "consent.md"
+instructions = "instructions.md"
+after_trial = ["tlx"]
+end = ["trust"]
+
+[[live.instruction]]
+when = { "conditions.anticipation" = true }
+file = "cues.md"
+
+[questionnaires.trust]
+title = "After the session"
+points = 5
+anchors = ["strongly disagree", "strongly agree"]
+items = [{ id = "safe", text = "I felt safe working beside the robots." }]
+"""
+
+
+@pytest.fixture
+def sessions() -> Iterator[list[Session]]:
+    started: list[Session] = []
+    yield started
+    for s in started:
+        s.stop()
+    while OPEN_PAGES:
+        OPEN_PAGES.pop().close()
+
+
+def shot(page: Page, name: str) -> None:
+    page.screenshot(name)
+
+
+@pytest.mark.timeout(1800)  # four live trials and a sweep, in software WebGL on a loaded machine
+def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_page_closed(
+    browser: Any,  # noqa: F811
+    sessions: list[Session],
+    tmp_path: Path,
+) -> None:
+    study = write_study(tmp_path / "study", LIVE)
+    out = tmp_path / "out"
+    # the simulated participants first: the same study folder, the same table
+    sweep = subprocess.run(
+        [HRC, "sweep", str(study), "--out", str(out), "--workers", "1"],
+        capture_output=True, text=True, cwd=ROOT, timeout=600,
+    )  # fmt: skip
+    assert sweep.returncode == 0, sweep.stderr[-3000:]
+
+    s = Session(study, "L02", out)  # L02: the second row of the square, anticipation off first
+    sessions.append(s)
+    page = Page(browser, s.url(), ready=False)
+    mouse = Pointer(page)
+
+    f = wait_screen(page, ("consent",))
+    assert "working with robots" in page.page.evaluate("window.hrcApp.form.screen.text")
+    shot(page, "session-consent.png")
+    mouse.press(f, "yes")
+    f = wait_screen(page, ("text",), f["id"])
+    assert f["title"] == "Instructions"
+    shot(page, "session-instructions.png")
+    mouse.press(f, "continue")
+    # the practice trial is in the condition the file names (anticipation on): its text first
+    f = wait_screen(page, ("text",), f["id"])
+    assert "show their targets" in page.page.evaluate("window.hrcApp.form.screen.text")
+    mouse.press(f, "continue")
+    f = wait_screen(page, ("ready",), f["id"])
+    assert f["title"] == "Practice 1 of 3", f
+    shot(page, "session-ready.png")
+    mouse.press(f, "start")
+    do_trial(page)
+    # no questionnaire after practice: the first trial of L02's order (anticipation off) next,
+    # after a break (Start is off until it is over)
+    f = wait_screen(page, ("ready",), f["id"])
+    assert f["title"] == "Trial 2 of 3", f
+    assert widget(f, "start")["disabled"], f
+    shot(page, "session-break.png")
+    f = wait_enabled(page, "start", 60)
+    mouse.press(f, "start")
+    do_trial(page)
+    f = wait_screen(page, ("questionnaire",), f["id"])
+    shot(page, "session-questionnaire-tlx.png")
+    answer_questionnaire(page, mouse, TLX_ANSWERS)
+    # the second trial (anticipation on: its text again, then ready); the page closes in it
+    f = wait_screen(page, ("text",), f["id"])
+    mouse.press(f, "continue")
+    wait_screen(page, ("ready",), f["id"])
+    f = wait_enabled(page, "start", 60)
+    mouse.press(f, "start")
+    page.wait_ready()
+    page.close()
+    s.said(r"trial antTrue_L02_r1: failed \(the participant's page closed", 120)
+    state = json.loads((out / "sessions" / "L02" / "session.json").read_text())
+    assert [t["status"] for t in state["trials"]] == ["ok", "ok", "failed"], state["trials"]
+    assert s.interrupt() == 130, s.console()
+
+    # the same command resumes: the failed trial again, its questionnaire, the end
+    s2 = Session(study, "L02", out)
+    sessions.append(s2)
+    page = Page(browser, s2.url(), ready=False)
+    mouse = Pointer(page)
+    f = wait_screen(page, ("ready", "consent", "text", "questionnaire"))
+    assert f["kind"] == "ready" and f["title"] == "Trial 3 of 3", f  # nothing asked again
+    shot(page, "session-resumed-ready.png")
+    mouse.press(f, "start")
+    do_trial(page)
+    f = wait_screen(page, ("questionnaire",), f["id"])
+    answer_questionnaire(page, mouse, {**TLX_ANSWERS, "mental": 70})
+    f = wait_screen(page, ("questionnaire",), f["id"])
+    assert f["title"] == "After the session", f
+    shot(page, "session-questionnaire-likert.png")
+    answer_questionnaire(page, mouse, {"safe": 4})
+    wait_screen(page, ("done",), f["id"])
+    shot(page, "session-done.png")
+    assert s2.wait(60) == 0, s2.console()
+
+    table = pd.read_csv(out / "trials.csv")
+    live = table[table["participant_kind"] == "live"].set_index("trial")
+    sim = table[table["participant_kind"] == "simulated"]
+    assert len(sim) == 4 and set(sim["participant"]) == {"P01", "P02"}, sim
+    assert list(live.index) == ["practice1_antTrue_L02_r1", "antFalse_L02_r1", "antTrue_L02_r1"]
+    assert list(live["order_position"]) == [0, 1, 2]
+    assert list(live["practice"]) == [True, False, False]
+    assert list(live["outcome"]) == ["ok", "ok", "ok"]
+    assert list(live["attempts"]) == [1, 1, 2]
+    assert live.loc["antFalse_L02_r1", "q.tlx.mental"] == 55
+    assert live.loc["antTrue_L02_r1", "q.tlx.mental"] == 70
+    raw = sum({**TLX_ANSWERS, "mental": 70}.values()) / 6  # the raw TLX: the six scales' mean
+    assert live.loc["antTrue_L02_r1", "q.tlx.raw"] == pytest.approx(raw, abs=1e-3)
+    assert pd.isna(live.loc["practice1_antTrue_L02_r1", "q.tlx.mental"])
+    assert list(live["q.trust.safe"]) == [4, 4, 4]
+    assert (live["task.finished"] == True).all()  # noqa: E712
+    # the failed attempt is kept beside the trial
+    assert any((out / "sessions" / "L02" / "attempts").iterdir())
+
+    rep = subprocess.run([HRC, "report", str(out)], capture_output=True, text=True, timeout=300)
+    assert rep.returncode == 0, rep.stderr[-3000:]
+    report = (out / "report.html").read_text()
+    assert "Live and simulated participants" in report
+    assert "<th>live</th><th>simulated</th>" in report
+    assert "q.tlx.raw" in report and "factors + order_position" in report
+    assert "practice trials left out" in report
+
+    # the person's recorded movements, replayed at another robot speed (they do not react)
+    recording = out / "trials" / "antTrue_L02_r1" / "participant-input.jsonl"
+    replayed = tmp_path / "replayed.toml"
+    replayed.write_text(
+        f'[study]\nname = "replayed"\nscenario = "{MINIMAL}"\n[factors]\n'
+        '"robots.*.max_tcp_speed" = [0.25, 0.5]\n'
+        f'[participants]\nreplay = ["{recording}"]\n'
+    )
+    again = subprocess.run(
+        [HRC, "sweep", str(replayed), "--out", str(tmp_path / "replayed"), "--workers", "1"],
+        capture_output=True, text=True, cwd=ROOT, timeout=600,
+    )  # fmt: skip
+    assert again.returncode == 0, again.stderr[-3000:]
+    rows = pd.read_csv(tmp_path / "replayed" / "trials.csv")
+    assert list(rows["participant_kind"]) == ["replay", "replay"], rows
+    assert list(rows["outcome"]) == ["ok", "ok"] and rows["task.finished"].all(), rows
+    assert rows["parts.H1.placed_s"].notna().all()
+
+
+LIVE_HEADSET = """[live]
+participants = ["H01"]
+consent = "consent.md"
+instructions = "instructions.md"
+after_trial = ["tlx"]
+end = ["trust"]
+
+[questionnaires.trust]
+title = "After the session"
+points = 5
+anchors = ["strongly disagree", "strongly agree"]
+items = [
+  { id = "safe", text = "I felt safe working beside the robots." },
+  { id = "remark", kind = "text", text = "Anything you want to tell us?" },
+]
+"""
+
+
+@pytest.mark.timeout(900)
+def test_the_session_in_a_headset_is_answered_with_the_controller_ray(
+    browser: Any,  # noqa: F811
+    sessions: list[Session],
+    tmp_path: Path,
+) -> None:
+    study = write_study(
+        tmp_path / "study", LIVE_HEADSET, simulated=0, factors='"conditions.anticipation" = [true]'
+    )
+    out = tmp_path / "out"
+    s = Session(study, "H01", out, mode="xr")
+    sessions.append(s)
+    page = Page(browser, s.url() + "&test=iwer", ready=False)
+    ray = Pointer(page, headset=True)
+    f = wait_screen(page, ("consent",))
+    page.page.click("#enter-vr")  # a user gesture, as a headset's browser needs
+    page.wait("immersive session", lambda st: st["xr"], 30)
+    assert wait_until(lambda: form(page)["in_headset"], 30), form(page)
+    shot(page, "session-xr-consent.png")
+    ray.press(f, "yes")
+    f = wait_screen(page, ("text",), f["id"])
+    ray.press(f, "continue")
+    f = wait_screen(page, ("ready",), f["id"])
+    ray.press(f, "start")
+    wait_screen(page, ("trial",), f["id"], timeout=180)
+    page.wait_ready()
+    assert not form(page)["in_headset"]  # the panel is gone while the trial runs
+    controller_places(page, "H1")
+    page.wait("the trial finished", lambda st: st["run"] == "finished", 180)
+    f = wait_screen(page, ("questionnaire",), f["id"])
+    assert form(page)["in_headset"]
+    shot(page, "session-xr-questionnaire.png")
+    answer_questionnaire(page, ray, TLX_ANSWERS)
+    f = wait_screen(page, ("questionnaire",), f["id"])
+    answer_questionnaire(page, ray, {"safe": 5, "remark": "ok"})
+    wait_screen(page, ("done",), f["id"])
+    assert s.wait(60) == 0, s.console()
+
+    state = json.loads((out / "sessions" / "H01" / "session.json").read_text())
+    assert state["trials"][0]["answers"]["tlx"] == TLX_ANSWERS
+    assert state["end_answers"]["trust"] == {"safe": 5, "remark": "ok"}
