@@ -82,7 +82,7 @@ def test_only_the_participants_page_takes_part_and_declining_consent_ends_it(
     assert "L01 declined consent" in again.stderr and "does not run again" in again.stderr
 
 
-def test_one_session_per_participant_and_the_experimenter_ends_it_to_resume_later(
+def test_one_session_per_participant_paused_and_ended_by_the_experimenter_then_resumed(
     sessions: list[Session], tmp_path: Path
 ) -> None:
     study = write_study(tmp_path / "study", LIVE, simulated=0)
@@ -96,7 +96,11 @@ def test_one_session_per_participant_and_the_experimenter_ends_it_to_resume_late
     with connect(ws_url, open_timeout=10) as ws:
         consent = screen(ws, "consent")
         ws.send(json.dumps({"type": "consent", "accepted": True, "screen": consent["id"]}))
-        screen(ws, "text")  # the instructions
+        text = screen(ws, "text")  # the instructions
+        s.command("p")  # paused: the page says so; again: the same screen comes back
+        assert "paused" in screen(ws, "paused")["text"]
+        s.command("p")
+        assert screen(ws, "text")["id"] == text["id"]
         s.command("e")
         assert s.wait(60) == 0, s.console()
     assert "resume with the same command" in s.console()

@@ -95,6 +95,7 @@ class Session:
         self.inbox = self.server.inbox
         self.paused = False
         self.screen_id = 0
+        self.screen: dict[str, Any] = {}
         self.break_until = 0.0
         self.t0 = time.monotonic()
         self._lock = self._take_lock()
@@ -282,15 +283,14 @@ class Session:
     def show(self, kind: str, **fields: Any) -> int:
         self.screen_id += 1
         done = sum(t.done for t in self.state.trials)
-        self.server.show(
-            {
-                "id": self.screen_id,
-                "kind": kind,
-                "participant": self.pid,
-                "progress": {"done": done, "total": len(self.state.trials)},
-                **fields,
-            }
-        )
+        self.screen = {
+            "id": self.screen_id,
+            "kind": kind,
+            "participant": self.pid,
+            "progress": {"done": done, "total": len(self.state.trials)},
+            **fields,
+        }
+        self.server.show(self.screen)
         return self.screen_id
 
     def _wait(
@@ -311,6 +311,11 @@ class Session:
                 return msg
             if kind == "cmd":
                 self._command(msg["c"], running=None)
+                if self.paused and types:  # held now, the screen waited on comes back after
+                    waiting = self.screen
+                    self._paused()
+                    self.screen = waiting
+                    self.server.show(waiting)
             elif kind == "connected":
                 self.say("participant's page connected")
             elif kind == "gone":
