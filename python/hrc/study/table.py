@@ -158,7 +158,7 @@ def write_table(study: Study, records: list[Record], out: Path) -> pd.DataFrame:
 
     df = frame(study, records, out)
     for name, write in (("trials.parquet", df.to_parquet), ("trials.csv", df.to_csv)):
-        tmp = out / f".{name}.tmp"
+        tmp = out / f".{name}.{os.getpid()}.tmp"  # a sweep and a session may write at once
         write(tmp, index=False)
         os.replace(tmp, out / name)
     return df

@@ -38,7 +38,10 @@ export class SessionLink {
       } catch {
         return;
       }
-      if (msg.type === 'screen') this.onScreen(msg);
+      if (msg.type === 'screen') {
+        this.last = msg.kind;
+        this.onScreen(msg);
+      }
     };
     ws.onclose = (ev) => {
       if (this.ws !== ws) return;
@@ -46,6 +49,11 @@ export class SessionLink {
       // 4000: another page of the participant took over; it is the one that goes on
       if (ev.code === 4000) {
         this.onStatus?.('replaced');
+        return;
+      }
+      // the session is over (its server goes a moment after its last screen): nothing to redial
+      if (this.last === 'done' || this.last === 'ended') {
+        this.onStatus?.('over');
         return;
       }
       this.onStatus?.('lost');
