@@ -264,4 +264,6 @@ def test_the_session_in_a_headset_is_answered_with_the_controller_ray(
 
     state = json.loads((out / "sessions" / "H01" / "session.json").read_text())
     assert state["trials"][0]["answers"]["tlx"] == TLX_ANSWERS
+    beside = json.loads((out / "trials" / state["trials"][0]["id"] / "answers.json").read_text())
+    assert beside["answers"]["tlx"] == TLX_ANSWERS and beside["scores"]["tlx"]["raw"] > 0
     assert state["end_answers"]["trust"] == {"safe": 5, "remark": "ok"}

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import json
 import logging
 import os
 import queue
@@ -375,6 +376,11 @@ class Session:
         else:
             ts.answers[q.id] = answers
             ts.scores[q.id] = scores
+            # beside the trial's own files too (session.json stays the one that resumes)
+            folder = self.out / "trials" / ts.id
+            if folder.is_dir():
+                doc = {"answers": ts.answers, "scores": ts.scores}
+                (folder / "answers.json").write_text(json.dumps(doc, indent=1), encoding="utf-8")
         self.state.note(f"answered {q.id}", trial=ts.id if ts else None)
         self._save()
 
