@@ -215,7 +215,6 @@ class App {
       this.sceneMsg = null;
       this.frames = 0;
     }
-    this.form.keyboardWanted = this.xr.active();
     this.form.show(m);
     this.showForm();
   }
@@ -469,6 +468,7 @@ class App {
     }
     if (driving && this.sceneMsg && !OVER.has(this.run)) this.sendSample(now, hands);
     if (this.form) {
+      this.form.keyboardWanted = this.xr.active(); // text is typed on the panel in a headset
       this.formXr.update(this.xr.active() && this.form.visible());
       const overlay = this.form.visible() && !this.xr.active();
       if ((this.form.canvas.style.display === 'block') !== overlay) this.showForm();
