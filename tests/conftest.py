@@ -147,7 +147,13 @@ class Trial:
             except TimeoutError:
                 return False
 
-        assert wait_until(ticking, timeout, 0.1), "the trial never started ticking"
+        if not wait_until(ticking, timeout, 0.1):
+            self.proc.send_signal(signal.SIGTERM)  # its output says where it was stuck
+            _rc, out, err = self.communicate(timeout=30)
+            raise AssertionError(
+                f"the trial never started ticking within {timeout:g} s:\n{out[-2000:]}\n"
+                f"{err[-3000:]}"
+            )
 
     def stop(self, reason: str = "test done") -> None:
         bus = self.bus()
