@@ -182,6 +182,14 @@ class Page:
 
         assert wait_until(there, 10, 0.05), (self.hand()["p"], x, y)
 
+    def pointer_to_hand(self) -> None:
+        """The mouse onto the hand's pixel, in one move. After a placement the mouse is still
+        over the board while the page has taken the hand back to rest; the page puts a hand
+        it takes again where the mouse points, so a person first brings the mouse to the hand
+        (else the hand jumps back over the board, where a robot may now be)."""
+        px, py = self.project(self.hand()["p"])
+        self.page.mouse.move(px, py)
+
     def take_hand(self) -> None:
         """A parked hand follows the mouse again once it has moved on purpose."""
         rest = self.hand()["p"]
@@ -210,6 +218,8 @@ def grab_part(page: Page, pid: str, timeout: float = 20) -> None:
     at = page.state()["objects"][pid]["p"]
     x, y, z = at
     top = z + part["size"][2] / 2
+    if page.state()["parked"]:  # (a key below takes the hand: the mouse must be at it)
+        page.pointer_to_hand()
     page.height_to(max(top + 0.06, 0.10))
     page.move_over(x, y)
     page.height_to(top)
@@ -277,7 +287,17 @@ def place_part(page: Page, pid: str) -> None:
     page.move_over(x, y)
     page.height_to(top)
     page.keys(" ")
-    page.wait(f"{pid} placed", lambda s: s["objects"][pid]["placed"], 20)
+    # (the task's last placement ends the trial: a page that misses the last frame before the
+    # bridge closes knows it from the event or the end, which needs every part placed)
+    page.wait(
+        f"{pid} placed",
+        lambda s: (
+            s["objects"][pid]["placed"]
+            or f"part_placed:{pid}" in s["events"]
+            or s["run"] == "finished"
+        ),
+        20,
+    )
     page.wait("the hand back at rest", lambda s: s["parked"], 10)
 
 
