@@ -20,7 +20,6 @@ import os
 import queue
 import secrets
 import shutil
-import signal
 import subprocess
 import sys
 import threading
@@ -35,11 +34,12 @@ from hrc.session.web import SessionServer
 from hrc.study.live import LiveSpec
 from hrc.study.questionnaires import Questionnaire
 from hrc.study.spec import LiveTrial, Study
-from hrc.study.trial import judge, read_metrics
+from hrc.study.trial import judge, read_metrics, stop_process
 
 log = logging.getLogger(__name__)
 
 STATUS_EVERY_S = 30.0  # the console's status line while a trial runs
+STOP_GRACE_S = 15.0  # a stopped trial's SIGTERM, then SIGKILL to its process group
 PAGE_GRACE_S = 10.0  # the page gone this long during a trial: the trial is stopped, failed
 BRIDGE_START_S = 90.0  # hrc run's services up and its bridge serving, at most
 VR_WAIT_S = 300.0  # the trial waits this long for the page to connect to its bridge
@@ -460,7 +460,7 @@ class Session:
             try:
                 stopped = self._watch(ts, proc, port, t0)
             except BaseException:
-                _stop(proc)
+                stop_process(proc, STOP_GRACE_S)
                 attempt.outcome, attempt.reason = (
                     "failed",
                     "the session was interrupted (Ctrl-C or a signal)",
@@ -565,7 +565,7 @@ class Session:
 
     def _stop(self, proc: subprocess.Popen[Any], why: str) -> str:
         self.say(f"stopping the trial: {why}")
-        _stop(proc)
+        stop_process(proc, STOP_GRACE_S)
         with contextlib.suppress(queue.Empty):  # its exit notice
             while True:
                 kind, msg = self.inbox.get(timeout=2.0)
@@ -632,14 +632,3 @@ def _serving(host: str, port: int) -> bool:
             return bool(r.status == 200)
     except OSError:
         return False
-
-
-def _stop(proc: subprocess.Popen[Any]) -> None:
-    """SIGTERM to `hrc run`'s group (it stops its services), SIGKILL after 15 s."""
-    try:
-        os.killpg(proc.pid, signal.SIGTERM)
-        proc.wait(timeout=15)
-    except (ProcessLookupError, subprocess.TimeoutExpired):
-        with contextlib.suppress(ProcessLookupError):
-            os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()

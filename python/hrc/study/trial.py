@@ -86,11 +86,12 @@ def _tail(text: str, lines: int = STDERR_TAIL_LINES) -> str:
     return "\n".join(text.strip().splitlines()[-lines:])
 
 
-def _stop(proc: subprocess.Popen[str]) -> None:
-    """SIGTERM to `hrc run` (it stops its services), then SIGKILL to its whole group."""
+def stop_process(proc: subprocess.Popen[Any], grace_s: float = 10.0) -> None:
+    """SIGTERM to `hrc run`'s process group (it stops its services), then SIGKILL to the whole
+    group after `grace_s`."""
     try:
         os.killpg(proc.pid, signal.SIGTERM)
-        proc.wait(timeout=10)
+        proc.wait(timeout=grace_s)
     except (ProcessLookupError, subprocess.TimeoutExpired):
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)
@@ -139,7 +140,7 @@ def run_job(job: Job) -> Record:
         stdout, stderr = proc.communicate(timeout=job.timeout_s)
         timed_out = False
     except subprocess.TimeoutExpired:
-        _stop(proc)
+        stop_process(proc)
         stdout, stderr = proc.communicate()
         timed_out = True
     finally:
