@@ -6,8 +6,14 @@ services/ik_cpp/README.md). `planned_moves` lists the moves in the order the orc
 (services/orchestrator/hrc_orchestrator/robots.py): per part, transport robots home/intermediate
 -> pick -> intermediate -> place -> intermediate; screwing robots the same with the feeder as the
 pick; home at the end. Under the retreat policies, each move is also checked interrupted at its
-start and at its end: to the retreat pose (with that move's yaw) and from there to the move's
-target again (what the orchestrator re-sends when the robots resume).
+start and at its end: to the retreat pose (with that move's yaw).
+
+What the runtime does after an interruption needs no judging of its own (docs/task-semantics.md,
+"Interruptions"): the IK service brings the arm back to the point where it left its task move and
+follows the rest of the very plan judged here; a retreat that is not feasible where the arm stops
+is made from where the task move began, which is judged here. `interrupted_moves` lists the checks
+that show it, every task move interrupted at its start, middle and end by what each policy does
+(tests/test_interruptions.py).
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ class PlannedMove:
     key: str  # the scenario key of the destination, e.g. "parts.RA1.target"
     command: pb.RobotCommand
     start: str = ""  # MoveCheck.start: "" after the previous move, "home", or a move label
+    interrupt: pb.Interruption | None = None  # MoveCheck.interrupt: None for an undisturbed move
 
     @property
     def label(self) -> str:
@@ -143,7 +150,6 @@ def planned_moves(scenario: Scenario) -> list[PlannedMove]:
                 (move.label, move.dest),
             ]
             for start, where in starts:
-                cmd = move.command
                 out.append(
                     PlannedMove(
                         rid,
@@ -151,12 +157,66 @@ def planned_moves(scenario: Scenario) -> list[PlannedMove]:
                         where,
                         "retreat",
                         f"robots.{rid}.retreat",
-                        _command(rid, retreat, cmd.yaw_deg),
+                        _command(rid, retreat, move.command.yaw_deg),
                         start,
                     )
                 )
-            # back from the retreat pose to the interrupted target: the same move from either start
-            out.append(PlannedMove(rid, move.part, "retreat", move.dest, move.key, move.command))
+    return out
+
+
+# Where the interruption checks interrupt a move: at its start, middle and just before its end.
+INTERRUPT_FRACTIONS = (0.0, 0.5, 0.97)
+INTERRUPT_WAIT_S = 0.5  # how long the arm stands still before the move is commanded again
+
+
+def interruptions(
+    policy: SafetyPolicy, robot: str, retreat: Vec3, yaw_deg: float
+) -> dict[str, pb.RobotCommand]:
+    """What a policy can do to a moving arm, by name: a hold (stop_colliding, and a near collision
+    under every policy), a detour to the retreat pose (the retreat policies), a speed scale of 0
+    (ssm)."""
+    out = {"hold": pb.RobotCommand(robot=robot, kind=pb.RobotCommand.KIND_HOLD)}
+    if policy in (SafetyPolicy.RETREAT, SafetyPolicy.RETREAT_BUTTON):
+        detour = _command(robot, retreat, yaw_deg)
+        detour.detour = True
+        out["retreat"] = detour
+    if policy == SafetyPolicy.SSM:
+        out["speed 0"] = pb.RobotCommand(
+            robot=robot, kind=pb.RobotCommand.KIND_SPEED_SCALE, speed_scale=0.0
+        )
+    return out
+
+
+def interrupted_moves(scenario: Scenario, durations_s: dict[str, float]) -> list[PlannedMove]:
+    """Every task move of every robot interrupted at each of INTERRUPT_FRACTIONS of its undisturbed
+    duration (`durations_s`, by move label) by each of what the scenario's policy can do, then
+    commanded again. Each starts where the move before it ended undisturbed (its label)."""
+    out: list[PlannedMove] = []
+    policy = scenario.conditions.safety_policy
+    for rid in sorted(scenario.robots):
+        task = task_moves(scenario, rid)
+        retreat = _v(scenario.robots[rid].retreat)
+        for i, move in enumerate(task):
+            start = "home" if i == 0 else task[i - 1].label
+            kinds = interruptions(policy, rid, retreat, move.command.yaw_deg)
+            for fraction in INTERRUPT_FRACTIONS:
+                for name, command in kinds.items():
+                    out.append(
+                        PlannedMove(
+                            rid,
+                            move.part,
+                            move.origin,
+                            f"{move.dest} ({name} at {fraction:.0%})",
+                            move.key,
+                            move.command,
+                            start,
+                            pb.Interruption(
+                                at_s=fraction * durations_s[move.label],
+                                command=command,
+                                wait_s=INTERRUPT_WAIT_S,
+                            ),
+                        )
+                    )
     return out
 
 
@@ -190,7 +250,9 @@ def run_check(
         request = pb.MotionCheckRequest(scenario=scenario_pb)
         for i in group:
             m = moves[i]
-            request.moves.add(label=m.label, command=m.command, start=m.start)
+            check = request.moves.add(label=m.label, command=m.command, start=m.start)
+            if m.interrupt is not None:
+                check.interrupt.CopyFrom(m.interrupt)
         return subprocess.run(
             [str(binary), "--check-moves"],
             input=request.SerializeToString(),

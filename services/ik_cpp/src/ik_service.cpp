@@ -171,6 +171,7 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
       m.yaw = c.yaw_deg() * kDegToRad;
       m.approach_height = c.approach_height();
       m.depart_height = c.depart_height();
+      m.detour = c.detour();
       // 0 = the robot's max_tcp_speed; anything above it is capped (the generator caps too).
       m.max_speed = c.max_speed() > 0 ? std::min(c.max_speed(), arm.spec.max_tcp_speed) : 0.0;
       arm.motion->move(m);
@@ -364,16 +365,65 @@ v2::MotionCheckReply check_moves(const v2::MotionCheckRequest& request, double m
     uint64_t ticks = 0;
     double vmax = 0.0;
     r->set_kind(to_wire(engine.state(k).kind));
-    while (engine.state(k).status == kin::MotionStatus::Moving && ticks < max_ticks) {
+    // An interruption: the command at at_s, then (once the arm stands still and wait_s passed)
+    // the move again, as the orchestrator re-sends it.
+    const bool interrupt = move.has_interrupt();
+    const bool by_scale =
+        interrupt && move.interrupt().command().kind() == v2::RobotCommand::KIND_SPEED_SCALE;
+    bool interrupted = false, resumed = false;
+    uint64_t still = 0;
+    const auto wait_ticks =
+        static_cast<uint64_t>(std::ceil(std::max(0.0, move.interrupt().wait_s()) / engine.dt()));
+    while (ticks < max_ticks) {
+      const kin::MotionState& now = engine.state(k);
+      if (interrupt && !interrupted && now.status == kin::MotionStatus::Moving &&
+          static_cast<double>(ticks) * engine.dt() >= move.interrupt().at_s()) {
+        v2::RobotCommand c = move.interrupt().command();
+        c.set_robot(move.command().robot());
+        const std::string refused = engine.apply(c.robot(), c);
+        if (!refused.empty()) {
+          r->set_detail("interruption refused: " + refused);
+          break;
+        }
+        interrupted = true;
+      } else if (interrupted && !resumed) {
+        if (now.status == kin::MotionStatus::Unreachable) {
+          r->set_detail("interrupted: " + now.detail);
+          break;
+        }
+        const bool stopped =
+            now.tcp_speed < 1e-9 && (by_scale || now.status != kin::MotionStatus::Moving);
+        still = stopped ? still + 1 : 0;
+        if (still > wait_ticks) {
+          v2::RobotCommand again = move.command();
+          if (by_scale) {
+            again = move.interrupt().command();
+            again.set_robot(move.command().robot());
+            again.set_speed_scale(1.0);
+          }
+          const std::string refused = engine.apply(again.robot(), again);
+          if (!refused.empty()) {
+            r->set_detail("resume refused: " + refused);
+            break;
+          }
+          resumed = true;
+        }
+      }
+      const bool waiting = interrupted && !resumed;
+      if (!waiting && engine.state(k).status != kin::MotionStatus::Moving) break;
       engine.step();
       ++ticks;
       vmax = std::max(vmax, engine.state(k).tcp_speed);
     }
+    r->set_interrupted(interrupted);
     const kin::MotionState& s = engine.state(k);
     r->set_duration_s(static_cast<double>(ticks) * engine.dt());
     r->set_max_tcp_speed(vmax);
     r->set_feasible(s.status == kin::MotionStatus::Reached);
-    if (s.status == kin::MotionStatus::Moving) {
+    for (Eigen::Index j = 0; j < s.q.size(); ++j) r->add_end_joints(s.q[j]);
+    if (!r->detail().empty()) {
+      r->set_feasible(false);  // the interruption or the resume was refused: said above
+    } else if (s.status == kin::MotionStatus::Moving || (interrupted && !resumed)) {
       r->set_detail("still moving after " + fmt(max_move_s) + " s");
     } else if (!r->feasible()) {
       r->set_detail(s.detail.empty() ? std::string(kin::to_string(s.status)) : s.detail);

@@ -51,10 +51,15 @@ class Motion:
     yaw_deg: float = 0.0
     approach: float = 0.0
     depart: float = 0.0
+    detour: bool = False  # a safety interruption (retreat): the arm comes back to its task move
 
     @staticmethod
     def move(target: Vec3, yaw_deg: float, approach: float = 0.0, depart: float = 0.0) -> Motion:
         return Motion(pb.RobotCommand.KIND_MOVE, target, yaw_deg, approach, depart)
+
+    @staticmethod
+    def detour_to(target: Vec3, yaw_deg: float) -> Motion:
+        return Motion(pb.RobotCommand.KIND_MOVE, target, yaw_deg, detour=True)
 
     @property
     def is_move(self) -> bool:
@@ -69,6 +74,7 @@ class Motion:
             yaw_deg=self.yaw_deg,
             approach_height=self.approach,
             depart_height=self.depart,
+            detour=self.detour,
         )
 
 

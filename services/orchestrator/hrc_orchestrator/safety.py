@@ -151,7 +151,7 @@ class Safety:
                     if agent.sent is not None and agent.sent.is_move
                     else (agent.goal.yaw_deg if agent.goal is not None else 0.0)
                 )
-                retreat[rid] = Motion.move(vec3(agent.cfg.retreat), yaw_deg)
+                retreat[rid] = Motion.detour_to(vec3(agent.cfg.retreat), yaw_deg)
             self.retreating = RetreatState(rec, retreat, {rid: False for rid in self.agents})
 
     def _new_record(self, t: float, robot: str, hand: str, link: str) -> CollisionRecord:

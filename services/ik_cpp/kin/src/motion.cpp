@@ -17,6 +17,17 @@ std::string fmt_point(const Eigen::Vector3d& p) {
 
 bool finite(double v) { return std::isfinite(v); }
 
+constexpr double kJointStep = 0.01;     // rad: spacing of the FK samples of a joint path
+constexpr double kJointMeasure = 0.02;  // m per rad: a pure joint motion still takes time
+// rad: how far the exact IK of a line may be from its interpolated samples (samples are
+// check_step apart, so the true difference is far smaller; more means another branch)
+constexpr double kSampleTolerance = 0.02;
+
+bool same_move(const MoveCommand& a, const MoveCommand& b) {
+  return a.target == b.target && a.yaw == b.yaw && a.approach_height == b.approach_height &&
+         a.depart_height == b.depart_height && a.max_speed == b.max_speed;
+}
+
 std::string fmt_num(double v, int decimals) {
   char buf[48];
   std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
@@ -86,6 +97,7 @@ void MotionGenerator::reset(const Eigen::VectorXd& q) {
   state_.detail.clear();
   update_tcp(0.0);
   target_ = state_.tcp.translation();
+  base_.reset();
 }
 
 bool MotionGenerator::solve_pose(const Eigen::Vector3d& p_world, const Eigen::Matrix3d& R_world,
@@ -139,34 +151,15 @@ void MotionGenerator::update_tcp(double dt_for_speed) {
 }
 
 void MotionGenerator::brake_segment(const ProfileLimits& lim) {
-  if (!segments_.empty() && segments_.front().joint) {
-    // Brake along the joint path itself: the arm never leaves its planned path.
-    std::deque<Segment> out;
-    Cursor c;
-    std::string why;
-    brake_prefix(lim, out, c, why);
-    segments_ = std::move(out);
-    seg_t_ = 0.0;
-    time_scale_ = 1.0;
-    if (segments_.empty()) v_cmd_.setZero();
-    return;
-  }
-  const double speed = v_cmd_.norm();
-  segments_.clear();
+  // Brake along the planned path itself: the arm never leaves a path that was checked.
+  std::deque<Segment> out;
+  Cursor c;
+  std::string why;
+  brake_prefix(lim, out, c, why);
+  segments_ = std::move(out);
   seg_t_ = 0.0;
   time_scale_ = 1.0;
-  if (speed < 1e-9) {
-    v_cmd_.setZero();
-    return;
-  }
-  Segment s;
-  s.p0 = state_.tcp.translation();
-  s.u = v_cmd_ / speed;
-  s.limits = lim;
-  s.profile.plan_brake(speed, lim);
-  s.lin_length = s.prof_length = s.profile.length();
-  s.r0 = s.r1 = Eigen::Quaterniond(state_.tcp.linear());
-  segments_.push_back(s);
+  if (segments_.empty()) v_cmd_.setZero();
 }
 
 void MotionGenerator::stop_with(MotionStatus status, const std::string& detail) {
@@ -177,7 +170,16 @@ void MotionGenerator::stop_with(MotionStatus status, const std::string& detail) 
   state_.detail = detail;
 }
 
-void MotionGenerator::hold() { stop_with(MotionStatus::Holding, ""); }
+void MotionGenerator::hold() {
+  if (base_) {
+    leave();
+    final_status_ = MotionStatus::Holding;
+    state_.status = MotionStatus::Holding;
+    state_.detail.clear();
+    return;
+  }
+  stop_with(MotionStatus::Holding, "");
+}
 
 void MotionGenerator::plan_to(const std::vector<Eigen::Vector3d>& points, int rotate_segment,
                               const Eigen::Matrix3d& goal_R, const ProfileLimits& lim) {
@@ -258,15 +260,17 @@ bool MotionGenerator::check_path(std::string& why) {
   return check_segments(segments_, state_.q, why);
 }
 
-bool MotionGenerator::check_segments(const std::deque<Segment>& segs, Eigen::VectorXd seed,
+bool MotionGenerator::check_segments(std::deque<Segment>& segs, Eigen::VectorXd seed,
                                      std::string& why) {
   IkResult res;
-  for (const Segment& s : segs) {
-    if (s.joint) {  // checked when it was built: continue from where it ends
+  for (Segment& s : segs) {
+    if (!s.qs.empty()) {  // checked and sampled when it was built: continue from where it ends
       seed = joint_at(s, s.m_start + s.profile.length());
       continue;
     }
     const int n = std::max(1, static_cast<int>(std::ceil(s.prof_length / limits_.check_step)));
+    s.qs.assign(1, seed);
+    s.measure.assign(1, 0.0);
     for (int k = 1; k <= n; ++k) {
       const double f = static_cast<double>(k) / n;
       const Eigen::Vector3d p = s.p0 + s.u * (f * s.lin_length);
@@ -283,6 +287,8 @@ bool MotionGenerator::check_segments(const std::deque<Segment>& segs, Eigen::Vec
         return false;
       }
       seed = res.q;
+      s.qs.push_back(seed);
+      s.measure.push_back(f * s.prof_length);
     }
   }
   return true;
@@ -302,58 +308,62 @@ void MotionGenerator::fk_world(const Eigen::VectorXd& q, Eigen::Vector3d& p,
 Eigen::VectorXd MotionGenerator::joint_at(const Segment& s, double m) const {
   const std::vector<double>& meas = s.measure;
   const int n = static_cast<int>(meas.size()) - 1;
-  if (n <= 0 || m >= meas.back()) return s.q0 + s.dq;
-  if (m <= 0.0) return s.q0;
+  if (n <= 0 || m >= meas.back()) return s.qs.back();
+  if (m <= 0.0) return s.qs.front();
   const auto it = std::upper_bound(meas.begin(), meas.end(), m);
   const int k = static_cast<int>(it - meas.begin());  // meas[k-1] <= m < meas[k]
   const double span = meas[k] - meas[k - 1];
   const double frac = span > 0 ? (m - meas[k - 1]) / span : 1.0;
-  const double f = (k - 1 + frac) / n;
-  return s.q0 + f * s.dq;
+  const auto a = static_cast<std::size_t>(k - 1);
+  return s.qs[a] + frac * (s.qs[a + 1] - s.qs[a]);
+}
+
+MotionGenerator::Segment MotionGenerator::brake_on(const Segment& s, double m_now, double v,
+                                                   const ProfileLimits& lim) const {
+  Segment b = s;
+  b.m_start = m_now;
+  b.limits = lim;
+  b.mark = Mark::None;
+  const double left = std::max(0.0, s.measure.back() - m_now);
+  b.profile.plan_brake(v, lim);
+  if (b.profile.length() > left) {
+    // The segment's own profile was already stopping harder than a fresh brake would: stop at
+    // its end, with the limits raised just enough (the path, not the limits, is what must hold).
+    ProfileLimits hard = lim;
+    for (int i = 0; i < 40 && !b.profile.plan(left, v, hard); ++i) {
+      hard.max_accel *= 1.5;
+      hard.max_jerk *= 2.25;
+    }
+  }
+  return b;  // the geometry stays the segment's: only where and how fast it runs change
+}
+
+std::deque<MotionGenerator::Segment> MotionGenerator::remainder_from(const Segment& s,
+                                                                     double m) const {
+  std::deque<Segment> out;
+  const double left = s.measure.back() - m;
+  if (left <= 1e-9) return out;
+  Segment r = s;
+  r.m_start = m;
+  r.mark = Mark::None;
+  r.profile.plan(left, 0.0, r.limits);
+  out.push_back(std::move(r));
+  return out;
 }
 
 bool MotionGenerator::brake_prefix(const ProfileLimits& lim, std::deque<Segment>& out, Cursor& c,
                                    std::string& why) {
+  (void)why;  // braking on a sampled path cannot fail
   c.q = state_.q;
   c.p = state_.tcp.translation();
   c.r = Eigen::Quaterniond(state_.tcp.linear());
-  if (segments_.empty()) return true;
+  if (segments_.empty() || meas_speed_ < 1e-9) return true;
   const Segment& front = segments_.front();
-  if (front.joint) {
-    if (meas_speed_ < 1e-9) return true;
-    double s = 0, vs = 0;
-    front.profile.eval(seg_t_, s, vs);
-    Segment b = front;
-    b.m_start = front.m_start + s;
-    b.limits = lim;
-    b.profile.plan_brake(meas_speed_, lim);
-    c.q = joint_at(b, b.m_start + b.profile.length());
-    fk_world(c.q, c.p, c.r);
-    out.push_back(std::move(b));
-    return true;
-  }
-  const double speed = v_cmd_.norm();
-  if (speed < 1e-9) return true;
-  Segment b;
-  b.p0 = c.p;
-  b.u = v_cmd_ / speed;
-  b.limits = lim;
-  b.profile.plan_brake(speed, lim);
-  b.lin_length = b.prof_length = b.profile.length();
-  b.r0 = b.r1 = c.r;
-  Eigen::VectorXd seed = c.q;
-  IkResult res;
-  const int n = std::max(1, static_cast<int>(std::ceil(b.lin_length / limits_.check_step)));
-  for (int k = 1; k <= n; ++k) {
-    const Eigen::Vector3d p = b.p0 + b.u * (b.lin_length * k / n);
-    if (!solve_pose(p, b.r0.toRotationMatrix(), seed, res)) {
-      why = "braking leaves the workspace near " + fmt_point(p);
-      return false;
-    }
-    seed = res.q;
-  }
-  c.q = seed;
-  c.p = b.p0 + b.u * b.lin_length;
+  double s = 0, vs = 0;
+  front.profile.eval(seg_t_, s, vs);
+  Segment b = brake_on(front, front.m_start + s, meas_speed_, lim);
+  c.q = joint_at(b, b.m_start + b.profile.length());
+  fk_world(c.q, c.p, c.r);
   out.push_back(std::move(b));
   return true;
 }
@@ -378,6 +388,8 @@ bool MotionGenerator::append_line(std::deque<Segment>& out, Cursor& c, const Eig
   Eigen::VectorXd seed = c.q;
   IkResult res;
   const int n = std::max(1, static_cast<int>(std::ceil(prof / limits_.check_step)));
+  s.qs.assign(1, seed);
+  s.measure.assign(1, 0.0);
   for (int k = 1; k <= n; ++k) {
     const double f = static_cast<double>(k) / n;
     const Eigen::Vector3d q_p = s.p0 + s.u * (f * L);
@@ -390,6 +402,8 @@ bool MotionGenerator::append_line(std::deque<Segment>& out, Cursor& c, const Eig
       return false;
     }
     seed = res.q;
+    s.qs.push_back(seed);
+    s.measure.push_back(f * prof);
   }
   out.push_back(std::move(s));
   c.q = seed;
@@ -400,13 +414,10 @@ bool MotionGenerator::append_line(std::deque<Segment>& out, Cursor& c, const Eig
 
 bool MotionGenerator::append_joint(std::deque<Segment>& out, Cursor& c, const Eigen::VectorXd& q1,
                                    const ProfileLimits& lim, std::string& why) {
-  constexpr double kJointStep = 0.01;     // rad: spacing of the FK samples of the path
-  constexpr double kJointMeasure = 0.02;  // m per rad: a pure joint motion still takes time
   Segment s;
   s.joint = true;
-  s.q0 = c.q;
-  s.dq = q1 - c.q;
-  const double span = s.dq.cwiseAbs().maxCoeff();
+  const Eigen::VectorXd dq = q1 - c.q;
+  const double span = dq.cwiseAbs().maxCoeff();
   const int n = std::max(8, static_cast<int>(std::ceil(span / kJointStep)));
   Eigen::Vector3d p_end;
   Eigen::Quaterniond r_end;
@@ -415,10 +426,11 @@ bool MotionGenerator::append_joint(std::deque<Segment>& out, Cursor& c, const Ei
   const double tcp_floor =
       std::min({limits_.table_z + limits_.table_clearance, c.p.z(), p_end.z()}) - 1e-6;
   s.measure.assign(static_cast<std::size_t>(n) + 1, 0.0);
+  s.qs.assign(1, c.q);
   Eigen::Vector3d p_prev = c.p;
   Eigen::Quaterniond r_prev = c.r;
   for (int k = 1; k <= n; ++k) {
-    const Eigen::VectorXd q = s.q0 + (static_cast<double>(k) / n) * s.dq;
+    const Eigen::VectorXd q = c.q + (static_cast<double>(k) / n) * dq;
     Eigen::Vector3d p;
     Eigen::Quaterniond r;
     fk_world(q, p, r);
@@ -439,8 +451,9 @@ bool MotionGenerator::append_joint(std::deque<Segment>& out, Cursor& c, const Ei
     }
     const double dm =
         std::max({(p - p_prev).norm(), limits_.rotation_length * r_prev.angularDistance(r),
-                  kJointMeasure * (s.dq.cwiseAbs().maxCoeff() / n)});
+                  kJointMeasure * (span / n)});
     s.measure[static_cast<std::size_t>(k)] = s.measure[static_cast<std::size_t>(k) - 1] + dm;
+    s.qs.push_back(q);
     p_prev = p;
     r_prev = r;
   }
@@ -553,6 +566,19 @@ bool MotionGenerator::plan_via(const MoveCommand& cmd, const Eigen::Matrix3d& go
 // ---------------------------------------------------------------- commands
 
 MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
+  if (cmd.detour) return detour(cmd);
+  if (base_ && base_->left) return resume(cmd);
+  const MotionStatus st = plan_move(cmd);
+  if (st != MotionStatus::Unreachable) {
+    base_.emplace();
+    base_->cmd = cmd;
+    base_->q_start = state_.q;
+    base_->trail.assign(1, state_.q);
+  }
+  return st;
+}
+
+MotionStatus MotionGenerator::plan_move(const MoveCommand& cmd) {
   if (!cmd.target.allFinite() || !finite(cmd.yaw) || !finite(cmd.approach_height) ||
       !finite(cmd.depart_height) || !finite(cmd.max_speed) || cmd.approach_height < 0 ||
       cmd.depart_height < 0 || cmd.max_speed < 0) {
@@ -561,9 +587,7 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
               "invalid command: target/yaw must be finite, heights and max_speed >= 0");
     return state_.status;
   }
-  const double vmax =
-      cmd.max_speed > 0 ? std::min(cmd.max_speed, limits_.max_tcp_speed) : limits_.max_tcp_speed;
-  const ProfileLimits lim{vmax, limits_.max_tcp_accel, limits_.max_tcp_jerk};
+  const ProfileLimits lim = limits_for(cmd);
   const Eigen::Matrix3d goal_R = tool_down_rotation(cmd.yaw);
   const auto yaw_deg = [&] { return fmt_num(cmd.yaw * 180.0 / M_PI, 1); };
 
@@ -703,22 +727,20 @@ const MotionState& MotionGenerator::step() {
   for (int attempt = 0; attempt < kTries; ++attempt) {
     t_new = seg_t_ + sigma * scale_ * dt_;
     seg.profile.eval(t_new, s, vs);
-    if (seg.joint) {
-      // The planned joint path itself: no IK, nothing to re-decide.
-      ik_res_.q = joint_at(seg, seg.m_start + s);
-    } else {
-      const double f = seg.prof_length > 0 ? s / seg.prof_length : 1.0;
+    // The planned (checked, sampled) path itself. A line is refined to the exact straight line
+    // by IK seeded from the samples; where that fails or lands on another branch, the samples
+    // are the path (they were checked): the arm never stops for want of a solution.
+    const double m = seg.m_start + s;
+    const Eigen::VectorXd q_path = joint_at(seg, m);
+    ik_res_.q = q_path;
+    if (!seg.joint && m < seg.measure.back()) {
+      const double f = seg.prof_length > 0 ? (m - seg.measure.front()) / seg.prof_length : 1.0;
       const Eigen::Vector3d p = seg.p0 + seg.u * (f * seg.lin_length);
       const Eigen::Matrix3d R = seg.r0.slerp(f, seg.r1).toRotationMatrix();
-      if (!solve_pose(p, R, state_.q, ik_res_)) {
-        v_cmd_.setZero();
-        meas_speed_ = 0.0;
-        segments_.clear();
-        state_.status = MotionStatus::Unreachable;
-        state_.detail = "waypoint " + fmt_point(p) + " unreachable during the move; holding";
-        update_tcp(dt_);
-        return state_;
-      }
+      IkResult exact;
+      if (solve_pose(p, R, q_path, exact) &&
+          (exact.q - q_path).cwiseAbs().maxCoeff() < kSampleTolerance)
+        ik_res_.q = exact.q;
     }
     double ratio = 0.0;
     for (int i = 0; i < model_.dof(); ++i)
@@ -744,11 +766,15 @@ const MotionState& MotionGenerator::step() {
   const Eigen::Vector3d p_before = state_.tcp.translation();
   const double lin_speed = seg.prof_length > 0 ? vs * seg.lin_length / seg.prof_length : 0.0;
   v_cmd_ = clipped ? Eigen::Vector3d::Zero() : Eigen::Vector3d(seg.u * (lin_speed * sigma));
-  meas_speed_ = joint && !clipped ? vs * sigma : 0.0;
+  meas_speed_ = !clipped ? vs * sigma : 0.0;
+  if (base_ && (base_->trail.empty() || base_->trail.back() != state_.q))
+    base_->trail.push_back(state_.q);
   if (seg_t_ >= seg.profile.duration()) {
+    const Mark mark = seg.mark;
     segments_.pop_front();
     seg_t_ = 0.0;
     meas_speed_ = 0.0;
+    if (mark != Mark::None) segment_done_mark(mark, std::nullopt);
     if (segments_.empty()) {
       v_cmd_.setZero();
       state_.status = final_status_;
@@ -768,6 +794,258 @@ const MotionState& MotionGenerator::step() {
     }
   }
   return state_;
+}
+
+// ---------------------------------------------------------------- interruptions
+
+ProfileLimits MotionGenerator::limits_for(const MoveCommand& cmd) const {
+  const double vmax = cmd.max_speed > 0 && finite(cmd.max_speed)
+                          ? std::min(cmd.max_speed, limits_.max_tcp_speed)
+                          : limits_.max_tcp_speed;
+  return {vmax, limits_.max_tcp_accel, limits_.max_tcp_jerk};
+}
+
+bool MotionGenerator::plan_from(const Eigen::VectorXd& q, const MoveCommand& cmd,
+                                std::deque<Segment>& out, std::string& why,
+                                MotionKind* kind) const {
+  // Exactly what the motion check does for a move that starts at q: a generator at rest there.
+  MotionGenerator sim(*this);
+  sim.reset(q);
+  MoveCommand plain = cmd;
+  plain.detour = false;
+  if (sim.plan_move(plain) == MotionStatus::Unreachable) {
+    why = sim.state_.detail;
+    return false;
+  }
+  out = std::move(sim.segments_);
+  if (kind != nullptr) *kind = sim.state_.kind;
+  return true;
+}
+
+Eigen::VectorXd MotionGenerator::queue_end() const {
+  if (segments_.empty()) return state_.q;
+  const Segment& b = segments_.back();
+  return joint_at(b, b.m_start + b.profile.length());
+}
+
+std::vector<Eigen::VectorXd> MotionGenerator::samples_ahead(const std::deque<Segment>& segs) const {
+  std::vector<Eigen::VectorXd> out;
+  bool front = &segs == &segments_;
+  for (const Segment& sg : segs) {
+    double m0 = sg.m_start;
+    if (front) {
+      double s = 0, vs = 0;
+      sg.profile.eval(seg_t_, s, vs);
+      m0 += s;
+      front = false;
+    }
+    const double m1 = sg.m_start + sg.profile.length();
+    out.push_back(joint_at(sg, m0));
+    for (std::size_t k = 0; k < sg.measure.size(); ++k)
+      if (sg.measure[k] > m0 && sg.measure[k] < m1) out.push_back(sg.qs[k]);
+    out.push_back(joint_at(sg, m1));
+  }
+  return out;
+}
+
+bool MotionGenerator::polyline(const std::vector<Eigen::VectorXd>& qs, const ProfileLimits& lim,
+                               Segment& s) const {
+  s = Segment{};
+  s.joint = true;
+  for (const Eigen::VectorXd& q : qs)
+    if (s.qs.empty() || (q - s.qs.back()).cwiseAbs().maxCoeff() > 1e-12) s.qs.push_back(q);
+  if (s.qs.size() < 2) return false;
+  Eigen::Vector3d p_prev, p;
+  Eigen::Quaterniond r_prev, r;
+  fk_world(s.qs.front(), p_prev, r_prev);
+  s.p0 = p_prev;
+  s.r0 = r_prev;
+  s.measure.assign(1, 0.0);
+  for (std::size_t k = 1; k < s.qs.size(); ++k) {
+    fk_world(s.qs[k], p, r);
+    const double dm =
+        std::max({(p - p_prev).norm(), limits_.rotation_length * r_prev.angularDistance(r),
+                  kJointMeasure * (s.qs[k] - s.qs[k - 1]).cwiseAbs().maxCoeff()});
+    s.measure.push_back(s.measure.back() + dm);
+    p_prev = p;
+    r_prev = r;
+  }
+  s.r1 = r;
+  s.u = (p - s.p0).norm() > 1e-12 ? Eigen::Vector3d((p - s.p0).normalized())
+                                  : Eigen::Vector3d::UnitZ();
+  s.lin_length = s.prof_length = s.measure.back();
+  s.limits = lim;
+  s.profile.plan(s.prof_length, 0.0, lim);
+  return true;
+}
+
+MotionStatus MotionGenerator::start_plan(const MoveCommand& cmd, MotionKind kind) {
+  target_ = cmd.target;
+  final_status_ = MotionStatus::Reached;
+  state_.kind = kind;
+  state_.detail.clear();
+  if (segments_.empty()) {
+    state_.status = MotionStatus::Reached;
+    v_cmd_.setZero();
+  } else {
+    state_.status = MotionStatus::Moving;
+  }
+  return state_.status;
+}
+
+void MotionGenerator::leave() {
+  Base& b = *base_;
+  if (b.left && b.leave_pending) {
+    // Still braking on the task move's path to the leave point: only that brake stays.
+    while (segments_.size() > 1) segments_.pop_back();
+    return;
+  }
+  const ProfileLimits lim{limits_.max_tcp_speed, limits_.max_tcp_accel, limits_.max_tcp_jerk};
+  std::deque<Segment> out;
+  Cursor c;
+  std::string why;
+  brake_prefix(lim, out, c, why);
+  if (!b.left) {
+    b.rest.clear();
+    if (!segments_.empty()) {
+      const Segment& front = segments_.front();
+      double m_end = 0.0;
+      if (out.empty()) {
+        double s = 0, vs = 0;
+        front.profile.eval(seg_t_, s, vs);
+        m_end = front.m_start + s;
+      } else {
+        m_end = out.back().m_start + out.back().profile.length();
+      }
+      b.rest = remainder_from(front, m_end);
+      for (std::size_t i = 1; i < segments_.size(); ++i) b.rest.push_back(segments_[i]);
+    }
+    b.q_leave = c.q;
+    b.left = true;
+    b.next.reset();
+    b.leave_pending = !out.empty();
+    if (b.leave_pending) {
+      out.back().mark = Mark::Left;
+    } else {
+      b.leave_idx = b.trail.size() - 1;
+    }
+  }
+  segments_ = std::move(out);
+  seg_t_ = 0.0;
+  time_scale_ = 1.0;
+  if (segments_.empty()) v_cmd_.setZero();
+}
+
+MotionStatus MotionGenerator::detour(const MoveCommand& cmd) {
+  if (!base_) return plan_move(cmd);  // no task move to come back to
+  leave();
+  MotionKind kind = MotionKind::None;
+  std::deque<Segment> plan;
+  std::string why;
+  if (plan_from(queue_end(), cmd, plan, why, &kind)) {
+    for (Segment& sg : plan) segments_.push_back(std::move(sg));
+    return start_plan(cmd, kind);
+  }
+  // Nothing feasible from where the brake ends: back along the path the arm came (joint space,
+  // feasible by construction) to where its task move began, and the detour from there.
+  std::deque<Segment> from_start;
+  std::string why_start;
+  if (!plan_from(base_->q_start, cmd, from_start, why_start, &kind)) {
+    state_.kind = MotionKind::None;
+    stop_with(MotionStatus::Unreachable,
+              "target " + fmt_point(cmd.target) + ": no feasible move from where the arm stops (" +
+                  why + ") nor from where its task move began (" + why_start + ")");
+    return state_.status;
+  }
+  std::vector<Eigen::VectorXd> ahead = samples_ahead(segments_);
+  std::vector<Eigen::VectorXd> path(ahead.rbegin(), ahead.rend());
+  path.insert(path.end(), base_->trail.rbegin(), base_->trail.rend());
+  Segment back;
+  if (polyline(path, limits_for(cmd), back)) segments_.push_back(std::move(back));
+  for (Segment& sg : from_start) segments_.push_back(std::move(sg));
+  return start_plan(cmd, kind);
+}
+
+MotionStatus MotionGenerator::resume(const MoveCommand& cmd) {
+  Base& b = *base_;
+  const bool same = same_move(cmd, b.cmd);
+  const ProfileLimits lim = limits_for(cmd);
+  std::deque<Segment> tail;  // what follows the way back to the leave point
+  MotionKind kind = same ? MotionKind::Joint : MotionKind::None;
+  if (same) {
+    tail = b.rest;
+  } else {
+    std::string why;
+    if (!plan_from(b.q_leave, cmd, tail, why, &kind)) {
+      state_.kind = MotionKind::None;
+      stop_with(MotionStatus::Unreachable, "target " + fmt_point(cmd.target) + ": " + why);
+      return state_.status;
+    }
+  }
+  if (b.leave_pending) {
+    while (segments_.size() > 1) segments_.pop_back();  // the brake to the leave point
+  } else {
+    std::deque<Segment> out;
+    Cursor c;
+    std::string why;
+    brake_prefix(lim, out, c, why);
+    segments_ = std::move(out);
+    seg_t_ = 0.0;
+    time_scale_ = 1.0;
+    const Eigen::VectorXd q_stop = queue_end();
+    if ((q_stop - b.q_leave).cwiseAbs().maxCoeff() > 1e-9) {
+      // Back to the leave point: straight in joint space where that is clear of the table,
+      // else the way the arm came.
+      Cursor from;
+      from.q = q_stop;
+      fk_world(q_stop, from.p, from.r);
+      std::deque<Segment> direct;
+      std::string why_direct;
+      if (append_joint(direct, from, b.q_leave, lim, why_direct)) {
+        for (Segment& sg : direct) segments_.push_back(std::move(sg));
+      } else {
+        std::vector<Eigen::VectorXd> ahead = samples_ahead(segments_);
+        std::vector<Eigen::VectorXd> path(ahead.rbegin(), ahead.rend());
+        path.insert(path.end(), b.trail.rbegin(),
+                    b.trail.rend() - static_cast<std::ptrdiff_t>(b.leave_idx));
+        Segment back;
+        if (polyline(path, lim, back)) segments_.push_back(std::move(back));
+      }
+    }
+  }
+  if (segments_.empty()) {
+    segment_done_mark(same ? Mark::Rejoined : Mark::NewBase, cmd);
+  } else {
+    segments_.back().mark = same ? Mark::Rejoined : Mark::NewBase;
+    if (!same) b.next = cmd;
+  }
+  for (Segment& sg : tail) segments_.push_back(std::move(sg));
+  return start_plan(cmd, kind);
+}
+
+void MotionGenerator::segment_done_mark(Mark mark, std::optional<MoveCommand> cmd) {
+  if (!base_) return;
+  Base& b = *base_;
+  switch (mark) {
+    case Mark::None: break;
+    case Mark::Left:
+      b.leave_pending = false;
+      b.leave_idx = b.trail.size() - 1;
+      break;
+    case Mark::Rejoined:
+      b.left = false;
+      b.leave_pending = false;
+      b.rest.clear();
+      break;
+    case Mark::NewBase: {
+      const MoveCommand next = cmd ? *cmd : b.next.value_or(b.cmd);
+      base_.emplace();
+      base_->cmd = next;
+      base_->q_start = state_.q;
+      base_->trail.assign(1, state_.q);
+      break;
+    }
+  }
 }
 
 }  // namespace hrc::kin

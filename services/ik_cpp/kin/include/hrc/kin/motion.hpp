@@ -12,6 +12,19 @@
 // current position and velocity (continuing if aligned, otherwise braking along the current path
 // first), so there is no velocity jump beyond the acceleration limit. A move infeasible in every
 // way is refused before it starts, naming where and why.
+//
+// Every plan is checked and sampled in joint space when it is made (a joint configuration every
+// check_step metres of line, every 0.01 rad of joint move), and step() only interpolates those
+// samples: a plan that was accepted is always followed to its end (no IK while moving).
+//
+// Interruptions come back to the task move (docs/task-semantics.md, "Interruptions"). A move
+// commanded without `detour` is the task move; a hold or a `detour` move (a retreat) leaves it
+// after braking on its path, at the leave point. A detour is planned from where the brake ends;
+// if no plan is feasible there, the arm retraces its own executed path (joint space) back to
+// where the task move began and plans the detour from there. When the task move is commanded
+// again the arm rejoins the leave point (a checked joint move, or else its executed path
+// retraced) and follows the rest of the very plan it left, which the motion check judged; a
+// different task move is planned from the leave point at rest, as the motion check did.
 
 #include "hrc/kin/ik.hpp"
 #include "hrc/kin/robot_model.hpp"
@@ -20,6 +33,7 @@
 #include <Eigen/Geometry>
 
 #include <deque>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -51,6 +65,7 @@ struct MoveCommand {
   double approach_height = 0.0;  // > 0: arrive vertically from target + h z
   double depart_height = 0.0;    // > 0: first rise vertically by h
   double max_speed = 0.0;        // m/s; 0 = MotionLimits::max_tcp_speed
+  bool detour = false;           // a safety interruption (retreat): comes back to the task move
 };
 
 struct MotionState {
@@ -76,7 +91,7 @@ class MotionGenerator {
   // Start a move. Returns the new status: Moving, Reached (already there) or Unreachable
   // (target or path not reachable, or invalid command; detail says why; the arm stops smoothly).
   MotionStatus move(const MoveCommand& cmd);
-  // Stop smoothly where it is and hold.
+  // Stop smoothly on the current path and hold (leaves the task move: see the header comment).
   void hold();
   // Speed scale in [0, 1] (speed and separation monitoring): the path parameter of the motion
   // in progress, and of later moves, advances at scale x nominal, so the path is unchanged and
@@ -110,20 +125,38 @@ class MotionGenerator {
   bool reachable(const Eigen::Vector3d& position, double yaw, double* position_error = nullptr);
 
  private:
+  // What happens when a segment has been followed to its end.
+  enum class Mark { None, Left, Rejoined, NewBase };
   struct Segment {
-    Eigen::Vector3d p0, u;      // start, unit direction
-    double lin_length = 0.0;    // m
-    double prof_length = 0.0;   // profile units (>= lin_length when rotation dominates)
-    Eigen::Quaterniond r0, r1;  // orientation at start / end (world)
+    Eigen::Vector3d p0 = Eigen::Vector3d::Zero();  // start
+    Eigen::Vector3d u = Eigen::Vector3d::UnitZ();  // unit direction
+    double lin_length = 0.0;                       // m
+    double prof_length = 0.0;  // profile units (>= lin_length when rotation dominates)
+    Eigen::Quaterniond r0 = Eigen::Quaterniond::Identity();  // orientation at start (world)
+    Eigen::Quaterniond r1 = Eigen::Quaterniond::Identity();  // and at the end
     SpeedProfile profile;
     ProfileLimits limits;
-    // Joint segment: q(f) = q0 + f dq, f in [0, 1]; measure[k] = path measure (m) at f = k / n
-    // (TCP arc length, or rotation / joint motion where they dominate); the profile runs over
-    // measure from m_start (> 0 when braking inside the segment).
+    // The path in joint space: qs[k] at path measure measure[k] (TCP arc length, or rotation /
+    // joint motion where they dominate; the profile's units), interpolated linearly between.
+    // The profile runs over measure from m_start (> 0 when braking inside the segment).
+    // joint: planned as a joint interpolation (its TCP velocity comes from FK), else a line.
     bool joint = false;
-    Eigen::VectorXd q0, dq;
+    std::vector<Eigen::VectorXd> qs;
     std::vector<double> measure;
     double m_start = 0.0;
+    Mark mark = Mark::None;
+  };
+  // The task move: what interruptions come back to.
+  struct Base {
+    MoveCommand cmd;
+    Eigen::VectorXd q_start;             // where it began
+    std::vector<Eigen::VectorXd> trail;  // every configuration since, in order
+    bool left = false;                   // a hold or a detour took the arm off its path
+    bool leave_pending = false;          // still braking on its path to the leave point
+    std::size_t leave_idx = 0;           // trail index of the leave point
+    Eigen::VectorXd q_leave;             // the leave point
+    std::deque<Segment> rest;            // the move's remainder from the leave point, at rest
+    std::optional<MoveCommand> next;     // a different task move planned from the leave point
   };
   // Where a plan being built stands: joints, TCP position and orientation (world).
   struct Cursor {
@@ -132,6 +165,26 @@ class MotionGenerator {
     Eigen::Quaterniond r;
   };
 
+  // move() without the task-move bookkeeping: a plan from the current state.
+  MotionStatus plan_move(const MoveCommand& cmd);
+  // A plan for `cmd` from `q` at rest (a copy of this generator plans it); false and why if none.
+  bool plan_from(const Eigen::VectorXd& q, const MoveCommand& cmd, std::deque<Segment>& out,
+                 std::string& why, MotionKind* kind) const;
+  // Hold or detour: leave the task move (brake on its path, remember the rest) or, when already
+  // off it, brake on the current path. The queue is then the brake only.
+  void leave();
+  MotionStatus detour(const MoveCommand& cmd);
+  MotionStatus resume(const MoveCommand& cmd);
+  // Where the queue ends (the current joints when it is empty).
+  Eigen::VectorXd queue_end() const;
+  // The joint configurations of `segs` from their current position to their ends, in order.
+  std::vector<Eigen::VectorXd> samples_ahead(const std::deque<Segment>& segs) const;
+  // One joint-space segment through `qs` (from rest to rest), or false if fewer than 2 differ.
+  bool polyline(const std::vector<Eigen::VectorXd>& qs, const ProfileLimits& lim,
+                Segment& out) const;
+  // Start a composite plan (the brake already in segments_).
+  MotionStatus start_plan(const MoveCommand& target_cmd, MotionKind kind);
+  ProfileLimits limits_for(const MoveCommand& cmd) const;
   void plan_to(const std::vector<Eigen::Vector3d>& points, int rotate_segment,
                const Eigen::Matrix3d& goal_R, const ProfileLimits& lim);
   void brake_segment(const ProfileLimits& lim);
@@ -139,7 +192,8 @@ class MotionGenerator {
                   const Eigen::VectorXd& seed, IkResult& res);
   // IK along the planned segments every check_step: false (and why) if the arm cannot follow.
   bool check_path(std::string& why);
-  bool check_segments(const std::deque<Segment>& segs, Eigen::VectorXd seed, std::string& why);
+  // Also samples the lines (Segment::qs) as it goes.
+  bool check_segments(std::deque<Segment>& segs, Eigen::VectorXd seed, std::string& why);
   // The fallbacks: a plan of the given kind from the current state into `out`, or why not.
   bool plan_joint(const MoveCommand& cmd, const Eigen::Matrix3d& goal_R, const ProfileLimits& lim,
                   std::deque<Segment>& out, std::string& why);
@@ -158,6 +212,12 @@ class MotionGenerator {
   bool append_joint(std::deque<Segment>& out, Cursor& c, const Eigen::VectorXd& q1,
                     const ProfileLimits& lim, std::string& why);
   Eigen::VectorXd joint_at(const Segment& s, double m) const;
+  // A segment that stops on s's path from position m_now at speed v (profile units).
+  Segment brake_on(const Segment& s, double m_now, double v, const ProfileLimits& lim) const;
+  // s's path from m on, re-planned from rest (empty if nothing is left of it).
+  std::deque<Segment> remainder_from(const Segment& s, double m) const;
+  // A marked segment was followed to its end (cmd: the new task move, for Mark::NewBase).
+  void segment_done_mark(Mark mark, std::optional<MoveCommand> cmd);
   void fk_world(const Eigen::VectorXd& q, Eigen::Vector3d& p, Eigen::Quaterniond& r) const;
   void update_tcp(double dt_for_speed);
   void stop_with(MotionStatus status, const std::string& detail);
@@ -180,6 +240,7 @@ class MotionGenerator {
   MotionStatus final_status_ = MotionStatus::Reached;
   double meas_speed_ = 0.0;  // current speed in the front joint segment's measure units
   IkResult ik_res_;
+  std::optional<Base> base_;
   Eigen::VectorXd q_prev_;
   Eigen::Vector3d p_prev_;
 };
