@@ -18,7 +18,13 @@ Around that:
   it wants to reach: radius 0.08 + 0.17 * caution m around the goal; with anticipation it knows
   where robots are heading from their lit target cues (and that a robot showing "Waiting.." is not
   coming); without, it only sees where the TCPs are and extrapolates their motion over
-  0.5 + caution s. It never holds one action back longer than `max_hold_back_s` in all.
+  0.5 + caution s. It goes when the way is clear: it waits for a moving robot as long as it
+  moves there, and for one standing still in the way at most `max_hold_back_s`.
+- While it waits (held back, for a part's `after` parts, for the robots to continue after a
+  collision, with nothing to grab) its hands are out of the robots' way: at rest in front of the
+  body, and under `ssm` beside the body (WAIT_SSM), outside every robot's protective separation
+  distance, so that no robot stays in a protective stop because of a person who waits for it
+  (docs/task-semantics.md, "How the scripted participant waits").
 - `provoke_collisions`: at the given task times, or with the given probability on the first reach
   for each part, it reaches into the nearest robot's tool instead (until physics reports contact).
 """
@@ -46,6 +52,11 @@ log = logging.getLogger(__name__)
 
 HEAD_POS: Vec3 = (0.0, -0.70, 0.60)  # standing at -y, eyes 0.6 m above the board
 REST: dict[str, Vec3] = {"left": (-0.22, -0.56, 0.10), "right": (0.22, -0.56, 0.10)}
+# Hands down beside the body, level with the table top, behind its edge: over 0.55 m from
+# anything a robot reaches on the board, beyond the resume distance of the default SSM parameters
+# (0.30 m), so a person waiting here never holds a robot in its protective stop.
+WAIT_SSM: dict[str, Vec3] = {"left": (-0.30, -0.74, 0.0), "right": (0.30, -0.74, 0.0)}
+STILL_SPEED = 0.02  # m/s: a robot TCP slower than this stands still
 GRASP_HEIGHT_MAX = 0.02  # hand this far above a part's centre at most (top face if lower)
 APPROACH_CLEARANCE = 0.08  # approach and leave a part vertically from this far above
 CARRY_CLEARANCE = 0.10  # carry a held part this far above the higher of start and goal
@@ -121,6 +132,7 @@ class ScriptedParticipant:
         self.hold_since: float | None = None  # holding back (caution) since
         self.hold_first: float | None = None  # the first hold-back of the pending action
         self.hold_expired = False
+        self.still_since: float | None = None  # the robot holding it back stands still since
         self.hold_backs: list[tuple[float, str]] = []  # (time, robot) whenever caution held back
         self.grasp: tuple[Vec3, float, float] | None = None  # hand - object, hand & object yaw_rad
         self.in_collision = False
@@ -151,8 +163,8 @@ class ScriptedParticipant:
         ph, times = self.phase, []
         if ph in (Phase.REACT, Phase.HOLD) and self.go_t is not None:
             times.append(self.go_t)
-        if self.hold_first is not None and not self.hold_expired:
-            times.append(self.hold_first + self.max_hold)
+        if self.still_since is not None and not self.hold_expired:
+            times.append(self.still_since + self.max_hold)
         if self.provoke_times and view.task_start is not None:
             times.append(view.task_start + self.provoke_times[0])
         if ph == Phase.PROVOKE:
@@ -176,6 +188,28 @@ class ScriptedParticipant:
     @property
     def hand(self) -> Hand:
         return self.hands[self.active]
+
+    @property
+    def ssm(self) -> bool:
+        return self.facts.safety_policy == SafetyPolicy.SSM
+
+    def rest_pose(self, name: str) -> Vec3:
+        """Where a hand waits: out of the robots' way (WAIT_SSM under ssm, else REST)."""
+        return WAIT_SSM[name] if self.ssm else REST[name]
+
+    def _hands_to_wait(self, why: str) -> None:
+        """Waiting: the hands (the active one with what it holds) go to their waiting poses,
+        unless on their way there or there already."""
+        for name, hand in self.hands.items():
+            if name != self.active and not self.ssm:
+                continue  # the free hand rests at REST anyway (or presses the button)
+            if name != self.active and hand.busy:
+                continue  # pressing the continue button
+            pose = self.rest_pose(name)
+            goal = hand.goal() if hand.busy else hand.pos
+            if distance(goal, pose) > 0.01:
+                hand.cancel()
+                hand.do(Move(pose, None, GROSS_WIDTH, why))
 
     def _set(self, phase: Phase, t: float, why: str = "") -> None:
         if phase != self.phase:
@@ -261,9 +295,16 @@ class ScriptedParticipant:
                     return rid
         return None
 
+    def _robot_moving(self, view: TaskView, robot: str) -> bool:
+        r = view.robots.get(robot)
+        if r is None:
+            return False
+        v = view.robot_velocity(r, self.t)
+        return math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2) > STILL_SPEED
+
     def _held_back(self, t: float, view: TaskView, goal: Vec3) -> bool:
         """True while caution holds this action back (and arranges the reaction afterwards)."""
-        if self.hold_expired:  # waited long enough for this action: go anyway
+        if self.hold_expired:  # a robot stood still in the way long enough: go anyway
             return False
         robot = self.danger(view, goal)
         if robot is not None:
@@ -271,15 +312,23 @@ class ScriptedParticipant:
                 self.hold_since = t
                 self.hold_backs.append((t, robot))
                 self.log.append((t, f"holding back for {robot}"))
+                self._hands_to_wait("wait for the way to clear")
             if self.hold_first is None:
                 self.hold_first = t
-            # max_hold bounds the holding back of one action in all: a danger that comes and
-            # goes (a robot at the edge of the region) must not hold it back for ever
-            if t - self.hold_first < self.max_hold:
+            # A robot moving into the region is waited for as long as it moves there; one that
+            # stands still in it (e.g. waiting for something the participant does not see) at
+            # most max_hold in all, counted while it stands still.
+            if self._robot_moving(view, robot):
+                self.still_since = None
+                self.go_t = None
+                return True
+            if self.still_since is None:
+                self.still_since = t
+            if t - self.still_since < self.max_hold:
                 self.go_t = None
                 return True
             self.hold_expired = True
-            self.log.append((t, f"held back {self.max_hold:g} s: going anyway"))
+            self.log.append((t, f"{robot} stood still in the way {self.max_hold:g} s: going"))
         if self.hold_since is not None:
             self.hold_since = None
             self.go_t = t + self._rt()  # react to the region clearing
@@ -289,6 +338,7 @@ class ScriptedParticipant:
     def _action_started(self) -> None:
         self.hold_since = None
         self.hold_first = None
+        self.still_since = None
         self.hold_expired = False
 
     # ------------------------------------------------------------------ the tick
@@ -359,7 +409,7 @@ class ScriptedParticipant:
             if hand is None:
                 continue
             hand.cancel()
-            hand.do(Move(REST[name], None, GROSS_WIDTH, "pull away"))
+            hand.do(Move(self.rest_pose(name), None, GROSS_WIDTH, "pull away"))
             if name == self.active and self.phase != Phase.DONE:
                 self._set(Phase.PULLBACK, t, "still touching a robot")
 
@@ -373,10 +423,12 @@ class ScriptedParticipant:
         if not holding:
             hand.do(Grip(0.0))
         back = (hand.pos[0], max(HAND_Y_MIN, hand.pos[1] + PULLBACK[1]), hand.pos[2] + PULLBACK[2])
-        if self.facts.safety_policy == SafetyPolicy.SSM:
-            # The touched robot stays in its protective stop while the hand is near it: a short
-            # pull-back could leave both waiting for each other.
-            back = REST[self.active]
+        if self.ssm:
+            # The touched robot stays in its protective stop while a hand is near it: a short
+            # pull-back could leave both waiting for each other. Both hands go out of its reach.
+            back = self.rest_pose(self.active)
+            self._hands_to_wait("out of the stopped robot's reach")
+            hand.cancel()
         hand.do(Dwell(self._rt(0.5), "reflex"), Move(back, None, GROSS_WIDTH, "pull back"))
         self._set(Phase.PULLBACK, t, "collision")
 
@@ -484,7 +536,7 @@ class ScriptedParticipant:
         if pid is None:
             if self.phase != Phase.DONE:
                 hand.cancel()
-                hand.do(Grip(0.0), Move(REST[self.active], 0.0, GROSS_WIDTH, "rest"))
+                hand.do(Grip(0.0), Move(self.rest_pose(self.active), 0.0, GROSS_WIDTH, "rest"))
                 self._set(Phase.DONE, t, "all parts placed")
             return
         if self.phase == Phase.DONE:  # a part came undone? start again
@@ -498,12 +550,11 @@ class ScriptedParticipant:
             self._set(Phase.REACT, t, f"{pid} is grabbable")
             return
         # Nothing to do for a while: hands down.
-        if (
-            not hand.busy
-            and distance(hand.pos, REST[self.active]) > 0.01
-            and t - self.phase_since > 1.0
-        ):
-            hand.do(Move(REST[self.active], 0.0, GROSS_WIDTH, "rest"))
+        if t - self.phase_since > 1.0:
+            if not hand.busy and distance(hand.pos, self.rest_pose(self.active)) > 0.01:
+                hand.do(Move(self.rest_pose(self.active), 0.0, GROSS_WIDTH, "rest"))
+            if self.ssm:
+                self._hands_to_wait("rest")
 
     def _react(self, t: float, view: TaskView) -> None:
         pid = self.part
@@ -610,7 +661,9 @@ class ScriptedParticipant:
         part = self._part(pid)
         carry_z = max(hand.pos[2], release[2] + CARRY_CLEARANCE)
         if not self.deps_done(view, pid):
-            if carry_z - hand.pos[2] > 0.01:
+            if self.ssm:  # holding it beside the body, out of every robot's protective distance
+                self._hands_to_wait("wait with the part")
+            elif carry_z - hand.pos[2] > 0.01:
                 hand.do(
                     Move((hand.pos[0], hand.pos[1], carry_z), None, GROSS_WIDTH, "lift and wait")
                 )
@@ -670,7 +723,7 @@ class ScriptedParticipant:
             Dwell(self._rt()),
             Move(add(button, (0.0, 0.0, 0.01)), 0.0, 0.03, "button"),
             Dwell(0.3, "press"),
-            Move(REST[self.free], 0.0, GROSS_WIDTH, "rest"),
+            Move(self.rest_pose(self.free), 0.0, GROSS_WIDTH, "rest"),
         )
         self.log.append((t, "pressing the continue button"))
 

@@ -237,10 +237,11 @@ def test_caution_uses_the_anticipation_cues_only_when_enabled() -> None:
     )
     run_view(p_wait, v_wait, 2.0)
     assert not p_wait.hold_backs
-    # holding back never lasts longer than max_hold_back_s
+    # for a robot standing still in the way (its cue lit, it does not move), at most
+    # max_hold_back_s
     p_on.max_hold = 1.0
     run_view(p_on, v_on, 1.5)
-    assert any("going anyway" in m for _t, m in p_on.log)
+    assert any("stood still in the way 1 s: going" in m for _t, m in p_on.log)
     assert p_on.phase == Phase.REACH
 
 

@@ -40,6 +40,7 @@ from hrc_orchestrator.watchdog import (
     PARTICIPANT_WAIT_NOTICE_S,
     Watchdog,
     describe,
+    unreachable,
     waits_on_participant,
 )
 
@@ -160,6 +161,10 @@ class Task:
             for rid, agent in self.agents.items():
                 agent.advance(t, active=self.safety.override(rid) is None)
             self.safety.swap_stuck_yields(t)
+            stuck = unreachable(self)
+            if stuck:
+                self._end_now(out, stuck)
+                return out
             agents = self.agents.values()
             if (
                 self.completion_s is None
@@ -217,6 +222,14 @@ class Task:
                 k += 1
             best = k if best == 0 else min(best, k)
         return best
+
+    def _end_now(self, out: Outputs, msg: str) -> None:
+        """A robot cannot go on: end the run now, as a stall would after its timeout."""
+        self.watchdog.message = msg
+        events, world = self.board.drain()
+        out.events = [*events, ev.stalled(self.now(), msg)]
+        out.world_commands = world
+        out.stalled = msg
 
     def _stall(self, out: Outputs) -> None:
         """Nothing progressed for the watchdog's timeout: say who waits on what, end."""

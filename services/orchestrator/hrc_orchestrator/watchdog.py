@@ -179,6 +179,24 @@ def waits_on_participant(task: Task) -> str:
     return h.held_part or h.next_part
 
 
+def unreachable(task: Task) -> str:
+    """A robot that reports its current move impossible: the trial cannot go on (no holding
+    without a way out, docs/task-semantics.md "Interruptions"); "" if none does."""
+    for rid, agent in task.agents.items():
+        st = agent.state
+        if (
+            st is not None
+            and st.status == pb.MOTION_STATUS_UNREACHABLE
+            and st.command_id == agent.sent_id
+            and agent.sent_id > 0
+        ):
+            return (
+                f"{rid} cannot make its {_move(agent)}: {st.detail or 'unreachable'}; "
+                "no way for it to go on, the trial ends at once"
+            )
+    return ""
+
+
 def describe(task: Task, stalled_s: float) -> str:
     """'stalled for 60 s: r2 waits ...; the human holds H3 since 42.6 s; r1 is home'."""
     robots = [_robot(task, rid, a) for rid, a in task.agents.items()]
