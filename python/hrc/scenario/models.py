@@ -164,7 +164,8 @@ class Ssm(_Strict):
     source of each: docs/safety-ssm.md. They travel as `pb.SsmParams`."""
 
     human_speed: Annotated[float, Field(gt=0.0, le=5.0, allow_inf_nan=False)] = 1.6
-    reaction_time_s: Annotated[float, Field(ge=0.0, le=2.0, allow_inf_nan=False)] = 0.1
+    # > 0: no real system reacts in no time (a 0 would shrink S_p below what any robot can keep)
+    reaction_time_s: Annotated[float, Field(gt=0.0, le=2.0, allow_inf_nan=False)] = 0.1
     deceleration: Annotated[float, Field(gt=0.0, le=ARM_MAX_TCP_ACCEL, allow_inf_nan=False)] = (
         ARM_MAX_TCP_ACCEL
     )

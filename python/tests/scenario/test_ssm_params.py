@@ -52,7 +52,9 @@ def test_other_policies_leave_the_conditions_as_they_were() -> None:
 @pytest.mark.parametrize(
     ("line", "key", "why"),
     [
-        ("reaction_time_s = -1", "robots.r1.ssm.reaction_time_s", "greater than or equal to 0"),
+        ("reaction_time_s = -1", "robots.r1.ssm.reaction_time_s", "greater than 0"),
+        # no real system reacts in no time
+        ("reaction_time_s = 0", "robots.r1.ssm.reaction_time_s", "greater than 0"),
         ("deceleration = 3.0", "robots.r1.ssm.deceleration", "less than or equal to 2"),
         ("human_speed = 'fast'", "robots.r1.ssm.human_speed", "valid number"),
         ("speed = 1", "robots.r1.ssm.speed", "unknown key"),

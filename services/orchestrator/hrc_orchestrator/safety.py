@@ -277,7 +277,8 @@ class Safety:
     def update_ssm(self, t: float, dt: float, running: bool) -> None:
         """Each robot's scale, protective stops and resumes for this tick's separations."""
         for rid, mon in self.ssm.items():
-            change = mon.update(t, dt, running)
+            st = self.agents[rid].state
+            change = mon.update(t, dt, running, st.tcp_speed if st is not None else 0.0)
             if change is not None:
                 self._protective(t, rid, change)
 

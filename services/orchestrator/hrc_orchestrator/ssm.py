@@ -10,7 +10,7 @@ import math
 from dataclasses import dataclass
 
 from hrc.scenario import Ssm
-from hrc.ssm import allowed_speed, resume_distance, stop_distance
+from hrc.ssm import allowed_speed, protective_distance, resume_distance, stop_distance
 
 SCALE_STEP = 0.02  # the scale sent to the IK service is rounded down to this step
 
@@ -53,9 +53,12 @@ class SsmMonitor:
     def observe(self, separation: float, body: str) -> None:
         self.separation, self.body = separation, body
 
-    def update(self, t: float, dt: float, running: bool) -> Change | None:
+    def update(self, t: float, dt: float, running: bool, speed: float = 0.0) -> Change | None:
         """One tick: the state and scale for the latest separation; the stop or resume if
-        one happens. Time at reduced speed and in stops counts from the previous tick."""
+        one happens. Time at reduced speed and in stops counts from the previous tick.
+        ``speed``: the arm's actual TCP speed (m/s, its latest state): as ISO/TS 15066 asks, the
+        separation must also be at least S_p at that speed (the scale caps the speed to come,
+        the arm may still be slowing down), else a protective stop."""
         if running:
             if self.state == SsmState.REDUCED:
                 self.reduced_s += dt
@@ -69,14 +72,27 @@ class SsmMonitor:
             if self.touched or self.separation < resume_distance(self.p):
                 return None
             change = Change(False, self.stops, self.separation, stopped_s=t - self.stop_since)
-        elif self.touched or allowed < max(self.p.min_speed, 1e-9):
-            if not running:
-                return None  # before the start the robots stand still anyway
-            self.state, self.scale = SsmState.STOPPED, 0.0
-            self.stops += 1
-            self.stop_since = t
-            return Change(True, self.stops, self.separation, stop_distance(self.p), body=self.body)
+        else:
+            too_fast = speed > self.p.min_speed and self.separation < protective_distance(
+                self.p, speed
+            )
+            if self.touched or too_fast or allowed < max(self.p.min_speed, 1e-9):
+                if not running:
+                    return None  # before the start the robots stand still anyway
+                self.state, self.scale = SsmState.STOPPED, 0.0
+                self.stops += 1
+                self.stop_since = t
+                s_p = protective_distance(self.p, speed) if too_fast else stop_distance(self.p)
+                return Change(True, self.stops, self.separation, s_p, body=self.body)
         raw = min(1.0, allowed / self.max_speed)
-        self.scale = 1.0 if raw >= 1.0 else math.floor(raw / SCALE_STEP) * SCALE_STEP
+        # Rounded down to a step (fewer speed messages), except below the first step: an
+        # allowed speed of at least min_speed must never round to a standstill that no
+        # protective stop accounts for.
+        if raw >= 1.0:
+            self.scale = 1.0
+        elif raw < SCALE_STEP:
+            self.scale = raw
+        else:
+            self.scale = math.floor(raw / SCALE_STEP) * SCALE_STEP
         self.state = SsmState.NORMAL if self.scale >= 1.0 else SsmState.REDUCED
         return change

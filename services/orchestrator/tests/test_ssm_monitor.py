@@ -74,3 +74,37 @@ def test_figures_count_only_while_the_task_runs() -> None:
         mon.update(k * DT, DT, True)
     assert mon.reduced_s == pytest.approx(240 * DT)  # it was reduced before the first tick
     assert mon.min_separation == pytest.approx(protective_distance(p, 0.2))
+
+
+def test_a_separation_below_s_p_at_the_actual_speed_stops_the_arm() -> None:
+    # ISO/TS 15066 5.5.4: S >= S_p at the speed the arm has, not only at the speed it is capped
+    # to next (it may still be slowing down): inside S_p(actual) it is a protective stop.
+    p = Ssm()
+    mon = SsmMonitor(p, max_speed=0.5)
+    sep = protective_distance(p, 0.25)  # the cap allows 0.25 m/s ...
+    mon.observe(sep, "left")
+    assert mon.update(0.0, DT, True, speed=0.2) is None  # ... and the arm is slower: fine
+    assert mon.state == SsmState.REDUCED
+    change = mon.update(DT, DT, True, speed=0.4)  # still at 0.4 m/s: S < S_p(0.4)
+    assert change is not None and change.stopped
+    assert change.protective_distance_m == pytest.approx(protective_distance(p, 0.4))
+    assert (mon.state, mon.scale) == (SsmState.STOPPED, 0.0)
+
+
+@pytest.mark.parametrize("max_speed", [1.0, 1.5])
+def test_a_fast_arm_never_stands_still_without_a_protective_stop(max_speed: float) -> None:
+    # Rounding the scale down to SCALE_STEP made separations whose allowed speed lies between
+    # min_speed and one step of a fast arm's speed a standstill no event accounted for.
+    p = Ssm()
+    stop_at, step = stop_distance(p), 0.0005
+    sep = stop_at
+    while sep < stop_at + 0.05:
+        mon = SsmMonitor(p, max_speed=max_speed)
+        mon.observe(sep, "left")
+        change = mon.update(0.0, DT, True)
+        if mon.state != SsmState.STOPPED:
+            assert change is None and mon.scale > 0.0, sep
+            assert mon.scale * max_speed <= allowed_speed(p, sep) + 1e-12
+        else:
+            assert change is not None and change.stopped, sep
+        sep += step
