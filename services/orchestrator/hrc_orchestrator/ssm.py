@@ -13,6 +13,11 @@ from hrc.scenario import Ssm
 from hrc.ssm import allowed_speed, protective_distance, resume_distance, stop_distance
 
 SCALE_STEP = 0.02  # the scale sent to the IK service is rounded down to this step
+# Ticks between a separation measured by physics and the arm moving at the speed chosen from it
+# (physics -> orchestrator -> IK service -> physics): the separation the speed is chosen for is
+# what is left after both sides close in for that long, so that the arm's actual speed keeps
+# S >= S_p(actual speed) (the check below) despite the loop.
+LOOP_TICKS = 3
 
 
 class SsmState(enum.StrEnum):
@@ -66,10 +71,19 @@ class SsmMonitor:
                 self.stop_s += dt
             if self.min_separation is None or self.separation < self.min_separation:
                 self.min_separation = self.separation
-        allowed = allowed_speed(self.p, self.separation)
+        latency_s = LOOP_TICKS * dt
+        allowed = allowed_speed(
+            self.p, self.separation - (self.p.human_speed + speed) * latency_s
+        )
         change: Change | None = None
         if self.state == SsmState.STOPPED:
-            if self.touched or self.separation < resume_distance(self.p):
+            # Resume once clear of the stop distance and of S_p at the speed the arm still has
+            # (it may still be braking): with the margin, no stop-resume chattering.
+            clear = max(
+                resume_distance(self.p),
+                protective_distance(self.p, speed) + self.p.resume_margin_m,
+            )
+            if self.touched or self.separation < clear:
                 return None
             change = Change(False, self.stops, self.separation, stopped_s=t - self.stop_since)
         else:
@@ -82,7 +96,11 @@ class SsmMonitor:
                 self.state, self.scale = SsmState.STOPPED, 0.0
                 self.stops += 1
                 self.stop_since = t
-                s_p = protective_distance(self.p, speed) if too_fast else stop_distance(self.p)
+                s_p = (
+                    protective_distance(self.p, speed)
+                    if too_fast
+                    else stop_distance(self.p) + (self.p.human_speed + speed) * latency_s
+                )
                 return Change(True, self.stops, self.separation, s_p, body=self.body)
         raw = min(1.0, allowed / self.max_speed)
         # Rounded down to a step (fewer speed messages), except below the first step: an

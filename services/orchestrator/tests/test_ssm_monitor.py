@@ -7,7 +7,7 @@ import pytest
 from hrc.scenario import Ssm
 from hrc.ssm import allowed_speed, protective_distance, resume_distance, stop_distance
 
-from hrc_orchestrator.ssm import SCALE_STEP, SsmMonitor, SsmState
+from hrc_orchestrator.ssm import LOOP_TICKS, SCALE_STEP, SsmMonitor, SsmState
 
 DT = 1.0 / 240.0
 
@@ -23,8 +23,10 @@ def test_far_is_full_speed_near_is_scaled() -> None:
     assert mon.update(DT, DT, True) is None
     assert mon.state == SsmState.REDUCED
     assert mon.scale <= allowed_speed(p, sep) / 0.5 + 1e-12  # never above the allowed speed
-    assert mon.scale > allowed_speed(p, sep) / 0.5 - SCALE_STEP
-    assert mon.scale == pytest.approx(0.5, abs=SCALE_STEP)
+    # ... for the separation left once the loop's latency has passed (the hand closing in)
+    left = sep - p.human_speed * LOOP_TICKS * DT
+    assert mon.scale > allowed_speed(p, left) / 0.5 - SCALE_STEP
+    assert mon.scale == pytest.approx(0.5, abs=3 * SCALE_STEP)
 
 
 def test_stop_at_the_protective_distance_and_resume_with_hysteresis() -> None:
@@ -35,7 +37,9 @@ def test_stop_at_the_protective_distance_and_resume_with_hysteresis() -> None:
     change = mon.update(1.0, DT, True)
     assert change is not None and change.stopped and change.number == 1
     assert change.body == "right"
-    assert change.protective_distance_m == pytest.approx(stop_distance(p))
+    # the stop distance, plus what the hand closes in during the loop's latency
+    latency_margin = p.human_speed * LOOP_TICKS * DT
+    assert change.protective_distance_m == pytest.approx(stop_distance(p) + latency_margin)
     assert (mon.state, mon.scale) == (SsmState.STOPPED, 0.0)
     # Between the stop distance and the resume distance it stays stopped (no chattering).
     mon.observe((stop_at + resume_distance(p)) / 2, "right")
