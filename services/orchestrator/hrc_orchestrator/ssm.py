@@ -72,9 +72,7 @@ class SsmMonitor:
             if self.min_separation is None or self.separation < self.min_separation:
                 self.min_separation = self.separation
         latency_s = LOOP_TICKS * dt
-        allowed = allowed_speed(
-            self.p, self.separation - (self.p.human_speed + speed) * latency_s
-        )
+        allowed = allowed_speed(self.p, self.separation - (self.p.human_speed + speed) * latency_s)
         change: Change | None = None
         if self.state == SsmState.STOPPED:
             # Resume once clear of the stop distance and of S_p at the speed the arm still has
