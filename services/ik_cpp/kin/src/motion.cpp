@@ -569,12 +569,7 @@ MotionStatus MotionGenerator::move(const MoveCommand& cmd) {
   if (cmd.detour) return detour(cmd);
   if (base_ && base_->left) return resume(cmd);
   const MotionStatus st = plan_move(cmd);
-  if (st != MotionStatus::Unreachable) {
-    base_.emplace();
-    base_->cmd = cmd;
-    base_->q_start = state_.q;
-    base_->trail.assign(1, state_.q);
-  }
+  if (st != MotionStatus::Unreachable) begin_base(cmd);
   return st;
 }
 
@@ -797,6 +792,14 @@ const MotionState& MotionGenerator::step() {
 }
 
 // ---------------------------------------------------------------- interruptions
+
+void MotionGenerator::begin_base(const MoveCommand& cmd) {
+  Base b;
+  b.cmd = cmd;
+  b.q_start = state_.q;
+  b.trail.assign(1, state_.q);
+  base_ = std::move(b);
+}
 
 ProfileLimits MotionGenerator::limits_for(const MoveCommand& cmd) const {
   const double vmax = cmd.max_speed > 0 && finite(cmd.max_speed)
@@ -1038,11 +1041,7 @@ void MotionGenerator::segment_done_mark(Mark mark, std::optional<MoveCommand> cm
       b.rest.clear();
       break;
     case Mark::NewBase: {
-      const MoveCommand next = cmd ? *cmd : b.next.value_or(b.cmd);
-      base_.emplace();
-      base_->cmd = next;
-      base_->q_start = state_.q;
-      base_->trail.assign(1, state_.q);
+      begin_base(cmd ? *cmd : b.next.value_or(b.cmd));
       break;
     }
   }

@@ -173,6 +173,8 @@ class MotionGenerator {
   // Hold or detour: leave the task move (brake on its path, remember the rest) or, when already
   // off it, brake on the current path. The queue is then the brake only.
   void leave();
+  // A new task move starts here (the arm at rest or on its way): its trail starts now.
+  void begin_base(const MoveCommand& cmd);
   MotionStatus detour(const MoveCommand& cmd);
   MotionStatus resume(const MoveCommand& cmd);
   // Where the queue ends (the current joints when it is empty).
