@@ -419,16 +419,17 @@ class ScriptedParticipant:
         self.provoke_robot = None
         holding = self.part is not None and view.held_by(self.part) == self.active
         hand = self.hand
+        if self.ssm:
+            # The touched robot stays in its protective stop while a hand is near it: a short
+            # pull-back could leave both waiting for each other. Both hands go out of its reach
+            # (the active one below, after its reflex).
+            self._hands_to_wait("out of the stopped robot's reach")
         hand.cancel()
         if not holding:
             hand.do(Grip(0.0))
         back = (hand.pos[0], max(HAND_Y_MIN, hand.pos[1] + PULLBACK[1]), hand.pos[2] + PULLBACK[2])
         if self.ssm:
-            # The touched robot stays in its protective stop while a hand is near it: a short
-            # pull-back could leave both waiting for each other. Both hands go out of its reach.
             back = self.rest_pose(self.active)
-            self._hands_to_wait("out of the stopped robot's reach")
-            hand.cancel()
         hand.do(Dwell(self._rt(0.5), "reflex"), Move(back, None, GROSS_WIDTH, "pull back"))
         self._set(Phase.PULLBACK, t, "collision")
 

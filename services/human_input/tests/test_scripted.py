@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import functools
 import itertools
+import math
 
 import numpy as np
 import pytest
@@ -318,3 +319,60 @@ def test_left_handed_participant_uses_the_left_hand() -> None:
     assert w.released and all(True for _ in w.released)
     right = hand_positions(w, "right")
     assert np.ptp(right, axis=0).max() < 1e-9
+
+
+def test_under_ssm_it_waits_for_a_part_beside_the_body_with_both_hands() -> None:
+    from hrc.geometry import distance
+
+    from hrc_human_input.scripted import REST, WAIT_SSM
+
+    msg = scenario_pb("thesis")
+    msg.conditions.safety_policy = pb.SAFETY_POLICY_SSM
+    facts = facts_mod.from_proto(msg)
+    w = MiniWorld(facts, ScriptedParticipant(facts))
+    w.robot_delay_s = 6.0  # r1 is slow: H2 (after RA2) waits
+    p = w.participant
+    waited_at: list[tuple[float, float]] = []  # (right, left) distances from WAIT_SSM
+    for _ in range(400 * 240):
+        w.step()
+        if w.done():
+            break
+        if p.phase == Phase.WAIT_DEPS and not p.hand.busy:
+            waited_at.append(
+                (
+                    distance(p.hands["right"].pos, WAIT_SSM["right"]),
+                    distance(p.hands["left"].pos, WAIT_SSM["left"]),
+                )
+            )
+    assert waited_at, "it never waited for a part"
+    assert max(r for r, _l in waited_at) < 0.01  # holding the part beside the body
+    assert max(lft for _r, lft in waited_at) < 0.01  # the free hand too
+    assert w.placed_at["H2"] > w.placed_at["RA2"]
+    # under the other policies the rest pose is in front of the body, as before
+    assert REST["right"] != WAIT_SSM["right"]
+
+
+def test_a_robot_moving_into_the_way_is_waited_for_longer_than_max_hold() -> None:
+    p, view = view_for_caution(anticipation=False)
+    p.max_hold = 1.0
+    goal = p.grasp_point(view, "H1")
+    t = 0.2
+    # r2 sweeps to and fro across the region around H1 for 4 s, always moving
+    for k in range(int(4.0 * 240)):
+        now = t + k / 240.0
+        x = goal[0] + 0.05 * math.sin(2.0 * math.pi * 0.5 * (now - t))
+        rs = pb.RobotState(
+            robot="r2", tcp=pb.Pose(position=pb.Vec3(x=x, y=goal[1], z=goal[2] + 0.08))
+        )
+        rs.header.sim_time = now
+        view.on_robot_state(rs)
+        p.step(now, view)
+        assert p.phase in (Phase.IDLE, Phase.REACT), (now, p.log[-3:])
+    assert p.hold_backs and not any("going" in m for _t, m in p.log)
+    # once it stands still in the way, max_hold later it goes
+    for k in range(int(3.0 * 240)):
+        p.step(t + 4.0 + k / 240.0, view)
+        if p.phase == Phase.REACH:
+            break
+    assert p.phase == Phase.REACH
+    assert any("stood still in the way 1 s: going" in m for _t, m in p.log)
