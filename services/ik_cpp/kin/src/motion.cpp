@@ -798,6 +798,8 @@ void MotionGenerator::begin_base(const MoveCommand& cmd) {
   b.cmd = cmd;
   b.q_start = state_.q;
   b.trail.assign(1, state_.q);
+  b.q_end = queue_end();
+  if (!segments_.empty()) b.last.assign(1, segments_.back());
   base_ = std::move(b);
 }
 
@@ -997,14 +999,34 @@ MotionStatus MotionGenerator::resume(const MoveCommand& cmd) {
     time_scale_ = 1.0;
     const Eigen::VectorXd q_stop = queue_end();
     if ((q_stop - b.q_leave).cwiseAbs().maxCoeff() > 1e-9) {
-      // Back to the leave point: straight in joint space where that is clear of the table,
-      // else the way the arm came.
       Cursor from;
       from.q = q_stop;
       fk_world(q_stop, from.p, from.r);
       std::deque<Segment> direct;
       std::string why_direct;
-      if (append_joint(direct, from, b.q_leave, lim, why_direct)) {
+      bool rejoined = false;
+      if (same && !b.last.empty()) {
+        // Not back to where it left (where the person may still be): on to the end of the
+        // judged plan, by a joint move checked against the table, and down the plan's own
+        // vertical approach where it has one. It ends where the undisturbed move ends.
+        const Segment& last = b.last.front();
+        const bool approach = cmd.approach_height > 0;
+        const Eigen::VectorXd goal = approach ? joint_at(last, last.m_start) : b.q_end;
+        if (append_joint(direct, from, goal, lim, why_direct)) {
+          tail.clear();
+          if (approach) {
+            tail.push_back(last);
+            tail.back().mark = Mark::None;
+          }
+          rejoined = true;
+        } else {
+          direct.clear();
+        }
+      }
+      // Else back to the leave point: straight in joint space where that is clear of the
+      // table, else the way the arm came; then the rest of the plan from there.
+      if (!rejoined && append_joint(direct, from, b.q_leave, lim, why_direct)) rejoined = true;
+      if (rejoined) {
         for (Segment& sg : direct) segments_.push_back(std::move(sg));
       } else {
         std::vector<Eigen::VectorXd> ahead = samples_ahead(segments_);

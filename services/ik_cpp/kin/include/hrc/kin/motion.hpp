@@ -157,6 +157,8 @@ class MotionGenerator {
     Eigen::VectorXd q_leave;             // the leave point
     std::deque<Segment> rest;            // the move's remainder from the leave point, at rest
     std::optional<MoveCommand> next;     // a different task move planned from the leave point
+    Eigen::VectorXd q_end;               // where its plan ends
+    std::deque<Segment> last;            // its plan's last segment (the approach, if any)
   };
   // Where a plan being built stands: joints, TCP position and orientation (world).
   struct Cursor {
