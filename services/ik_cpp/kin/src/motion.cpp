@@ -22,6 +22,7 @@ constexpr double kJointMeasure = 0.02;  // m per rad: a pure joint motion still 
 // rad: how far the exact IK of a line may be from its interpolated samples (samples are
 // check_step apart, so the true difference is far smaller; more means another branch)
 constexpr double kSampleTolerance = 0.02;
+constexpr double kAtLeavePoint = 1e-4;  // rad: an arm this close to its leave point stands there
 
 bool same_move(const MoveCommand& a, const MoveCommand& b) {
   return a.target == b.target && a.yaw == b.yaw && a.approach_height == b.approach_height &&
@@ -728,7 +729,7 @@ const MotionState& MotionGenerator::step() {
     const double m = seg.m_start + s;
     const Eigen::VectorXd q_path = joint_at(seg, m);
     ik_res_.q = q_path;
-    if (!seg.joint && m < seg.measure.back()) {
+    if (!seg.joint && s < seg.profile.length()) {  // a segment ends on its own samples
       const double f = seg.prof_length > 0 ? (m - seg.measure.front()) / seg.prof_length : 1.0;
       const Eigen::Vector3d p = seg.p0 + seg.u * (f * seg.lin_length);
       const Eigen::Matrix3d R = seg.r0.slerp(f, seg.r1).toRotationMatrix();
@@ -998,7 +999,9 @@ MotionStatus MotionGenerator::resume(const MoveCommand& cmd) {
     seg_t_ = 0.0;
     time_scale_ = 1.0;
     const Eigen::VectorXd q_stop = queue_end();
-    if ((q_stop - b.q_leave).cwiseAbs().maxCoeff() > 1e-9) {
+    // Standing at the leave point (after a hold; a line's exact IK may differ from its samples
+    // by far less than this): the rest of the plan from here.
+    if ((q_stop - b.q_leave).cwiseAbs().maxCoeff() > kAtLeavePoint) {
       Cursor from;
       from.q = q_stop;
       fk_world(q_stop, from.p, from.r);
