@@ -22,8 +22,9 @@
 // after braking on its path, at the leave point. A detour is planned from where the brake ends;
 // if no plan is feasible there, the arm retraces its own executed path (joint space) back to
 // where the task move began and plans the detour from there. When the task move is commanded
-// again the arm rejoins the leave point (a checked joint move, or else its executed path
-// retraced) and follows the rest of the very plan it left, which the motion check judged; a
+// again the arm goes back to the very plan it left, which the motion check judged: from the leave
+// point along its rest, or after a detour on to the plan's end (the top of its approach) by a
+// checked joint move, else to the leave point (a checked joint move, or its path retraced); a
 // different task move is planned from the leave point at rest, as the motion check did.
 
 #include "hrc/kin/ik.hpp"
