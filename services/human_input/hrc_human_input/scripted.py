@@ -130,7 +130,6 @@ class ScriptedParticipant:
         self.part: str | None = None  # the part being handled
         self.go_t: float | None = None  # when the pending action starts
         self.hold_since: float | None = None  # holding back (caution) since
-        self.hold_first: float | None = None  # the first hold-back of the pending action
         self.hold_expired = False
         self.still_since: float | None = None  # the robot holding it back stands still since
         self.hold_backs: list[tuple[float, str]] = []  # (time, robot) whenever caution held back
@@ -313,8 +312,6 @@ class ScriptedParticipant:
                 self.hold_backs.append((t, robot))
                 self.log.append((t, f"holding back for {robot}"))
                 self._hands_to_wait("wait for the way to clear")
-            if self.hold_first is None:
-                self.hold_first = t
             # A robot moving into the region is waited for as long as it moves there; one that
             # stands still in it (e.g. waiting for something the participant does not see) at
             # most max_hold in all, counted while it stands still.
@@ -337,7 +334,6 @@ class ScriptedParticipant:
 
     def _action_started(self) -> None:
         self.hold_since = None
-        self.hold_first = None
         self.still_since = None
         self.hold_expired = False
 

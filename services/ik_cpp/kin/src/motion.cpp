@@ -797,7 +797,6 @@ const MotionState& MotionGenerator::step() {
 void MotionGenerator::begin_base(const MoveCommand& cmd) {
   Base b;
   b.cmd = cmd;
-  b.q_start = state_.q;
   b.trail.assign(1, state_.q);
   b.q_end = queue_end();
   if (!segments_.empty()) b.last.assign(1, segments_.back());
@@ -956,7 +955,7 @@ MotionStatus MotionGenerator::detour(const MoveCommand& cmd) {
   // feasible by construction) to where its task move began, and the detour from there.
   std::deque<Segment> from_start;
   std::string why_start;
-  if (!plan_from(base_->q_start, cmd, from_start, why_start, &kind)) {
+  if (!plan_from(base_->trail.front(), cmd, from_start, why_start, &kind)) {
     state_.kind = MotionKind::None;
     stop_with(MotionStatus::Unreachable,
               "target " + fmt_point(cmd.target) + ": no feasible move from where the arm stops (" +

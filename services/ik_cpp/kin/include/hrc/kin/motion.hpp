@@ -150,8 +150,7 @@ class MotionGenerator {
   // The task move: what interruptions come back to.
   struct Base {
     MoveCommand cmd;
-    Eigen::VectorXd q_start;             // where it began
-    std::vector<Eigen::VectorXd> trail;  // every configuration since, in order
+    std::vector<Eigen::VectorXd> trail;  // every configuration since it began (front: where)
     bool left = false;                   // a hold or a detour took the arm off its path
     bool leave_pending = false;          // still braking on its path to the leave point
     std::size_t leave_idx = 0;           // trail index of the leave point
