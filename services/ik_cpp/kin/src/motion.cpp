@@ -319,8 +319,28 @@ Eigen::VectorXd MotionGenerator::joint_at(const Segment& s, double m) const {
   return s.qs[a] + frac * (s.qs[a + 1] - s.qs[a]);
 }
 
+void MotionGenerator::pin_sample(Segment& s, double m) {
+  if (s.joint || s.measure.size() < 2) return;
+  const auto it = std::upper_bound(s.measure.begin(), s.measure.end(), m);
+  if (it == s.measure.begin() || it == s.measure.end()) return;
+  constexpr double kSameSample = 1e-9;
+  if (m - *(it - 1) < kSameSample || *it - m < kSameSample) return;
+  const Eigen::VectorXd q_path = joint_at(s, m);
+  const double f = s.prof_length > 0 ? (m - s.measure.front()) / s.prof_length : 1.0;
+  const Eigen::Vector3d p = s.p0 + s.u * (f * s.lin_length);
+  const Eigen::Matrix3d R = s.r0.slerp(f, s.r1).toRotationMatrix();
+  IkResult exact;
+  // The same refinement step() makes: where it fails, the samples are the path there too.
+  if (!solve_pose(p, R, q_path, exact) ||
+      (exact.q - q_path).cwiseAbs().maxCoeff() >= kSampleTolerance)
+    return;
+  const auto k = it - s.measure.begin();
+  s.qs.insert(s.qs.begin() + k, exact.q);
+  s.measure.insert(it, m);
+}
+
 MotionGenerator::Segment MotionGenerator::brake_on(const Segment& s, double m_now, double v,
-                                                   const ProfileLimits& lim) const {
+                                                   const ProfileLimits& lim) {
   Segment b = s;
   b.m_start = m_now;
   b.limits = lim;
@@ -336,15 +356,16 @@ MotionGenerator::Segment MotionGenerator::brake_on(const Segment& s, double m_no
       hard.max_jerk *= 2.25;
     }
   }
+  pin_sample(b, m_now + b.profile.length());
   return b;  // the geometry stays the segment's: only where and how fast it runs change
 }
 
-std::deque<MotionGenerator::Segment> MotionGenerator::remainder_from(const Segment& s,
-                                                                     double m) const {
+std::deque<MotionGenerator::Segment> MotionGenerator::remainder_from(const Segment& s, double m) {
   std::deque<Segment> out;
   const double left = s.measure.back() - m;
   if (left <= 1e-9) return out;
   Segment r = s;
+  pin_sample(r, m);
   r.m_start = m;
   r.mark = Mark::None;
   r.profile.plan(left, 0.0, r.limits);

@@ -216,10 +216,13 @@ class MotionGenerator {
   bool append_joint(std::deque<Segment>& out, Cursor& c, const Eigen::VectorXd& q1,
                     const ProfileLimits& lim, std::string& why);
   Eigen::VectorXd joint_at(const Segment& s, double m) const;
+  // Adds a sample at m on a line, on the exact straight line, so that a segment cut there ends
+  // (and its remainder begins) where the ticks before it were refined to: no jump at the cut.
+  void pin_sample(Segment& s, double m);
   // A segment that stops on s's path from position m_now at speed v (profile units).
-  Segment brake_on(const Segment& s, double m_now, double v, const ProfileLimits& lim) const;
+  Segment brake_on(const Segment& s, double m_now, double v, const ProfileLimits& lim);
   // s's path from m on, re-planned from rest (empty if nothing is left of it).
-  std::deque<Segment> remainder_from(const Segment& s, double m) const;
+  std::deque<Segment> remainder_from(const Segment& s, double m);
   // A marked segment was followed to its end (cmd: the new task move, for Mark::NewBase).
   void segment_done_mark(Mark mark, std::optional<MoveCommand> cmd);
   void fk_world(const Eigen::VectorXd& q, Eigen::Vector3d& p, Eigen::Quaterniond& r) const;
