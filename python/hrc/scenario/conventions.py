@@ -12,6 +12,10 @@ from __future__ import annotations
 
 HANDS = ("left", "right")  # hand names on the wire (HumanState fields, contacts, events)
 GRIP_CLOSED = 0.5  # a grip >= this holds a part; below it lets go
+# A state in which a grip crosses GRIP_CLOSED is used for a tick of its own even when a later
+# one has arrived (a release then the hand away: the part is let go where it was released);
+# at most this many wait, a flood of them drops the oldest.
+MAX_HELD_GRIP_CHANGES = 8
 GRASP_DISTANCE_M = 0.03  # a closed hand grasps a grabbable part this close to it
 HAND_SIZE = (0.09, 0.18, 0.03)  # m, the hand's box collider (x, y, z in the hand's frame)
 # m: its farthest point from its centre (a turn at w rad/s moves no point faster than w * this)

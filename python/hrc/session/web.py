@@ -25,6 +25,8 @@ from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
+from hrc import jsontext
+
 from hrc_human_input.vr_bridge import CLIENT_DIST, CONTENT_TYPES, page_html, safe_file
 from hrc_human_input.vr_options import is_loopback
 
@@ -189,8 +191,8 @@ class SessionServer:
                 if isinstance(raw, bytes):
                     continue
                 try:
-                    msg = json.loads(raw)
-                except ValueError:
+                    msg = jsontext.loads(raw)
+                except ValueError:  # not JSON, or nested deeper than a page ever sends
                     continue
                 if isinstance(msg, dict) and isinstance(msg.get("type"), str):
                     self.inbox.put(("page", msg))

@@ -17,6 +17,7 @@ from typing import Any
 
 from hrc.geometry import Pose, interpolate_pose, lerp, normalized, pose_from_pb, pose_into_pb
 from hrc.scenario import InputSource
+from hrc.scenario.conventions import GRIP_CLOSED
 from hrc.wire import pb
 
 POSE_NAMES = ("head", "left", "right")
@@ -55,6 +56,10 @@ class Sample:
             and self.left_grip == other.left_grip
             and self.right_grip == other.right_grip
         )
+
+    def closed(self) -> tuple[bool, bool]:
+        """Which hands hold (left, right): grips at or above GRIP_CLOSED."""
+        return (self.left_grip >= GRIP_CLOSED, self.right_grip >= GRIP_CLOSED)
 
     def grip(self, name: str) -> float:
         return self.left_grip if name == "left" else self.right_grip

@@ -90,6 +90,14 @@ class HumanInputService(Service):
             help="token VR clients must present (env HRC_VR_TOKEN)",
         )
         p.add_argument(
+            "--vr-origins",
+            default=os.environ.get("HRC_VR_ORIGINS", ""),
+            metavar="LIST",
+            help="comma-separated origins (https://lab.example:8443) whose pages may connect "
+            "besides this host's own (env HRC_VR_ORIGINS); a browser page from anywhere else "
+            "is refused",
+        )
+        p.add_argument(
             "--vr-driver",
             default=os.environ.get("HRC_VR_DRIVER") or None,
             metavar="KEY",
@@ -230,6 +238,7 @@ class HumanInputService(Service):
             robot_files=files,
             client_dir=args.vr_client_dir,
             driver_key=args.vr_driver,
+            origins=tuple(o.strip() for o in args.vr_origins.split(",") if o.strip()),
         )
         try:
             port = bridge.start()

@@ -157,7 +157,7 @@ class VrSource:
         self.clients_pub = clients_pub  # human/clients: the experimenter's console
 
     def sample(self, t: float) -> Sample:
-        latest = self.bridge.latest()
+        latest = self.bridge.take()
         return rest_sample(t) if latest is None else latest.at(t)
 
     def next_event_s(self, t: float) -> float | None:

@@ -30,6 +30,9 @@ from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
+from hrc import jsontext
+from hrc.scenario.conventions import MAX_HELD_GRIP_CHANGES
+
 from hrc_human_input.sample import Sample, parse_sample
 from hrc_human_input.scene import PROTOCOL_VERSION, RobotFiles
 from hrc_human_input.stream import ClientView, Snapshot, frame_json
@@ -160,8 +163,13 @@ class VrBridge:
         robot_files: RobotFiles | None = None,
         client_dir: Path | None = CLIENT_DIST,
         driver_key: str | None = None,
+        origins: tuple[str, ...] = (),
     ) -> None:
         check_bind(host, token)
+        # Browsers say which page opens a WebSocket: only this host's pages (any port: a
+        # session's page comes from another one) and the origins given may connect; a tool
+        # that is not a browser sends none.
+        self.origins = frozenset(o.rstrip("/").lower() for o in origins)
         # With a driver key only a page that presents it (?driver=KEY, the participant's link)
         # drives, and gets the role back when it reconnects; every other page spectates. Without
         # one, the first page drives and the longest-connected spectator takes over when it
@@ -179,6 +187,9 @@ class VrBridge:
         self.client_built = client_dir is not None and (client_dir / "index.html").is_file()
         self._lock = threading.Lock()
         self._latest: Sample | None = None
+        # Samples that open or close a grip, until a tick has taken each: the latest sample wins,
+        # but a release sent just before the hand moves away still happens where it was sent.
+        self._edges: collections.deque[Sample] = collections.deque(maxlen=MAX_HELD_GRIP_CHANGES)
         self._loop: asyncio.AbstractEventLoop | None = None
         self._server: Server | None = None
         self._thread: threading.Thread | None = None
@@ -232,6 +243,12 @@ class VrBridge:
     def latest(self) -> Sample | None:
         with self._lock:
             return self._latest
+
+    def take(self) -> Sample | None:
+        """The sample for this tick: the oldest grip change no tick has taken yet, else the
+        latest sample."""
+        with self._lock:
+            return self._edges.popleft() if self._edges else self._latest
 
     def presence(self) -> tuple[list[tuple[str, str]], list[str]] | None:
         """The connected clients (peer, role) and the changes since the last call; None when
@@ -497,6 +514,7 @@ class VrBridge:
             )
             if held and self._latest is not None:
                 self._latest = self._latest.released()
+                self._edges.clear()
         if held:
             self._note("the participant's hands opened where they were")
 
@@ -534,6 +552,16 @@ class VrBridge:
             return _response(
                 HTTPStatus.NOT_FOUND, b"WebSocket endpoint is /ws\n", "text/plain; charset=utf-8"
             )
+        origin = request.headers.get("Origin")
+        if origin is not None and not self._origin_ok(origin, request.headers.get("Host", "")):
+            self.stats.auth_failures += 1
+            log.warning("VR client %s: refused a page from %s", _peer(connection), origin[:200])
+            return _response(
+                HTTPStatus.FORBIDDEN,
+                b"a page from another site may not connect (this host's pages, or the origins "
+                b"given with HRC_VR_ORIGINS)\n",
+                "text/plain; charset=utf-8",
+            )
         given = parse_qs(parts.query).get("token")
         if given is not None and self.token is not None and not self._token_ok(given[0]):
             self.stats.auth_failures += 1
@@ -563,6 +591,16 @@ class VrBridge:
             # the robots from here: static files, served to anybody already
             resp.headers["Access-Control-Allow-Origin"] = "*"
         return resp
+
+    def _origin_ok(self, origin: str, host_header: str) -> bool:
+        if origin.rstrip("/").lower() in self.origins:
+            return True
+        try:
+            page_host = urlsplit(origin).hostname
+            own_host = urlsplit("//" + host_header).hostname
+        except ValueError:
+            return False
+        return page_host is not None and page_host == own_host
 
     def _token_ok(self, given: Any) -> bool:
         return (
@@ -599,7 +637,10 @@ class VrBridge:
                     await self._error_reply(ws, ["binary frames are not accepted: send JSON text"])
                     continue
                 try:
-                    obj = json.loads(message)
+                    obj = jsontext.loads(message)
+                except jsontext.JsonTooDeep as exc:
+                    await self._error_reply(ws, [str(exc)])
+                    continue
                 except json.JSONDecodeError as exc:
                     await self._error_reply(ws, [f"not valid JSON: {exc.msg} (column {exc.colno})"])
                     continue
@@ -641,6 +682,9 @@ class VrBridge:
                     )
                     continue
                 with self._lock:
+                    last = self._edges[-1] if self._edges else self._latest
+                    if last is not None and last.closed() != sample.closed():
+                        self._edges.append(sample)
                     self._latest = sample
                 self.stats.accepted += 1
         except ConnectionClosed:

@@ -62,6 +62,76 @@ def test_accepts_samples_and_answers_malformed_frames() -> None:
         assert bridge.stats.rejected == 4 and bridge.stats.accepted == 1
 
 
+def test_a_release_sent_just_before_the_hand_moves_away_happens_where_it_was_sent() -> None:
+    """Latest wins, but each grip change is the tick's sample once: a page may send the
+    release and the hand at rest right after it, and the part is let go where it was put."""
+    at_rest = {"position": [0.3, -0.6, 0.1], "orientation": [0, 0, 0, 1]}
+    with (
+        VrBridge("127.0.0.1", 0) as bridge,
+        connect(f"ws://127.0.0.1:{bridge.bound_port}/ws") as ws,
+    ):
+        ws.recv(timeout=5)
+        ws.send(json.dumps(SAMPLE))  # holding, over the target
+        assert wait_for(lambda: bridge.latest() is not None)
+        assert bridge.take().right_grip == 1.0
+        ws.send(json.dumps({**SAMPLE, "right_grip": 0.0}))  # let go there ...
+        ws.send(json.dumps({**SAMPLE, "right": at_rest, "right_grip": 0.0}))  # ... and away
+        ws.send(json.dumps({**SAMPLE, "right": at_rest, "right_grip": 0.0}))
+        assert wait_for(lambda: bridge.stats.accepted == 4)
+        assert bridge.latest().right.position[1] == -0.6
+        released = bridge.take()  # the next tick: the release, where it was sent
+        assert released.right_grip == 0.0 and released.right.position[1] == -0.3
+        after = bridge.take()  # then the latest again
+        assert after.right_grip == 0.0 and after.right.position[1] == -0.6
+        assert bridge.take() is after
+        for _ in range(20):  # a flood of grip changes keeps only the newest few waiting
+            ws.send(json.dumps({**SAMPLE, "right_grip": 1.0}))
+            ws.send(json.dumps({**SAMPLE, "right_grip": 0.0}))
+        assert wait_for(lambda: bridge.stats.accepted == 44)
+        taken = [bridge.take() for _ in range(10)]
+        assert [s.right_grip for s in taken[:8]] == [1.0, 0.0] * 4
+        assert taken[8] is taken[9] is bridge.latest()
+
+
+def test_only_this_hosts_pages_and_the_origins_given_may_connect() -> None:
+    with VrBridge("127.0.0.1", 0, origins=("https://lab.example:8443",)) as bridge:
+        url = f"ws://127.0.0.1:{bridge.bound_port}/ws"
+        for origin in ("http://evil.example", "http://127.0.0.2:8000", "null"):
+            with pytest.raises(InvalidStatus) as err:
+                connect(url, origin=origin, open_timeout=5)  # type: ignore[arg-type]
+            assert err.value.response.status_code == 403, origin
+            assert b"another site" in err.value.response.body
+        for origin in (
+            f"http://127.0.0.1:{bridge.bound_port}",  # its own page
+            "http://127.0.0.1:8001",  # a session's page, another port of this host
+            "https://lab.example:8443",  # given
+            None,  # not a browser
+        ):
+            with connect(url, origin=origin, open_timeout=5) as ws:  # type: ignore[arg-type]
+                assert json.loads(ws.recv(timeout=5))["type"] == "hello", origin
+        assert bridge.stats.auth_failures == 3
+
+
+def test_json_nested_30000_deep_gets_an_error_and_the_driver_drives_on() -> None:
+    with (
+        VrBridge("127.0.0.1", 0) as bridge,
+        connect(f"ws://127.0.0.1:{bridge.bound_port}/ws") as ws,
+        connect(f"ws://127.0.0.1:{bridge.bound_port}/ws") as spectator,
+    ):
+        assert json.loads(ws.recv(timeout=5))["role"] == "driver"
+        assert json.loads(spectator.recv(timeout=5))["role"] == "spectator"
+        for deep in ("[" * 30_000 + "]" * 30_000, '{"a":' * 10_000 + "1" + "}" * 10_000):
+            ws.send(deep)
+            reply = json.loads(ws.recv(timeout=5))
+            assert reply["type"] == "error" and "nested deeper than 16" in reply["error"], reply
+        ws.send(json.dumps({**SAMPLE, "note": "[[[[[[[[[[[[[[[[[[[[[[[[["}))  # brackets in text
+        reply = json.loads(ws.recv(timeout=5))
+        assert "nested" not in reply["error"] and "note" in reply["error"], reply
+        ws.send(json.dumps(SAMPLE))
+        assert wait_for(lambda: bridge.latest() is not None)  # still the driver
+        assert bridge.stats.accepted == 1
+
+
 def test_token_in_query_or_first_message() -> None:
     with VrBridge("127.0.0.1", 0, token="s3cret") as bridge:
         port = bridge.bound_port

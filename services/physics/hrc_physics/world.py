@@ -14,7 +14,7 @@ from __future__ import annotations
 import logging
 import math
 import re
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
@@ -38,7 +38,12 @@ from hrc.geometry import (
     yaw_quat_deg,
 )
 from hrc.scenario.colors import part_color, unit_rgba
-from hrc.scenario.conventions import GRASP_DISTANCE_M, GRIP_CLOSED, HANDS
+from hrc.scenario.conventions import (
+    GRASP_DISTANCE_M,
+    GRIP_CLOSED,
+    HANDS,
+    MAX_HELD_GRIP_CHANGES,
+)
 from hrc.scenario.layout import BUTTON_HEIGHT, BUTTON_RADIUS, FLOOR_Z, StaticBox, furniture
 from hrc.scenario.models import DEFAULT_TICK_HZ, ID_PATTERN
 from hrc.validate import check_pose
@@ -81,6 +86,8 @@ class World:
             raise ValueError(f"time step must be > 0, got {self.settings.dt}")
         self._human: pb.HumanState | None = None
         self._human_applied: pb.HumanState | None = None
+        # States in which a grip crosses GRIP_CLOSED, each applied in a step of its own
+        self._human_edges: deque[pb.HumanState] = deque(maxlen=MAX_HELD_GRIP_CHANGES)
         # Contacts involve only hands and arms: while neither moved, they are what they were.
         self._contacts_stale = True
         self.c = p.connect(p.DIRECT)
@@ -237,7 +244,13 @@ class World:
             raise CommandRejected(problem)
 
     def set_human(self, msg: pb.HumanState) -> None:
-        """Records the hands' poses and grips (applied in the next step)."""
+        """Records the hands' poses and grips (applied in the next step). The latest wins, but
+        a state that opens or closes a grip is applied in a step before any later one: in
+        realtime two states can arrive between two steps, and a release followed at once by
+        the hand moving away must let go of the part where it was released."""
+        last = self._human_edges[-1] if self._human_edges else self._human
+        if last is not None and _grips(last) != _grips(msg):
+            self._human_edges.append(msg)
         self._human = msg
 
     # ------------------------------------------------------------------ the tick
@@ -255,10 +268,11 @@ class World:
         for robot in self.robots.values():
             if robot.apply():
                 self._contacts_stale = True
-        if self._human is not None and self._human is not self._human_applied:
+        human = self._human_edges.popleft() if self._human_edges else self._human
+        if human is not None and human is not self._human_applied:
             # A participant at rest sends no new state (states come on change): same message,
             # nothing to do.
-            h = self._human_applied = self._human
+            h = self._human_applied = human
             if self.separation is not None:
                 self.separation.pose_head(h.head)
             for hand, pose, grip in (
@@ -591,3 +605,8 @@ def _overlap(a: tuple, b: tuple, margin: float) -> bool:
 def _base_pose(client: int, body: int) -> Pose:
     pos, rot = p.getBasePositionAndOrientation(body, physicsClientId=client)
     return Pose(vec3(pos), cast(Quat, tuple(rot)))
+
+
+def _grips(msg: pb.HumanState) -> tuple[bool, bool]:
+    """Which hands are closed (holding) in a state."""
+    return (msg.left_grip >= GRIP_CLOSED, msg.right_grip >= GRIP_CLOSED)

@@ -65,6 +65,25 @@ def test_held_part_follows_the_hand_and_reports_release(world: World, helpers) -
     assert world.objects["H1"].held_by == ""
 
 
+def test_a_release_arriving_with_the_hand_already_away_lets_go_where_it_was_released(
+    world: World, helpers
+) -> None:
+    """Realtime: the release and the next state (the hand at rest) can arrive before one step;
+    the release is still applied in a step of its own, where it was sent."""
+    h = helpers
+    _grab_h1(world, h)
+    release_at = (H1_TARGET[0] + 0.01, H1_TARGET[1], H1_TARGET[2])
+    h.run(world, 2, h.human(left=release_at, left_grip=1.0))
+    world.set_human(h.human(left=release_at, left_grip=0.0))
+    world.set_human(h.human(left=(0.0, -0.6, 0.3), left_grip=0.0))
+    events = h.run(world, 1)
+    assert _kinds(events) == [(K.KIND_RELEASED, "H1", "left")]
+    assert (events[0].pose.position.x, events[0].pose.position.y) == pytest.approx(release_at[:2])
+    h.run(world, 1)  # then the latest: the hand away, the part where it was let go
+    assert world.hands["left"].pos == pytest.approx((0.0, -0.6, 0.3))
+    assert world.objects["H1"].pose[0][:2] == pytest.approx(release_at[:2], abs=1e-3)
+
+
 def test_released_far_from_target_falls_and_rests_on_the_table(world: World, helpers) -> None:
     h = helpers
     _grab_h1(world, h)

@@ -31,11 +31,11 @@ export const KEY_HELP = [
 ];
 
 export class DesktopInput {
-  constructor({ canvas, camera, root, onChange }) {
+  constructor({ canvas, camera, root, sendNow }) {
     this.canvas = canvas;
     this.camera = camera;
     this.root = root;
-    this.onChange = onChange;
+    this.sendNow = sendNow; // sends the hands at once (the bridge keeps each grip change a tick)
     this.active = 'right';
     this.view = 'participant';
     this.hands = {
@@ -78,10 +78,6 @@ export class DesktopInput {
     return this.hands[this.active];
   }
 
-  changed() {
-    this.onChange?.();
-  }
-
   /** The camera a little behind and above the participant's eyes (so the hands, the board and
    * both robots are in view at once), or straight above the board. */
   placeCamera() {
@@ -113,7 +109,6 @@ export class DesktopInput {
     this.hand().p = [...REST[this.active]];
     this.hand().yawDeg = 0;
     this.parked = this.lastPointer ? { ...this.lastPointer } : { x: -1e9, y: -1e9 };
-    this.changed();
   }
 
   mouseMove(e) {
@@ -139,7 +134,6 @@ export class DesktopInput {
     if (Math.hypot(hit.x, hit.y) > REACH_M) return;
     h.p[0] = hit.x;
     h.p[1] = hit.y;
-    this.changed();
   }
 
   moveBy(dx, dy, dz) {
@@ -148,28 +142,19 @@ export class DesktopInput {
     h.p[0] += dx;
     h.p[1] += dy;
     h.p[2] = Math.min(Z_MAX, Math.max(Z_MIN, h.p[2] + dz));
-    this.changed();
   }
 
   toggleGrip() {
     const h = this.hand();
     const release = h.grip >= 0.5;
     h.grip = release ? 0 : 1;
-    this.changed();
-    // the release goes out with the hand where it is; once the trial has it, the hand goes
-    // to rest (parking at once could let go of the part at the rest point)
-    if (release) this.parkAfterRelease = this.active;
-  }
-
-  /** With the hands as the trial has them (frames): a release it has taken parks the hand. */
-  serverHands(hands) {
-    const name = this.parkAfterRelease;
-    if (!name || !hands?.[name]) return;
-    if ((hands[name].grip ?? 1) < 0.5 && name === this.active) {
-      this.parkAfterRelease = false;
+    if (release) {
+      // The release goes out with the hand where it is, and the hand goes to rest at once
+      // after it: a robot due at the part the person just let go of meets no hand there (the
+      // bridge keeps every grip change for a tick, so the part is let go where it was put).
+      this.sendNow?.();
       this.park();
-    } else if (name !== this.active) {
-      this.parkAfterRelease = false;
+      this.sendNow?.();
     }
   }
 
@@ -177,8 +162,6 @@ export class DesktopInput {
   releaseGrips() {
     const held = Object.values(this.hands).some((h) => h.grip >= 0.5);
     for (const h of Object.values(this.hands)) h.grip = 0;
-    this.parkAfterRelease = false;
-    this.changed();
     return held;
   }
 
@@ -194,12 +177,11 @@ export class DesktopInput {
       case 'ArrowDown': this.moveBy(0, -step, 0); break;
       case 'w': case 'PageUp': this.moveBy(0, 0, step); break;
       case 's': case 'PageDown': this.moveBy(0, 0, -step); break;
-      case 'q': this.hand().yawDeg += YAW_STEP_DEG; this.changed(); break;
-      case 'e': this.hand().yawDeg -= YAW_STEP_DEG; this.changed(); break;
+      case 'q': this.hand().yawDeg += YAW_STEP_DEG; break;
+      case 'e': this.hand().yawDeg -= YAW_STEP_DEG; break;
       case ' ': case 'g': this.toggleGrip(); break;
       case 'Tab': case 'h':
         this.active = this.active === 'right' ? 'left' : 'right';
-        this.changed();
         break;
       case 'r':
         this.park();

@@ -130,7 +130,7 @@ class App {
       canvas,
       camera: this.camera,
       root: this.root,
-      onChange: () => {},
+      sendNow: () => this.sendSample(performance.now(), this.localHands(), true),
     });
     this.desktop.placeCamera();
     this.xr = new XrInput({ renderer, root: this.root, onCalibrate: (c) => this.calibrate(c) });
@@ -322,10 +322,7 @@ class App {
         this.robots.applyFrame(m);
         if (m.run && m.run !== this.run) this.setRun(m.run, '');
         if (m.task_t_s !== undefined) this.taskT = m.task_t_s;
-        if (m.hands) {
-          this.serverHands = m.hands;
-          if (this.role === 'driver') this.desktop.serverHands(m.hands);
-        }
+        if (m.hands) this.serverHands = m.hands;
         if (this.freezeOn && this.world.parts.get(this.freezeOn.part)?.holder === this.freezeOn.holder) {
           this.frozen = true; // hrcTest.freezeWhen: the awaited moment is on screen now
           this.freezeOn = null;
@@ -514,15 +511,16 @@ class App {
     return out;
   }
 
-  sendSample(now, hands) {
-    if (now - this.lastSentMs < 1000 / this.rateHz - 0.5) return;
+  sendSample(now, hands, force = false) {
+    if (this.role !== 'driver' || !this.sceneMsg || OVER.has(this.run)) return;
+    if (!force && now - this.lastSentMs < 1000 / this.rateHz - 0.5) return;
     const sample = this.xr.active() ? this.xr.sample(hands) : this.desktop.sample();
     for (const name of ['left', 'right']) {
       if (!sample[name]) sample[name] = { position: hands[name].p, orientation: hands[name].q };
       if (sample[`${name}_grip`] === undefined) sample[`${name}_grip`] = hands[name].grip;
     }
     const text = JSON.stringify(sample);
-    if (text === this.lastSample && now - this.lastSentMs < KEEPALIVE_MS) return;
+    if (!force && text === this.lastSample && now - this.lastSentMs < KEEPALIVE_MS) return;
     if (this.bridge?.send(sample)) {
       this.lastSample = text;
       this.lastSentMs = now;
