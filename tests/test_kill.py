@@ -4,11 +4,18 @@ death would fall back on (the 5 s the others get to leave, the 10 s barrier time
 
 from __future__ import annotations
 
+import json
 import os
 import signal
+import stat
 import time
+from pathlib import Path
 
 import pytest
+
+from hrc.cli import runner
+
+from .conftest import wait_until
 
 
 @pytest.mark.parametrize("victim", ["physics", "orchestrator", "ik_cpp", "human_input", "logger"])
@@ -24,3 +31,37 @@ def test_killing_a_service_ends_the_run_naming_it(trial_factory, victim: str) ->
     assert code != 0
     assert f"'{victim}'" in err and "SIGKILL" in err, err
     assert elapsed < 4.0, f"took {elapsed:.2f} s"
+
+
+def test_killing_hrc_run_itself_ends_every_service_keeping_metrics_and_its_socket_goes(
+    trial_factory,
+) -> None:
+    """SIGKILL of ``hrc run`` (nothing of it can clean up): its services end, the orchestrator
+    still writes metrics.json, and the trial's socket, in a directory only this user may enter,
+    is removed by the next run."""
+    trial = trial_factory()
+    trial.wait_ticking()
+    pids = trial.service_pids()
+    directory = runner.socket_dir()
+    assert directory is not None
+    assert stat.S_IMODE(directory.stat().st_mode) == 0o700
+    sock = directory / f"{trial.session}.sock"
+    assert sock.exists(), sorted(directory.iterdir())
+    os.kill(trial.proc.pid, signal.SIGKILL)
+    trial.proc.wait(timeout=10)
+
+    def gone(pid: int) -> bool:
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                return f.read().split(") ")[1].split()[0] == "Z"  # a zombie has left
+        except FileNotFoundError:
+            return True
+
+    assert wait_until(lambda: all(gone(p) for p in pids.values()), 15, 0.1), pids
+    metrics = json.loads((trial.out / "metrics.json").read_text())
+    assert metrics["run"]["ok"] is False and metrics["run"]["end_reason"], metrics["run"]
+    assert sock.exists()  # nobody was left to remove it ...
+    old = time.time() - 2 * runner.STALE_SOCKET_S
+    os.utime(sock, (old, old))
+    runner.local_socket("next-trial")  # ... the next run does, on its way in
+    assert not sock.exists() and not Path(f"{sock}.lock").exists()

@@ -190,17 +190,14 @@ def parse_args(cls: type[Service], argv: list[str] | None = None) -> argparse.Na
     return p.parse_args(argv)
 
 
-STOP_GRACE_S = 2.0  # after SIGTERM / SIGINT an observer has this long to write its files
-
-
 def _stop_on_signals(role: ClockFollower) -> None:
-    """SIGTERM / SIGINT end an observer's run cleanly: it still writes its files, within
-    STOP_GRACE_S (it may be far behind the clock); then it exits anyway, so that it never
+    """SIGTERM / SIGINT end a service's run cleanly: it still writes its files, within
+    services.STOP_GRACE_S (it may be far behind the clock); then it exits anyway, so that it never
     outlives the trial (hrc run sends SIGTERM when it stops, and when it dies)."""
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:
         role.stop(f"terminated by {signal.Signals(signum).name}")
-        timer = threading.Timer(STOP_GRACE_S, _exit_now)
+        timer = threading.Timer(services.STOP_GRACE_S, _exit_now)
         timer.daemon = True
         timer.start()
 
@@ -209,7 +206,7 @@ def _stop_on_signals(role: ClockFollower) -> None:
 
 
 def _exit_now() -> None:
-    log.error("still writing %.0f s after the stop signal: exiting", STOP_GRACE_S)
+    log.error("still writing %.0f s after the stop signal: exiting", services.STOP_GRACE_S)
     os._exit(EXIT_FAILED)
 
 
@@ -236,10 +233,12 @@ def _run_role(service: Service, bus: Bus) -> Outcome:
     role: ClockFollower
     if kind is Role.OBSERVER:
         role = service.observer = Observer(bus, input_timeout_s=timeout)
-        _stop_on_signals(role)
     else:
         role = LockstepParticipant(bus, input_timeout_s=timeout)
         role.on_next_event(service.next_event_tick)
+    # a participant too: the orchestrator stopped right after the run's end (or by Ctrl-C)
+    # still writes metrics.json with the end it saw
+    _stop_on_signals(role)
     service.register_inputs(role)
     role.on_tick(service.step)
     role.start()

@@ -212,6 +212,8 @@ def _one_clock_master() -> str:
 CLOCK_MASTER = _one_clock_master()
 PARTICIPANTS = with_role(Role.PARTICIPANT)  # their acks close the barrier
 OBSERVERS = with_role(Role.OBSERVER)
+# After SIGTERM / SIGINT a service has this long to write its files (hrc run waits a little more)
+STOP_GRACE_S = 2.0
 
 
 def _role_options(role: Role) -> tuple[Option, ...]:

@@ -15,6 +15,7 @@ import os
 import random
 import signal
 import socket
+import stat
 import subprocess
 import sys
 import tempfile
@@ -379,10 +380,63 @@ class ServiceGroup:
         return "\n".join(text[-lines:])
 
 
+STALE_SOCKET_S = 60.0  # a socket this old that nobody accepts on belongs to a trial gone
+
+
+def socket_dir() -> Path | None:
+    """The directory of this user's trial sockets, which only this user may enter (another
+    local user cannot reach a trial's bus through it); None if it cannot be made so."""
+    path = Path(tempfile.gettempdir()) / f"hrc-{os.getuid()}"
+    try:
+        path.mkdir(mode=0o700, exist_ok=True)
+        st = path.lstat()
+        if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid():
+            log.warning("%s is not this user's directory: the services meet over TCP", path)
+            return None
+        if stat.S_IMODE(st.st_mode) != 0o700:
+            path.chmod(0o700)
+    except OSError as exc:
+        log.warning("no private socket directory (%s): the services meet over TCP", exc)
+        return None
+    return path
+
+
+def sweep_sockets(directory: Path) -> list[Path]:
+    """Removes the sockets of trials that are gone (nobody accepts on them: a run killed with
+    SIGKILL could not remove its own); returns them."""
+    gone: list[Path] = []
+    for path in directory.glob("*.sock"):
+        try:
+            if time.time() - path.lstat().st_mtime < STALE_SOCKET_S:
+                continue  # just made: a trial starting now may not listen on it yet
+        except OSError:
+            continue
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
+            try:
+                s.connect(str(path))
+            except (ConnectionRefusedError, FileNotFoundError):
+                remove_socket(path)
+                gone.append(path)
+            except OSError:
+                pass  # alive but busy, or not ours to judge
+    return gone
+
+
+def remove_socket(path: Path) -> None:
+    """The socket and the lock file Zenoh keeps beside it."""
+    path.unlink(missing_ok=True)
+    Path(f"{path}.lock").unlink(missing_ok=True)
+
+
 def local_socket(session: str) -> Path | None:
     """Where the services of one trial meet on this machine: a Unix socket (cheaper per message
-    than TCP loopback), or None where the path would be too long for one (~107 bytes)."""
-    path = Path(tempfile.gettempdir()) / f"hrc-{session}.sock"
+    than TCP loopback) in this user's private directory, or None where that cannot be made or
+    the path would be too long for one (~107 bytes)."""
+    directory = socket_dir()
+    if directory is None:
+        return None
+    sweep_sockets(directory)
+    path = directory / f"{session}.sock"
     return path if len(str(path)) <= 100 else None
 
 
@@ -612,7 +666,8 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
                 time.sleep(0.01)  # hrc run returns as soon as the last one has left
         # judge by how each ended on its own, before we stop the stragglers
         status = group.poll()
-        group.stop_all(grace_s=0.5 if failed else 2.0)
+        # SIGTERM: a service still writes its files (metrics.json) within its grace
+        group.stop_all(grace_s=services.STOP_GRACE_S + 0.5)
         end = watcher.end if watcher else None
         wall = time.monotonic() - t0
         killed = [n for n in services.names() if (status.get(n) or 0) < 0]
@@ -654,4 +709,4 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         group.write_timing(_phases(phases, t0, group, watcher))
         group.close()
         if sock is not None:
-            sock.unlink(missing_ok=True)
+            remove_socket(sock)
