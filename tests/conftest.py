@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 
-from hrc.bus import Bus, BusConfig
+from hrc.bus import Bus, BusConfig, access
 from hrc.cli.runner import free_port  # tests import it from here too
 from hrc.paths import ik_binary, project_root
 from hrc.services import SERVICES
@@ -120,10 +120,14 @@ class Trial:
         self.stderr = ""
 
     def bus(self, name: str = "tester") -> Bus:
+        """The experimenter's side of the trial's bus (with its credentials)."""
         if self._bus is None:
-            cfg = BusConfig(session=self.session, connect=[f"tcp/127.0.0.1:{self.port}"], listen=[])
-            self._bus = Bus(cfg, name)
+            self._bus = Bus(self.bus_config(), name)
         return self._bus
+
+    def bus_config(self) -> BusConfig:
+        """How a tool joins this trial: its TCP port, with the experimenter's credentials."""
+        return access.join(self.session, self.port)
 
     def service_pids(self) -> dict[str, int]:
         pids: dict[str, int] = {}

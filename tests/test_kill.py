@@ -9,11 +9,10 @@ import os
 import signal
 import stat
 import time
-from pathlib import Path
 
 import pytest
 
-from hrc.cli import runner
+from hrc.bus import access
 
 from .conftest import wait_until
 
@@ -33,20 +32,20 @@ def test_killing_a_service_ends_the_run_naming_it(trial_factory, victim: str) ->
     assert elapsed < 4.0, f"took {elapsed:.2f} s"
 
 
-def test_killing_hrc_run_itself_ends_every_service_keeping_metrics_and_its_socket_goes(
+def test_killing_hrc_run_itself_ends_every_service_keeping_metrics_and_its_folder_goes(
     trial_factory,
 ) -> None:
     """SIGKILL of ``hrc run`` (nothing of it can clean up): its services end, the orchestrator
-    still writes metrics.json, and the trial's socket, in a directory only this user may enter,
-    is removed by the next run."""
+    still writes metrics.json, and the trial's private folder (socket, credentials) is removed
+    by the next run."""
     trial = trial_factory()
     trial.wait_ticking()
     pids = trial.service_pids()
-    directory = runner.socket_dir()
-    assert directory is not None
-    assert stat.S_IMODE(directory.stat().st_mode) == 0o700
-    sock = directory / f"{trial.session}.sock"
-    assert sock.exists(), sorted(directory.iterdir())
+    config = access.tool_config(trial.session)
+    assert config is not None
+    folder = config.parent
+    assert stat.S_IMODE(folder.parent.stat().st_mode) == 0o700
+    assert (folder / access.SOCKET).exists(), sorted(folder.iterdir())
     os.kill(trial.proc.pid, signal.SIGKILL)
     trial.proc.wait(timeout=10)
 
@@ -60,8 +59,8 @@ def test_killing_hrc_run_itself_ends_every_service_keeping_metrics_and_its_socke
     assert wait_until(lambda: all(gone(p) for p in pids.values()), 15, 0.1), pids
     metrics = json.loads((trial.out / "metrics.json").read_text())
     assert metrics["run"]["ok"] is False and metrics["run"]["end_reason"], metrics["run"]
-    assert sock.exists()  # nobody was left to remove it ...
-    old = time.time() - 2 * runner.STALE_SOCKET_S
-    os.utime(sock, (old, old))
-    runner.local_socket("next-trial")  # ... the next run does, on its way in
-    assert not sock.exists() and not Path(f"{sock}.lock").exists()
+    assert folder.exists()  # nobody was left to remove it ...
+    nxt = access.TrialAccess.create(f"next-{trial.session}", ["physics"])  # ... the next run does
+    assert nxt is not None
+    nxt.remove()
+    assert not folder.exists()

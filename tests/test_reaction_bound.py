@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from hrc.bus import Bus, BusConfig
+from hrc.bus import Bus, access
 from hrc.cli.runner import TrialOptions, TrialResult, free_port, run_trial
 from hrc.paths import ik_binary
 from hrc.wire import pb
@@ -47,7 +47,6 @@ def provoking_scenario(tmp: Path) -> Path:
 
 def test_robots_react_to_a_hand_contact_within_one_thesis_frame(tmp_path: Path) -> None:
     session, port = f"rb{uuid.uuid4().hex[:8]}", free_port()
-    cfg = BusConfig(session=session, mode="client", connect=[f"tcp/127.0.0.1:{port}"], listen=[])
     lock = threading.Lock()
     contacts: list[tuple[int, str]] = []  # (tick, robot) of each hand-robot contact begin
     states: list[tuple[int, str, int]] = []  # (tick, robot, command_id)
@@ -79,7 +78,7 @@ def test_robots_react_to_a_hand_contact_within_one_thesis_frame(tmp_path: Path) 
     runner = threading.Thread(target=lambda: result.append(run_trial(opts, tmp_path / "trial")))
     runner.start()
     try:
-        with Bus(cfg, WATCHER) as bus:
+        with Bus(access.join(session, port), WATCHER) as bus:
             bus.subscribe(bus.keys.world_contacts(), pb.WorldContacts, on_contacts)
             bus.subscribe(bus.keys.robot_states(), pb.RobotState, on_state)
             bus.subscribe(bus.keys.clock(), pb.ClockTick, on_clock)

@@ -13,7 +13,7 @@ import time
 
 from websockets.sync.client import connect
 
-from hrc.bus import Bus, BusConfig
+from hrc.bus import Bus, access
 from hrc.cli.runner import TrialOptions, run_trial
 from hrc.wire import pb
 
@@ -44,7 +44,7 @@ def test_a_vr_reach_moves_the_hand_in_physics(tmp_path, ik_bin) -> None:
     try:
         time.sleep(1.0)
         with Bus(
-            BusConfig(session=session, mode="client", connect=[f"tcp/127.0.0.1:{port}"], listen=[]),
+            access.join(session, port),
             "tester",
         ) as bus:
 

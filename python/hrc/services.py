@@ -47,6 +47,8 @@ class Settings:
     listen: tuple[str, ...] = ()  # where the clock master listens (``bus`` among them)
     connect: tuple[str, ...] = ()  # more endpoints for every service (a router)
     lowlatency: bool = False  # Zenoh's low-latency transport (all services, or none)
+    # each service's Zenoh configuration file (its credentials); "{service}" stands for its name
+    zenoh_config: str | None = None
     clock: str = ""  # lockstep | realtime
     ticks: str = ""  # 0: until the task ends
     barrier_timeout: str | None = None
@@ -95,6 +97,8 @@ class Option:
             return [self.flag]
         if isinstance(value, tuple):
             return [token for v in value for token in (self.flag, v)]
+        if self.setting == "zenoh_config":
+            value = value.replace("{service}", service)
         return [self.flag, value]
 
 
@@ -223,7 +227,11 @@ def _role_options(role: Role) -> tuple[Option, ...]:
     of it, so a route between any two services exists as soon as both have announced themselves
     (peer-to-peer links would form later, by gossip, and could miss the first messages).
     """
-    common = (Option("--session", "session"), Option("--zenoh-lowlatency", "lowlatency"))
+    common = (
+        Option("--session", "session"),
+        Option("--zenoh-lowlatency", "lowlatency"),
+        Option("--zenoh-config", "zenoh_config"),
+    )
     router = Option("--connect", "connect")
     if role is Role.CLOCK_MASTER:
         return (

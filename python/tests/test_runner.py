@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
+import json
 import os
 import signal
+import stat
 import subprocess
 import sys
 import tempfile
@@ -12,8 +14,9 @@ from pathlib import Path
 import pytest
 
 from hrc import priority, services
+from hrc.bus import access
 from hrc.cli import runner
-from hrc.cli.runner import TrialOptions, fits_lowlatency, local_socket, service_argv
+from hrc.cli.runner import TrialOptions, fits_lowlatency, service_argv
 from hrc.paths import project_root
 
 THESIS = project_root() / "scenarios" / "thesis.toml"
@@ -58,10 +61,38 @@ def test_a_scenario_too_large_for_the_low_latency_transport_falls_back(monkeypat
     assert not fits_lowlatency(Path("/nonexistent/scenario.toml"))  # the orchestrator says why
 
 
-def test_no_socket_where_its_path_would_be_too_long(monkeypatch) -> None:
-    assert local_socket("s1") == Path(tempfile.gettempdir()) / "hrc-s1.sock"
-    monkeypatch.setattr(tempfile, "tempdir", "/tmp/" + "x" * 120)
-    assert local_socket("s1") is None
+def test_a_trials_private_folder_holds_its_socket_and_credentials(tmp_path, monkeypatch) -> None:
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    a = access.TrialAccess.create("s1", ["physics", "logger"])
+    assert a is not None and a.folder == tmp_path / f"hrc-{os.getuid()}" / "s1"
+    assert stat.S_IMODE(a.folder.parent.stat().st_mode) == 0o700
+    assert stat.S_IMODE(a.folder.stat().st_mode) == 0o700
+    assert a.socket == a.folder / "bus.sock"
+    users = dict(line.split(":") for line in (a.folder / "users").read_text().splitlines())
+    assert sorted(users) == ["experimenter", "logger", "physics"]
+    assert len(set(users.values())) == 3  # a password each
+    for name in users:
+        cfg = json.loads(a.config(name).read_text())["transport"]["auth"]["usrpwd"]
+        assert (cfg["user"], cfg["password"]) == (name, users[name])
+        assert stat.S_IMODE(a.config(name).stat().st_mode) == 0o600
+    assert access.tool_config("s1") == a.config("experimenter")
+    assert access.TrialAccess.create("s1", ["physics"]) is None  # one folder per session
+    # a trial that joins other hosts' routers: files without credentials
+    b = access.TrialAccess.create("s2", ["physics"], authenticate=False)
+    assert b is not None and json.loads(b.config("physics").read_text()) == {}
+    # the folder of a run that is gone goes with the next run; a living one stays
+    (b.folder / "pid").write_text("999999999")
+    access.TrialAccess.create("s3", ["physics"])
+    assert a.folder.is_dir() and not b.folder.exists()
+    a.remove()
+    assert not a.folder.exists() and access.tool_config("s1") is None
+
+
+def test_no_socket_where_its_path_would_be_too_long(tmp_path, monkeypatch) -> None:
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path / ("x" * 100)))
+    (tmp_path / ("x" * 100)).mkdir()
+    a = access.TrialAccess.create("s1", ["physics"])
+    assert a is not None and a.socket is None  # hrc run then uses the TCP port
 
 
 IDLE_CHILD = (

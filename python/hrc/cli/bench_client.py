@@ -36,7 +36,7 @@ from typing import Any
 from websockets.sync.client import ClientConnection, connect
 
 from hrc import scenario as sc
-from hrc.bus import Bus, BusConfig
+from hrc.bus import Bus, access
 from hrc.cli.bench_page import page_figures
 from hrc.cli.runner import TrialOptions, TrialResult, VrOptions, free_port, run_trial
 from hrc.paths import project_root
@@ -213,15 +213,15 @@ def live_trial(
     try:
         yield session, lambda: result.get("r")
     finally:
-        with contextlib.suppress(Exception):
-            cfg = BusConfig(session=session, mode="client", connect=[f"tcp/127.0.0.1:{port}"])
-            cfg.listen = []
-            with Bus(cfg, "bench") as bus:
-                time.sleep(0.3)
-                bus.publisher(bus.keys.run_control()).put(
-                    pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="bench done")
-                )
-                time.sleep(0.3)
+        with (
+            contextlib.suppress(Exception),
+            Bus(access.join(session, port, timeout_s=5.0), "bench") as bus,
+        ):
+            time.sleep(0.3)
+            bus.publisher(bus.keys.run_control()).put(
+                pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="bench done")
+            )
+            time.sleep(0.3)
         runner.join(60)
 
 

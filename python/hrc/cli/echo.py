@@ -9,7 +9,7 @@ import threading
 
 import zenoh
 
-from hrc.bus import Bus, add_bus_arguments, bus_config_from_args
+from hrc.bus import Bus, access, add_bus_arguments, bus_config_from_args
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -20,7 +20,7 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     done = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: done.set())
-    with Bus(bus_config_from_args(args), "echo") as bus:
+    with Bus(access.as_tool(bus_config_from_args(args)), "echo") as bus:
         pub = bus.session.declare_publisher(
             bus.keys.bench(args.out), express=True, congestion_control=zenoh.CongestionControl.BLOCK
         )

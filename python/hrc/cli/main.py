@@ -267,9 +267,9 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_alive(args: argparse.Namespace) -> int:
-    from hrc.bus import Bus, bus_config_from_args
+    from hrc.bus import Bus, access, bus_config_from_args
 
-    cfg = bus_config_from_args(args)
+    cfg = access.as_tool(bus_config_from_args(args))
     cfg.listen = []
     with Bus(cfg, "probe") as bus:
         deadline = time.monotonic() + args.wait

@@ -15,10 +15,8 @@ import os
 import random
 import signal
 import socket
-import stat
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 import uuid
@@ -29,6 +27,7 @@ from typing import IO
 
 from hrc import priority, services
 from hrc.bus import Bus, BusConfig
+from hrc.bus.access import EXPERIMENTER, TrialAccess
 from hrc.cli.console import LiveConsole
 from hrc.cli.prefork import ForkedProcess, can_fork, fork_service
 from hrc.paths import build_dir
@@ -45,7 +44,6 @@ SERVICES_LEAVE_S = 60.0
 SERVICES_ABANDONED_S = 5.0
 # Ctrl-C or SIGTERM: how long the services may take to end the run and write their files.
 INTERRUPT_LEAVE_S = 10.0
-EXPERIMENTER = "experimenter"  # the CLI's name on the bus
 
 
 @dataclass
@@ -380,66 +378,6 @@ class ServiceGroup:
         return "\n".join(text[-lines:])
 
 
-STALE_SOCKET_S = 60.0  # a socket this old that nobody accepts on belongs to a trial gone
-
-
-def socket_dir() -> Path | None:
-    """The directory of this user's trial sockets, which only this user may enter (another
-    local user cannot reach a trial's bus through it); None if it cannot be made so."""
-    path = Path(tempfile.gettempdir()) / f"hrc-{os.getuid()}"
-    try:
-        path.mkdir(mode=0o700, exist_ok=True)
-        st = path.lstat()
-        if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid():
-            log.warning("%s is not this user's directory: the services meet over TCP", path)
-            return None
-        if stat.S_IMODE(st.st_mode) != 0o700:
-            path.chmod(0o700)
-    except OSError as exc:
-        log.warning("no private socket directory (%s): the services meet over TCP", exc)
-        return None
-    return path
-
-
-def sweep_sockets(directory: Path) -> list[Path]:
-    """Removes the sockets of trials that are gone (nobody accepts on them: a run killed with
-    SIGKILL could not remove its own); returns them."""
-    gone: list[Path] = []
-    for path in directory.glob("*.sock"):
-        try:
-            if time.time() - path.lstat().st_mtime < STALE_SOCKET_S:
-                continue  # just made: a trial starting now may not listen on it yet
-        except OSError:
-            continue
-        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as s:
-            try:
-                s.connect(str(path))
-            except (ConnectionRefusedError, FileNotFoundError):
-                remove_socket(path)
-                gone.append(path)
-            except OSError:
-                pass  # alive but busy, or not ours to judge
-    return gone
-
-
-def remove_socket(path: Path) -> None:
-    """The socket and the lock file Zenoh keeps beside it."""
-    path.unlink(missing_ok=True)
-    Path(f"{path}.lock").unlink(missing_ok=True)
-
-
-def local_socket(session: str) -> Path | None:
-    """Where the services of one trial meet on this machine: a Unix socket (cheaper per message
-    than TCP loopback) in this user's private directory, or None where that cannot be made or
-    the path would be too long for one (~107 bytes)."""
-    directory = socket_dir()
-    if directory is None:
-        return None
-    sweep_sockets(directory)
-    path = directory / f"{session}.sock"
-    return path if len(str(path)) <= 100 else None
-
-
 LOWLATENCY_MAX_SCENARIO_BYTES = 48 * 1024
 
 
@@ -466,11 +404,13 @@ def trial_settings(
     trial_dir: Path,
     sock: Path | None = None,
     lowlatency: bool = False,
+    access: TrialAccess | None = None,
 ) -> services.Settings:
     """The values of the services' options in one trial.
 
     Physics listens on tcp/127.0.0.1:``port`` (for tools and other hosts) and on the Unix socket
-    ``sock`` if given; the other services connect to the socket, else to the port."""
+    ``sock`` if given; the other services connect to the socket, else to the port. With
+    ``access`` each service joins with its credentials (hrc.bus.access)."""
     tcp = f"tcp/127.0.0.1:{port}"
     bus = f"unixsock-stream/{sock}" if sock is not None else tcp
     start_timeout = opts.start_timeout_s
@@ -483,6 +423,7 @@ def trial_settings(
         listen=(tcp, bus) if sock is not None else (tcp,),
         connect=tuple(opts.connect),
         lowlatency=lowlatency,
+        zenoh_config=str(access.config("{service}")) if access is not None else None,
         clock=opts.mode,
         ticks=str(opts.ticks or opts.max_ticks),
         barrier_timeout=str(opts.barrier_timeout_s),
@@ -518,10 +459,11 @@ def service_argv(
     trial_dir: Path,
     sock: Path | None = None,
     lowlatency: bool = False,
+    access: TrialAccess | None = None,
 ) -> list[str]:
     """The command line of service ``name`` in one trial (``opts.extra`` appended)."""
     svc = services.service(name)
-    settings = trial_settings(opts, session, port, trial_dir, sock, lowlatency)
+    settings = trial_settings(opts, session, port, trial_dir, sock, lowlatency, access)
     own: list[str] = []
     if name == "human_input":
         own += ["--input", opts.input] if opts.input else []
@@ -532,11 +474,16 @@ def service_argv(
 class _EndWatcher:
     """Listens for ``run/end`` so the CLI can name the reason even if a service log is terse."""
 
-    def __init__(self, session: str, port: int) -> None:
+    def __init__(self, session: str, port: int, access: TrialAccess | None) -> None:
         self.end: pb.RunEnd | None = None
         self.end_at: float | None = None  # time.monotonic() when run/end came
         self._event = threading.Event()
-        cfg = BusConfig(session=session, connect=[f"tcp/127.0.0.1:{port}"], listen=[])
+        cfg = BusConfig(
+            session=session,
+            connect=[f"tcp/127.0.0.1:{port}"],
+            listen=[],
+            config_file=str(access.config(EXPERIMENTER)) if access is not None else None,
+        )
         # the experimenter's side of the trial: what stops it is named so ("stopped by
         # experimenter: ...")
         self.bus = Bus(cfg, EXPERIMENTER)
@@ -601,7 +548,6 @@ def _interrupted(group: ServiceGroup, watcher: _EndWatcher | None, exc: BaseExce
 def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     session = opts.session or f"t{uuid.uuid4().hex[:10]}"
     port = opts.port or free_port()
-    sock = local_socket(session) if opts.unix_socket else None
     lowlatency = opts.lowlatency if opts.lowlatency is not None else fits_lowlatency(opts.scenario)
     master = services.CLOCK_MASTER
     for svc in services.SERVICES:
@@ -619,14 +565,17 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     console: LiveConsole | None = None
     t0 = time.monotonic()
     phases = Phases(prepare=process_age_s())
+    # (routers of other hosts know none of the trial's credentials)
+    access = TrialAccess.create(session, services.names(), authenticate=not opts.connect)
+    sock = access.socket if access is not None and opts.unix_socket else None
     try:
         # the table lists the clock master first: it listens where everybody else connects.
         for name in services.names():
-            argv = service_argv(name, opts, session, port, trial_dir, sock, lowlatency)
+            argv = service_argv(name, opts, session, port, trial_dir, sock, lowlatency, access)
             group.start(name, argv, services.service(name).module)
         time.sleep(0.2)
         try:
-            watcher = _EndWatcher(session, port)
+            watcher = _EndWatcher(session, port, access)
             if opts.vr is not None:
                 console = LiveConsole(watcher.bus, opts.participant, opts.parts_total)
         except Exception as exc:  # the bus is optional for the CLI; process status still works
@@ -708,5 +657,5 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         group.write_cpu()
         group.write_timing(_phases(phases, t0, group, watcher))
         group.close()
-        if sock is not None:
-            remove_socket(sock)
+        if access is not None:
+            access.remove()

@@ -1,0 +1,187 @@
+"""Who may reach a trial's bus on this machine: the trial's private folder.
+
+``hrc run`` keeps, for each trial, a folder only this user may enter,
+``<tmp>/hrc-<uid>/<session>/``, holding
+
+- ``bus.sock``: the Unix socket the services meet on (no other local user can open it);
+- ``users``: the Zenoh user/password dictionary physics (the router) checks every link
+  against, one random password per service and one for the experimenter's tools;
+- ``<name>.json5``: the Zenoh configuration each service (and ``experimenter``: ``hrc run``'s
+  own watcher, tools, tests) opens its session with, holding its user and password;
+- ``pid``: the ``hrc run`` that owns it.
+
+A client without these credentials, on the socket or on the TCP port, is refused by Zenoh's
+authentication when its link opens. ``hrc run`` removes the folder when it ends; a run killed with
+SIGKILL cannot, so every ``hrc run`` first removes the folders of runs that are gone.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import secrets
+import shutil
+import stat
+import tempfile
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass
+from pathlib import Path
+
+from hrc.bus.config import BusConfig
+
+log = logging.getLogger(__name__)
+
+EXPERIMENTER = "experimenter"  # hrc run's own session, and the tools that join a trial
+SOCKET = "bus.sock"
+USERS = "users"
+OWNER = "pid"
+MAX_SOCKET_PATH = 100  # bytes: a Unix socket path must fit sun_path (108 on Linux)
+NEW_FOLDER_S = 60.0  # a folder without its pid file this young may be a run starting now
+
+
+def private_root() -> Path | None:
+    """This user's folder of trial folders (mode 0700), or None if it cannot be made so."""
+    path = Path(tempfile.gettempdir()) / f"hrc-{os.getuid()}"
+    try:
+        path.mkdir(mode=0o700, exist_ok=True)
+        st = path.lstat()
+        if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid():
+            log.warning("%s is not this user's folder: the trial's bus is not protected", path)
+            return None
+        if stat.S_IMODE(st.st_mode) != 0o700:
+            path.chmod(0o700)
+    except OSError as exc:
+        log.warning("no private folder for the trial (%s): its bus is not protected", exc)
+        return None
+    return path
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def sweep(root: Path) -> list[Path]:
+    """Removes the folders of trials whose ``hrc run`` is gone; returns them."""
+    gone: list[Path] = []
+    for folder in root.iterdir():
+        if not folder.is_dir() or folder.is_symlink():
+            continue
+        try:
+            pid = int((folder / OWNER).read_text())
+        except (OSError, ValueError):
+            try:
+                if time.time() - folder.lstat().st_mtime < NEW_FOLDER_S:
+                    continue  # being made by a run starting now
+            except OSError:
+                continue
+            pid = 0
+        if pid and _alive(pid):
+            continue
+        shutil.rmtree(folder, ignore_errors=True)
+        gone.append(folder)
+    return gone
+
+
+def _write_private(path: Path, text: str) -> None:
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+    with os.fdopen(fd, "w", encoding="utf-8") as f:
+        f.write(text)
+
+
+@dataclass(frozen=True)
+class TrialAccess:
+    """One trial's private folder (see the module's doc)."""
+
+    folder: Path
+
+    @classmethod
+    def create(
+        cls, session: str, users: Iterable[str], authenticate: bool = True
+    ) -> TrialAccess | None:
+        """Makes the folder of ``session`` with credentials for ``users`` and the
+        experimenter; None where no private folder can be had (the bus is then open to every
+        local user, as said in the log). Without ``authenticate`` (a trial that joins routers
+        of other hosts, which know none of these) the configuration files hold no
+        credentials."""
+        root = private_root()
+        if root is None:
+            return None
+        sweep(root)
+        folder = root / session
+        try:
+            folder.mkdir(mode=0o700)
+        except FileExistsError:
+            log.warning("%s exists: another run with session %r?", folder, session)
+            return None
+        except OSError as exc:
+            log.warning("no private folder for the trial (%s): its bus is not protected", exc)
+            return None
+        access = cls(folder)
+        _write_private(folder / OWNER, str(os.getpid()))
+        names = [*dict.fromkeys([*users, EXPERIMENTER])]
+        passwords = {n: secrets.token_hex(16) for n in names}
+        _write_private(folder / USERS, "".join(f"{n}:{p}\n" for n, p in passwords.items()))
+        for n, p in passwords.items():
+            usrpwd: dict[str, str] = {"user": n, "password": p}
+            if n != EXPERIMENTER:
+                # whoever listens (the clock master; any service could) checks its peers
+                usrpwd["dictionary_file"] = str(folder / USERS)
+            cfg = {"transport": {"auth": {"usrpwd": usrpwd}}} if authenticate else {}
+            _write_private(access.config(n), json.dumps(cfg, indent=1) + "\n")
+        return access
+
+    @property
+    def socket(self) -> Path | None:
+        """The Unix socket's path; None if it would be too long for one."""
+        path = self.folder / SOCKET
+        return path if len(str(path)) <= MAX_SOCKET_PATH else None
+
+    def config(self, name: str) -> Path:
+        """The Zenoh configuration file of service (or tool) ``name``."""
+        return self.folder / f"{name}.json5"
+
+    def remove(self) -> None:
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+
+def join(session: str, port: int, timeout_s: float = 60.0) -> BusConfig:
+    """How a tool on this machine joins the running trial ``session`` (``hrc run`` listening on
+    TCP ``port``): as the experimenter, with the credentials ``hrc run`` wrote before it
+    started the services (waited for up to ``timeout_s``)."""
+    deadline = time.monotonic() + timeout_s
+    while (config := tool_config(session)) is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    if config is None:
+        raise TimeoutError(f"no trial {session!r} on this machine (no credentials for it)")
+    return BusConfig(
+        session=session,
+        mode="client",
+        connect=[f"tcp/127.0.0.1:{port}"],
+        listen=[],
+        config_file=str(config),
+    )
+
+
+def as_tool(cfg: BusConfig) -> BusConfig:
+    """``cfg`` of a tool (``hrc alive``, ``hrc echo``) given no Zenoh configuration file: for a
+    trial ``hrc run`` runs on this machine, the experimenter's, with its credentials."""
+    if cfg.config_file is None:
+        found = tool_config(cfg.session)
+        cfg.config_file = str(found) if found is not None else None
+    return cfg
+
+
+def tool_config(session: str) -> Path | None:
+    """The experimenter's Zenoh configuration of the running trial ``session`` on this machine
+    (for tools and tests that join its bus); None if there is none."""
+    root = Path(tempfile.gettempdir()) / f"hrc-{os.getuid()}"
+    path = root / session / f"{EXPERIMENTER}.json5"
+    return path if path.is_file() else None

@@ -1,0 +1,89 @@
+"""Only the trial's own services (and its experimenter) on its bus: another process's Zenoh
+client, without the credentials hrc run gave the trial, is refused when its link opens, on the
+TCP port and on the Unix socket alike, so the STOP, the robot command and the TASK_FINISHED it
+would forge never reach the trial, which finishes as if it had not been there."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+from pathlib import Path
+
+import pytest
+import zenoh
+
+from hrc.bus import Keys, access
+from hrc.wire import pb
+
+from .conftest import HRC, ROOT
+
+pytestmark = [pytest.mark.e2e]
+THESIS = ROOT / "scenarios" / "thesis.toml"
+FORGED = "forged by an intruder"
+
+
+def intruder(endpoint: str, user: tuple[str, str] | None) -> zenoh.Session | None:
+    """A Zenoh client of its own on ``endpoint`` (with a user and password, or none); None if
+    the link is refused."""
+    cfg = zenoh.Config()
+    cfg.insert_json5("mode", '"client"')
+    cfg.insert_json5("scouting/multicast/enabled", "false")
+    cfg.insert_json5("connect/endpoints", json.dumps([endpoint]))
+    cfg.insert_json5("connect/timeout_ms", "2000")
+    if user is not None:
+        cfg.insert_json5(
+            "transport/auth/usrpwd", json.dumps({"user": user[0], "password": user[1]})
+        )
+    try:
+        return zenoh.open(cfg)
+    except zenoh.ZError:
+        return None
+
+
+def forge(session: zenoh.Session, keys: Keys) -> None:
+    stop = pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=FORGED)
+    session.put(keys.run_control(), stop.SerializeToString())
+    cmd = pb.RobotCommand(robot="r1", command_id=999, kind=pb.RobotCommand.KIND_MOVE)
+    cmd.target.x, cmd.target.y, cmd.target.z = 0.5, 0.5, 0.9
+    session.put(keys.robot_command("r1"), cmd.SerializeToString())
+    event = pb.TaskEvent(kind=pb.TASK_EVENT_KIND_TASK_FINISHED, text=FORGED)
+    session.put(keys.task_events(), event.SerializeToString())
+
+
+@pytest.mark.timeout(420)
+def test_a_client_without_the_trials_credentials_is_refused_and_the_trial_finishes(
+    trial_factory,
+) -> None:
+    trial = trial_factory(THESIS, ticks=0, extra=["--mode", "realtime"])
+    trial.wait_ticking()
+    config = access.tool_config(trial.session)
+    assert config is not None
+    sock = config.parent / access.SOCKET
+    assert sock.exists()
+    # the experimenter's tools find the trial's credentials by its session id
+    tcp = f"tcp/127.0.0.1:{trial.port}"
+    probe = [HRC, "alive", "physics", "--session", trial.session, "--zenoh-mode", "client"]
+    alive = subprocess.run(
+        [*probe, "--connect", tcp, "--wait", "20"], capture_output=True, text=True
+    )
+    assert alive.returncode == 0, alive.stderr
+    keys = Keys(trial.session)
+    admitted = []
+    for endpoint in (tcp, f"unixsock-stream/{sock}"):
+        for user in (None, ("orchestrator", "a guess"), ("intruder", "x")):
+            s = intruder(endpoint, user)
+            if s is not None:  # let in: it does what it came for
+                admitted.append((endpoint, user))
+                forge(s, keys)
+                s.close()
+    assert trial.proc.poll() is None, "the trial ended while the intruder tried"
+    assert not admitted, admitted
+    rc, out, err = trial.communicate(timeout=300)
+    assert rc == 0, (out[-2000:], err[-3000:])
+    metrics = json.loads((trial.out / "metrics.json").read_text())
+    assert metrics["task"]["finished"] is True, metrics["task"]
+    assert metrics["run"]["ok"] is True and "task finished" in metrics["run"]["end_reason"]
+    for name in ("log.txt", "events.jsonl"):
+        assert FORGED not in (trial.out / name).read_text(), name
+    # the experimenter's tools have the credentials: the trial's own folder is gone with it
+    assert not Path(config).exists()
