@@ -29,6 +29,15 @@ R = TypeVar("R", bound=Message)
 
 # The attachment of an ExchangeBatch is the sender's name and this suffix (names cannot hold '+').
 BATCH_SUFFIX = b"+batch"
+# Zenoh's low-latency transport does not fragment: a message (with its key, attachment and
+# framing) must fit one 65,535-byte batch, or the link it goes out on breaks. The standard
+# transport fragments; a cap still keeps one put from flooding every receiver.
+MAX_LOWLATENCY_BYTES = 63 * 1024
+MAX_STANDARD_BYTES = 16 * 1024 * 1024
+
+
+class MessageTooLarge(ValueError):
+    """A message above its transport's limit: refused before it is sent."""
 
 
 class InputStats:
@@ -86,30 +95,60 @@ class Publisher(Generic[M]):
         )
 
     def put(self, msg: M, tick: int = 0, sim_time: float = 0.0) -> int:
+        """Publishes ``msg`` (header filled); raises MessageTooLarge, sending nothing, if it is
+        above the transport's limit."""
         with self._lock:
-            self.seq += 1
             h = msg.header  # type: ignore[attr-defined]
             h.session = self._bus.keys.session
             h.tick = tick
             h.sim_time = sim_time
             h.sender = self._bus.sender
-            h.seq = self.seq
+            h.seq = self.seq + 1
+            data = msg.SerializeToString()
+            self._check_size(len(data))
+            self.seq += 1
             if self._bus.batching:
-                self._held.append(msg.SerializeToString())
+                self._held.append(data)
             else:
-                self._pub.put(msg.SerializeToString(), attachment=self._bus.sender_bytes)
+                self._pub.put(data, attachment=self._bus.sender_bytes)
             return self.seq
 
+    def _check_size(self, size: int) -> None:
+        limit = self._bus.max_message_bytes
+        if size > limit:
+            transport = "low-latency" if self._bus.config.lowlatency else "standard"
+            raise MessageTooLarge(
+                f"a {size}-byte message on {self.key}: above the {limit}-byte limit of Zenoh's "
+                f"{transport} transport (docs/ARCHITECTURE.md); not sent"
+            )
+
     def flush(self) -> None:
-        """Puts what was held back while the bus batched: one message as it is, several as one
-        ExchangeBatch (attachment ``<sender>+batch``)."""
+        """Puts what was held back while the bus batched: one message as it is, several as
+        ExchangeBatch messages (attachment ``<sender>+batch``), as few as the limit allows."""
         with self._lock:
             held, self._held = self._held, []
             if len(held) == 1:
                 self._pub.put(held[0], attachment=self._bus.sender_bytes)
-            elif held:
-                batch = pb.ExchangeBatch(items=held).SerializeToString()
-                self._pub.put(batch, attachment=self._bus.sender_bytes + BATCH_SUFFIX)
+                return
+            # an item costs its bytes plus a few of framing (tag, length)
+            limit = self._bus.max_message_bytes - 64
+            chunk: list[bytes] = []
+            size = 0
+            for item in held:
+                if chunk and size + len(item) + 8 > limit:
+                    self._put_batch(chunk)
+                    chunk, size = [], 0
+                chunk.append(item)
+                size += len(item) + 8
+            if chunk:
+                self._put_batch(chunk)
+
+    def _put_batch(self, items: list[bytes]) -> None:
+        if len(items) == 1:
+            self._pub.put(items[0], attachment=self._bus.sender_bytes)
+            return
+        batch = pb.ExchangeBatch(items=items).SerializeToString()
+        self._pub.put(batch, attachment=self._bus.sender_bytes + BATCH_SUFFIX)
 
     def undeclare(self) -> None:
         self._pub.undeclare()
@@ -134,6 +173,7 @@ class Bus:
         self.batching = False
         self._declared: list[object] = []
         self._publishers: dict[str, Publisher[Any]] = {}
+        self.max_message_bytes = MAX_LOWLATENCY_BYTES if config.lowlatency else MAX_STANDARD_BYTES
         self.session = zenoh.open(config.to_zenoh())
 
     # ------------------------------------------------------------------ lifecycle

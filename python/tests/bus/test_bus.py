@@ -5,7 +5,10 @@ from __future__ import annotations
 import math
 import threading
 
-from hrc.bus import Bus
+import pytest
+
+from hrc.bus import Bus, BusConfig
+from hrc.bus.bus import MessageTooLarge
 from hrc.validate import check_pose
 from hrc.wire import pb
 
@@ -117,3 +120,34 @@ def test_queryable_answers_and_malformed_requests_get_an_error(bus_pair: tuple[B
     replies = list(raw)
     assert replies and replies[0].err is not None
     assert a.stats.decode_errors[key] == 1
+
+
+def test_a_message_above_the_low_latency_limit_is_refused_at_the_sender(
+    session_id: str, tmp_path
+) -> None:
+    """The low-latency transport cannot fragment: a message too large for one batch would break
+    the link. It is refused before it is sent, naming its key and size; the link stays up, and
+    what an exchange holds back goes out in as many batches as the limit needs. (On the Unix
+    socket trials use: over TCP loopback a low-latency message above ~45 KB can be lost early
+    in a connection, see docs/ARCHITECTURE.md.)"""
+    endpoint = f"unixsock-stream/{tmp_path / 'bus.sock'}"
+    with (
+        Bus(BusConfig(session=session_id, listen=[endpoint], lowlatency=True), "alpha") as a,
+        Bus(BusConfig(session=session_id, connect=[endpoint], lowlatency=True), "beta") as b,
+    ):
+        got: list[pb.TaskEvent] = []
+        b.subscribe(b.keys.task_events(), pb.TaskEvent, lambda _k, m: got.append(m))
+        pub = a.publisher(a.keys.task_events())
+        assert wait_until(lambda: (pub.put(pb.TaskEvent(text="hello")) and False) or bool(got))
+        seq = pub.seq
+        with pytest.raises(MessageTooLarge, match=r"on hrc/.*/task/events.*not sent"):
+            pub.put(pb.TaskEvent(text="x" * (1 << 20)))
+        assert pub.seq == seq  # nothing went out: no gap for the receivers
+        n = len(got)
+        a.begin_batch()
+        for i in range(40):  # 40 x 5 KB: above one batch, held back in one exchange
+            pub.put(pb.TaskEvent(text=f"{i:02d}" + "y" * 5000))
+        a.flush_batches()
+        assert wait_until(lambda: len(got) == n + 40), len(got) - n
+        assert [m.text[:2] for m in got[n:]] == [f"{i:02d}" for i in range(40)]
+        assert [m.header.seq for m in got[n:]] == list(range(seq + 1, seq + 41))
