@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 import zenoh
 
-from hrc.bus import Keys, access
+from hrc.bus import Bus, BusConfig, Keys, access
 from hrc.wire import pb
 
 from .conftest import HRC, ROOT
@@ -78,6 +78,25 @@ def test_a_client_without_the_trials_credentials_is_refused_and_the_trial_finish
                 s.close()
     assert trial.proc.poll() is None, "the trial ended while the intruder tried"
     assert not admitted, admitted
+    # An insider: the logger's credentials (a compromised observer), posing as the orchestrator
+    # with well-formed messages. Access control keeps every key to its own publisher.
+    insider = BusConfig(
+        session=trial.session,
+        mode="client",
+        connect=[tcp],
+        listen=[],
+        config_file=str(config.parent / "logger.json5"),
+    )
+    with Bus(insider, "orchestrator") as bus:
+        stop = pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=FORGED)
+        bus.publisher(keys.run_control()).put(stop)
+        cmd = pb.RobotCommand(robot="r1", command_id=999, kind=pb.RobotCommand.KIND_MOVE)
+        cmd.target.x, cmd.target.y, cmd.target.z = 0.5, 0.5, 0.9
+        bus.publisher(keys.robot_command("r1")).put(cmd)
+        event = pb.TaskEvent(kind=pb.TASK_EVENT_KIND_TASK_FINISHED, text=FORGED)
+        bus.publisher(keys.task_events()).put(event)
+        end = pb.RunEnd(ok=True, reason=FORGED)
+        bus.publisher(keys.run_end()).put(end)
     rc, out, err = trial.communicate(timeout=300)
     assert rc == 0, (out[-2000:], err[-3000:])
     metrics = json.loads((trial.out / "metrics.json").read_text())

@@ -76,6 +76,16 @@ def test_a_trials_private_folder_holds_its_socket_and_credentials(tmp_path, monk
         assert (cfg["user"], cfg["password"]) == (name, users[name])
         assert stat.S_IMODE(a.config(name).stat().st_mode) == 0o600
     assert access.tool_config("s1") == a.config("experimenter")
+    # the router's access control: a key's own publishers only
+    acl = json.loads(a.config("physics").read_text())["access_control"]
+    denied = {
+        r["key_exprs"][0]: s["usernames"]
+        for r, s in zip(acl["rules"], acl["subjects"], strict=True)
+        if r["permission"] == "deny"
+    }
+    assert denied["hrc/s1/run/control"] == ["logger"]  # orchestrator, experimenter may stop
+    assert denied["hrc/s1/run/end"] == ["experimenter", "logger"]  # physics only
+    assert "access_control" not in json.loads(a.config("logger").read_text())
     assert access.TrialAccess.create("s1", ["physics"]) is None  # one folder per session
     # a trial that joins other hosts' routers: files without credentials
     b = access.TrialAccess.create("s2", ["physics"], authenticate=False)

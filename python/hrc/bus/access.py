@@ -11,8 +11,13 @@
 - ``pid``: the ``hrc run`` that owns it.
 
 A client without these credentials, on the socket or on the TCP port, is refused by Zenoh's
-authentication when its link opens. ``hrc run`` removes the folder when it ends; a run killed with
-SIGKILL cannot, so every ``hrc run`` first removes the folders of runs that are gone.
+authentication when its link opens. Among those who have them, physics's access control lets only
+a key's own publisher put on it (:func:`publishers`): only the orchestrator (and the experimenter)
+ends a run, only physics publishes the clock and ``run/end``, only the orchestrator commands the
+robots and writes task events; a put from anyone else is dropped by the router.
+
+``hrc run`` removes the folder when it ends; a run killed with SIGKILL cannot, so every ``hrc run``
+first removes the folders of runs that are gone.
 """
 
 from __future__ import annotations
@@ -30,6 +35,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from hrc.bus.config import BusConfig
+from hrc.bus.keys import Keys
+from hrc.services import CLOCK_MASTER, PARTICIPANTS
 
 log = logging.getLogger(__name__)
 
@@ -96,6 +103,61 @@ def _write_private(path: Path, text: str) -> None:
         f.write(text)
 
 
+def publishers(keys: Keys) -> dict[str, frozenset[str]]:
+    """Who may put on the keys that steer, end or record a trial (docs/ARCHITECTURE.md, "Key
+    expressions"); every other key is open to every holder of the trial's credentials."""
+    orchestrator = frozenset({"orchestrator"})
+    physics = frozenset({CLOCK_MASTER})
+    table = {
+        keys.clock(): physics,
+        keys.run_end(): physics,
+        keys.world_objects(): physics,
+        keys.world_contacts(): physics,
+        keys.world_separation(): physics,
+        keys.run_control(): orchestrator | {EXPERIMENTER},
+        keys.robot_commands(): orchestrator,
+        keys.world_commands(): orchestrator,
+        keys.task_events(): orchestrator,
+        keys.task_indicators(): orchestrator,
+        keys.task_metrics(): orchestrator,
+        keys.robot_states(): frozenset({"ik_cpp"}),
+        keys.human_state(): frozenset({"human_input"}),
+        keys.human_clients(): frozenset({"human_input"}),
+    }
+    for name in PARTICIPANTS:
+        table[keys.clock_ack(name)] = frozenset({name})
+    return table
+
+
+def router_acl(session: str, users: Iterable[str]) -> dict[str, object]:
+    """Zenoh access control for the router (the clock master): puts on a key of
+    :func:`publishers` by any other user are denied as they come in."""
+    clients = sorted(set(users) - {CLOCK_MASTER})
+    rules, subjects, policies = [], [], []
+    for i, (key, allowed) in enumerate(sorted(publishers(Keys(session)).items())):
+        denied = [u for u in clients if u not in allowed]
+        if not denied:
+            continue
+        rules.append(
+            {
+                "id": f"r{i}",
+                "messages": ["put", "delete"],
+                "flows": ["ingress"],
+                "permission": "deny",
+                "key_exprs": [key],
+            }
+        )
+        subjects.append({"id": f"s{i}", "usernames": denied})
+        policies.append({"rules": [f"r{i}"], "subjects": [f"s{i}"]})
+    return {
+        "enabled": True,
+        "default_permission": "allow",
+        "rules": rules,
+        "subjects": subjects,
+        "policies": policies,
+    }
+
+
 @dataclass(frozen=True)
 class TrialAccess:
     """One trial's private folder (see the module's doc)."""
@@ -134,7 +196,11 @@ class TrialAccess:
             if n != EXPERIMENTER:
                 # whoever listens (the clock master; any service could) checks its peers
                 usrpwd["dictionary_file"] = str(folder / USERS)
-            cfg = {"transport": {"auth": {"usrpwd": usrpwd}}} if authenticate else {}
+            cfg: dict[str, object] = {}
+            if authenticate:
+                cfg["transport"] = {"auth": {"usrpwd": usrpwd}}
+                if n == CLOCK_MASTER:
+                    cfg["access_control"] = router_acl(session, names)
             _write_private(access.config(n), json.dumps(cfg, indent=1) + "\n")
         return access
 
