@@ -83,8 +83,8 @@ def test_a_trials_private_folder_holds_its_socket_and_credentials(tmp_path, monk
         for r, s in zip(acl["rules"], acl["subjects"], strict=True)
         if r["permission"] == "deny"
     }
-    assert denied["hrc/s1/run/control"] == ["logger"]  # orchestrator, experimenter may stop
-    assert denied["hrc/s1/run/end"] == ["experimenter", "logger"]  # physics only
+    assert denied["hrc/s1/run/control"] == ["logger", "physics"]  # participants, experimenter
+    assert denied["hrc/s1/run/end"] == ["experimenter", "logger", "physics"]  # physics's own
     assert "access_control" not in json.loads(a.config("logger").read_text())
     assert access.TrialAccess.create("s1", ["physics"]) is None  # one folder per session
     # a trial that joins other hosts' routers: files without credentials

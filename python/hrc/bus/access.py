@@ -12,9 +12,9 @@
 
 A client without these credentials, on the socket or on the TCP port, is refused by Zenoh's
 authentication when its link opens. Among those who have them, physics's access control lets only
-a key's own publisher put on it (:func:`publishers`): only the orchestrator (and the experimenter)
-ends a run, only physics publishes the clock and ``run/end``, only the orchestrator commands the
-robots and writes task events; a put from anyone else is dropped by the router.
+a key's own publisher put on it (:func:`publishers`): only the participants (a stop, an abort) and
+the experimenter end a run, only physics publishes the clock and ``run/end``, only the orchestrator
+commands the robots and writes task events; a put from anyone else is dropped by the router.
 
 ``hrc run`` removes the folder when it ends; a run killed with SIGKILL cannot, so every ``hrc run``
 first removes the folders of runs that are gone.
@@ -114,7 +114,9 @@ def publishers(keys: Keys) -> dict[str, frozenset[str]]:
         keys.world_objects(): physics,
         keys.world_contacts(): physics,
         keys.world_separation(): physics,
-        keys.run_control(): orchestrator | {EXPERIMENTER},
+        # a stop: the orchestrator (task finished, stalled) or the experimenter; an abort: any
+        # participant whose tick failed (docs/ARCHITECTURE.md, "Roles")
+        keys.run_control(): frozenset(PARTICIPANTS) | {EXPERIMENTER},
         keys.robot_commands(): orchestrator,
         keys.world_commands(): orchestrator,
         keys.task_events(): orchestrator,
@@ -131,11 +133,13 @@ def publishers(keys: Keys) -> dict[str, frozenset[str]]:
 
 def router_acl(session: str, users: Iterable[str]) -> dict[str, object]:
     """Zenoh access control for the router (the clock master): puts on a key of
-    :func:`publishers` by any other user are denied as they come in."""
-    clients = sorted(set(users) - {CLOCK_MASTER})
+    :func:`publishers` by any other user are denied as they come in. The router's own puts are
+    not incoming: a client that logs in with its name (stolen credentials) is denied all of
+    them."""
+    everyone = sorted(set(users))
     rules, subjects, policies = [], [], []
     for i, (key, allowed) in enumerate(sorted(publishers(Keys(session)).items())):
-        denied = [u for u in clients if u not in allowed]
+        denied = [u for u in everyone if u not in allowed - {CLOCK_MASTER}]
         if not denied:
             continue
         rules.append(
