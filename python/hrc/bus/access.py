@@ -48,9 +48,13 @@ MAX_SOCKET_PATH = 100  # bytes: a Unix socket path must fit sun_path (108 on Lin
 NEW_FOLDER_S = 60.0  # a folder without its pid file this young may be a run starting now
 
 
+def _root() -> Path:
+    return Path(tempfile.gettempdir()) / f"hrc-{os.getuid()}"
+
+
 def private_root() -> Path | None:
     """This user's folder of trial folders (mode 0700), or None if it cannot be made so."""
-    path = Path(tempfile.gettempdir()) / f"hrc-{os.getuid()}"
+    path = _root()
     try:
         path.mkdir(mode=0o700, exist_ok=True)
         st = path.lstat()
@@ -252,6 +256,5 @@ def as_tool(cfg: BusConfig) -> BusConfig:
 def tool_config(session: str) -> Path | None:
     """The experimenter's Zenoh configuration of the running trial ``session`` on this machine
     (for tools and tests that join its bus); None if there is none."""
-    root = Path(tempfile.gettempdir()) / f"hrc-{os.getuid()}"
-    path = root / session / f"{EXPERIMENTER}.json5"
+    path = _root() / session / f"{EXPERIMENTER}.json5"
     return path if path.is_file() else None

@@ -127,9 +127,6 @@ class Publisher(Generic[M]):
         ExchangeBatch messages (attachment ``<sender>+batch``), as few as the limit allows."""
         with self._lock:
             held, self._held = self._held, []
-            if len(held) == 1:
-                self._pub.put(held[0], attachment=self._bus.sender_bytes)
-                return
             # an item costs its bytes plus a few of framing (tag, length)
             limit = self._bus.max_message_bytes - 64
             chunk: list[bytes] = []
