@@ -69,7 +69,17 @@ void TypedPublisher::stamp(v2::Header& h, uint64_t tick, double sim_time, uint64
   h.set_seq(seq);
 }
 
+void TypedPublisher::check_size(const std::size_t size) const {
+  const std::size_t limit = bus_.max_message_bytes();
+  if (size <= limit) return;
+  throw BusError("a " + std::to_string(size) + "-byte message on " + key() + ": above the " +
+                 std::to_string(limit) + "-byte limit of Zenoh's " +
+                 (bus_.lowlatency() ? "low-latency" : "standard") +
+                 " transport (docs/ARCHITECTURE.md); not sent");
+}
+
 void TypedPublisher::put_bytes_locked(const std::string& bytes) {
+  check_size(bytes.size());
   if (bus_.batching()) {
     held_.push_back(bytes);
     return;
@@ -80,18 +90,38 @@ void TypedPublisher::put_bytes_locked(const std::string& bytes) {
 void TypedPublisher::flush() {
   const std::lock_guard<std::mutex> lock(mutex_);
   if (held_.empty()) return;
-  if (held_.size() == 1) {
-    publisher_.put(held_.front(), bus_.sender());
-  } else {
-    v2::ExchangeBatch batch;
-    for (auto& item : held_) batch.add_items(std::move(item));
-    publisher_.put(batch.SerializeAsString(), bus_.sender() + std::string(kBatchSuffix));
+  std::vector<std::string> held;
+  held.swap(held_);
+  if (held.size() == 1) {
+    publisher_.put(held.front(), bus_.sender());
+    return;
   }
-  held_.clear();
+  // an item costs its bytes plus a few of framing (tag, length)
+  const std::size_t limit = bus_.max_message_bytes() - 64;
+  const std::string attachment = bus_.sender() + std::string(kBatchSuffix);
+  v2::ExchangeBatch batch;
+  std::size_t size = 0;
+  const auto put_batch = [&] {
+    if (batch.items_size() == 1) {
+      publisher_.put(batch.items(0), bus_.sender());
+    } else if (batch.items_size() > 1) {
+      publisher_.put(batch.SerializeAsString(), attachment);
+    }
+    batch.Clear();
+    size = 0;
+  };
+  for (auto& item : held) {
+    const std::size_t cost = item.size() + 16;
+    if (size + cost > limit) put_batch();
+    size += cost;
+    batch.add_items(std::move(item));
+  }
+  put_batch();
 }
 
 void TypedPublisher::put_raw(std::string_view payload) {
   const std::lock_guard<std::mutex> lock(mutex_);
+  check_size(payload.size());
   publisher_.put(payload, bus_.sender());
 }
 
@@ -106,6 +136,7 @@ Bus::Bus(const BusConfig& config, std::string session_id, std::string sender)
     : Bus(Session(), std::move(session_id), std::move(sender)) {
   // Validate names before opening anything, then open.
   session_ = Session::open(config);
+  max_message_bytes_ = config.lowlatency ? kMaxLowlatencyBytes : kMaxStandardBytes;
 }
 
 Bus::Bus(Session session, std::string session_id, std::string sender)

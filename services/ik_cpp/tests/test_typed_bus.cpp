@@ -295,4 +295,57 @@ TEST_F(TwoPeers, AnExchangeGoesOutInOnePutAndArrivesMessageByMessage) {
   }
 }
 
+// The low-latency transport cannot fragment: a message above its limit is refused at the sender
+// (the receiver's link would break), and an exchange of many messages goes out in as many
+// batches as the limit needs. On a Unix socket (a fresh low-latency TCP link may lose a first
+// large message).
+TEST(SizeLimit, RefusedAboveTheLowLatencyLimitAndBigExchangesSplit) {
+  const std::string ep =
+      "unixsock-stream//tmp/hrc-size-" + std::to_string(hrc::test::free_port()) + ".sock";
+  hrc::BusConfig ca;
+  ca.listen = {ep};
+  ca.lowlatency = true;
+  hrc::BusConfig cb;
+  cb.listen = {};
+  cb.connect = {ep};
+  cb.lowlatency = true;
+  hrc::Bus a(ca, "t3", "alpha");
+  hrc::Bus b(cb, "t3", "beta");
+  EXPECT_EQ(a.max_message_bytes(), hrc::kMaxLowlatencyBytes);
+  Received got;
+  b.subscribe<hrc::v2::HumanState>(b.keys().human_state(),
+                                   [&](const std::string& k, const hrc::v2::HumanState& m) {
+                                     const std::lock_guard<std::mutex> lock(got.mutex);
+                                     got.msgs.emplace_back(k, m);
+                                   });
+  std::atomic<int> batches{0};
+  hrc::Subscriber raw =
+      b.session().declare_subscriber(a.keys().human_state(), [&](const hrc::SampleView& s) {
+        if (s.attachment == "alpha+batch") ++batches;
+      });
+  auto& pub = a.publisher(a.keys().human_state());
+  ASSERT_TRUE(wait_until([&] { return pub.has_subscribers(); }));
+  try {
+    pub.put_raw(std::string(70 * 1024, 'x'));
+    FAIL() << "a 70 KiB put was sent";
+  } catch (const hrc::BusError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("71680-byte message on hrc/t3/human/state"), std::string::npos) << what;
+    EXPECT_NE(what.find("low-latency"), std::string::npos) << what;
+  }
+  constexpr std::size_t kN = 3000;  // about 50 bytes each on the wire: some 150 KB in one exchange
+  a.begin_batch();
+  for (std::size_t i = 0; i < kN; ++i) {
+    hrc::v2::HumanState h;
+    h.set_left_grip(0.5);
+    pub.put(h, i, 0.0);
+  }
+  a.flush_batches();
+  ASSERT_TRUE(wait_until([&] { return got.size() == kN; }, std::chrono::milliseconds(20000)))
+      << got.size();
+  EXPECT_GE(batches.load(), 3);
+  const std::lock_guard<std::mutex> lock(got.mutex);
+  for (std::size_t i = 0; i < kN; ++i) EXPECT_EQ(got.msgs[i].second.header().seq(), i + 1);
+}
+
 }  // namespace

@@ -7,6 +7,7 @@
 
 #include <atomic>
 #include <chrono>
+#include <cstddef>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -74,8 +75,8 @@ class TypedPublisher {
 
   /// Puts bytes as they are (for probes and garbage tests); does not advance seq.
   void put_raw(std::string_view payload);
-  /// Puts what was held back while the bus batched: one message as it is, several as one
-  /// ExchangeBatch (attachment "<sender>+batch").
+  /// Puts what was held back while the bus batched: one message as it is, several as
+  /// ExchangeBatch messages (attachment "<sender>+batch"), as few as the size limit allows.
   void flush();
   uint64_t seq() const;
   const std::string& key() const { return publisher_.key(); }
@@ -84,6 +85,8 @@ class TypedPublisher {
  private:
   void stamp(v2::Header& h, uint64_t tick, double sim_time, uint64_t seq) const;
   void put_bytes_locked(const std::string& bytes);
+  /// Throws BusError, sending nothing, for a message above the transport's limit.
+  void check_size(std::size_t size) const;
 
   const Bus& bus_;
   Publisher publisher_;
@@ -94,6 +97,11 @@ class TypedPublisher {
 
 /// The attachment suffix that marks an ExchangeBatch (after the sender's name).
 inline constexpr std::string_view kBatchSuffix = "+batch";
+// Zenoh's low-latency transport does not fragment: a message (with its key, attachment and
+// framing) must fit one 65,535-byte batch, or the link it goes out on breaks. The standard
+// transport fragments; a cap still keeps one put from flooding every receiver. (As in Python.)
+inline constexpr std::size_t kMaxLowlatencyBytes = 63 * 1024;
+inline constexpr std::size_t kMaxStandardBytes = 16 * 1024 * 1024;
 
 /// One service's view of the bus. Not movable: callbacks hold a pointer to it. Everything declared
 /// through it is undeclared when it is destroyed (or close() is called), before the session closes.
@@ -133,6 +141,9 @@ class Bus {
   /// Ends batching and puts everything held back.
   void flush_batches();
   bool batching() const { return batching_.load(); }
+  /// The largest message a put may send (kMaxLowlatencyBytes on the low-latency transport).
+  std::size_t max_message_bytes() const { return max_message_bytes_; }
+  bool lowlatency() const { return max_message_bytes_ == kMaxLowlatencyBytes; }
 
   /// Calls handler(key, msg) on a zenoh thread for each well-formed message on `key_expr`.
   template <class M>
@@ -243,6 +254,7 @@ class Bus {
 
   Keys keys_;
   std::string sender_;
+  std::size_t max_message_bytes_ = kMaxStandardBytes;
   InputStats stats_;
   Session session_;  // declared before every entity below, so it is destroyed after them
   mutable std::mutex mutex_;
