@@ -80,12 +80,15 @@ def test_a_client_without_the_trials_credentials_is_refused_and_the_trial_finish
     assert not admitted, admitted
     # An insider: the logger's credentials (a compromised observer), posing as the orchestrator
     # with well-formed messages. Access control keeps every key to its own publisher.
+    stolen = json.loads((config.parent / "logger.json5").read_text())
+    stolen.pop("id")  # the logger's own Zenoh id: the router knows it is connected already
+    (trial.out.parent / "insider.json5").write_text(json.dumps(stolen))
     insider = BusConfig(
         session=trial.session,
         mode="client",
         connect=[tcp],
         listen=[],
-        config_file=str(config.parent / "logger.json5"),
+        config_file=str(trial.out.parent / "insider.json5"),
     )
     with Bus(insider, "orchestrator") as bus:
         stop = pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=FORGED)

@@ -227,11 +227,14 @@ def _role_options(role: Role) -> tuple[Option, ...]:
     of it, so a route between any two services exists as soon as both have announced themselves
     (peer-to-peer links would form later, by gossip, and could miss the first messages).
     """
-    common = (
+    common: tuple[Option, ...] = (
         Option("--session", "session"),
-        Option("--zenoh-lowlatency", "lowlatency"),
         Option("--zenoh-config", "zenoh_config"),
     )
+    if role is not Role.OBSERVER:
+        # An observer's link stays on the standard transport, where the router may drop what
+        # it cannot take instead of blocking (hrc.bus.access.router_qos).
+        common = (*common, Option("--zenoh-lowlatency", "lowlatency"))
     router = Option("--connect", "connect")
     if role is Role.CLOCK_MASTER:
         return (

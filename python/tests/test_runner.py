@@ -49,9 +49,12 @@ def test_without_a_socket_everything_goes_over_the_tcp_port() -> None:
 
 
 @pytest.mark.parametrize("lowlatency", [True, False])
-def test_every_service_gets_the_same_transport(lowlatency: bool) -> None:
+def test_every_participant_gets_the_same_transport_and_observers_the_standard_one(
+    lowlatency: bool,
+) -> None:
     for name in SERVICES:
-        assert ("--zenoh-lowlatency" in _argv(name, None, lowlatency)) == lowlatency, name
+        asked = "--zenoh-lowlatency" in _argv(name, None, lowlatency)
+        assert asked == (lowlatency and name not in services.OBSERVERS), name
 
 
 def test_a_scenario_too_large_for_the_low_latency_transport_falls_back(monkeypatch) -> None:
@@ -89,7 +92,12 @@ def test_a_trials_private_folder_holds_its_socket_and_credentials(tmp_path, monk
     assert access.TrialAccess.create("s1", ["physics"]) is None  # one folder per session
     # a trial that joins other hosts' routers: files without credentials
     b = access.TrialAccess.create("s2", ["physics"], authenticate=False)
-    assert b is not None and json.loads(b.config("physics").read_text()) == {}
+    assert b is not None and "auth" not in json.loads(b.config("physics").read_text())["transport"]
+    assert "access_control" not in json.loads(b.config("physics").read_text())
+    # what the router may drop: only what goes to the observers, known by their Zenoh ids
+    qos = json.loads(a.config("physics").read_text())["qos"]["network"][0]
+    assert qos["zids"] == [json.loads(a.config("logger").read_text())["id"]]
+    assert qos["flows"] == ["egress"] and qos["overwrite"] == {"congestion_control": "drop"}
     # the folder of a run that is gone goes with the next run; a living one stays
     (b.folder / "pid").write_text("999999999")
     access.TrialAccess.create("s3", ["physics"])
@@ -145,3 +153,41 @@ def test_a_service_gets_the_signal_mask_hrc_run_had_not_the_held_stop_signals(tm
     assert blocked & (1 << (signal.SIGINT - 1)) == 0
     # and hrc run itself holds nothing once the service is started
     assert not signal.pthread_sigmask(signal.SIG_BLOCK, set()) & runner.STOP_SIGNALS
+
+
+def test_observer_ids_are_ones_zenoh_accepts() -> None:
+    """Zenoh refuses an id with a leading 0 digit (one hex id in 16 would have one)."""
+    import zenoh
+
+    for _ in range(200):
+        zid = access.observer_ids(["logger", "physics"])
+        assert list(zid) == ["logger"]
+        zenoh.Config().insert_json5("id", json.dumps(zid["logger"]))
+
+
+def test_hrc_run_waits_neither_for_a_hung_nor_for_a_stopped_service(tmp_path) -> None:
+    """After the run's end: a service that uses no CPU (hung) is waited for LEAVE_IDLE_S at most,
+    a stopped one not at all, and both are ended at once (SIGTERM would not reach the
+    stopped one)."""
+    import time
+
+    group = runner.ServiceGroup(tmp_path)
+    try:
+        group.start("hung", ["sleep", "600"])
+        group.start("stopped", ["sleep", "600"])
+        os.kill(group.procs["stopped"].pid, signal.SIGSTOP)
+        deadline = time.monotonic() + 10.0
+        while group.stopped() != ["stopped"] and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert group.stopped() == ["stopped"]
+        t0 = time.monotonic()
+        runner._await_leaving(group, 60.0)
+        waited = time.monotonic() - t0
+        assert runner.LEAVE_IDLE_S <= waited < runner.LEAVE_IDLE_S + 3.0, waited
+        t0 = time.monotonic()
+        group.stop_all(grace_s=1.0)
+        assert time.monotonic() - t0 < 3.0
+        assert group.poll() == {"hung": -signal.SIGTERM, "stopped": -signal.SIGKILL}
+    finally:
+        group.stop_all(grace_s=0.5)
+        group.close()

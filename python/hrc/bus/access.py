@@ -36,7 +36,7 @@ from pathlib import Path
 
 from hrc.bus.config import BusConfig
 from hrc.bus.keys import Keys
-from hrc.services import CLOCK_MASTER, PARTICIPANTS
+from hrc.services import CLOCK_MASTER, OBSERVERS, PARTICIPANTS
 
 log = logging.getLogger(__name__)
 
@@ -44,6 +44,13 @@ EXPERIMENTER = "experimenter"  # hrc run's own session, and the tools that join 
 SOCKET = "bus.sock"
 USERS = "users"
 OWNER = "pid"
+# The router's queue towards each link, in 64 KiB batches (Zenoh's maximum): what an observer
+# has not taken yet waits there (hrc.bus.clock's window keeps lockstep well inside it).
+ROUTER_QUEUE_BATCHES = 16
+# How long a client's attempt to (re)open its link may take (Zenoh's default: 10 s). A stopped
+# router still accepts connections in the kernel but never answers: a client that lost it must
+# not spend 10 s in a reconnect attempt before it can close its session and leave.
+OPEN_TIMEOUT_MS = 1000
 MAX_SOCKET_PATH = 100  # bytes: a Unix socket path must fit sun_path (108 on Linux)
 NEW_FOLDER_S = 60.0  # a folder without its pid file this young may be a run starting now
 
@@ -130,9 +137,36 @@ def publishers(keys: Keys) -> dict[str, frozenset[str]]:
         keys.human_state(): frozenset({"human_input"}),
         keys.human_clients(): frozenset({"human_input"}),
     }
-    for name in PARTICIPANTS:
+    for name in (*PARTICIPANTS, *OBSERVERS):
         table[keys.clock_ack(name)] = frozenset({name})
     return table
+
+
+def observer_ids(names: Iterable[str]) -> dict[str, str]:
+    """A fresh Zenoh id for each observer: the router recognises their links by it. (Zenoh
+    refuses an id written with a leading 0: the top bit is set.)"""
+    return {n: format(secrets.randbits(64) | 1 << 63, "x") for n in names if n in OBSERVERS}
+
+
+def router_qos(observer_zids: Iterable[str]) -> dict[str, object]:
+    """The router's side of "observers never hold the clock": every message it forwards to an
+    observer may be dropped when that observer's queue is full (a frozen or starved logger),
+    instead of blocking the router, and with it everyone. The observer sees the loss as gaps in
+    the sequence numbers and records it. (Only on Zenoh's standard transport: observers never
+    ask for the low-latency one, which writes to the socket on the sender's thread.)"""
+    zids = sorted(observer_zids)
+    qos: dict[str, object] = {}
+    if zids:
+        qos["network"] = [
+            {
+                "id": "observers_never_block",
+                "zids": zids,
+                "messages": ["put", "delete"],
+                "flows": ["egress"],
+                "overwrite": {"congestion_control": "drop"},
+            }
+        ]
+    return qos
 
 
 def router_acl(session: str, users: Iterable[str]) -> dict[str, object]:
@@ -198,6 +232,7 @@ class TrialAccess:
         _write_private(folder / OWNER, str(os.getpid()))
         names = [*dict.fromkeys([*users, EXPERIMENTER])]
         passwords = {n: secrets.token_hex(16) for n in names}
+        zids = observer_ids(names)
         _write_private(folder / USERS, "".join(f"{n}:{p}\n" for n, p in passwords.items()))
         for n, p in passwords.items():
             usrpwd: dict[str, str] = {"user": n, "password": p}
@@ -205,10 +240,22 @@ class TrialAccess:
                 # whoever listens (the clock master; any service could) checks its peers
                 usrpwd["dictionary_file"] = str(folder / USERS)
             cfg: dict[str, object] = {}
+            transport: dict[str, object] = {}
+            if n in zids:
+                cfg["id"] = zids[n]
+            if n != CLOCK_MASTER:
+                transport["unicast"] = {"open_timeout": OPEN_TIMEOUT_MS}
+            if n == CLOCK_MASTER:
+                if qos := router_qos(zids.values()):
+                    cfg["qos"] = qos
+                size = {"data": ROUTER_QUEUE_BATCHES}
+                transport["link"] = {"tx": {"queue": {"size": size}}}
             if authenticate:
-                cfg["transport"] = {"auth": {"usrpwd": usrpwd}}
+                transport["auth"] = {"usrpwd": usrpwd}
                 if n == CLOCK_MASTER:
                     cfg["access_control"] = router_acl(session, names)
+            if transport:
+                cfg["transport"] = transport
             _write_private(access.config(n), json.dumps(cfg, indent=1) + "\n")
         return access
 

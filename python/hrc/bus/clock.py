@@ -3,8 +3,16 @@
 lockstep: publish tick k, wait for every participant's ack of k (the barrier), apply, step, k + 1.
 realtime: the same, paced by the wall clock; the barrier's deadline is the next tick's start and a
 late participant's miss is counted (its last outputs stay in force).
-A participant that loses liveliness, misses the lockstep barrier timeout, or asks for an abort
+A participant that leaves the bus, misses the lockstep barrier timeout, or asks for an abort
 (its step failed), ends the run with an error naming it (``RunEnd.failed_participant``).
+
+Observers (the logger) never take part in the barrier. Each acks the newest clock tick it has
+received every OBSERVER_ACK_TICKS; lockstep keeps the clock at most OBSERVER_WINDOW_TICKS ahead
+of that (what it has not taken yet waits in the router's queue for it, which must not overflow),
+so a frozen observer stops a lockstep run after the barrier timeout, named. Realtime never waits
+for an observer: the router drops what it cannot take (docs/ARCHITECTURE.md, "Observers"), and
+one that left the bus (its link's lease ran out while it was frozen) may come back within
+OBSERVER_RETURN_S.
 """
 
 from __future__ import annotations
@@ -49,6 +57,27 @@ class ClockSettings:
             raise ValueError(f"tick_hz must be > 0, got {self.tick_hz}")
         if self.ticks < 0:
             raise ValueError(f"ticks must be >= 0, got {self.ticks}")
+
+
+# Lockstep: the clock runs at most this many ticks ahead of the newest tick an observer has
+# acknowledged. A tick's messages to an observer are about 1 KB (batched per exchange), so the
+# window stays far below what the router queues for it (hrc.bus.access: 16 batches of 64 KiB).
+OBSERVER_WINDOW_TICKS = 240
+OBSERVER_ACK_TICKS = 60  # an observer acks every this many ticks (four acks per window)
+# A service that left the bus (its link closed) fails the run after this grace, so that hrc run,
+# which sees its process end, can name the cause first (RunControl.failed_service).
+LOST_GRACE_S = 1.0
+# Realtime: an observer that left may come back this long after (a frozen logger's link closes
+# when its lease runs out; after a SIGCONT it reconnects, and records what it lost).
+OBSERVER_RETURN_S = 30.0
+
+
+def left_the_bus(name: str) -> str:
+    """The failure of a service whose link closed (one wording for every record)."""
+    return (
+        f"service '{name}' left the bus (its link closed: the process ended, or it was not "
+        "responding for the link's lease)"
+    )
 
 
 # After a declared event at tick e (TickAck.next_event_tick) the ticks e + 1 .. e + REACTION_TICKS
@@ -102,6 +131,9 @@ class ClockMaster:
         self.inbox = Inbox(bus)
         self._cond = threading.Condition(threading.Lock())
         self._acked: dict[str, int] = {p: -1 for p in settings.participants}
+        # observer -> the newest clock tick it has acknowledged receiving (lockstep's window)
+        self._observed: dict[str, int] = {o: -1 for o in settings.observers}
+        self._window = OBSERVER_WINDOW_TICKS if settings.mode == "lockstep" else 0
         self._marks: dict[tuple[str, str], int] = {}  # highest seq acked per (key, sender)
         self._fresh: dict[tuple[str, str], int] = {}  # marks that moved since the last barrier
         self._announce: dict[tuple[str, str], int] = {}  # ... not yet listed by a clock tick
@@ -126,7 +158,7 @@ class ClockMaster:
         self._span = 1  # ticks in the current exchange
         self.exchanges = 0
         self._alive: set[str] = set()
-        self._lost: list[str] = []
+        self._lost: dict[str, float] = {}  # service -> when it left (monotonic)
         self._stop: tuple[bool, str] | None = None
         self._aborted_by = ""  # the sender of the abort that ends the run
         self.misses: Counter[str] = Counter()
@@ -164,10 +196,14 @@ class ClockMaster:
         name = self.bus.keys.last_segment(key)
         inline = False
         with self._cond:
-            if name not in self._acked:
+            if name in self._observed:
+                if ack.header.tick <= self._observed[name]:
+                    return
+                self._observed[name] = ack.header.tick
+            elif name not in self._acked:
                 log.warning("ack from %r, which is not a participant of this run", name)
                 return
-            if ack.header.tick > self._acked[name]:
+            elif ack.header.tick > self._acked[name]:
                 self._acked[name] = ack.header.tick
                 self.compute_us[name] = ack.compute_us
                 self._compute_total[name] += ack.compute_us
@@ -179,7 +215,7 @@ class ClockMaster:
             # The last ack of the barrier: run the transition right here if nothing is missing
             # (saves waking the run() thread), else wake it -- unless a transition is under way,
             # whose thread looks again when it is done. Earlier acks wake nobody.
-            if all(t >= self._barrier_tick for t in self._acked.values()):
+            if self._complete(self._barrier_tick):
                 inline = self._try_inline()
                 if not inline and not self._claimed:
                     self._cond.notify_all()
@@ -195,26 +231,62 @@ class ClockMaster:
             if self._stop is None:
                 ok = ctl.command != pb.RunControl.COMMAND_ABORT
                 who = ctl.header.sender
-                self._stop = (ok, f"{'stopped' if ok else 'aborted'} by {who}: {ctl.reason}")
-                if not ok:
-                    self._aborted_by = who
+                if not ok and ctl.failed_service:  # hrc run names a service whose process ended
+                    self._stop = (ok, ctl.reason)
+                    self._aborted_by = ctl.failed_service
+                else:
+                    self._stop = (ok, f"{'stopped' if ok else 'aborted'} by {who}: {ctl.reason}")
+                    if not ok:
+                        self._aborted_by = who
             self._cond.notify_all()
 
     def _on_liveliness(self, service: str, alive: bool) -> None:
         with self._cond:
             if alive:
                 self._alive.add(service)
+                if self._lost.pop(service, None) is not None:
+                    log.warning("service '%s' is back on the bus", service)
             elif service in self._alive:
                 self._alive.discard(service)
                 if service in self.settings.participants or service in self.settings.observers:
-                    self._lost.append(service)
+                    self._lost.setdefault(service, time.monotonic())
+                    log.warning("service '%s' left the bus", service)
             self._cond.notify_all()
 
     # ------------------------------------------------------------------ main thread
+    def _grace_s(self, name: str) -> float:
+        """How long ``name`` may be gone before the run fails."""
+        if name in self.settings.observers and self.settings.mode == "realtime":
+            return OBSERVER_RETURN_S
+        return LOST_GRACE_S
+
     def _check_lost(self) -> None:
-        if self._lost:
-            name = self._lost[0]
-            raise RunFailed(f"service '{name}' lost liveliness (process gone?)", name)
+        """RunFailed for a service gone longer than its grace. Under the lock."""
+        now = time.monotonic()
+        for name, since in self._lost.items():
+            if now - since < self._grace_s(name):
+                continue
+            if name in self.settings.observers and self.settings.mode == "realtime":
+                raise RunFailed(
+                    f"observer '{name}' left the bus and did not come back within "
+                    f"{OBSERVER_RETURN_S:g} s",
+                    name,
+                )
+            raise RunFailed(left_the_bus(name), name)
+
+    def _wait(self, timeout: float) -> None:
+        """``self._cond.wait``, but awake when a gone service's grace runs out."""
+        now = time.monotonic()
+        for name, since in self._lost.items():
+            timeout = min(timeout, max(0.0, since + self._grace_s(name) - now) + 0.01)
+        self._cond.wait(timeout)
+
+    def _complete(self, k: int) -> bool:
+        """Every participant acked k and (lockstep) no observer is a window behind. Under the
+        lock."""
+        if any(t < k for t in self._acked.values()):
+            return False
+        return not self._window or all(t >= k - self._window for t in self._observed.values())
 
     def wait_ready(self) -> None:
         expected = set(self.settings.participants) | set(self.settings.observers)
@@ -230,7 +302,7 @@ class ClockMaster:
                         f"{missing}",
                         sorted(expected - self._alive)[0],
                     )
-                self._cond.wait(min(left, 0.5))
+                self._wait(min(left, 0.5))
 
     def _barrier(self, k: int, deadline: float | None) -> None:
         """All participants acked k and their outputs of k are here; RunFailed on loss/timeout."""
@@ -268,11 +340,20 @@ class ClockMaster:
 
     def _missed_barrier(self, k: int) -> RunFailed:
         """The error for a barrier of tick k that timed out. Under the lock."""
+        timeout = self.settings.barrier_timeout_s
         late = [p for p in self.settings.participants if self._acked[p] < k]
+        if late:
+            return RunFailed(
+                f"participant '{late[0]}' not responding: no ack of tick {k} within {timeout:g} s",
+                late[0],
+            )
+        behind = [o for o, t in self._observed.items() if t < k - self._window]
+        o = behind[0]
         return RunFailed(
-            f"participant '{late[0]}' missed the barrier of tick {k} "
-            f"(no ack within {self.settings.barrier_timeout_s:g} s)",
-            late[0],
+            f"observer '{o}' not responding: no ack within {timeout:g} s (it has received the "
+            f"clock up to tick {self._observed[o]}; lockstep keeps the clock at most "
+            f"{self._window} ticks ahead of its observers)",
+            o,
         )
 
     def _check_late(self, k: int, late: list[str], now: float) -> None:
@@ -285,7 +366,7 @@ class ClockMaster:
             since = self._late_since.setdefault(p, now)
             if now - since >= self.settings.barrier_timeout_s:
                 raise RunFailed(
-                    f"participant '{p}' missed every barrier for "
+                    f"participant '{p}' not responding: missed every barrier for "
                     f"{now - since:.1f} s up to tick {k} (realtime; last ack: tick "
                     f"{self._acked[p]}; barrier timeout "
                     f"{self.settings.barrier_timeout_s:g} s)",
@@ -315,7 +396,7 @@ class ClockMaster:
                     wait = timeout_at - now
                 if self._stop is not None and not self._stop[0]:
                     return
-                self._cond.wait(wait)
+                self._wait(wait)
 
     # ------------------------------------------------------------------ one tick's two halves
     def _choose_span(self, k: int) -> int:
@@ -397,7 +478,7 @@ class ClockMaster:
         ):
             return False
         k = self._barrier_tick
-        if any(t < k for t in self._acked.values()):
+        if not self._complete(k):
             return False
         wanted = self._fresh_marks()
         if wanted and self.inbox.missing(wanted):
@@ -433,7 +514,7 @@ class ClockMaster:
                     self._ending is not None
                     or self._lost
                     or self._stop is not None
-                    or all(t >= self._barrier_tick for t in self._acked.values())
+                    or self._complete(self._barrier_tick)
                 ):
                     self._cond.notify_all()
                 return
@@ -454,15 +535,15 @@ class ClockMaster:
                         self._check_lost()
                         k = self._barrier_tick
                         aborting = self._stop is not None and not self._stop[0]
-                        if aborting or all(t >= k for t in self._acked.values()):
+                        if aborting or self._complete(k):
                             self._claimed = True
                             break
                         waited = time.perf_counter() - self._published_at
                         if waited >= s.barrier_timeout_s:
                             raise self._missed_barrier(k)
-                        self._cond.wait(s.barrier_timeout_s - waited)
+                        self._wait(s.barrier_timeout_s - waited)
                     else:
-                        self._cond.wait(s.barrier_timeout_s)
+                        self._wait(s.barrier_timeout_s)
             try:
                 self._barrier(k, None)  # the acks are in: wait for the outputs they list
             except BaseException:

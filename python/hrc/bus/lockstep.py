@@ -44,19 +44,34 @@ class Outcome:
         return 0 if self.ok else 1
 
 
-def watch_clock_master(bus: Bus, on_lost: Callable[[Outcome], None]) -> None:
-    """Calls ``on_lost`` when the clock master's token, once seen, disappears."""
+def watch_clock_master(bus: Bus, on_lost: Callable[[Outcome], None], grace_s: float = 0.0) -> None:
+    """Calls ``on_lost`` when the clock master's token, once seen, disappears (and, with
+    ``grace_s``, is not back within that time: an observer's own link may close and reopen at
+    once, e.g. after the process was stopped for longer than the link's lease)."""
     master = bus.config.clock_master
     seen = False
+    pending: threading.Timer | None = None
+    lost = Outcome(False, f"the clock master '{master}' disappeared")
 
     def on_change(service: str, alive: bool) -> None:
-        nonlocal seen
+        nonlocal seen, pending
         if service != master:
             return
         if alive:
+            if pending is not None:
+                pending.cancel()
+                pending = None
+                log.warning(
+                    "the link to the trial's bus closed and reopened: what came meanwhile "
+                    "is lost (sequence gaps)"
+                )
             seen = True
-        elif seen:
-            on_lost(Outcome(False, f"the clock master '{master}' disappeared"))
+        elif seen and grace_s <= 0:
+            on_lost(lost)
+        elif seen and pending is None:
+            pending = threading.Timer(grace_s, on_lost, (lost,))
+            pending.daemon = True
+            pending.start()
 
     bus.watch_liveliness(on_change)
 
@@ -98,6 +113,9 @@ class ClockFollower:
 
     # A tick may be computed on the Zenoh thread that delivered it (saves a thread hand-off).
     inline = False
+    # How long the clock master may be gone before the run is over for us (see
+    # watch_clock_master); a participant's link that closed has failed the run already.
+    master_grace_s = 0.0
 
     def __init__(self, bus: Bus, *, input_timeout_s: float = 10.0) -> None:
         self.bus = bus
@@ -143,7 +161,7 @@ class ClockFollower:
         self._control_pub = self.bus.publisher(keys.run_control())
         self.bus.subscribe(keys.clock(), pb.ClockTick, self._on_clock)
         self.bus.subscribe(keys.run_end(), pb.RunEnd, self._on_run_end)
-        watch_clock_master(self.bus, self._on_master_lost)
+        watch_clock_master(self.bus, self._on_master_lost, self.master_grace_s)
         self.bus.serve_stats()
         self.bus.declare_token()
 

@@ -1,5 +1,5 @@
-"""The observer role: follows the session's clock without taking part in the barrier, and loses
-nothing (the logger is one).
+"""The observer role: follows the session's clock without taking part in the barrier, and
+records what it lost (the logger is one).
 
 The loop is the participants' (:class:`hrc.bus.lockstep.ClockFollower`) without the ack, and
 without the inline path: Zenoh callbacks only decode and queue, so a slow observer never stalls
@@ -8,6 +8,11 @@ checks every message's sequence number (a gap is a lost message), measures its l
 clock, keeps going when a tick's inputs never arrive (it logs what did arrive), and at the run's
 end works off the queued ticks, then waits for the session to go quiet and hands over whatever
 is left (the last outputs of the final tick are listed by no clock tick).
+
+Every OBSERVER_ACK_TICKS of lockstep it acks the newest clock tick it has received, from the
+Zenoh thread that received it (what lockstep's window waits for: receiving, not processing, so a
+slow step never slows the clock). In realtime nothing waits for it: what the router could not
+hand over is dropped, and shows here as sequence gaps (counted, with their ticks).
 
 Lag: for each tick processed, the newest clock tick already received minus the tick being
 processed (ticks), and the wall time since that tick arrived.
@@ -20,12 +25,17 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from hrc.bus.bus import Bus, M
+from hrc.bus.bus import Bus, M, Publisher
+from hrc.bus.clock import OBSERVER_ACK_TICKS
 from hrc.bus.lockstep import ClockFollower, Outcome, describe_marks
 from hrc.bus.sequence import SeqChecker
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
+
+# A stopped observer's link closes when it resumes (its view of the router's lease ran out) and
+# opens again at once; the clock master is gone for us only if it is not back within this.
+MASTER_RETURN_S = 1.0
 
 
 @dataclass
@@ -53,10 +63,12 @@ class LagStats:
 
 
 class Observer(ClockFollower):
-    """Subscribes, declares ``alive/<name>``, never acks; the clock master waits for its token
-    at the start and ends the run if it disappears, but never waits for it during the run."""
+    """Subscribes, declares ``alive/<name>``, never takes part in the barrier; the clock master
+    waits for its token at the start, and in lockstep keeps the clock within a window of what it
+    has received (see the module's doc)."""
 
     inline = False
+    master_grace_s = MASTER_RETURN_S
 
     def __init__(
         self,
@@ -73,6 +85,8 @@ class Observer(ClockFollower):
         self.drain_max_s = drain_max_s
         self.missing_inputs = 0
         self._hurry = False  # stop waiting for inputs (stopped, or the run failed)
+        self._ack_pub: Publisher[pb.TickAck] | None = None
+        self._acked = -OBSERVER_ACK_TICKS  # the newest tick acknowledged
 
     def input(
         self,
@@ -85,13 +99,24 @@ class Observer(ClockFollower):
 
         def checked(k: str, msg: M) -> None:
             h = msg.header  # type: ignore[attr-defined]
-            self.seq.check(k, h.sender, h.seq)
+            self.seq.check(k, h.sender, h.seq, h.tick)
             handler(k, msg)
 
         super().input(key, msg_type, checked, validate)
 
+    def _declare_publishers(self) -> None:
+        self._ack_pub = self.bus.publisher(self.bus.keys.clock_ack(self.name), express=True)
+
     def _on_clock(self, key: str, tick: pb.ClockTick) -> None:
-        self.seq.check(key, tick.header.sender, tick.header.seq)
+        k = tick.header.tick
+        self.seq.check(key, tick.header.sender, tick.header.seq, k)
+        if (
+            tick.mode == pb.CLOCK_MODE_LOCKSTEP
+            and k >= self._acked + OBSERVER_ACK_TICKS
+            and self._ack_pub is not None
+        ):
+            self._acked = k
+            self._ack_pub.put(pb.TickAck(participant=self.name), k, tick.header.sim_time)
         super()._on_clock(key, tick)
 
     def _finish(self, outcome: Outcome) -> None:

@@ -88,13 +88,15 @@ def measure_rtt(
     return {"p50": round(_percentile(samples, 0.5), 1), "p99": round(_percentile(samples, 0.99), 1)}
 
 
-def measure_lockstep(ticks: int) -> float:
+def measure_lockstep(ticks: int, lowlatency: bool = False) -> float:
     from hrc.cli.runner import TrialOptions, run_trial
 
     scenario = project_root() / "scenarios" / "empty.toml"
+    opts = TrialOptions(scenario=scenario, ticks=ticks, lowlatency=lowlatency)
     with tempfile.TemporaryDirectory(prefix="hrc-bench-") as tmp:
         trial = Path(tmp) / "trial"
-        result = run_trial(TrialOptions(scenario=scenario, out=trial, ticks=ticks), trial)
+        opts.out = trial
+        result = run_trial(opts, trial)
         if not result.ok:
             raise RuntimeError(f"lockstep run failed: {result.message}")
         run = json.loads((trial / "metrics.json").read_text())["run"]
@@ -151,8 +153,15 @@ def run(args: argparse.Namespace) -> int:
     )
     # Long enough that the start (services warming up, the scripted participant's head settling
     # in its first ~5 simulated seconds) does not dominate the figure.
-    tps = measure_lockstep(max(args.n, 2000) if args.n else LOCKSTEP_TICKS)
-    result = {"rtt_us": rtt, "lockstep_ticks_per_s": round(tps, 1)}
+    ticks = max(args.n, 2000) if args.n else LOCKSTEP_TICKS
+    tps = measure_lockstep(ticks)
+    # the baseline: the same run on the low-latency transport (hrc run --lowlatency)
+    ll = measure_lockstep(ticks, lowlatency=True)
+    result = {
+        "rtt_us": rtt,
+        "lockstep_ticks_per_s": round(tps, 1),
+        "lockstep_lowlatency_ticks_per_s": round(ll, 1),
+    }
     if args.json:
         print(json.dumps(result))
     else:
@@ -160,4 +169,6 @@ def run(args: argparse.Namespace) -> int:
         for k, v in rtt.items():
             print(f"  {k:<7} p50 {v['p50']:8.1f} us   p99 {v['p99']:8.1f} us")
         print(f"lockstep, five services idle: {tps:,.0f} ticks/s (target >= 2,000)")
+        ratio = tps / ll if ll else 0.0
+        print(f"  same with --lowlatency: {ll:,.0f} ticks/s (standard / low-latency: {ratio:.2f})")
     return 0

@@ -137,7 +137,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         session=args.session,
         port=args.port,
         unix_socket=not args.tcp,
-        lowlatency=False if args.no_lowlatency else None,
+        lowlatency=bool(args.lowlatency),
         barrier_timeout_s=args.barrier_timeout,
         stall_timeout_s=args.stall_timeout,
         connect=args.connect or [],
@@ -405,11 +405,19 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="the services talk over TCP loopback (the --port) instead of a Unix socket",
     )
-    r.add_argument(
+    ll = r.add_mutually_exclusive_group()
+    ll.add_argument(
+        "--lowlatency",
+        action="store_true",
+        help="the participants use Zenoh's low-latency transport (about 10 %% more lockstep "
+        "ticks per second; a scenario too large for it falls back). Its router runs without "
+        "QoS, and on such a link Zenoh stops delivering to a logger that was stopped for a few "
+        'seconds (docs/ARCHITECTURE.md, "Observers")',
+    )
+    ll.add_argument(
         "--no-lowlatency",
         action="store_true",
-        help="use Zenoh's standard transport (default: the low-latency one, unless the "
-        "scenario is too large for it)",
+        help="Zenoh's standard transport (the default)",
     )
     r.add_argument(
         "--connect",

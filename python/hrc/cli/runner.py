@@ -30,6 +30,7 @@ from hrc.bus import Bus, BusConfig
 from hrc.bus.access import EXPERIMENTER, TrialAccess
 from hrc.cli.console import LiveConsole
 from hrc.cli.prefork import ForkedProcess, can_fork, fork_service
+from hrc.diskspace import NO_SPACE, low_space
 from hrc.paths import build_dir
 from hrc.scenario.resolved import Resolved, slug
 from hrc.wire import pb
@@ -42,6 +43,9 @@ SERVICES_LEAVE_S = 60.0
 # ... when it died without publishing run/end: the others have no end to finish on (they leave
 # when they notice it gone, or are stopped), so a stop must not wait a minute for them.
 SERVICES_ABANDONED_S = 5.0
+# A service that has used no CPU for this long while it should be leaving is hung: hrc run
+# stops waiting for it (SIGTERM, then SIGKILL).
+LEAVE_IDLE_S = 5.0
 # Ctrl-C or SIGTERM: how long the services may take to end the run and write their files.
 INTERRUPT_LEAVE_S = 10.0
 
@@ -57,7 +61,7 @@ class TrialOptions:
     session: str | None = None
     port: int = 0  # tcp/127.0.0.1:<port> physics listens on (0: a free one)
     unix_socket: bool = True  # the services meet on a Unix socket (else on the TCP port)
-    lowlatency: bool | None = None  # Zenoh's low-latency transport; None: if the scenario fits
+    lowlatency: bool = False  # Zenoh's low-latency transport (if the scenario fits)
     barrier_timeout_s: float = 10.0
     stall_timeout_s: float | None = None  # None: the scenario's stall_timeout_s
     start_timeout_s: float = 60.0
@@ -236,6 +240,35 @@ def web_viewer_url(opts: TrialOptions) -> str:
     return f"http://127.0.0.1:{web}/?url=rerun%2Bhttp://127.0.0.1:{grpc}/proxy"
 
 
+def process_stopped(pid: int) -> bool:
+    """The process is stopped (SIGSTOP, SIGTSTP, a debugger): Linux /proc state T or t. A
+    stopped service answers nothing and acts on no signal but SIGKILL."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            state = f.read().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return False
+    return state in ("T", "t")
+
+
+def cpu_ticks(pid: int) -> int | None:
+    """CPU time the process has used so far (user + system, in clock ticks; Linux /proc)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+        return int(fields[11]) + int(fields[12])
+    except (OSError, IndexError, ValueError):
+        return None
+
+
+def not_responding(name: str, when: str = "") -> str:
+    """hrc run's words for a stopped service (one wording wherever it is judged)."""
+    return (
+        f"service '{name}' not responding{when}: its process is stopped (SIGSTOP or a "
+        "debugger); hrc run ended it"
+    )
+
+
 def describe_exit(code: int) -> str:
     if code < 0:
         try:
@@ -342,9 +375,18 @@ class ServiceGroup:
     def poll(self) -> dict[str, int | None]:
         return {n: self._reap(n, p) for n, p in self.procs.items()}
 
+    def stopped(self) -> list[str]:
+        """The services whose process is stopped (not running, not gone), in table order."""
+        return [n for n, p in self.procs.items() if p.returncode is None and process_stopped(p.pid)]
+
     def stop_all(self, grace_s: float = 2.0) -> None:
+        """SIGTERM (a service writes its files within its grace), then SIGKILL; a stopped
+        process gets SIGKILL at once (SIGTERM would wait for a SIGCONT that never comes)."""
         for p in self.procs.values():
             if p.poll() is None:
+                if process_stopped(p.pid):
+                    p.kill()
+                    continue
                 priority.leave_idle(p.pid)  # the logger: else it may get no CPU to stop
                 p.send_signal(signal.SIGTERM)
         deadline = time.monotonic() + grace_s
@@ -360,10 +402,27 @@ class ServiceGroup:
         data = {
             n: {"user_s": round(u, 3), "system_s": round(s, 3)} for n, (u, s) in self.cpu_s.items()
         }
-        (self.logs_dir / "cpu.json").write_text(json.dumps(data, indent=1) + "\n")
+        self._write(self.logs_dir / "cpu.json", json.dumps(data, indent=1) + "\n")
 
     def write_timing(self, phases: Phases) -> None:
-        (self.logs_dir / TIMING_FILE).write_text(json.dumps(phases.to_dict(), indent=1) + "\n")
+        self._write(self.logs_dir / TIMING_FILE, json.dumps(phases.to_dict(), indent=1) + "\n")
+
+    @staticmethod
+    def _write(path: Path, text: str) -> None:
+        """hrc run's own small files: on a full disk said so, never a traceback (nothing half
+        written is left)."""
+        try:
+            path.write_text(text)
+        except OSError as exc:
+            path.unlink(missing_ok=True)
+            log.error("could not write %s: %s", path, exc.strerror or exc)
+
+    def out_of_space(self) -> str | None:
+        """The first service whose log says its disk was full."""
+        for name in self.procs:
+            if NO_SPACE in self.tail(name, 40):
+                return name
+        return None
 
     def close(self) -> None:
         for f in self._files:
@@ -494,12 +553,15 @@ class _EndWatcher:
         self.end = end
         self._event.set()
 
-    def stop_run(self, reason: str) -> None:
-        """Asks the clock master to end the run (as a normal stop, with ``reason``): every
+    def stop_run(self, reason: str, failed_service: str = "") -> None:
+        """Asks the clock master to end the run, with ``reason``: as a normal stop, or (with
+        ``failed_service``) as a failure of that service, which hrc run saw end or stop. Every
         service then writes its files as at any end (metrics.json among them)."""
-        self.bus.publisher(self.bus.keys.run_control()).put(
-            pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason)
-        )
+        ctl = pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason)
+        if failed_service:
+            ctl.command = pb.RunControl.COMMAND_ABORT
+            ctl.failed_service = failed_service
+        self.bus.publisher(self.bus.keys.run_control()).put(ctl)
 
     def failed_end(self, wait_s: float) -> bool:
         """A run/end with ok = false came (waiting up to ``wait_s`` for one)."""
@@ -532,23 +594,60 @@ def _watch(group: ServiceGroup, console: LiveConsole | None) -> None:
 def _interrupted(group: ServiceGroup, watcher: _EndWatcher | None, exc: BaseException) -> None:
     """Ctrl-C or SIGTERM during the run: the run is ended as a stop by the experimenter, so every
     service writes its files (metrics.json with that end reason); then the caller stops them."""
+    how = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else str(exc)
+    _end_run(group, watcher, f"interrupted ({how})")
+
+
+def _end_run(
+    group: ServiceGroup, watcher: _EndWatcher | None, reason: str, failed_service: str = ""
+) -> None:
+    """Ends the run over the bus (see :meth:`_EndWatcher.stop_run`) and gives the services
+    INTERRUPT_LEAVE_S to write their files and leave (a stopped one is not waited for); the
+    caller then stops what is left."""
     if watcher is None or watcher.end is not None:
         return
-    how = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else str(exc)
     try:
-        watcher.stop_run(f"interrupted ({how})")
+        watcher.stop_run(reason, failed_service)
     except Exception as err:  # the bus is gone: the services are stopped as before
         log.debug("could not ask for the run's end: %s", err)
         return
-    deadline = time.monotonic() + INTERRUPT_LEAVE_S
-    while any(rc is None for rc in group.poll().values()) and time.monotonic() < deadline:
-        time.sleep(0.05)
+    _await_leaving(group, INTERRUPT_LEAVE_S)
+
+
+def _await_leaving(group: ServiceGroup, limit_s: float) -> None:
+    """Until every service has left, or ``limit_s``. Not waited for: a stopped service, and one
+    that has used no CPU for LEAVE_IDLE_S (hung: a service writing its files works)."""
+    deadline = time.monotonic() + limit_s
+    checked = 0.0
+    busy: dict[str, tuple[int | None, float]] = {}  # service -> (CPU ticks, since when)
+    while time.monotonic() < deadline:
+        left = [n for n, rc in group.poll().items() if rc is None]
+        if not left:
+            return
+        now = time.monotonic()
+        if now - checked >= 0.1:  # /proc reads: not every 10 ms
+            checked = now
+            stopped = set(group.stopped())
+            idle = set()
+            for n in left:
+                cpu = cpu_ticks(group.procs[n].pid)
+                last, since = busy.get(n, (None, now))
+                if cpu != last:
+                    busy[n] = (cpu, now)
+                elif now - since >= LEAVE_IDLE_S:
+                    idle.add(n)
+            if set(left) <= stopped | idle:
+                if idle - stopped:
+                    hung = ", ".join(sorted(idle - stopped))
+                    log.warning("%s used no CPU for %g s: not waited for", hung, LEAVE_IDLE_S)
+                return
+        time.sleep(0.01)
 
 
 def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
     session = opts.session or f"t{uuid.uuid4().hex[:10]}"
     port = opts.port or free_port()
-    lowlatency = opts.lowlatency if opts.lowlatency is not None else fits_lowlatency(opts.scenario)
+    lowlatency = opts.lowlatency and fits_lowlatency(opts.scenario)
     master = services.CLOCK_MASTER
     for svc in services.SERVICES:
         if svc.binary is not None and not (build_dir() / svc.binary).exists():
@@ -559,8 +658,13 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
                 f"the {svc.name} service binary "
                 f"{build_dir() / svc.binary} is missing: run scripts/setup.sh",
             )
-    trial_dir.mkdir(parents=True, exist_ok=True)
-    group = ServiceGroup(trial_dir)
+    if (warning := low_space(trial_dir)) is not None:
+        log.warning("%s", warning)
+    try:
+        trial_dir.mkdir(parents=True, exist_ok=True)
+        group = ServiceGroup(trial_dir)
+    except OSError as exc:
+        return TrialResult(False, 2, trial_dir, f"cannot write to {trial_dir}: {exc.strerror}")
     watcher: _EndWatcher | None = None
     console: LiveConsole | None = None
     t0 = time.monotonic()
@@ -602,6 +706,11 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
                 # liveliness and ends the run naming the service, if the run was still going.
                 failed = dead[0]
                 failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
+                stopped = group.stopped()
+                if stopped:  # e.g. a stopped clock master: the others left when its link died
+                    failed, failure = stopped[0], not_responding(stopped[0])
+                # the run's end names the cause, and every service writes its files with it
+                _end_run(group, watcher, failure, failed)
                 break
             time.sleep(0.05)
         if not failed:
@@ -610,11 +719,10 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             ended = watcher is not None and watcher.end is not None
             master_rc = status[master]
             leave_s = SERVICES_LEAVE_S if ended or master_rc == 0 else SERVICES_ABANDONED_S
-            deadline = time.monotonic() + leave_s
-            while any(rc is None for rc in group.poll().values()) and time.monotonic() < deadline:
-                time.sleep(0.01)  # hrc run returns as soon as the last one has left
+            _await_leaving(group, leave_s)  # hrc run returns as soon as the last one has left
         # judge by how each ended on its own, before we stop the stragglers
         status = group.poll()
+        stopped = group.stopped()
         # SIGTERM: a service still writes its files (metrics.json) within its grace
         group.stop_all(grace_s=services.STOP_GRACE_S + 0.5)
         end = watcher.end if watcher else None
@@ -630,6 +738,14 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             # follow from it
             failed = master
             failure = f"service '{master}' {describe_exit(phys)} during the run"
+        if (
+            not failed
+            and stopped
+            and not (end is not None and not end.ok and end.failed_participant in stopped)
+        ):
+            # stopped at the end of a run that did not name it (it wrote none of its last files)
+            failed = stopped[0]
+            failure = not_responding(failed, " at the run's end")
         if not failed:
             bad = [n for n in services.names() if status.get(n) not in (0, None)]
             if end is not None and not end.ok:
@@ -638,8 +754,14 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             elif bad:
                 failed = bad[0]
                 failure = f"service '{failed}' {describe_exit(status[failed] or 0)}"
+        full = group.out_of_space() if failed or end is None or not end.ok else None
+        if full is not None:
+            failed = full
+            failure = f"no space left on {trial_dir} (service '{full}' could not write its files)"
         if failed:
             detail = group.tail(failed)
+            if full is not None:  # the one line that says it, not a traceback
+                detail = next(ln for ln in detail.splitlines() if NO_SPACE in ln)
             msg = failure + (
                 f"\n--- last lines of {group.logs_dir / (failed + '.log')}:\n{detail}"
                 if detail

@@ -14,6 +14,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import IO, Any
 
+from hrc.diskspace import low_space
 from hrc.study.spec import Study, Trial
 from hrc.study.table import write_table
 from hrc.study.trial import Job, Record, allow_trials, run_job, stop_running
@@ -159,6 +160,8 @@ def sweep(
     todo = [t for t in study.trials if not manifest.done(t)]
     skipped = len(study.trials) - len(todo)
     log.info("%d trials: %d to run, %d done before", len(study.trials), len(todo), skipped)
+    if (warning := low_space(out, len(todo))) is not None:
+        log.warning("%s", warning)
     bar = Progress(len(study.trials), skipped)
     jobs = [
         Job(t.id, str(out.resolve()), t.scenario_text, t.seed, t.input_hash, timeout_s)

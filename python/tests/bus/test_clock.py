@@ -106,7 +106,7 @@ def test_a_silent_participant_is_named_when_the_barrier_times_out(session_id: st
         end = s.clock.run(lambda k, t: None, lambda k, t: None)
         assert not end.ok
         assert end.failed_participant == "human_input"
-        assert "human_input" in end.reason and "barrier" in end.reason
+        assert "human_input" in end.reason and "not responding" in end.reason
     finally:
         s.close()
 
@@ -146,7 +146,7 @@ def test_a_vanished_participant_ends_the_run_naming_it(session_id: str) -> None:
         threading.Timer(0.5, s.buses["logger"].close).start()
         end = s.clock.run(lambda k, t: None, lambda k, t: None)
         assert not end.ok and end.failed_participant == "logger"
-        assert "lost liveliness" in end.reason
+        assert "left the bus" in end.reason
     finally:
         s.close()
 

@@ -53,3 +53,19 @@ def test_keys_and_senders_are_independent() -> None:
     assert s.check("k1", "b", 1) is None
     assert s.check("k1", "a", 2) is None
     assert s.gaps == 0
+
+
+def test_loss_spans_follow_the_clock_and_seldom_keys_count_towards_them() -> None:
+    s = SeqChecker()
+    for tick, seq in ((0, 1), (1, 2), (2, 3), (50, 51), (51, 52), (90, 54)):
+        s.check("clock", "physics", seq, tick)  # two outages: ticks 2..50 and 51..90
+    s.check("objects", "physics", 1, 0)
+    s.check("objects", "physics", 9, 60)  # last seen at 0: overlaps the first outage
+    s.check("state", "ik", 1, 95)
+    s.check("state", "ik", 4, 140)  # no clock gap there: a span of its own
+    spans = [(sp.from_tick, sp.to_tick, sp.messages) for sp in s.loss_spans("clock")]
+    assert spans == [(2, 50, 47 + 7), (51, 90, 1), (95, 140, 2)]
+    assert s.lost == 47 + 1 + 7 + 2
+    # without a timeline, overlapping gaps merge
+    merged = [(sp.from_tick, sp.to_tick, sp.messages) for sp in s.loss_spans()]
+    assert merged == [(0, 90, 47 + 1 + 7), (95, 140, 2)]

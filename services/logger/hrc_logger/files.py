@@ -56,14 +56,3 @@ class JsonlFile(LineFile):
 
     def write(self, obj: dict[str, Any]) -> None:
         self.write_line(json.dumps(obj, separators=(",", ":"), allow_nan=False))
-
-
-def write_json_atomic(path: Path, data: dict[str, Any]) -> None:
-    """A reader never sees half a file: write a temporary file, then rename it."""
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    with open(tmp, "w", encoding="utf-8") as f:
-        json.dump(data, f, indent=2)
-        f.write("\n")
-        f.flush()
-        os.fsync(f.fileno())
-    os.replace(tmp, path)

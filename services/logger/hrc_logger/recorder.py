@@ -17,7 +17,7 @@ from hrc.wire import pb
 
 from hrc_logger.files import JsonlFile, LineFile
 from hrc_logger.records import cue_records, event_record, metrics_record, run_end_record
-from hrc_logger.textlog import ThesisLog, kind_name, run_end_line
+from hrc_logger.textlog import ThesisLog, kind_name, loss_lines, run_end_line
 
 if TYPE_CHECKING:  # rerun is imported only by whoever builds a View (slow to import)
     from hrc_logger.view import View
@@ -111,20 +111,31 @@ class TrialRecorder:
             self.view.tick(tick.header.tick, tick.header.sim_time)
 
     # ------------------------------------------------------------------ end
-    def finish(self, run_end: pb.RunEnd | None, reason: str = "") -> None:
-        """Closing lines (metrics if no final ones came, run end, why the log stops), then close."""
+    def finish(
+        self,
+        run_end: pb.RunEnd | None,
+        reason: str = "",
+        losses: list[tuple[float, float, int]] | None = None,
+    ) -> None:
+        """Closing lines (metrics if no final ones came, what the recording lost, run end, why
+        the log stops), then close. ``losses``: (from, to simulated time, messages) of each
+        span in which messages never reached the logger."""
         if self.closed:
             return
         self.closed = True
         try:
             if not self.final_metrics_written and self.last_metrics is not None:
                 self.events.write(metrics_record(self.last_metrics))  # final = false: say so
-            if run_end is not None:
-                self.events.write(run_end_record(run_end))
+            # without run/end (the clock master is gone, a stop) the record still says why
+            ended = run_end if run_end is not None else pb.RunEnd(ok=False, reason=reason)
+            self.events.write(run_end_record(ended))
             # the closing line carries the time of the end, not that of the last event
             at = self.last_task_time
             if run_end is not None and self.task_start_sim is not None:
                 at = max(at, run_end.sim_time - self.task_start_sim)
+            start = self.task_start_sim or 0.0
+            for lost in loss_lines(losses or [], start):
+                self.text.write_line(lost)
             line = run_end_line(run_end, reason, self.task_finished, at)
             if line is not None:
                 self.text.write_line(line)

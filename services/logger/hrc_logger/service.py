@@ -17,13 +17,13 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from hrc.atomic import write_json_atomic
 from hrc.bus import Bus, Observer, Outcome
 from hrc.bus.bus import M
 from hrc.priority import leave_idle, thread_ids
 from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit
 from hrc.wire import pb
 
-from hrc_logger.files import write_json_atomic
 from hrc_logger.recorder import TrialRecorder
 
 if TYPE_CHECKING:
@@ -61,6 +61,11 @@ def stats_dict(
         "messages": obs.seq.messages,
         "seq_gaps": obs.seq.gaps,
         "lost_messages": obs.seq.lost,
+        # when: ticks after the last message before a gap .. the first after it (merged)
+        "loss_spans": [
+            {"from_tick": sp.from_tick, "to_tick": sp.to_tick, "messages": sp.messages}
+            for sp in obs.seq.loss_spans(bus.keys.clock())
+        ],
         "missing_inputs": obs.missing_inputs,
         "decode_errors": sum(bus.stats.decode_errors.values()),
         "handler_errors": handler_errors,
@@ -286,9 +291,14 @@ class LoggerService(Service):
 
     def finish(self, outcome: Outcome) -> int | None:
         self._view_up()
-        self.recorder.finish(outcome.run_end, outcome.reason)
         obs = self.observer
         assert obs is not None, "run_service sets the observer"
+        dt = obs.last_tick.dt if obs.last_tick is not None else 0.0
+        spans = [
+            (sp.from_tick * dt, sp.to_tick * dt, sp.messages)
+            for sp in obs.seq.loss_spans(self.bus.keys.clock())
+        ]
+        self.recorder.finish(outcome.run_end, outcome.reason, spans)
         stats = stats_dict(obs, self.recorder, self.view, self.bus, self.handler_errors)
         write_json_atomic(self.out / STATS_FILE, stats)
         log.info(

@@ -11,7 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from hrc_logger.files import JsonlFile, LineFile, write_json_atomic
+from hrc.atomic import write_json_atomic
+
+from hrc_logger.files import JsonlFile, LineFile
 
 CHILD = r"""
 import sys
