@@ -1,7 +1,7 @@
 """A trial whose output folder fills up: hrc run says "no space left on <folder>" (exit 3, no
-traceback of its own), and everything written so far stays readable, with no temporary file
-left. The folder is a 1 MiB tmpfs in a mount namespace of the test's own (needs root, or user
-namespaces)."""
+traceback of its own), and everything written so far stays readable (whole JSON lines, the
+recording up to its last complete message), with no temporary file left. The folder is a 1 MiB
+tmpfs in a mount namespace of the test's own (needs root, or user namespaces)."""
 
 from __future__ import annotations
 
@@ -10,6 +10,7 @@ import os
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -57,3 +58,12 @@ def test_a_full_disk_ends_the_trial_saying_so_and_keeps_what_was_written(tmp_pat
     for js in ("metrics.json", "logger_stats.json"):
         if (copy / js).exists():
             json.loads((copy / js).read_text())
+    # the recording reads up to its last complete message (it has no footer: never closed)
+    rrd = copy / "recording.rrd"
+    assert rrd.stat().st_size > 0
+    rerun = str(Path(sys.executable).with_name("rerun"))
+    shown = subprocess.run(
+        [rerun, "rrd", "print", str(rrd)], capture_output=True, text=True, timeout=120
+    )
+    assert shown.returncode == 0, shown.stderr[-2000:]
+    assert shown.stdout.count("Chunk(") > 10, shown.stdout[-2000:]

@@ -761,7 +761,8 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         if failed:
             detail = group.tail(failed)
             if full is not None:  # the one line that says it, not a traceback
-                detail = next(ln for ln in detail.splitlines() if NO_SPACE in ln)
+                said = [ln for ln in group.tail(failed, 40).splitlines() if NO_SPACE in ln]
+                detail = said[0] if said else detail
             msg = failure + (
                 f"\n--- last lines of {group.logs_dir / (failed + '.log')}:\n{detail}"
                 if detail
