@@ -697,17 +697,22 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             if status[master] is not None:
                 break
             # After a failed run/end the services exit 1 on their own: the end names the cause.
-            if dead and not (
-                watcher is not None
-                and all((status[n] or 0) > 0 for n in dead)
-                and watcher.failed_end(1.0)
+            # a stopped service is the cause (e.g. the clock master: the others left when its
+            # link died); no run/end can come then
+            stopped = group.stopped() if dead else []
+            if dead and (
+                stopped
+                or not (
+                    watcher is not None
+                    and all((status[n] or 0) > 0 for n in dead)
+                    and watcher.failed_end(1.0)
+                )
             ):
                 # A clean exit (0) is not a failure by itself: the clock master notices the lost
                 # liveliness and ends the run naming the service, if the run was still going.
                 failed = dead[0]
                 failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
-                stopped = group.stopped()
-                if stopped:  # e.g. a stopped clock master: the others left when its link died
+                if stopped:
                     failed, failure = stopped[0], not_responding(stopped[0])
                 # the run's end names the cause, and every service writes its files with it
                 _end_run(group, watcher, failure, failed)
