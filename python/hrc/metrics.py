@@ -11,10 +11,14 @@ metrics.json, the logger writes them as the settings line at the top of log.txt.
 
 from __future__ import annotations
 
+import json
+import logging
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from hrc import scenario as sc
+from hrc.atomic import write_json_atomic
 from hrc.scenario.convert import ssm_to_proto
 from hrc.wire import pb
 from hrc.wire.jsonmap import dict_to_message, enum_text, message_to_dict
@@ -27,6 +31,28 @@ def to_dict(metrics: pb.Metrics) -> dict[str, Any]:
 def from_dict(data: Mapping[str, Any]) -> pb.Metrics:
     """ValueError when a key is not in the schema or a value does not fit its field."""
     return dict_to_message(data, pb.Metrics())
+
+
+log = logging.getLogger(__name__)
+
+METRICS_FILE = "metrics.json"
+LOGGER_STATS_FILE = "logger_stats.json"  # the logger's own counters (its lag, what it lost)
+
+
+def add_recording(trial_dir: Path) -> bool:
+    """What the logger could not record (logger_stats.json's ``recording``), into metrics.json:
+    hrc run does it once every service has left, as only then is it known. False when either
+    file is missing or unreadable (metrics.json is then left as it is)."""
+    path = trial_dir / METRICS_FILE
+    try:
+        m = from_dict(json.loads(path.read_text()))
+        stats = json.loads((trial_dir / LOGGER_STATS_FILE).read_text())
+        m.recording.CopyFrom(dict_to_message(stats["recording"], pb.RecordingMetrics()))
+        write_json_atomic(path, to_dict(m))
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        log.debug("no recording figures in %s: %s", path, exc)
+        return False
+    return True
 
 
 def conditions(s: sc.Scenario) -> pb.TrialConditions:

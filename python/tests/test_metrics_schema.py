@@ -102,6 +102,8 @@ def full_metrics() -> pb.Metrics:
             stall="stalled for 60 s: the human holds H3 since 42.6 s; r1 is home",
         )
     )
+    m.recording.lost_messages = 12
+    m.recording.loss_spans.add(from_s=1.5, to_s=3.25, messages=12)
     return m
 
 

@@ -163,7 +163,9 @@ def router_qos(observer_zids: Iterable[str]) -> dict[str, object]:
                 "zids": zids,
                 "messages": ["put", "delete"],
                 "flows": ["egress"],
-                "overwrite": {"congestion_control": "drop"},
+                # batched: the queue holds 16 batches, and an express message takes one of
+                # its own, so a logger a few messages behind would already lose some
+                "overwrite": {"congestion_control": "drop", "express": False},
             }
         ]
     return qos

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
+from hrc import metrics as metrics_schema
 from hrc import priority, services
 from hrc.bus import Bus, BusConfig
 from hrc.bus.access import EXPERIMENTER, TrialAccess
@@ -782,6 +783,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         if watcher is not None:
             watcher.close()
         group.stop_all(grace_s=1.0)
+        metrics_schema.add_recording(trial_dir)
         group.write_cpu()
         group.write_timing(_phases(phases, t0, group, watcher))
         group.close()

@@ -70,6 +70,12 @@ def format_summary(m: pb.Metrics, logger: dict[str, Any] | None = None) -> list[
             f"max {logger.get('lag_max_ticks', '-')} ticks (it yields the CPU, then "
             "catches up)"
         )
+    if m.recording.lost_messages:
+        spans = ", ".join(f"{sp.from_s:.1f}-{sp.to_s:.1f} s" for sp in m.recording.loss_spans)
+        lines.append(
+            f"recording           INCOMPLETE: {m.recording.lost_messages} message(s) lost "
+            f"(simulated time {spans})"
+        )
     return lines
 
 

@@ -115,11 +115,11 @@ class TrialRecorder:
         self,
         run_end: pb.RunEnd | None,
         reason: str = "",
-        losses: list[tuple[float, float, int]] | None = None,
+        losses: list[pb.LossSpan] | None = None,
     ) -> None:
         """Closing lines (metrics if no final ones came, what the recording lost, run end, why
-        the log stops), then close. ``losses``: (from, to simulated time, messages) of each
-        span in which messages never reached the logger."""
+        the log stops), then close. ``losses``: the spans of simulated time in which messages
+        never reached the logger."""
         if self.closed:
             return
         self.closed = True

@@ -23,6 +23,7 @@ from hrc.bus.bus import M
 from hrc.priority import leave_idle, thread_ids
 from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit
 from hrc.wire import pb
+from hrc.wire.jsonmap import message_to_dict
 
 from hrc_logger.recorder import TrialRecorder
 
@@ -49,8 +50,22 @@ def fetch_scenario(bus: Bus, timeout: float) -> pb.Scenario | None:
         return None
 
 
+def recording_metrics(obs: Observer, timeline: str) -> pb.RecordingMetrics:
+    """What never reached the logger, and when (simulated time; the clock's gaps tell)."""
+    dt = obs.last_tick.dt if obs.last_tick is not None else 0.0
+    rec = pb.RecordingMetrics(lost_messages=obs.seq.lost)
+    for sp in obs.seq.loss_spans(timeline):
+        rec.loss_spans.add(from_s=sp.from_tick * dt, to_s=sp.to_tick * dt, messages=sp.messages)
+    return rec
+
+
 def stats_dict(
-    obs: Observer, rec: TrialRecorder, view: View | None, bus: Bus, handler_errors: int
+    obs: Observer,
+    rec: TrialRecorder,
+    view: View | None,
+    bus: Bus,
+    handler_errors: int,
+    recording: pb.RecordingMetrics,
 ) -> dict[str, Any]:
     return {
         "lag_mean_ticks": round(obs.lag.mean_ticks, 3),
@@ -61,11 +76,8 @@ def stats_dict(
         "messages": obs.seq.messages,
         "seq_gaps": obs.seq.gaps,
         "lost_messages": obs.seq.lost,
-        # when: ticks after the last message before a gap .. the first after it (merged)
-        "loss_spans": [
-            {"from_tick": sp.from_tick, "to_tick": sp.to_tick, "messages": sp.messages}
-            for sp in obs.seq.loss_spans(bus.keys.clock())
-        ],
+        # what hrc run puts into metrics.json: when messages were lost (pb.RecordingMetrics)
+        "recording": message_to_dict(recording),
         "missing_inputs": obs.missing_inputs,
         "decode_errors": sum(bus.stats.decode_errors.values()),
         "handler_errors": handler_errors,
@@ -293,13 +305,9 @@ class LoggerService(Service):
         self._view_up()
         obs = self.observer
         assert obs is not None, "run_service sets the observer"
-        dt = obs.last_tick.dt if obs.last_tick is not None else 0.0
-        spans = [
-            (sp.from_tick * dt, sp.to_tick * dt, sp.messages)
-            for sp in obs.seq.loss_spans(self.bus.keys.clock())
-        ]
-        self.recorder.finish(outcome.run_end, outcome.reason, spans)
-        stats = stats_dict(obs, self.recorder, self.view, self.bus, self.handler_errors)
+        recording = recording_metrics(obs, self.bus.keys.clock())
+        self.recorder.finish(outcome.run_end, outcome.reason, list(recording.loss_spans))
+        stats = stats_dict(obs, self.recorder, self.view, self.bus, self.handler_errors, recording)
         write_json_atomic(self.out / STATS_FILE, stats)
         log.info(
             "logger summary: %d ticks, %d messages, lag mean %.1f / max %d ticks "

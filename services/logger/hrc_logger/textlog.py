@@ -197,15 +197,18 @@ class ThesisLog:
         return [line]
 
 
-def loss_lines(losses: list[tuple[float, float, int]], task_start_sim: float) -> list[str]:
+def loss_lines(losses: list[pb.LossSpan], task_start_sim: float) -> list[str]:
     """One line per span of simulated time in which messages never reached the logger (it was
     stopped or starved, and the bus dropped what it could not take), in task time."""
+
+    def at(sim_s: float) -> str:
+        return secs(max(0.0, sim_s - task_start_sim))
+
     return [
-        f"{secs(max(0.0, to_s - task_start_sim))} sec : RECORDING INCOMPLETE: {n} message(s) "
-        f"lost between {secs(max(0.0, from_s - task_start_sim))} and "
-        f"{secs(max(0.0, to_s - task_start_sim))} sec "
-        "(the logger could not take them; see logger_stats.json)."
-        for from_s, to_s, n in losses
+        f"{at(sp.to_s)} sec : RECORDING INCOMPLETE: {sp.messages} message(s) lost between "
+        f"{at(sp.from_s)} and {at(sp.to_s)} sec (the logger could not take them; "
+        "metrics.json, recording)."
+        for sp in losses
     ]
 
 
