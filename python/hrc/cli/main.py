@@ -409,7 +409,7 @@ def build_parser() -> argparse.ArgumentParser:
     ll.add_argument(
         "--lowlatency",
         action="store_true",
-        help="the participants use Zenoh's low-latency transport (about 10 %% more lockstep "
+        help="the participants use Zenoh's low-latency transport (20-25 %% more idle lockstep "
         "ticks per second; a scenario too large for it falls back). Its router runs without "
         "QoS, and on such a link Zenoh stops delivering to a logger that was stopped for a few "
         'seconds (docs/ARCHITECTURE.md, "Observers")',
