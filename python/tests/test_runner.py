@@ -97,7 +97,8 @@ def test_a_trials_private_folder_holds_its_socket_and_credentials(tmp_path, monk
     # what the router may drop: only what goes to the observers, known by their Zenoh ids
     qos = json.loads(a.config("physics").read_text())["qos"]["network"][0]
     assert qos["zids"] == [json.loads(a.config("logger").read_text())["id"]]
-    assert qos["flows"] == ["egress"] and qos["overwrite"] == {"congestion_control": "drop"}
+    assert qos["flows"] == ["egress"]
+    assert qos["overwrite"] == {"congestion_control": "drop", "express": False}  # batched
     # the folder of a run that is gone goes with the next run; a living one stays
     (b.folder / "pid").write_text("999999999")
     access.TrialAccess.create("s3", ["physics"])

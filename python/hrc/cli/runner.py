@@ -698,11 +698,11 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             if status[master] is not None:
                 break
             # After a failed run/end the services exit 1 on their own: the end names the cause.
-            # a stopped service is the cause (e.g. the clock master: the others left when its
-            # link died); no run/end can come then
+            # a stopped clock master is the cause (the others left when its link died): no
+            # run/end can come then
             stopped = group.stopped() if dead else []
             if dead and (
-                stopped
+                master in stopped
                 or not (
                     watcher is not None
                     and all((status[n] or 0) > 0 for n in dead)
