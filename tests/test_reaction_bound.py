@@ -6,7 +6,8 @@ holds the contact (the ``world/contacts`` message that reports it) to the tick w
 the first computed under a new command, physics applies. The exchange step may be large far from
 the hands; near them it must shrink so that this holds (docs/ARCHITECTURE.md, "Exchange step").
 
-The test joins the trial as one more observer physics waits for (so it misses nothing) and
+The test joins the trial as one more observer physics waits for (so it misses nothing), acking the
+clock as every observer does (lockstep keeps the clock within a window of an observer's acks), and
 records every contact and robot state with its tick.
 """
 
@@ -19,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from hrc.bus import Bus, access
+from hrc.bus.bus import Publisher
 from hrc.cli.runner import TrialOptions, TrialResult, free_port, run_trial
 from hrc.paths import ik_binary
 from hrc.wire import pb
@@ -51,6 +53,7 @@ def test_robots_react_to_a_hand_contact_within_one_thesis_frame(tmp_path: Path) 
     contacts: list[tuple[int, str]] = []  # (tick, robot) of each hand-robot contact begin
     states: list[tuple[int, str, int]] = []  # (tick, robot, command_id)
     spans: list[int] = []
+    acks: list[Publisher[pb.TickAck]] = []
 
     def on_contacts(_key: str, msg: pb.WorldContacts) -> None:
         with lock:
@@ -65,6 +68,8 @@ def test_robots_react_to_a_hand_contact_within_one_thesis_frame(tmp_path: Path) 
     def on_clock(_key: str, msg: pb.ClockTick) -> None:
         with lock:
             spans.append(max(1, msg.span))
+        if acks:  # received: the clock may go on (docs/ARCHITECTURE.md, "Observers")
+            acks[0].put(pb.TickAck(participant=WATCHER), msg.header.tick, msg.header.sim_time)
 
     result: list[TrialResult] = []
     opts = TrialOptions(
@@ -81,6 +86,7 @@ def test_robots_react_to_a_hand_contact_within_one_thesis_frame(tmp_path: Path) 
         with Bus(access.join(session, port), WATCHER) as bus:
             bus.subscribe(bus.keys.world_contacts(), pb.WorldContacts, on_contacts)
             bus.subscribe(bus.keys.robot_states(), pb.RobotState, on_state)
+            acks.append(bus.publisher(bus.keys.clock_ack(WATCHER)))
             bus.subscribe(bus.keys.clock(), pb.ClockTick, on_clock)
             bus.declare_token()
             runner.join(300)
