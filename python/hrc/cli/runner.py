@@ -241,22 +241,26 @@ def web_viewer_url(opts: TrialOptions) -> str:
     return f"http://127.0.0.1:{web}/?url=rerun%2Bhttp://127.0.0.1:{grpc}/proxy"
 
 
+def _stat(pid: int | str) -> list[str]:
+    """The fields of Linux ``/proc/<pid>/stat`` after the command name (field 3, the state,
+    first); OSError where there is none."""
+    with open(f"/proc/{pid}/stat") as f:
+        return f.read().rsplit(")", 1)[1].split()
+
+
 def process_stopped(pid: int) -> bool:
     """The process is stopped (SIGSTOP, SIGTSTP, a debugger): Linux /proc state T or t. A
     stopped service answers nothing and acts on no signal but SIGKILL."""
     try:
-        with open(f"/proc/{pid}/stat") as f:
-            state = f.read().rsplit(")", 1)[1].split()[0]
+        return _stat(pid)[0] in ("T", "t")
     except (OSError, IndexError):
         return False
-    return state in ("T", "t")
 
 
 def cpu_ticks(pid: int) -> int | None:
     """CPU time the process has used so far (user + system, in clock ticks; Linux /proc)."""
     try:
-        with open(f"/proc/{pid}/stat") as f:
-            fields = f.read().rsplit(")", 1)[1].split()
+        fields = _stat(pid)
         return int(fields[11]) + int(fields[12])
     except (OSError, IndexError, ValueError):
         return None
@@ -283,8 +287,7 @@ def process_age_s() -> float | None:
     """Seconds since this process started (Linux /proc; None elsewhere): the start of the
     end-to-end wall of ``hrc run``, imports included."""
     try:
-        with open("/proc/self/stat") as f:
-            start_ticks = int(f.read().rsplit(")", 1)[1].split()[19])
+        start_ticks = int(_stat("self")[19])
         with open("/proc/uptime") as f:
             uptime = float(f.read().split()[0])
         return max(0.0, uptime - start_ticks / os.sysconf("SC_CLK_TCK"))
