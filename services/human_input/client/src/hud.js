@@ -23,6 +23,7 @@ const PANEL_TURN_DEG = 15; // it glides back when the head turns this far from w
 const PANEL_TILT_DEG = 30; // ... or tilts this far (more than PANEL_UP_DEG: it can be looked at)
 const PANEL_EM_DEG = 1.15; // its text's em, seen from the eye
 const PANEL_PX = 32; // the texture's em (px)
+const SHOWN_KEEP = 50; // messages kept in `shown` (what the page has said, for the tests)
 
 /** `text`'s lines, each broken at spaces into lines of at most `columns` characters. */
 function wrap(text, columns) {
@@ -52,6 +53,9 @@ export class Hud {
     this.pending = null; // the message that replaces it then
     this.lastText = '';
     this.sprite = null;
+    // what was on screen, oldest first: [{text, kind, atMs}] (a slow machine may read the page
+    // only after a short message has given way to the next)
+    this.shown = [];
   }
 
   set(key, value) {
@@ -76,6 +80,10 @@ export class Hud {
     this.msg.className = cls;
     this.msg.style.display = text ? 'block' : 'none';
     this.shownText = text;
+    if (text) {
+      this.shown.push({ text, kind: cls, atMs: now });
+      if (this.shown.length > SHOWN_KEEP) this.shown.shift();
+    }
   }
 
   /** A new trial of a session: the last one's end leaves the screen. */

@@ -672,6 +672,8 @@ function projectWith(app, xyz) {
 window.hrcTest = {
   /** The scene has arrived and every robot's URDF is loaded. */
   ready: () => !!window.hrcApp?.sceneMsg && window.hrcApp.robots.allLoaded() && window.hrcApp.frames > 0,
+  /** Every message the page has shown, oldest first: [{text, kind, atMs}] (the last 50). */
+  messages: () => window.hrcApp.hud.shown.map((m) => ({ ...m })),
   /** A world point [x, y, z] as CSS pixels of the page {x, y, visible}. */
   project: (xyz) => projectWith(window.hrcApp, xyz),
   /** A world point as the XR (local-floor) coordinates the calibration maps it to. */
