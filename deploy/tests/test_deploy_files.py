@@ -103,17 +103,20 @@ def test_hrc_deploy_files_check_says_up_to_date() -> None:
 def test_process_compose_file_says_what_the_table_says() -> None:
     pc = yaml.safe_load(PC_FILE.read_text())
     procs = pc["processes"]
-    assert list(procs) == list(services.names())
+    assert list(procs) == ["access", *services.names()]
+    assert procs["access"]["command"].split()[:2] == [".venv/bin/hrc", "deploy-access"]
     for svc in services.SERVICES:
         p = procs[svc.name]
         program = f".venv/bin/{svc.script}" if svc.module else f"build/{svc.binary}"
         assert p["command"].split() == [program, *services.argv(svc, deploy_files.PC_SETTINGS)]
-        if svc.role is Role.CLOCK_MASTER:
-            assert "depends_on" not in p
+        if svc.role is Role.CLOCK_MASTER:  # after the credentials are written
+            assert p["depends_on"] == {"access": {"condition": "process_completed_successfully"}}
         else:
             assert p["depends_on"] == {services.CLOCK_MASTER: {"condition": "process_started"}}
         probe = p["readiness_probe"]["exec"]["command"].split()
         assert probe[:4] == [".venv/bin/hrc", "alive", svc.name, "--wait"]
+        assert probe[-2:] == ["--zenoh-config", "{{.ACCESS}}/{{.SESSION}}/experimenter.json5"]
+        assert f"{{{{.ACCESS}}}}/{{{{.SESSION}}}}/{svc.name}.json5" in p["command"]
         assert p["availability"] == {"restart": "exit_on_failure"}
         assert p["shutdown"]["timeout_seconds"] == svc.stop_timeout_s
 
@@ -121,16 +124,20 @@ def test_process_compose_file_says_what_the_table_says() -> None:
 def test_compose_file_says_what_the_table_says() -> None:
     compose = yaml.safe_load(COMPOSE_FILE.read_text())
     got = {n: s for n, s in compose["services"].items() if "profiles" not in s}  # not the router
-    assert list(got) == list(services.names())
+    assert list(got) == ["access", *services.names()]
+    assert got.pop("access")["command"][:1] == ["deploy-access"]
     for svc in services.SERVICES:
         c = got[svc.name]
         assert c["entrypoint"] == [svc.script]
         assert c["command"] == services.argv(svc, deploy_files.COMPOSE_SETTINGS)
         if svc.role is Role.CLOCK_MASTER:
-            assert "depends_on" not in c
+            assert c["depends_on"] == {"access": {"condition": "service_completed_successfully"}}
         else:
             assert c["depends_on"] == {services.CLOCK_MASTER: {"condition": "service_started"}}
         assert c["healthcheck"]["test"][:4] == ["CMD", "hrc", "alive", svc.name]
+        assert c["healthcheck"]["test"][-1] == "/opt/hrc/access/experimenter.json5"
+        assert f"/opt/hrc/access/{svc.name}.json5" in c["command"]
+        assert "access:/opt/hrc/access" in c["volumes"]
         assert c["stop_grace_period"] == f"{svc.stop_timeout_s}s"
         assert c["restart"] == "no" and c["network_mode"] == "host"  # from x-service
 
@@ -146,7 +153,8 @@ exit 0
 """
 
 FAKE_HRC = """#!/bin/sh
-# fake `hrc alive`: records the probe and says yes
+# fake `hrc alive` (records the probe and says yes) and `hrc deploy-access` (records it)
+if [ "$1" = deploy-access ]; then echo "$*" > "$FAKE_DIR/access"; exit 0; fi
 echo "$*" >> "$FAKE_DIR/probes"
 exit 0
 """
@@ -210,8 +218,8 @@ def test_process_compose_file_validates() -> None:
         stdin=subprocess.DEVNULL,
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
-    assert re.search(
-        rf"Validated {len(services.SERVICES)} configured processes", proc.stdout + proc.stderr
+    assert re.search(  # the services and `access`
+        rf"Validated {len(services.SERVICES) + 1} configured processes", proc.stdout + proc.stderr
     )
 
 
@@ -241,22 +249,35 @@ def test_process_compose_starts_every_service_with_session_settings(tmp_path: Pa
             ticks="123",
             scenario="scenarios/x.toml",
             out="runs/x",
+            zenoh_config="runs/.access/s7/{service}.json5",
         )
     )
+    # the credentials first, for this session
+    assert (out / "access").read_text().split() == [
+        "deploy-access",
+        "--session",
+        "s7",
+        "--out",
+        "runs/.access/s7",
+    ]
     # star: physics routes for all
-    assert argv["hrc-physics"][:7] == [
+    assert argv["hrc-physics"][:9] == [
         "hrc-physics",
         "--session",
         "s7",
+        "--zenoh-config",
+        "runs/.access/s7/physics.json5",
         "--zenoh-mode",
         "router",
         "--listen",
         bus,
     ]
-    assert argv["hrc-ik"][:7] == [
+    assert argv["hrc-ik"][:9] == [
         "hrc-ik",
         "--session",
         "s7",
+        "--zenoh-config",
+        "runs/.access/s7/ik_cpp.json5",
         "--zenoh-mode",
         "client",
         "--connect",
@@ -266,6 +287,7 @@ def test_process_compose_starts_every_service_with_session_settings(tmp_path: Pa
     probed = {line.split()[1] for line in probes}
     assert probed == set(services.names())
     assert all(f"--session s7 --zenoh-mode client --connect {bus}" in line for line in probes)
+    assert all(line.endswith("runs/.access/s7/experimenter.json5") for line in probes)
 
 
 def test_process_compose_defaults(tmp_path: Path) -> None:
@@ -282,6 +304,7 @@ def test_process_compose_defaults(tmp_path: Path) -> None:
             ticks="0",
             scenario="scenarios/thesis.toml",
             out="runs/pc",
+            zenoh_config="runs/.access/pc/{service}.json5",
         )
     )
 

@@ -17,7 +17,8 @@ the experimenter end a run, only physics publishes the clock and ``run/end``, on
 commands the robots and writes task events; a put from anyone else is dropped by the router.
 
 ``hrc run`` removes the folder when it ends; a run killed with SIGKILL cannot, so every ``hrc run``
-first removes the folders of runs that are gone.
+first removes the folders of runs that are gone. A session started from ``deploy/`` gets the same
+files from ``hrc deploy-access`` (:func:`write_credentials`), in a folder it names.
 """
 
 from __future__ import annotations
@@ -202,6 +203,48 @@ def router_acl(session: str, users: Iterable[str]) -> dict[str, object]:
     }
 
 
+def write_credentials(
+    folder: Path, session: str, users: Iterable[str], authenticate: bool = True
+) -> None:
+    """Writes into ``folder`` (which only this user may enter) the credentials of ``users`` and
+    the experimenter: one random password each, their dictionary (``users``), and one Zenoh
+    configuration file per name (see the module's doc). Paths inside the files are ``folder``'s
+    as given: every process must see the folder at that path (a relative one: from the same
+    working directory). Without ``authenticate`` the files hold no credentials."""
+    names = [*dict.fromkeys([*users, EXPERIMENTER])]
+    passwords = {n: secrets.token_hex(16) for n in names}
+    zids = observer_ids(names)
+    _write_private(folder / USERS, "".join(f"{n}:{p}\n" for n, p in passwords.items()))
+    for n, p in passwords.items():
+        usrpwd: dict[str, str] = {"user": n, "password": p}
+        if n != EXPERIMENTER:
+            # whoever listens (the clock master; any service could) checks its peers
+            usrpwd["dictionary_file"] = str(folder / USERS)
+        cfg: dict[str, object] = {}
+        transport: dict[str, object] = {}
+        if n in zids:
+            cfg["id"] = zids[n]
+        if n != CLOCK_MASTER:
+            transport["unicast"] = {"open_timeout": OPEN_TIMEOUT_MS}
+        if n == CLOCK_MASTER:
+            if qos := router_qos(zids.values()):
+                cfg["qos"] = qos
+            size = {"data": ROUTER_QUEUE_BATCHES}
+            transport["link"] = {"tx": {"queue": {"size": size}}}
+        if authenticate:
+            transport["auth"] = {"usrpwd": usrpwd}
+            if n == CLOCK_MASTER:
+                cfg["access_control"] = router_acl(session, names)
+        if transport:
+            cfg["transport"] = transport
+        _write_private(config_path(folder, n), json.dumps(cfg, indent=1) + "\n")
+
+
+def config_path(folder: Path, name: str) -> Path:
+    """The Zenoh configuration file of service (or tool) ``name`` in a credentials folder."""
+    return folder / f"{name}.json5"
+
+
 @dataclass(frozen=True)
 class TrialAccess:
     """One trial's private folder (see the module's doc)."""
@@ -232,33 +275,7 @@ class TrialAccess:
             return None
         access = cls(folder)
         _write_private(folder / OWNER, str(os.getpid()))
-        names = [*dict.fromkeys([*users, EXPERIMENTER])]
-        passwords = {n: secrets.token_hex(16) for n in names}
-        zids = observer_ids(names)
-        _write_private(folder / USERS, "".join(f"{n}:{p}\n" for n, p in passwords.items()))
-        for n, p in passwords.items():
-            usrpwd: dict[str, str] = {"user": n, "password": p}
-            if n != EXPERIMENTER:
-                # whoever listens (the clock master; any service could) checks its peers
-                usrpwd["dictionary_file"] = str(folder / USERS)
-            cfg: dict[str, object] = {}
-            transport: dict[str, object] = {}
-            if n in zids:
-                cfg["id"] = zids[n]
-            if n != CLOCK_MASTER:
-                transport["unicast"] = {"open_timeout": OPEN_TIMEOUT_MS}
-            if n == CLOCK_MASTER:
-                if qos := router_qos(zids.values()):
-                    cfg["qos"] = qos
-                size = {"data": ROUTER_QUEUE_BATCHES}
-                transport["link"] = {"tx": {"queue": {"size": size}}}
-            if authenticate:
-                transport["auth"] = {"usrpwd": usrpwd}
-                if n == CLOCK_MASTER:
-                    cfg["access_control"] = router_acl(session, names)
-            if transport:
-                cfg["transport"] = transport
-            _write_private(access.config(n), json.dumps(cfg, indent=1) + "\n")
+        write_credentials(folder, session, users, authenticate)
         return access
 
     @property
@@ -269,7 +286,7 @@ class TrialAccess:
 
     def config(self, name: str) -> Path:
         """The Zenoh configuration file of service (or tool) ``name``."""
-        return self.folder / f"{name}.json5"
+        return config_path(self.folder, name)
 
     def remove(self) -> None:
         shutil.rmtree(self.folder, ignore_errors=True)

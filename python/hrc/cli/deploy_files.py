@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 from hrc import services
+from hrc.bus.access import EXPERIMENTER
 from hrc.paths import project_root
 from hrc.services import Role, Service, Settings
 
@@ -41,11 +42,17 @@ PC_HEADER = """\
 #   HRC_TICKS     stop after this many ticks; 0 = when the task is finished  (0)
 #   HRC_MODE      lockstep | realtime                           (lockstep)
 #   HRC_ROOT      repo root, when not started from it           (.)
-#   HRC_ZENOH_LOWLATENCY  1: Zenoh's low-latency transport, as `hrc run` uses it (faster;
-#                 no message above 64 KiB, so scenarios up to ~100 parts)  (unset: standard)
+#   HRC_ZENOH_LOWLATENCY  1: Zenoh's low-latency transport, as `hrc run --lowlatency` uses it
+#                 (faster; no message above 64 KiB, so scenarios up to ~100 parts)  (unset)
+#   HRC_ACCESS    where each session's credentials go: <HRC_ACCESS>/<session>/  (runs/.access)
 # Two sessions at once need a different HRC_SESSION and HRC_PORT each.
 #
-# Start order: physics first (it listens on the port the others connect to);
+# Credentials: `access` runs first (`hrc deploy-access`) and writes, in a folder only this user
+# may enter, a password for every service and for the probes, and each one's Zenoh configuration
+# file (--zenoh-config). Physics refuses a link without them, and lets only a key's own publisher
+# put on it, as in a trial of `hrc run` (docs/access.md).
+#
+# Start order: access, then physics (it listens on the port the others connect to);
 # the others start once it runs. Physics itself waits for the liveliness
 # tokens of all the others before the first tick (docs/ARCHITECTURE.md), so nothing
 # is missed whatever order they come up in. Every service has a readiness probe
@@ -73,8 +80,16 @@ vars:
   BUS: "tcp/127.0.0.1:${HRC_PORT:-7460}"
   TICKS: "${HRC_TICKS:-0}"
   MODE: "${HRC_MODE:-lockstep}"
+  ACCESS: "${HRC_ACCESS:-runs/.access}"
 
 processes:
+  access:
+    description: "the session's Zenoh credentials (hrc deploy-access; docs/access.md)"
+    working_dir: "${HRC_ROOT:-.}"
+    command: .venv/bin/hrc deploy-access --session {{.SESSION}} --out {{.ACCESS}}/{{.SESSION}}
+    availability:
+      restart: exit_on_failure
+
 """
 
 PC_SETTINGS = Settings(
@@ -85,8 +100,18 @@ PC_SETTINGS = Settings(
     ticks="{{.TICKS}}",
     scenario="{{.SCENARIO}}",
     out="{{.OUT}}",
+    zenoh_config="{{.ACCESS}}/{{.SESSION}}/{service}.json5",
 )
-PC_PROBE_BUS = ["--session", "{{.SESSION}}", "--zenoh-mode", "client", "--connect", "{{.BUS}}"]
+PC_PROBE_BUS = [
+    "--session",
+    "{{.SESSION}}",
+    "--zenoh-mode",
+    "client",
+    "--connect",
+    "{{.BUS}}",
+    "--zenoh-config",
+    "{{.ACCESS}}/{{.SESSION}}/" + f"{EXPERIMENTER}.json5",
+]
 
 
 def pc_program(svc: Service) -> str:
@@ -131,6 +156,10 @@ def _pc_process(svc: Service) -> str:
         out.append(
             f"    depends_on:\n      {services.CLOCK_MASTER}:\n        condition: process_started\n"
         )
+    else:
+        out.append(
+            "    depends_on:\n      access:\n        condition: process_completed_successfully\n"
+        )
     out.append("    availability:\n      restart: exit_on_failure\n")
     out.append("    readiness_probe:\n      exec:\n")
     out.append(_folded("command", pc_probe(svc), "        "))
@@ -171,6 +200,11 @@ COMPOSE_HEADER = """\
 # at every tick and a restart loses its state); physics ends the run naming the lost service.
 # Readiness: a healthcheck per service (`hrc alive SERVICE`); the clients start after
 # physics, and physics waits for their liveliness tokens before the first tick.
+#
+# Credentials: the `access` container runs first (`hrc deploy-access`) and writes into the
+# `access` volume a password for every service and for the probes, and each one's Zenoh
+# configuration file (--zenoh-config). Physics refuses a link without them, and lets only a key's
+# own publisher put on it, as in a trial of `hrc run` (docs/access.md). Every `up` writes new ones.
 
 x-service: &service
   image: hrc-cosim:latest
@@ -186,6 +220,7 @@ x-service: &service
   volumes:
     - ../runs:/opt/hrc/runs
     - ../scenarios:/opt/hrc/scenarios:ro
+    - access:/opt/hrc/access
 
 x-health: &health
   interval: 5s
@@ -193,7 +228,17 @@ x-health: &health
   retries: 6
   start_period: 2s
 
+volumes:
+  access: {}             # the session's credentials (written by the access service)
+
 services:
+  access:
+    <<: *service
+    entrypoint: ["hrc"]
+    command: ["deploy-access", "--session", "${HRC_SESSION:-compose}", "--out", "/opt/hrc/access"]
+    healthcheck:
+      disable: true
+
 """
 
 COMPOSE_FOOTER = """
@@ -210,6 +255,7 @@ COMPOSE_FOOTER = """
 """
 
 COMPOSE_BUS = "tcp/127.0.0.1:${HRC_PORT:-7460}"
+COMPOSE_ACCESS = "/opt/hrc/access"  # the access volume, in every container
 # The session comes from the environment (HRC_SESSION, in x-service), for the probes too.
 COMPOSE_SETTINGS = Settings(
     bus=COMPOSE_BUS,
@@ -218,11 +264,23 @@ COMPOSE_SETTINGS = Settings(
     ticks="${HRC_TICKS:-0}",
     scenario="${HRC_SCENARIO:-scenarios/thesis.toml}",
     out="${HRC_OUT:-runs/compose}",
+    zenoh_config=COMPOSE_ACCESS + "/{service}.json5",
 )
 
 
 def compose_probe(svc: Service) -> list[str]:
-    return ["CMD", "hrc", "alive", svc.name, "--wait", "5", "--connect", COMPOSE_BUS]
+    return [
+        "CMD",
+        "hrc",
+        "alive",
+        svc.name,
+        "--wait",
+        "5",
+        "--connect",
+        COMPOSE_BUS,
+        "--zenoh-config",
+        f"{COMPOSE_ACCESS}/{EXPERIMENTER}.json5",
+    ]
 
 
 def _flow(key: str, items: list[str], indent: str) -> str:
@@ -255,6 +313,8 @@ def _compose_service(svc: Service) -> str:
         out.append(
             f"    depends_on:\n      {services.CLOCK_MASTER}: {{ condition: service_started }}\n"
         )
+    else:
+        out.append("    depends_on:\n      access: { condition: service_completed_successfully }\n")
     out.append(f"    stop_grace_period: {svc.stop_timeout_s}s\n")
     out.append("    healthcheck:\n      <<: *health\n")
     out.append(_flow("test", compose_probe(svc), "      "))

@@ -305,6 +305,12 @@ def _cmd_deploy_files(args: argparse.Namespace) -> int:
     return deploy_files.main(args)
 
 
+def _cmd_deploy_access(args: argparse.Namespace) -> int:
+    from hrc.cli import deploy_access
+
+    return deploy_access.main(args)
+
+
 def _cmd_services(_args: argparse.Namespace) -> int:
     from hrc import services
 
@@ -543,6 +549,16 @@ def build_parser() -> argparse.ArgumentParser:
         "--check", action="store_true", help="write nothing; exit 1 if a file is out of date"
     )
     d.set_defaults(func=_cmd_deploy_files)
+
+    da = sub.add_parser(
+        "deploy-access",
+        help="write the Zenoh credentials of a deployed session (deploy/; docs/access.md)",
+    )
+    da.add_argument("--session", required=True, help="the session id (HRC_SESSION of deploy/)")
+    da.add_argument(
+        "--out", required=True, metavar="DIR", help="the folder to write (made mode 0700)"
+    )
+    da.set_defaults(func=_cmd_deploy_access)
 
     b = sub.add_parser("bench", help="benchmarks that print their figures")
     b.add_argument("what", choices=["bus", "ik", "physics", "client", "trial"])
