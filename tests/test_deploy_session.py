@@ -20,22 +20,30 @@ from .conftest import HRC, ROOT, free_port, wait_until
 from .test_intruders import FORGED, forge, intruder
 
 pytestmark = [pytest.mark.e2e]
+# Robots 10 times slower than the thesis's: the lockstep run (the deployment's default) outlives
+# the intruder's tries (the thesis's own, 11,489 ticks, once ended in 4 s, before them)
+SLOW = ("max_tcp_speed = 0.5", "max_tcp_speed = 0.05")
 PC_BIN = ROOT / "tools" / "bin" / "process-compose"
 PC_FILE = ROOT / "deploy" / "process-compose.yaml"
 
 
-@pytest.mark.timeout(240)
+@pytest.mark.timeout(400)
 def test_a_deployed_session_admits_only_its_own_services(tmp_path: Path) -> None:
     if not PC_BIN.exists():
         pytest.skip("tools/bin/process-compose not built (scripts/setup.sh builds it)")
     session, port = f"dep{os.getpid()}", free_port()
     out, access = tmp_path / "trial", tmp_path / "access"
+    thesis = (ROOT / "scenarios" / "thesis.toml").read_text()
+    assert thesis.count(SLOW[0]) == 2
+    scenario = tmp_path / "thesis-slow.toml"
+    scenario.write_text(thesis.replace(*SLOW))
     env = {k: v for k, v in os.environ.items() if not k.startswith(("HRC_", "PC_"))}
     env.update(
         HRC_ROOT=str(ROOT),
         HRC_SESSION=session,
         HRC_PORT=str(port),
-        HRC_TICKS="0",  # until the task is finished (lockstep: the deployment's default)
+        HRC_TICKS="0",  # until the task is finished
+        HRC_SCENARIO=str(scenario),
         HRC_OUT=str(out),
         HRC_ACCESS=str(access),
     )
@@ -74,7 +82,7 @@ def test_a_deployed_session_admits_only_its_own_services(tmp_path: Path) -> None
                 s.close()
         assert proc.poll() is None, "the session ended while the intruder tried"
         assert not admitted, admitted
-        log, _ = proc.communicate(timeout=150)
+        log, _ = proc.communicate(timeout=300)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGTERM)
