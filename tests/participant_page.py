@@ -34,8 +34,9 @@ VIEWPORT = {"width": 1280, "height": 800}
 MAX_TICKS = 240 * 240  # no trial outlives 4 simulated (= wall, realtime) minutes
 DRIVER_KEY = "participant-key"
 # For the page to take the mouse's moves (it does so with its frames; software WebGL on a loaded
-# machine draws a few a second). Now and then a page kept a move from a test waiting 10 s (not
-# understood yet): a person would move the mouse again, and the test does, INPUT_TRIES times.
+# machine draws a few a second). Once on CI a hand stopped part-way to where the mouse went, for
+# 10 s (not understood): a person would move the mouse again, and the test does, INPUT_TRIES
+# times. (A page whose run has ended takes no input at all: the failure's message says so.)
 INPUT_WAIT_S = 10
 INPUT_TRIES = 3
 STALL_TIMEOUT_S = 600  # simulated s: longer than MAX_TICKS, so a slow test never meets it

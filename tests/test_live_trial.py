@@ -73,8 +73,12 @@ def holding(events: list[dict[str, Any]], t_s: float) -> bool:
 
 def next_part(page: Page, scene: dict[str, Any]) -> str | None:
     """The participant's part the page offers now (grabbable), once what it sits on or waits for
-    is placed; None when every one of them is placed."""
-    s = page.state()["objects"]
+    is placed; None when every one of them is placed, or the task is finished (the last
+    placement's frame may not reach the page before the bridge closes: the run's end says it)."""
+    state = page.state()
+    if state["run"] == "finished":
+        return None
+    s = state["objects"]
     mine = [p for p in scene["parts"] if p["owner"] == "human"]
     if all(s[p["id"]]["placed"] for p in mine):
         return None
