@@ -60,17 +60,27 @@ def _root() -> Path:
     return Path(tempfile.gettempdir()) / f"hrc-{os.getuid()}"
 
 
+def make_private(path: Path, parents: bool = False) -> None:
+    """``path`` made, or checked, as a folder of this user's that nobody else may enter (mode
+    0700); ValueError if it is something else or another user's, OSError if it cannot be made."""
+    path.mkdir(mode=0o700, parents=parents, exist_ok=True)
+    st = path.lstat()
+    if not stat.S_ISDIR(st.st_mode):
+        raise ValueError(f"{path} is not a folder")
+    if st.st_uid != os.getuid():
+        raise ValueError(f"{path} belongs to another user (uid {st.st_uid})")
+    if stat.S_IMODE(st.st_mode) != 0o700:
+        path.chmod(0o700)
+
+
 def private_root() -> Path | None:
     """This user's folder of trial folders (mode 0700), or None if it cannot be made so."""
     path = _root()
     try:
-        path.mkdir(mode=0o700, exist_ok=True)
-        st = path.lstat()
-        if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.getuid():
-            log.warning("%s is not this user's folder: the trial's bus is not protected", path)
-            return None
-        if stat.S_IMODE(st.st_mode) != 0o700:
-            path.chmod(0o700)
+        make_private(path)
+    except ValueError:
+        log.warning("%s is not this user's folder: the trial's bus is not protected", path)
+        return None
     except OSError as exc:
         log.warning("no private folder for the trial (%s): its bus is not protected", exc)
         return None
