@@ -107,5 +107,15 @@ def test_a_client_without_the_trials_credentials_is_refused_and_the_trial_finish
     assert metrics["run"]["ok"] is True and "task finished" in metrics["run"]["end_reason"]
     for name in ("log.txt", "events.jsonl"):
         assert FORGED not in (trial.out / name).read_text(), name
+    # every refused client is counted, by its reason, at least once on each endpoint (a client
+    # tries again while it waits); the insider and the tools got in and are not
+    refused = metrics["access"]
+    assert refused["no_credentials"] >= 2, refused
+    assert refused["wrong_password"] >= 2, refused  # orchestrator, a guess
+    assert refused["unknown_user"] >= 2, refused  # intruder
+    assert refused["refused_links"] == sum(v for k, v in refused.items() if k != "refused_links")
+    last = (trial.out / "log.txt").read_text().splitlines()[-1]
+    assert last.startswith(f"ACCESS REFUSED: {refused['refused_links']} attempt(s)"), last
+    assert "ACCESS REFUSED" in err, err[-2000:]
     # the experimenter's tools have the credentials: the trial's own folder is gone with it
     assert not Path(config).exists()

@@ -47,6 +47,13 @@ def test_a_default_trial_folder_holds_the_scenario_as_it_ran(tmp_path: Path, ik_
         assert r["completion_s"] < r["completion_home_s"]
         assert r["avg_tcp_speed_over_time_mps"] < r["avg_tcp_speed_mps"] <= 0.5
     assert m["task"]["completion_s"] < m["task"]["completion_home_s"]
+    # physics checked every link, and nobody from outside tried one
+    assert m["access"] == {
+        "refused_links": 0,
+        "no_credentials": 0,
+        "unknown_user": 0,
+        "wrong_password": 0,
+    }
 
     log = (trial / "log.txt").read_text().splitlines()
     assert log[0].startswith("SETTINGS: anticipation on, safety policy retreat, seed 3; ")

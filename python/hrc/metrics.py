@@ -37,6 +37,7 @@ log = logging.getLogger(__name__)
 
 METRICS_FILE = "metrics.json"
 LOGGER_STATS_FILE = "logger_stats.json"  # the logger's own counters (its lag, what it lost)
+TEXT_LOG_FILE = "log.txt"  # the logger's readable log (hrc run adds its ACCESS REFUSED line)
 
 
 def add_recording(trial_dir: Path) -> bool:
@@ -53,6 +54,44 @@ def add_recording(trial_dir: Path) -> bool:
         log.debug("no recording figures in %s: %s", path, exc)
         return False
     return True
+
+
+def access_metrics(refused: Mapping[str, int]) -> pb.AccessMetrics:
+    """`pb.AccessMetrics` of the refused links counted by reason (its other fields)."""
+    return pb.AccessMetrics(refused_links=sum(refused.values()), **refused)
+
+
+def add_access(trial_dir: Path, access: pb.AccessMetrics) -> bool:
+    """The links physics refused for want of the trial's credentials into metrics.json, and,
+    when there were any, an ACCESS REFUSED line at the end of log.txt. hrc run does it once every
+    service has left. False when metrics.json is missing or unreadable (it is then left as it
+    is; log.txt still gets its line)."""
+    if access.refused_links:
+        text_log = trial_dir / TEXT_LOG_FILE
+        try:
+            if text_log.exists():
+                with text_log.open("a", encoding="utf-8") as f:
+                    f.write(access_line(access) + "\n")
+        except OSError as exc:
+            log.warning("no ACCESS REFUSED line in %s: %s", text_log, exc)
+    path = trial_dir / METRICS_FILE
+    try:
+        m = from_dict(json.loads(path.read_text()))
+        m.access.CopyFrom(access)
+        write_json_atomic(path, to_dict(m))
+    except (OSError, ValueError, TypeError) as exc:
+        log.debug("no access figures in %s: %s", path, exc)
+        return False
+    return True
+
+
+def access_line(access: pb.AccessMetrics) -> str:
+    return (
+        f"ACCESS REFUSED: {access.refused_links} attempt(s) to open a link to the trial's bus "
+        f"without its credentials (none given {access.no_credentials}, unknown user "
+        f"{access.unknown_user}, wrong password {access.wrong_password}); nothing they would "
+        "have sent reached the trial (metrics.json, access)."
+    )
 
 
 def conditions(s: sc.Scenario) -> pb.TrialConditions:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import re
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -104,6 +105,7 @@ def full_metrics() -> pb.Metrics:
     )
     m.recording.lost_messages = 12
     m.recording.loss_spans.add(from_s=1.5, to_s=3.25, messages=12)
+    m.access.CopyFrom(metrics.access_metrics({"no_credentials": 2, "wrong_password": 1}))
     return m
 
 
@@ -212,3 +214,27 @@ def test_docs_list_every_field_once() -> None:
     text = (ROOT / "docs" / "metrics.md").read_text()
     rows = re.findall(r"^\| `([^`]+)` \|", text, flags=re.MULTILINE)
     assert rows == field_paths(pb.Metrics.DESCRIPTOR)
+
+
+def test_refused_links_go_into_metrics_json_and_a_last_line_of_log_txt(tmp_path: Path) -> None:
+    (tmp_path / metrics.METRICS_FILE).write_text(json.dumps(metrics.to_dict(full_metrics())))
+    (tmp_path / metrics.TEXT_LOG_FILE).write_text("0.00 sec : TASK STARTED\n")
+    refused = metrics.access_metrics({"no_credentials": 4, "unknown_user": 2, "wrong_password": 0})
+    assert metrics.add_access(tmp_path, refused)
+    data = json.loads((tmp_path / metrics.METRICS_FILE).read_text())
+    assert data["access"] == {
+        "refused_links": 6,
+        "no_credentials": 4,
+        "unknown_user": 2,
+        "wrong_password": 0,
+    }
+    assert data["recording"]["lost_messages"] == 12  # the rest as it was
+    last = (tmp_path / metrics.TEXT_LOG_FILE).read_text().splitlines()[-1]
+    assert last.startswith("ACCESS REFUSED: 6 attempt(s)") and "none given 4" in last
+
+
+def test_no_refused_link_no_line_and_no_metrics_json_no_file(tmp_path: Path) -> None:
+    (tmp_path / metrics.TEXT_LOG_FILE).write_text("0.00 sec : TASK STARTED\n")
+    assert not metrics.add_access(tmp_path, metrics.access_metrics({"no_credentials": 0}))
+    assert not (tmp_path / metrics.METRICS_FILE).exists()
+    assert (tmp_path / metrics.TEXT_LOG_FILE).read_text() == "0.00 sec : TASK STARTED\n"

@@ -26,6 +26,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import re
 import secrets
 import shutil
 import stat
@@ -34,6 +35,8 @@ import time
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
+
+import zenoh
 
 from hrc.bus.config import BusConfig
 from hrc.bus.keys import Keys
@@ -45,6 +48,7 @@ EXPERIMENTER = "experimenter"  # hrc run's own session, and the tools that join 
 SOCKET = "bus.sock"
 USERS = "users"
 OWNER = "pid"
+ROUTER = "router"  # router.json5: a separate router's configuration (several hosts)
 # The router's queue towards each link, in 64 KiB batches (Zenoh's maximum): what an observer
 # has not taken yet waits there (hrc.bus.clock's window keeps lockstep well inside it).
 ROUTER_QUEUE_BATCHES = 16
@@ -54,6 +58,45 @@ ROUTER_QUEUE_BATCHES = 16
 OPEN_TIMEOUT_MS = 1000
 MAX_SOCKET_PATH = 100  # bytes: a Unix socket path must fit sun_path (108 on Linux)
 NEW_FOLDER_S = 60.0  # a folder without its pid file this young may be a run starting now
+
+
+# Zenoh says a link it refused at authentication only in a debug line of its accept step. A router
+# (physics, `hrc router`) turns on just that target, on its standard output (the service's log);
+# RUST_LOG, when set, is used instead. hrc run counts the lines after the run (count_refusals).
+ROUTER_LOG = "off,zenoh_transport::unicast::establishment::accept=debug"
+# The reasons of Zenoh 1.10's user-password check (zenoh-transport, ext/auth/usrpwd.rs), by the
+# field of pb.AccessMetrics each is counted in.
+REFUSALS = {
+    "no_credentials": "UsrPwd extension - Recv InitSyn. Expected extension.",
+    "unknown_user": "UsrPwd extension - Recv OpenSyn. Invalid user.",
+    "wrong_password": "UsrPwd extension - Recv OpenSyn. Invalid password.",
+}
+_ANSI = re.compile(rb"\x1b\[[0-9;]*m")  # Zenoh colours its log lines even into a file
+
+
+def log_refusals() -> None:
+    """Has Zenoh write each link this process refuses to its standard output (once a process:
+    later calls change nothing)."""
+    zenoh.init_log_from_env_or(ROUTER_LOG)
+
+
+def count_refusals(router_log: Path) -> dict[str, int] | None:
+    """The links refused for want of credentials, by reason (the fields of pb.AccessMetrics),
+    as the router's log ``router_log`` says them; None if it cannot be read."""
+    counts = dict.fromkeys(REFUSALS, 0)
+    try:
+        with router_log.open("rb") as f:
+            for raw in f:
+                if b"UsrPwd" not in raw:
+                    continue
+                line = _ANSI.sub(b"", raw).decode("utf-8", "replace")
+                for field, said in REFUSALS.items():
+                    if said in line:
+                        counts[field] += 1
+    except OSError as exc:
+        log.debug("refused links not counted: %s", exc)
+        return None
+    return counts
 
 
 def _root() -> Path:
@@ -182,15 +225,16 @@ def router_qos(observer_zids: Iterable[str]) -> dict[str, object]:
     return qos
 
 
-def router_acl(session: str, users: Iterable[str]) -> dict[str, object]:
-    """Zenoh access control for the router (the clock master): puts on a key of
-    :func:`publishers` by any other user are denied as they come in. The router's own puts are
-    not incoming: a client that logs in with its name (stolen credentials) is denied all of
-    them."""
+def router_acl(session: str, users: Iterable[str], separate: bool = False) -> dict[str, object]:
+    """Zenoh access control for the router (the clock master, or a ``separate`` router that
+    every service is a client of): puts on a key of :func:`publishers` by any other user are
+    denied as they come in. The clock master's own puts are not incoming when it is the router:
+    a client that logs in with its name (stolen credentials) is then denied all of them."""
     everyone = sorted(set(users))
+    own = frozenset() if separate else frozenset({CLOCK_MASTER})
     rules, subjects, policies = [], [], []
     for i, (key, allowed) in enumerate(sorted(publishers(Keys(session)).items())):
-        denied = [u for u in everyone if u not in allowed - {CLOCK_MASTER}]
+        denied = [u for u in everyone if u not in allowed - own]
         if not denied:
             continue
         rules.append(
@@ -214,17 +258,28 @@ def router_acl(session: str, users: Iterable[str]) -> dict[str, object]:
 
 
 def write_credentials(
-    folder: Path, session: str, users: Iterable[str], authenticate: bool = True
+    folder: Path,
+    session: str,
+    users: Iterable[str],
+    authenticate: bool = True,
+    router: bool = False,
 ) -> None:
     """Writes into ``folder`` (which only this user may enter) the credentials of ``users`` and
     the experimenter: one random password each, their dictionary (``users``), and one Zenoh
-    configuration file per name (see the module's doc). Paths inside the files are ``folder``'s
-    as given: every process must see the folder at that path (a relative one: from the same
-    working directory). Without ``authenticate`` the files hold no credentials."""
+    configuration file per name (see the module's doc); with ``router`` also ``router.json5``,
+    the configuration of a separate router that every service is a client of (several hosts:
+    docs/multi-host.md). Paths inside the files are ``folder``'s as given: every process must see
+    the folder at that path (a relative one: from the same working directory). Without
+    ``authenticate`` the files hold no credentials."""
     names = [*dict.fromkeys([*users, EXPERIMENTER])]
     passwords = {n: secrets.token_hex(16) for n in names}
     zids = observer_ids(names)
     _write_private(folder / USERS, "".join(f"{n}:{p}\n" for n, p in passwords.items()))
+    if router:
+        _write_private(
+            config_path(folder, ROUTER),
+            json.dumps(_router_config(folder, session, names, zids, authenticate), indent=1) + "\n",
+        )
     for n, p in passwords.items():
         usrpwd: dict[str, str] = {"user": n, "password": p}
         if n != EXPERIMENTER:
@@ -248,6 +303,29 @@ def write_credentials(
         if transport:
             cfg["transport"] = transport
         _write_private(config_path(folder, n), json.dumps(cfg, indent=1) + "\n")
+
+
+def _router_config(
+    folder: Path, session: str, names: list[str], zids: dict[str, str], authenticate: bool
+) -> dict[str, object]:
+    """A separate router's configuration: what physics's holds when it is the router (the
+    dictionary, access control, the observers' QoS, its queue), and the listening and scouting
+    of deploy/zenoh-router.json5 (every interface, port 7447; no multicast)."""
+    transport: dict[str, object] = {
+        "link": {"tx": {"queue": {"size": {"data": ROUTER_QUEUE_BATCHES}}}}
+    }
+    cfg: dict[str, object] = {
+        "mode": "router",
+        "listen": {"endpoints": ["tcp/0.0.0.0:7447"]},
+        "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": True}},
+        "transport": transport,
+    }
+    if qos := router_qos(zids.values()):
+        cfg["qos"] = qos
+    if authenticate:
+        transport["auth"] = {"usrpwd": {"dictionary_file": str(folder / USERS)}}
+        cfg["access_control"] = router_acl(session, names, separate=True)
+    return cfg
 
 
 def config_path(folder: Path, name: str) -> Path:

@@ -18,6 +18,7 @@ from typing import Any, Generic, TypeVar
 import zenoh
 from google.protobuf.message import DecodeError, Message
 
+from hrc.bus import access
 from hrc.bus.config import BusConfig
 from hrc.bus.keys import Keys, check_name
 from hrc.wire import pb
@@ -171,6 +172,8 @@ class Bus:
         self._declared: list[object] = []
         self._publishers: dict[str, Publisher[Any]] = {}
         self.max_message_bytes = MAX_LOWLATENCY_BYTES if config.lowlatency else MAX_STANDARD_BYTES
+        if config.mode == "router":  # links it refuses go into its log, to be counted
+            access.log_refusals()
         self.session = zenoh.open(config.to_zenoh())
 
     # ------------------------------------------------------------------ lifecycle

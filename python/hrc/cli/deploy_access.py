@@ -5,8 +5,10 @@ It writes, into a folder only this user may enter, a random password for every s
 table and for ``experimenter`` (the readiness probes, the tools), their dictionary, and one Zenoh
 configuration file per name; each service is then started with ``--zenoh-config
 <folder>/<service>.json5``. Physics, the router, checks every link against the dictionary and lets
-only a key's own publisher put on it, exactly as in a trial of ``hrc run``. Run again, it writes
-new passwords (the session's services must all be restarted with them).
+only a key's own publisher put on it, exactly as in a trial of ``hrc run``. ``router.json5`` does
+the same for a separate router (``hrc router --config <folder>/router.json5``) when the services
+are spread over several hosts (docs/multi-host.md). Run again, it writes new passwords (the
+session's services must all be restarted with them).
 """
 
 from __future__ import annotations
@@ -23,12 +25,12 @@ def main(args: argparse.Namespace) -> int:
     folder = Path(args.out)
     try:
         make_private(folder, parents=True)
-        write_credentials(folder, args.session, services.names())
+        write_credentials(folder, args.session, services.names(), router=True)
     except (OSError, ValueError) as exc:
         print(f"hrc deploy-access: no credentials written: {exc}", file=sys.stderr)
         return 2
     print(
         f"credentials of session {args.session!r} for {', '.join(services.names())} and the "
-        f"experimenter written to {folder}/ (mode 0700)"
+        f"experimenter, and a router's configuration, written to {folder}/ (mode 0700)"
     )
     return 0

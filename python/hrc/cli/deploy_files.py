@@ -245,11 +245,15 @@ COMPOSE_FOOTER = """
   # Optional Zenoh router, for the router/client layout of docs/multi-host.md:
   # start it with `--profile router`, then give every service
   #   HRC_ZENOH_MODE=client and HRC_CONNECT=tcp/<router host>:7447 (and no --listen for physics).
+  # It checks the session's credentials and access control as physics does (router.json5 of
+  # `hrc deploy-access`).
   router:
     <<: *service
     profiles: ["router"]
     entrypoint: ["hrc"]
-    command: ["router", "--config", "deploy/zenoh-router.json5"]
+    command: ["router", "--config", "/opt/hrc/access/router.json5"]
+    depends_on:
+      access: { condition: service_completed_successfully }
     healthcheck:
       disable: true
 """

@@ -286,6 +286,9 @@ def _cmd_alive(args: argparse.Namespace) -> int:
 def _cmd_router(args: argparse.Namespace) -> int:
     import zenoh
 
+    from hrc.bus.access import log_refusals
+
+    log_refusals()  # a link refused for want of credentials: a line on standard output
     cfg = zenoh.Config.from_file(args.config) if args.config else zenoh.Config()
     cfg.insert_json5("mode", '"router"')
     if args.listen:
@@ -533,7 +536,11 @@ def build_parser() -> argparse.ArgumentParser:
 
     ro = sub.add_parser("router", help="run a Zenoh router (for several hosts)")
     ro.add_argument(
-        "--config", default=None, help="Zenoh JSON5 config, e.g. deploy/zenoh-router.json5"
+        "--config",
+        default=None,
+        help="Zenoh JSON5 config: a session's router.json5 from `hrc deploy-access` (its "
+        "credentials and access control), or deploy/zenoh-router.json5 (none: a trusted "
+        "network only)",
     )
     ro.add_argument("--listen", action="append", default=None, metavar="ENDPOINT")
     ro.set_defaults(func=_cmd_router)

@@ -28,7 +28,7 @@ from typing import IO
 from hrc import metrics as metrics_schema
 from hrc import priority, services
 from hrc.bus import Bus, BusConfig
-from hrc.bus.access import EXPERIMENTER, TrialAccess
+from hrc.bus.access import EXPERIMENTER, TrialAccess, count_refusals
 from hrc.cli.console import LiveConsole
 from hrc.cli.prefork import ForkedProcess, can_fork, fork_service
 from hrc.diskspace import NO_SPACE, low_space
@@ -341,7 +341,8 @@ class ServiceGroup:
         is forked from this process where that is safe (``hrc.cli.prefork``)."""
         f = open(self.logs_dir / f"{name}.log", "wb")
         self._files.append(f)
-        env = dict(os.environ, PYTHONUNBUFFERED="1")
+        # a log is a file: no colour codes (Zenoh colours its lines unless told not to)
+        env = dict(os.environ, PYTHONUNBUFFERED="1", NO_COLOR="1")
         log.debug("starting %s: %s", name, " ".join(argv))
         # A stop signal that arrived while Popen runs would leave a service nobody knows of
         # (the child forked, not yet on the list): held until it is on the list.
@@ -787,6 +788,13 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             watcher.close()
         group.stop_all(grace_s=1.0)
         metrics_schema.add_recording(trial_dir)
+        if access is not None and not opts.connect:  # physics checked every link
+            counts = count_refusals(group.logs_dir / f"{master}.log")
+            if counts is not None:
+                refused = metrics_schema.access_metrics(counts)
+                metrics_schema.add_access(trial_dir, refused)
+                if refused.refused_links:
+                    log.warning("%s", metrics_schema.access_line(refused))
         group.write_cpu()
         group.write_timing(_phases(phases, t0, group, watcher))
         group.close()

@@ -28,6 +28,13 @@ def test_it_writes_one_private_file_per_service_and_the_experimenter(tmp_path: P
     physics = json.loads((folder / f"{services.CLOCK_MASTER}.json5").read_text())
     assert physics["access_control"]["enabled"] is True
     assert "hrc/s1/run/end" in json.dumps(physics["access_control"])
+    # a separate router (several hosts) checks the same dictionary, with the same rules
+    router = folder / "router.json5"
+    assert stat.S_IMODE(router.stat().st_mode) == 0o600
+    cfg = json.loads(router.read_text())
+    assert cfg["mode"] == "router"
+    assert cfg["transport"]["auth"]["usrpwd"] == {"dictionary_file": str(folder / USERS)}
+    assert "hrc/s1/run/end" in json.dumps(cfg["access_control"])
 
 
 def test_written_again_it_gives_new_passwords(tmp_path: Path) -> None:

@@ -25,7 +25,6 @@ if TYPE_CHECKING:  # rerun is imported only by whoever builds a View (slow to im
 log = logging.getLogger(__name__)
 
 EVENTS_FILE = "events.jsonl"
-TEXT_LOG_FILE = "log.txt"
 
 
 class TrialRecorder:
@@ -35,7 +34,7 @@ class TrialRecorder:
         self.out = out
         out.mkdir(parents=True, exist_ok=True)
         self.events = JsonlFile(out / EVENTS_FILE)
-        self.text = LineFile(out / TEXT_LOG_FILE)
+        self.text = LineFile(out / metrics_schema.TEXT_LOG_FILE)
         self.thesis = ThesisLog()
         self.view = view
         self.kinds: Counter[str] = Counter()
