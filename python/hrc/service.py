@@ -37,6 +37,7 @@ from typing import ClassVar, NoReturn, Protocol
 from hrc import services
 from hrc.bus import (
     Bus,
+    BusConfig,
     ClockFollower,
     ClockMaster,
     ClockSettings,
@@ -263,13 +264,25 @@ def flush_output() -> None:
             stream.flush()
 
 
+def bus_config(cls: type[Service], args: argparse.Namespace) -> BusConfig:
+    """The bus options of service ``cls``. An observer stays on Zenoh's standard transport,
+    whatever it is asked (HRC_ZENOH_LOWLATENCY reaches every service of a deployment): on a
+    low-latency link the router could not drop what a stopped observer cannot take, and the
+    observer would hold the clock (docs/ARCHITECTURE.md, "Observers never hold the clock")."""
+    config = bus_config_from_args(args)
+    if config.lowlatency and cls.entry().role is Role.OBSERVER:
+        log.warning("an observer stays on Zenoh's standard transport: low latency ignored")
+        config.lowlatency = False
+    return config
+
+
 def run_service(cls: type[Service], argv: list[str] | None = None) -> int:
     """Runs the service ``cls`` as a process would; returns its exit code."""
     args = parse_args(cls, argv)
     setup_logging(cls.name, args.log_level)
     try:
         service = cls(args)
-        with Bus(bus_config_from_args(args), cls.name) as bus, contextlib.ExitStack() as stack:
+        with Bus(bus_config(cls, args), cls.name) as bus, contextlib.ExitStack() as stack:
             service.open(bus, stack)
             outcome = _run_role(service, bus)
             code = service.finish(outcome)
