@@ -61,9 +61,10 @@ NEW_FOLDER_S = 60.0  # a folder without its pid file this young may be a run sta
 
 
 # Zenoh says a link it refused at authentication only in a debug line of its accept step. A router
-# (physics, `hrc router`) turns on just that target, on its standard output (the service's log);
-# RUST_LOG, when set, is used instead. hrc run counts the lines after the run (count_refusals).
-ROUTER_LOG = "off,zenoh_transport::unicast::establishment::accept=debug"
+# (physics, `hrc router`) turns on just that target, on its standard output (the service's log),
+# and nothing else of Zenoh's log unless RUST_LOG asks for more. hrc run counts the lines after
+# the run (count_refusals).
+REFUSAL_LOG_TARGET = "zenoh_transport::unicast::establishment::accept=debug"
 # The reasons of Zenoh 1.10's user-password check (zenoh-transport, ext/auth/usrpwd.rs), by the
 # field of pb.AccessMetrics each is counted in.
 REFUSALS = {
@@ -75,9 +76,12 @@ _ANSI = re.compile(rb"\x1b\[[0-9;]*m")  # Zenoh colours its log lines even into 
 
 
 def log_refusals() -> None:
-    """Has Zenoh write each link this process refuses to its standard output (once a process:
-    later calls change nothing)."""
-    zenoh.init_log_from_env_or(ROUTER_LOG)
+    """Has Zenoh write each link this process refuses to its standard output, beside what
+    RUST_LOG asks for (once a process: later calls change nothing)."""
+    if asked := os.environ.get("RUST_LOG"):
+        # the later directive wins for its target: the refusals are counted whatever RUST_LOG says
+        os.environ["RUST_LOG"] = f"{asked},{REFUSAL_LOG_TARGET}"
+    zenoh.init_log_from_env_or(f"off,{REFUSAL_LOG_TARGET}")
 
 
 def count_refusals(router_log: Path) -> dict[str, int] | None:

@@ -5,11 +5,13 @@ reason; a separate router's configuration (several hosts) checks the same creden
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
+import pytest
 import zenoh
 
 from hrc import services
@@ -42,7 +44,11 @@ def client(endpoint: str, user: tuple[str, str] | None) -> zenoh.Session | None:
         return None
 
 
-def test_a_router_refuses_and_counts_each_link_without_the_credentials(tmp_path: Path) -> None:
+@pytest.mark.parametrize("rust_log", [None, "error", "zenoh_transport=warn"])
+def test_a_router_refuses_and_counts_each_link_without_the_credentials(
+    tmp_path: Path, rust_log: str | None
+) -> None:
+    """Whatever RUST_LOG the researcher has set, the refusals are in the log."""
     folder = tmp_path / "s1"
     access.make_private(folder)
     access.write_credentials(folder, "s1", services.names(), router=True)
@@ -53,11 +59,15 @@ def test_a_router_refuses_and_counts_each_link_without_the_credentials(tmp_path:
     (tmp_path / "router.json5").write_text(json.dumps(cfg))
     log = tmp_path / "router.log"
     with log.open("wb") as out:
+        env = {k: v for k, v in os.environ.items() if k != "RUST_LOG"}
+        if rust_log is not None:
+            env["RUST_LOG"] = rust_log
         router = subprocess.Popen(
             [sys.executable, "-c", ROUTER, str(tmp_path / "router.json5")],
             stdin=subprocess.PIPE,
             stdout=out,
             stderr=subprocess.STDOUT,
+            env=env,
         )
     try:
         admitted: list[zenoh.Session] = []
