@@ -293,20 +293,34 @@ def write_credentials(
         transport: dict[str, object] = {}
         if n in zids:
             cfg["id"] = zids[n]
-        if n != CLOCK_MASTER:
-            transport["unicast"] = {"open_timeout": OPEN_TIMEOUT_MS}
         if n == CLOCK_MASTER:
-            if qos := router_qos(zids.values()):
-                cfg["qos"] = qos
-            size = {"data": ROUTER_QUEUE_BATCHES}
-            transport["link"] = {"tx": {"queue": {"size": size}}}
+            _as_router(cfg, transport, session, names, zids, authenticate)
+        else:
+            transport["unicast"] = {"open_timeout": OPEN_TIMEOUT_MS}
         if authenticate:
             transport["auth"] = {"usrpwd": usrpwd}
-            if n == CLOCK_MASTER:
-                cfg["access_control"] = router_acl(session, names)
         if transport:
             cfg["transport"] = transport
         _write_private(config_path(folder, n), json.dumps(cfg, indent=1) + "\n")
+
+
+def _as_router(
+    cfg: dict[str, object],
+    transport: dict[str, object],
+    session: str,
+    names: list[str],
+    zids: dict[str, str],
+    authenticate: bool,
+    separate: bool = False,
+) -> None:
+    """What the router of a session's bus (physics, or a ``separate`` one) adds to its
+    configuration ``cfg`` and its ``transport`` section: the observers' QoS, its queue and, with
+    credentials, access control."""
+    if qos := router_qos(zids.values()):
+        cfg["qos"] = qos
+    transport["link"] = {"tx": {"queue": {"size": {"data": ROUTER_QUEUE_BATCHES}}}}
+    if authenticate:
+        cfg["access_control"] = router_acl(session, names, separate)
 
 
 def _router_config(
@@ -315,20 +329,16 @@ def _router_config(
     """A separate router's configuration: what physics's holds when it is the router (the
     dictionary, access control, the observers' QoS, its queue), and the listening and scouting
     of deploy/zenoh-router.json5 (every interface, port 7447; no multicast)."""
-    transport: dict[str, object] = {
-        "link": {"tx": {"queue": {"size": {"data": ROUTER_QUEUE_BATCHES}}}}
-    }
+    transport: dict[str, object] = {}
     cfg: dict[str, object] = {
         "mode": "router",
         "listen": {"endpoints": ["tcp/0.0.0.0:7447"]},
         "scouting": {"multicast": {"enabled": False}, "gossip": {"enabled": True}},
         "transport": transport,
     }
-    if qos := router_qos(zids.values()):
-        cfg["qos"] = qos
+    _as_router(cfg, transport, session, names, zids, authenticate, separate=True)
     if authenticate:
         transport["auth"] = {"usrpwd": {"dictionary_file": str(folder / USERS)}}
-        cfg["access_control"] = router_acl(session, names, separate=True)
     return cfg
 
 

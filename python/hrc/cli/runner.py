@@ -339,7 +339,7 @@ class ServiceGroup:
     def start(self, name: str, argv: list[str], module: str | None = None) -> None:
         """Starts service ``name`` with command line ``argv``; a Python service (``module``)
         is forked from this process where that is safe (``hrc.cli.prefork``)."""
-        f = open(self.logs_dir / f"{name}.log", "wb")
+        f = open(self.log_path(name), "wb")
         self._files.append(f)
         # a log is a file: no colour codes (Zenoh colours its lines unless told not to)
         env = dict(os.environ, PYTHONUNBUFFERED="1", NO_COLOR="1")
@@ -433,10 +433,13 @@ class ServiceGroup:
         for f in self._files:
             f.close()
 
+    def log_path(self, name: str) -> Path:
+        """Where service ``name``'s output goes."""
+        return self.logs_dir / f"{name}.log"
+
     def tail(self, name: str, lines: int = 15) -> str:
-        path = self.logs_dir / f"{name}.log"
         try:
-            text = path.read_text(errors="replace").splitlines()
+            text = self.log_path(name).read_text(errors="replace").splitlines()
         except OSError:
             return ""
         return "\n".join(text[-lines:])
@@ -774,9 +777,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
                 said = [ln for ln in group.tail(failed, 40).splitlines() if NO_SPACE in ln]
                 detail = said[0] if said else detail
             msg = failure + (
-                f"\n--- last lines of {group.logs_dir / (failed + '.log')}:\n{detail}"
-                if detail
-                else ""
+                f"\n--- last lines of {group.log_path(failed)}:\n{detail}" if detail else ""
             )
             return TrialResult(False, 3, trial_dir, msg, failed, end, wall)
         return TrialResult(True, 0, trial_dir, "trial completed", "", end, wall)
@@ -789,7 +790,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
         group.stop_all(grace_s=1.0)
         metrics_schema.add_recording(trial_dir)
         if access is not None and not opts.connect:  # physics checked every link
-            counts = count_refusals(group.logs_dir / f"{master}.log")
+            counts = count_refusals(group.log_path(master))
             if counts is not None:
                 refused = metrics_schema.access_metrics(counts)
                 metrics_schema.add_access(trial_dir, refused)
