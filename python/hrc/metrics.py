@@ -107,7 +107,7 @@ def conditions(s: sc.Scenario) -> pb.TrialConditions:
     if p.replay_file is not None:
         c.participant.replay_file = p.replay_file
     if p.input == sc.InputSource.SCRIPTED:  # the other sources ignore these parameters
-        for name, value in p.scripted_params().model_dump().items():
+        for name, value in sc.scripted_wire_values(p.scripted_params()).items():
             setattr(c.participant, name, value)
     c.participant.provoke_probability = p.provoke_probability
     c.participant.provoke_times_s.extend(p.provoke_times_s)
@@ -132,6 +132,8 @@ def settings_line(participant: str, seed: int, c: pb.TrialConditions) -> str:
     who = [enum_text(pb.InputSource.DESCRIPTOR, p.input) or "?"]
     if p.HasField("replay_file"):
         who.append(f"replay_file {p.replay_file}")
+    if p.profile:
+        who.append(f"profile {enum_text(pb.ParticipantProfile.DESCRIPTOR, p.profile)}")
     for field in p.DESCRIPTOR.fields:
         if field.has_presence and field.name != "replay_file" and p.HasField(field.name):
             value = getattr(p, field.name)

@@ -50,6 +50,8 @@ def full_metrics() -> pb.Metrics:
     )
     p.pick_dwell_s, p.place_dwell_s, p.place_error_m, p.grip_close_s = 0.3, 0.25, 0.005, 0.15
     p.grip_open_s, p.max_hold_back_s, p.left_handed = 0.1, 10.0, True
+    p.profile, p.fitts_c_s_per_m = pb.PARTICIPANT_PROFILE_REAL, 0.8
+    p.stop_above, p.collision_reaction_s = False, 0.17
     p.provoke_probability = 0.5
     p.provoke_times_s.extend([3.0, 7.5])
     m.task.started, m.task.finished, m.task.completion_s = True, True, 45.5

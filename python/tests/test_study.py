@@ -214,3 +214,66 @@ def test_the_shipped_studies_load() -> None:
     for path, trials in (("thesis-speed-anticipation", 60), ("retreat-vs-ssm", 40)):
         study = load_study(ROOT / "studies" / f"{path}.toml", motion_check=False)
         assert len(study.trials) == trials, path
+
+
+FITTED = """# hrc fit
+[fitted]
+L01 = { reaction_time_s = 0.33, peak_hand_speed = 0.9, fitts_a_s = 0.12, stop_above = false }
+L02 = { reaction_time_s = 0.51, peak_hand_speed = 1.3 }
+
+[fit_info]
+L01 = { trials = ["a"], moves = 40 }
+"""
+
+
+def test_fitted_participants_become_twins_with_their_parameters(tmp_path: Path) -> None:
+    (tmp_path / "fitted.toml").write_text(FITTED)
+    text = STUDY.replace("n = 2\n", 'n = 1\nfitted = "fitted.toml"\n').replace(
+        "[study]\n", "[study]\nrecord = true\n"
+    )
+    study = load_study(_write(tmp_path, text), motion_check=False)
+    assert study.record
+    twins = [p for p in study.people if p.fitted_from is not None]
+    assert [(p.id, p.fitted_from) for p in twins] == [("L01-twin", "L01"), ("L02-twin", "L02")]
+    # the fitted values, and the study's fixed values for what the fit does not estimate
+    assert twins[0].params == {
+        "place_dwell_s": 0.25,
+        "reaction_time_s": 0.33,
+        "peak_hand_speed": 0.9,
+        "fitts_a_s": 0.12,
+        "stop_above": False,
+    }
+    trial = next(t for t in study.trials if t.person.id == "L02-twin")
+    scen = tomllib.loads(trial.scenario_text)["participant"]
+    assert scen["name"] == "L02-twin" and scen["reaction_time_s"] == 0.51
+    assert scen["peak_hand_speed"] == 1.3
+    from hrc.study.table import rows
+    from hrc.study.trial import Record
+
+    kinds = {
+        r["participant"]: r["participant_kind"]
+        for r in rows(study, [Record(t.id, t.input_hash, "ok") for t in study.trials])
+    }
+    assert kinds == {"P01": "simulated", "L01-twin": "fitted", "L02-twin": "fitted"}
+
+
+@pytest.mark.parametrize(
+    ("fitted", "content", "expected"),
+    [
+        ('"nope.toml"', None, "participants.fitted: no such file 'nope.toml'"),
+        ('"fitted.toml"', "[other]\nx = 1\n", "has no [fitted.<participant>] table"),
+        ("3", None, "participants.fitted: should be the path of a fitted.toml"),
+    ],
+)
+def test_a_bad_fitted_table_is_named(
+    tmp_path: Path, fitted: str, content: str | None, expected: str
+) -> None:
+    if content is not None:
+        (tmp_path / "fitted.toml").write_text(content)
+    problems = _problems(tmp_path, STUDY.replace("n = 2\n", f"n = 1\nfitted = {fitted}\n"))
+    assert any(expected in p for p in problems), problems
+
+
+def test_record_must_be_a_bool(tmp_path: Path) -> None:
+    problems = _problems(tmp_path, STUDY.replace("[study]\n", '[study]\nrecord = "yes"\n'))
+    assert any(p.startswith("study.record: should be true or false") for p in problems), problems

@@ -11,6 +11,8 @@ _MODULES = {
     "ik": "hrc.cli.bench_ik",
     "client": "hrc.cli.bench_client",
     "trial": "hrc.cli.bench_trial",
+    "participant": "hrc.cli.bench_participant",
+    "fit": "hrc.cli.bench_fit",
 }
 
 

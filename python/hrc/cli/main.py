@@ -325,6 +325,12 @@ def _cmd_services(_args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_fit(args: argparse.Namespace) -> int:
+    from hrc.cli import fit
+
+    return fit.run(args)
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from hrc.cli import bench
 
@@ -567,8 +573,29 @@ def build_parser() -> argparse.ArgumentParser:
     )
     da.set_defaults(func=_cmd_deploy_access)
 
+    f = sub.add_parser(
+        "fit",
+        help="each person's scripted-participant parameters from their recorded trials",
+        description="Fit the scripted participant's parameters to recorded trials: a study "
+        "folder (every participant with recordings) or one person's trial folders. Writes "
+        "fitted.toml for a study's participants.fitted (docs/participant-model.md).",
+    )
+    f.add_argument("folders", nargs="+", metavar="FOLDER", help="a study folder, or trial folders")
+    f.add_argument("--participant", default=None, help="whose trial folders these are")
+    f.add_argument(
+        "--where",
+        action="append",
+        metavar="KEY=VALUE",
+        help="only the study's trials whose table column KEY is VALUE (repeatable)",
+    )
+    f.add_argument("--out", default=None, metavar="FILE", help="default: FOLDER/fitted.toml")
+    f.add_argument("--json", action="store_true", help="print one JSON object")
+    f.set_defaults(func=_cmd_fit)
+
     b = sub.add_parser("bench", help="benchmarks that print their figures")
-    b.add_argument("what", choices=["bus", "ik", "physics", "client", "trial"])
+    b.add_argument(
+        "what", choices=["bus", "ik", "physics", "client", "trial", "participant", "fit"]
+    )
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--n", type=int, default=0, help="samples / ticks (0: the benchmark's default)")
     b.set_defaults(func=_cmd_bench)

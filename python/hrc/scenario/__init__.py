@@ -12,9 +12,10 @@ from hrc.scenario.convert import (
     from_proto,
     scripted_params_from_proto,
     scripted_params_to_proto,
+    scripted_wire_values,
     to_proto,
 )
-from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
+from hrc.scenario.enums import InputSource, ParticipantProfile, RobotRole, SafetyPolicy
 from hrc.scenario.errors import Problem, ScenarioError
 from hrc.scenario.loader import load, loads, validate
 from hrc.scenario.models import (
@@ -43,6 +44,7 @@ __all__ = [
     "InputSource",
     "Part",
     "Participant",
+    "ParticipantProfile",
     "Placement",
     "PlannedMove",
     "PoseYaw",
@@ -65,6 +67,7 @@ __all__ = [
     "resolve_path",
     "scripted_params_from_proto",
     "scripted_params_to_proto",
+    "scripted_wire_values",
     "to_proto",
     "validate",
 ]

@@ -9,7 +9,13 @@ from typing import TypeVar
 from pydantic import ValidationError
 
 from hrc.geometry import pose_yaw_to_pb, vec3_from_pb, vec3_to_pb
-from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy, WireEnum
+from hrc.scenario.enums import (
+    InputSource,
+    ParticipantProfile,
+    RobotRole,
+    SafetyPolicy,
+    WireEnum,
+)
 from hrc.scenario.errors import Problem, ScenarioError
 from hrc.scenario.models import (
     DEFAULT_MAX_EXCHANGE_TICKS,
@@ -119,8 +125,22 @@ def ssm_to_proto(params: Ssm) -> pb.SsmParams:
 
 
 def scripted_params_to_proto(params: ScriptedParams) -> pb.ScriptedParams:
-    """Every parameter set (the defaults applied)."""
-    return pb.ScriptedParams(**params.model_dump())
+    """Every parameter set (the defaults applied; an unset collision_reaction_s stays unset)."""
+    msg = pb.ScriptedParams()
+    for name, value in scripted_wire_values(params).items():
+        setattr(msg, name, value)
+    return msg
+
+
+def scripted_wire_values(params: ScriptedParams) -> dict[str, float | bool | int]:
+    """The parameters as the wire's fields take them (the profile as its enum number); the
+    unset optional ones left out."""
+    values: dict[str, float | bool | int] = {}
+    for name, value in params.model_dump().items():
+        if value is None:
+            continue
+        values[name] = value.to_proto() if isinstance(value, ParticipantProfile) else value
+    return values
 
 
 def scripted_params_from_proto(
@@ -174,8 +194,14 @@ def _robot_ssm(rc: pb.RobotConfig, defaults: Ssm) -> Ssm | None:
     return None if own == defaults else own
 
 
-def _set_fields(msg: pb.ScriptedParams) -> dict[str, float | bool]:
-    return {field.name: getattr(msg, field.name) for field, _ in msg.ListFields()}
+def _set_fields(msg: pb.ScriptedParams) -> dict[str, float | bool | ParticipantProfile]:
+    out: dict[str, float | bool | ParticipantProfile] = {}
+    for field, value in msg.ListFields():
+        if field.name == "profile":
+            out["profile"] = ParticipantProfile.from_proto(value, ParticipantProfile.BASELINE)
+        else:
+            out[field.name] = value
+    return out
 
 
 def _from_proto(msg: pb.Scenario, source: str) -> Scenario:

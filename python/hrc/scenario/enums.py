@@ -76,8 +76,21 @@ class InputSource(WireEnum):
         return cast("pb.InputSource.ValueType", super().to_proto())
 
 
+class ParticipantProfile(WireEnum):
+    """Whose defaults the scripted participant's unset parameters take
+    (`hrc.scenario.profiles`, docs/participant-model.md)."""
+
+    BASELINE = "baseline"
+    REAL = "real"
+    VR = "vr"
+
+    def to_proto(self) -> pb.ParticipantProfile.ValueType:
+        return cast("pb.ParticipantProfile.ValueType", super().to_proto())
+
+
 _DESCRIPTORS: dict[type[WireEnum], EnumDescriptor] = {
     SafetyPolicy: pb.SafetyPolicy.DESCRIPTOR,
     RobotRole: pb.RobotRole.DESCRIPTOR,
     InputSource: pb.InputSource.DESCRIPTOR,
+    ParticipantProfile: pb.ParticipantProfile.DESCRIPTOR,
 }

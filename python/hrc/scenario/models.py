@@ -13,11 +13,12 @@ import re
 from pathlib import Path
 from typing import Annotated, Any
 
-from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
 from hrc.scenario.colors import NAMED_RGB
-from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
+from hrc.scenario.enums import InputSource, ParticipantProfile, RobotRole, SafetyPolicy
 from hrc.scenario.paths import resolve_path
+from hrc.scenario.profiles import profile_defaults
 
 # ---------------------------------------------------------------- constants and conventions
 
@@ -61,6 +62,7 @@ Name = Annotated[str, Field(pattern=NAME_PATTERN)]
 InputChoice = Annotated[InputSource, Field(strict=False)]
 PolicyChoice = Annotated[SafetyPolicy, Field(strict=False)]
 RoleChoice = Annotated[RobotRole, Field(strict=False)]
+ProfileChoice = Annotated[ParticipantProfile, Field(strict=False)]
 
 
 def check_color(value: str) -> str:
@@ -96,13 +98,17 @@ class ScenarioInfo(_Strict):
 
 class ScriptedParams(_Strict):
     """The scripted participant's parameters: defaults and ranges (the one place they are
-    defined; meanings in docs/scenario.md). They travel as `pb.ScriptedParams`."""
+    defined; meanings in docs/scenario.md). The defaults are the `baseline` profile's; another
+    `profile` fills the keys left unset from `hrc.scenario.profiles`. They travel as
+    `pb.ScriptedParams`."""
 
+    profile: ProfileChoice = ParticipantProfile.BASELINE
     reaction_time_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.4
     peak_hand_speed: Annotated[float, Field(gt=0.0, le=5.0, allow_inf_nan=False)] = 1.0
     caution: Annotated[float, Field(ge=0.0, le=1.0, allow_inf_nan=False)] = 0.5
     fitts_a_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.1
     fitts_b_s: Annotated[float, Field(ge=0.0, le=5.0, allow_inf_nan=False)] = 0.15
+    fitts_c_s_per_m: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.0
     pick_dwell_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.3
     place_dwell_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] = 0.3
     place_error_m: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.005
@@ -110,6 +116,30 @@ class ScriptedParams(_Strict):
     grip_open_s: Annotated[float, Field(ge=0.01, le=2.0, allow_inf_nan=False)] = 0.10
     max_hold_back_s: Annotated[float, Field(ge=0.0, le=600.0, allow_inf_nan=False)] = 10.0
     left_handed: bool = False
+    stop_above: bool = True
+    # None: half of reaction_time_s
+    collision_reaction_s: Annotated[float, Field(ge=0.0, le=10.0, allow_inf_nan=False)] | None = (
+        None
+    )
+
+    @model_validator(mode="before")
+    @classmethod
+    def _profile_defaults(cls, data: Any) -> Any:
+        """Keys left unset take the profile's values (an unknown profile is left to the field's
+        own check, which names the choices)."""
+        if not isinstance(data, dict) or "profile" not in data:
+            return data
+        profile = ParticipantProfile.parse(data["profile"])
+        if profile is None:
+            return data
+        return {**profile_defaults(profile), **data}
+
+    @property
+    def collision_reaction(self) -> float:
+        """Seconds from a collision to the hand's pull-back."""
+        if self.collision_reaction_s is not None:
+            return self.collision_reaction_s
+        return 0.5 * self.reaction_time_s
 
 
 class Participant(ScriptedParams):

@@ -34,7 +34,7 @@ from hrc.session.web import SessionServer
 from hrc.study.live import LiveSpec
 from hrc.study.questionnaires import Questionnaire
 from hrc.study.spec import LiveTrial, Study
-from hrc.study.trial import judge, read_metrics, stop_process
+from hrc.study.trial import RECORDING_FILE, judge, read_metrics, stop_process
 
 log = logging.getLogger(__name__)
 
@@ -437,7 +437,7 @@ class Session:
             sys.executable, "-m", "hrc.cli.main", "run", str(resolved),
             "--out", str(trial_dir), "--seed", str(ts.seed), "--input", "vr",
             "--vr-host", self.opts.host, "--vr-port", str(port), "--vr-wait", str(VR_WAIT_S),
-            "--participant", self.pid, "--record", str(trial_dir / "participant-input.jsonl"),
+            "--participant", self.pid, "--record", str(trial_dir / RECORDING_FILE),
             "--no-reach-check",
         ]  # fmt: skip
         env = {**os.environ, "HRC_VR_DRIVER": self.key}

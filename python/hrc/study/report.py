@@ -586,19 +586,23 @@ def _condition(data: pd.DataFrame, factors: list[str]) -> pd.Series:
 def _kinds_section(
     data: pd.DataFrame, factors: list[str], levels: dict[str, list[str]], figdir: Path
 ) -> list[str]:
-    """Live and simulated (and replayed) participants side by side: each outcome by condition
-    and kind, with CIs; for the live trials, the mixed model with the order position."""
+    """Live, fitted (their twins), simulated and replayed participants side by side: each
+    outcome by condition and kind, with CIs; for the live trials, the mixed model with the
+    order position."""
     import matplotlib.pyplot as plt
 
-    kinds = [k for k in ("live", "simulated", "replay") if k in set(data["participant_kind"])]
+    kinds = [
+        k for k in ("live", "fitted", "simulated", "replay") if k in set(data["participant_kind"])
+    ]
     if "live" not in kinds:
         return []
     out = ["<h2>Live and simulated participants</h2>"]
     out.append(
         "<p class='muted'>Each outcome by condition, one column per kind of participant: mean "
         "[95 % bootstrap CI] (n). Live: people in the headset or at the desktop "
-        "(<code>hrc session</code>); simulated: the scripted participant; replay: recorded "
-        "movements that do not react.</p>"
+        "(<code>hrc session</code>); fitted: each person's simulated twin, the scripted "
+        "participant with the parameters <code>hrc fit</code> found in their recordings; "
+        "simulated: the scripted participant; replay: recorded movements that do not react.</p>"
     )
     conds = _condition(data, factors) if factors else None
     order = _condition_order(data, factors, levels) if factors else ["(all)"]

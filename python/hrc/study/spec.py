@@ -33,7 +33,7 @@ DESIGNS = ("factorial", "list")
 DISTS = ("normal", "uniform")
 PARTICIPANT_PARAMS = tuple(sc.ScriptedParams.model_fields)
 # keys of [study]
-STUDY_KEYS = {"name", "scenario", "repetitions", "design", "description"}
+STUDY_KEYS = {"name", "scenario", "repetitions", "design", "description", "record"}
 REPETITION_SEED_STRIDE = 100_000  # repetition r > 1 of a participant: seed + (r - 1) * stride
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _SHORT = {
@@ -87,6 +87,7 @@ class Person:
     seed: int
     params: dict[str, Any] = field(default_factory=dict)
     replay: Path | None = None
+    fitted_from: str | None = None  # a twin: the participant whose recordings it was fitted to
 
 
 @dataclass(frozen=True)
@@ -114,6 +115,7 @@ class Study:
     text: str
     trials: list[Trial] = field(default_factory=list)
     live: LiveSpec | None = None
+    record: bool = False  # each simulated trial records its participant's input
     # the parsed base scenario (paths made portable) and where it is: live trials resolve from it
     base_raw: dict[str, Any] = field(default_factory=dict)
     base_folder: Path | None = None
@@ -253,6 +255,7 @@ def _people(
     n = section.pop("n", 0)
     seed_base = section.pop("seed_base", 1000)
     replays = section.pop("replay", [])
+    fitted_written = section.pop("fitted", None)
     if isinstance(n, bool) or not isinstance(n, int) or n < 0:
         problems.append(f"participants.n: should be an integer >= 0 (got {n!r})")
         n = 0
@@ -274,6 +277,10 @@ def _people(
         rng = np.random.default_rng(seed)
         params = {k: d.draw(rng) for k, d in dists.items()}  # in file order: deterministic
         people.append(Person(f"P{i:0{width}d}", seed, params))
+    if fitted_written is not None:
+        # what the fit does not estimate, a fixed value here gives the twins too
+        fixed = {k: d.value for k, d in dists.items() if d.kind == "fixed"}
+        people += _twins(fitted_written, folder, seed_base + n + len(replays), fixed, problems)
     for j, written in enumerate(replays, start=1):
         path = _find(written, folder)
         if path is None:
@@ -283,6 +290,37 @@ def _people(
     if not people and not problems:
         problems.append("participants: no participant (set n > 0 or give replay files)")
     return people, dists
+
+
+def _twins(
+    written: Any, folder: Path, seed0: int, fixed: dict[str, Any], problems: list[str]
+) -> list[Person]:
+    """The simulated twins of a `participants.fitted` table (`hrc fit`'s fitted.toml): one
+    scripted participant per person, with the parameters fitted to their recordings."""
+    where = "participants.fitted"
+    if not isinstance(written, str):
+        problems.append(f"{where}: should be the path of a fitted.toml (hrc fit)")
+        return []
+    path = _find(written, folder)
+    if path is None:
+        problems.append(f"{where}: no such file {written!r}")
+        return []
+    try:
+        table = tomllib.loads(path.read_text(encoding="utf-8")).get("fitted")
+    except (OSError, tomllib.TOMLDecodeError) as exc:
+        problems.append(f"{where}: {path}: cannot read: {exc}")
+        return []
+    if not isinstance(table, dict) or not table:
+        problems.append(f"{where}: {path} has no [fitted.<participant>] table")
+        return []
+    twins = []
+    for i, (who, values) in enumerate(sorted(table.items()), start=1):
+        if not isinstance(values, dict):
+            problems.append(f"{where}: {path}: fitted.{who} should be a table")
+            continue
+        params = {**fixed, **{k: v for k, v in values.items() if k in PARTICIPANT_PARAMS}}
+        twins.append(Person(f"{who}-twin", seed0 + i, params, fitted_from=str(who)))
+    return twins
 
 
 def _conditions(raw: dict[str, Any], design: str, problems: list[str]) -> list[dict[str, Any]]:
@@ -394,6 +432,10 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
     if design not in DESIGNS:
         problems.append(f"study.design: should be one of {', '.join(DESIGNS)} (got {design!r})")
         design = "factorial"
+    record = head.get("record", False)
+    if not isinstance(record, bool):
+        problems.append(f"study.record: should be true or false (got {record!r})")
+        record = False
     reps = head.get("repetitions", 1)
     if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
         problems.append(f"study.repetitions: should be an integer >= 1 (got {reps!r})")
@@ -447,6 +489,7 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
         dists=dists,
         text=text,
         live=live,
+        record=record,
         base_raw=base_raw,
         base_folder=base.parent,
     )

@@ -164,7 +164,15 @@ def sweep(
         log.warning("%s", warning)
     bar = Progress(len(study.trials), skipped)
     jobs = [
-        Job(t.id, str(out.resolve()), t.scenario_text, t.seed, t.input_hash, timeout_s)
+        Job(
+            t.id,
+            str(out.resolve()),
+            t.scenario_text,
+            t.seed,
+            t.input_hash,
+            timeout_s,
+            study.record and t.person.replay is None,
+        )
         for t in todo
     ]
     if jobs:

@@ -19,7 +19,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hrc.study.spec import Study
+from hrc.study.spec import Person, Study
 from hrc.study.trial import Record
 
 if TYPE_CHECKING:
@@ -66,7 +66,7 @@ def rows(study: Study, records: list[Record]) -> list[dict[str, Any]]:
             "trial": t.id,
             **{k: t.condition.get(k) for k in study.factors},
             "participant": t.person.id,
-            "participant_kind": "replay" if t.person.replay else "simulated",
+            "participant_kind": _kind(t.person),
             "order_position": None,
             "practice": False,
             **{f"participant.{k}": v for k, v in t.person.params.items()},
@@ -82,6 +82,12 @@ def rows(study: Study, records: list[Record]) -> list[dict[str, Any]]:
             row.setdefault(key, value)
         out.append(row)
     return out
+
+
+def _kind(person: Person) -> str:
+    if person.replay is not None:
+        return "replay"
+    return "fitted" if person.fitted_from is not None else "simulated"
 
 
 def live_rows(study: Study, out: Path) -> list[dict[str, Any]]:

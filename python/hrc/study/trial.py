@@ -24,6 +24,7 @@ log = logging.getLogger(__name__)
 
 STDERR_TAIL_LINES = 12
 OUTCOMES = ("ok", "failed", "stalled")
+RECORDING_FILE = "participant-input.jsonl"  # a trial's recorded input, as live sessions keep it
 
 
 @dataclass(frozen=True)
@@ -34,6 +35,7 @@ class Job:
     seed: int
     input_hash: str
     timeout_s: float
+    record: bool = False  # record the participant's input into the trial folder
 
 
 @dataclass
@@ -119,6 +121,8 @@ def run_job(job: Job) -> Record:
         str(job.seed),
         "--no-reach-check",
     ]
+    if job.record:
+        argv += ["--record", str(trial_dir / RECORDING_FILE)]
     t0 = time.monotonic()
     host = os.uname().nodename
     # own process group: a timeout stops hrc run and everything it started

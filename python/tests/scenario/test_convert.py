@@ -22,10 +22,10 @@ def test_every_field_is_filled(thesis, arm_root: Path) -> None:
     assert msg.info.name == "thesis-board" and msg.info.tick_hz == 240 and msg.info.seed == 1
     assert msg.participant.name == "P01" and msg.participant.input == pb.INPUT_SOURCE_SCRIPTED
     assert msg.participant.scripted.caution == 0.5
-    # every parameter is set, defaults applied
+    # every parameter is set, defaults applied (an unset collision reaction: half the reaction)
     assert {f.name for f, _ in msg.participant.scripted.ListFields()} == set(
         pb.ScriptedParams.DESCRIPTOR.fields_by_name
-    )
+    ) - {"collision_reaction_s"}
     assert msg.conditions.anticipation
     assert msg.conditions.safety_policy == pb.SAFETY_POLICY_RETREAT
     assert [r.id for r in msg.robots] == ["r1", "r2"]

@@ -18,6 +18,7 @@ from hrc_human_input.motor import (
     MotorParams,
     Segment,
     movement_time,
+    path_length,
 )
 
 
@@ -27,6 +28,7 @@ class Move:
     yaw_rad: float | None = None  # None keeps the current yaw
     width: float = 0.06  # Fitts target width (m): the accuracy the move needs
     label: str = ""
+    via: tuple[Vec3, ...] = ()  # points the hand passes through on its way, in one motion
 
 
 @dataclass(frozen=True)
@@ -77,11 +79,13 @@ class Hand:
         self.plan.extend(steps)
 
     def cancel(self) -> None:
-        """Stops where it is now (the grip keeps its value)."""
+        """Stops where it is now (the grip keeps its value); what it does next starts now, not
+        when the cancelled step started (which made the hand jump along its next move)."""
         self.plan.clear()
         self.segment = None
         self._dwell_until = None
         self._grip_target = None
+        self._cursor = None
 
     @property
     def busy(self) -> bool:
@@ -195,7 +199,8 @@ class Hand:
                 if step.yaw_rad is None
                 else (self.yaw_rad + wrap_angle_rad(step.yaw_rad - self.yaw_rad))
             )
-            d = distance(self.pos, step.goal)
+            via = tuple(v for v in step.via if distance(v, self.pos) >= 1e-6)
+            d = path_length((self.pos, *via, step.goal))
             if d < 1e-6 and abs(yaw1_rad - self.yaw_rad) < 1e-6:
                 return
             mt = movement_time(d, step.width, self.motor, self.rng)
@@ -205,7 +210,7 @@ class Hand:
             # then moves at most 2 x peak_hand_speed (hand_speed_bound).
             turn = abs(yaw1_rad - self.yaw_rad) * HAND_RADIUS_M
             mt = max(mt, MIN_JERK_PEAK_FACTOR * turn / self.motor.peak_hand_speed)
-            self.segment = Segment(t0, mt, self.pos, step.goal, self.yaw_rad, yaw1_rad)
+            self.segment = Segment(t0, mt, self.pos, step.goal, self.yaw_rad, yaw1_rad, via)
             self.segments.append(self.segment)
         elif isinstance(step, Dwell):
             if step.seconds > 0:

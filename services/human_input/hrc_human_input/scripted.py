@@ -43,8 +43,8 @@ from hrc.scenario.conventions import CONTINUE_BUTTON_CUE, GRIP_CLOSED
 from hrc.wire import pb
 
 from hrc_human_input.facts import PartFacts, ScenarioFacts
-from hrc_human_input.hand import Dwell, Grip, Hand, Move
-from hrc_human_input.motor import MotorParams, reaction_time
+from hrc_human_input.hand import Dwell, Grip, Hand, Move, Step
+from hrc_human_input.motor import FIXED_PLACE, MotorParams, reaction_draw, reaction_time
 from hrc_human_input.sample import Sample
 from hrc_human_input.task_view import TaskView
 
@@ -63,6 +63,7 @@ CARRY_CLEARANCE = 0.10  # carry a held part this far above the higher of start a
 RELEASE_CLEARANCE = 0.003  # let go this far above the resting height
 PICK_WIDTH = 0.06  # Fitts width: a grasp succeeds within 3 cm
 GROSS_WIDTH = 0.10  # Fitts width of lifts, withdrawals and pull-backs
+# (moves to the hands' resting and waiting places: FIXED_PLACE, no homing)
 PULLBACK = (0.0, -0.20, 0.08)
 HAND_Y_MIN = -0.60
 GRASP_TIMEOUT_S = 0.6  # grip closed, still not held: try again
@@ -73,6 +74,62 @@ PROVOKE_GIVE_UP_S = 4.0
 BUTTON_REPEAT_S = 3.0
 TOUCH_MAX_S = 2.0  # a hand touching a robot this long is pulled right back
 HEAD_TIME_CONSTANT_S = 0.15
+
+
+def reach_plan(
+    above: Vec3,
+    goal: Vec3,
+    yaw_rad: float,
+    motor: MotorParams,
+    stop_above: bool,
+    pick_dwell_s: float,
+) -> list[Step]:
+    """Open the hand, reach the grasp point from above (stopping there first, or passing
+    through in one motion), close the grip and dwell: the reach for a part."""
+    if stop_above:
+        moves = [
+            Move(above, yaw_rad, PICK_WIDTH, "reach"),
+            Move(goal, yaw_rad, PICK_WIDTH, "descend"),
+        ]
+    else:
+        moves = [Move(goal, yaw_rad, PICK_WIDTH, "reach", via=(above,))]
+    return [
+        Grip(0.0),
+        *moves,
+        Grip(1.0, "grip"),
+        Dwell(max(0.0, pick_dwell_s - motor.grip_close_s), "pick dwell"),
+    ]
+
+
+def place_plan(
+    start: Vec3,
+    carry_z: float,
+    release: Vec3,
+    yaw_rad: float,
+    place_width: float,
+    stop_above: bool,
+    place_dwell_s: float,
+) -> list[Step]:
+    """Carry a held part from ``start`` at height ``carry_z`` to above its release point, lower
+    it, dwell, let go, dwell: lift, carry and lower as three moves, or as one motion."""
+    lift = (start[0], start[1], carry_z)
+    hover = (release[0], release[1], carry_z)
+    lifts = carry_z - start[2] > 0.01
+    if stop_above:
+        moves = [Move(lift, None, GROSS_WIDTH, "lift")] if lifts else []
+        moves += [
+            Move(hover, yaw_rad, PICK_WIDTH, "carry"),
+            Move(release, yaw_rad, place_width, "lower"),
+        ]
+    else:
+        via = (lift, hover) if lifts else (hover,)
+        moves = [Move(release, yaw_rad, place_width, "carry", via=via)]
+    return [
+        *moves,
+        Dwell(place_dwell_s / 2.0, "place dwell"),
+        Grip(0.0, "release"),
+        Dwell(place_dwell_s / 2.0, "after release"),
+    ]
 
 
 class Phase(str, Enum):
@@ -99,6 +156,7 @@ class ScriptedParticipant:
             peak_hand_speed=p.peak_hand_speed,
             fitts_a_s=p.fitts_a_s,
             fitts_b_s=p.fitts_b_s,
+            fitts_c_s_per_m=p.fitts_c_s_per_m,
             grip_close_s=p.grip_close_s,
             grip_open_s=p.grip_open_s,
         )
@@ -107,6 +165,8 @@ class ScriptedParticipant:
         self.place_dwell = p.place_dwell_s
         self.place_error = p.place_error_m
         self.max_hold = p.max_hold_back_s
+        self.stop_above = p.stop_above
+        self.collision_reaction_s = p.collision_reaction_s
         self.active = "left" if p.left_handed else "right"
         self.free = "right" if self.active == "left" else "left"
         # Independent streams, so e.g. provoking collisions does not change reaction times.
@@ -208,7 +268,7 @@ class ScriptedParticipant:
             goal = hand.goal() if hand.busy else hand.pos
             if distance(goal, pose) > 0.01:
                 hand.cancel()
-                hand.do(Move(pose, None, GROSS_WIDTH, why))
+                hand.do(Move(pose, None, FIXED_PLACE, why))
 
     def _set(self, phase: Phase, t: float, why: str = "") -> None:
         if phase != self.phase:
@@ -221,6 +281,12 @@ class ScriptedParticipant:
 
     def _rt(self, factor: float = 1.0) -> float:
         return reaction_time(self.motor, self.rng_rt, factor)
+
+    def _collision_rt(self) -> float:
+        """The reflex after a collision: collision_reaction_s, or half the reaction time."""
+        if self.collision_reaction_s is None:
+            return self._rt(0.5)
+        return reaction_draw(self.collision_reaction_s, self.rng_rt)
 
     def next_part(self, view: TaskView) -> str | None:
         for pid in self.facts.human_sequence:
@@ -405,7 +471,7 @@ class ScriptedParticipant:
             if hand is None:
                 continue
             hand.cancel()
-            hand.do(Move(self.rest_pose(name), None, GROSS_WIDTH, "pull away"))
+            hand.do(Move(self.rest_pose(name), None, FIXED_PLACE, "pull away"))
             if name == self.active and self.phase != Phase.DONE:
                 self._set(Phase.PULLBACK, t, "still touching a robot")
 
@@ -426,7 +492,7 @@ class ScriptedParticipant:
         back = (hand.pos[0], max(HAND_Y_MIN, hand.pos[1] + PULLBACK[1]), hand.pos[2] + PULLBACK[2])
         if self.ssm:
             back = self.rest_pose(self.active)
-        hand.do(Dwell(self._rt(0.5), "reflex"), Move(back, None, GROSS_WIDTH, "pull back"))
+        hand.do(Dwell(self._collision_rt(), "reflex"), Move(back, None, GROSS_WIDTH, "pull back"))
         self._set(Phase.PULLBACK, t, "collision")
 
     def _collision_over(self, t: float, why: str) -> None:
@@ -533,7 +599,7 @@ class ScriptedParticipant:
         if pid is None:
             if self.phase != Phase.DONE:
                 hand.cancel()
-                hand.do(Grip(0.0), Move(self.rest_pose(self.active), 0.0, GROSS_WIDTH, "rest"))
+                hand.do(Grip(0.0), Move(self.rest_pose(self.active), 0.0, FIXED_PLACE, "rest"))
                 self._set(Phase.DONE, t, "all parts placed")
             return
         if self.phase == Phase.DONE:  # a part came undone? start again
@@ -549,7 +615,7 @@ class ScriptedParticipant:
         # Nothing to do for a while: hands down.
         if t - self.phase_since > 1.0:
             if not hand.busy and distance(hand.pos, self.rest_pose(self.active)) > 0.01:
-                hand.do(Move(self.rest_pose(self.active), 0.0, GROSS_WIDTH, "rest"))
+                hand.do(Move(self.rest_pose(self.active), 0.0, FIXED_PLACE, "rest"))
             if self.ssm:
                 self._hands_to_wait("rest")
 
@@ -577,13 +643,7 @@ class ScriptedParticipant:
             if pid in view.objects
             else math.radians(self._part(pid).start_yaw_deg)
         )
-        hand.do(
-            Grip(0.0),
-            Move(above, obj_yaw_rad, PICK_WIDTH, "reach"),
-            Move(goal, obj_yaw_rad, PICK_WIDTH, "descend"),
-            Grip(1.0, "grip"),
-            Dwell(max(0.0, self.pick_dwell - self.motor.grip_close_s), "pick dwell"),
-        )
+        hand.do(*reach_plan(above, goal, obj_yaw_rad, self.motor, self.stop_above, self.pick_dwell))
         self._action_started()
         self._set(Phase.REACH, t, f"reaching for {pid}")
 
@@ -671,17 +731,17 @@ class ScriptedParticipant:
             return
         if self.go_t is None or t < self.go_t:
             return
-        steps: list = []
-        if carry_z - hand.pos[2] > 0.01:
-            steps.append(Move((hand.pos[0], hand.pos[1], carry_z), None, GROSS_WIDTH, "lift"))
-        steps += [
-            Move(hover, yaw_rad, PICK_WIDTH, "carry"),
-            Move(release, yaw_rad, 2.0 * self.facts.place_tolerance_m, "lower"),
-            Dwell(self.place_dwell / 2.0, "place dwell"),
-            Grip(0.0, "release"),
-            Dwell(self.place_dwell / 2.0, "after release"),
-        ]
-        hand.do(*steps)
+        hand.do(
+            *place_plan(
+                hand.pos,
+                carry_z,
+                release,
+                yaw_rad,
+                2.0 * self.facts.place_tolerance_m,
+                self.stop_above,
+                self.place_dwell,
+            )
+        )
         self._action_started()
         self._set(Phase.CARRY, t, f"carrying {pid}")
 
@@ -720,7 +780,7 @@ class ScriptedParticipant:
             Dwell(self._rt()),
             Move(add(button, (0.0, 0.0, 0.01)), 0.0, 0.03, "button"),
             Dwell(0.3, "press"),
-            Move(self.rest_pose(self.free), 0.0, GROSS_WIDTH, "rest"),
+            Move(self.rest_pose(self.free), 0.0, FIXED_PLACE, "rest"),
         )
         self.log.append((t, "pressing the continue button"))
 

@@ -39,7 +39,7 @@ def test_log_txt_in_thesis_order(trial_dir: tuple[Path, SyntheticTrial]) -> None
     # the thesis's settings first: its speeds, anticipation, policy, the participant
     assert settings.startswith("SETTINGS: anticipation on, safety policy retreat, seed 1; ")
     assert "r1 max TCP speed 0.5 m/s, r2 max TCP speed 0.5 m/s;" in settings
-    assert "participant P01: scripted, reaction_time_s " in settings
+    assert "participant P01: scripted, profile baseline, reaction_time_s " in settings
     assert lines[0] == "2024-05-02 14:03:11 - TASK STARTED."
     assert lines[-2].endswith("TASK FINISHED. 2 total collisions.")
     assert lines[-1].endswith(" sec : 1 total near-collisions between the robots.")

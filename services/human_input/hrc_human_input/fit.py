@@ -1,0 +1,418 @@
+"""``hrc fit``: a person's scripted-participant parameters from the recordings of their trials.
+
+Each trial gives the participant's input as recorded (`participant-input.jsonl`, the replay
+format) and what happened (`events.jsonl`: grabs, placements, the outline cues). From them:
+
+- **Movements**: intervals where the active hand moves faster than `ONSET_SPEED`. A minimum-jerk
+  move spends a known share of its time and path below any threshold, so each interval's
+  duration and path are corrected back to the whole move's (`_jerk_share`).
+- **What each move was**: by where it ends, relative to the grasp and release points the events
+  give: onto or above a part before it is grabbed (a reach: the model's 6 cm width), onto its
+  release point while held (2 x the placement tolerance), above it while held (6 cm), straight up
+  from the grasp (a lift: 10 cm). Other moves (to rest, withdrawals) only count for the speed cap.
+- **Movement time law** MT = a + b log2(2D/W) + c D: non-negative least squares over the moves
+  the peak-speed cap did not shorten; `peak_hand_speed` is the highest peak seen (a lower bound
+  when no move reached the cap, said in `notes`).
+- **Reaction time**: from a part's outline cue (or the end of the hand's previous move, if later)
+  to the onset of the reach for it; the median, as the model's parameter is a median.
+- **Dwells and grip**: the grip's closing and opening ramps; the pause between arriving at a part
+  and leaving with it (`pick_dwell_s`); twice the pause between arriving at the target and
+  starting to let go (`place_dwell_s`).
+- `stop_above`: whether reaches come in two moves (stop above the part, then descend).
+
+Not estimated (left to the profile or study): caution, collision reaction, placement error,
+hold-back limits, handedness.
+"""
+
+from __future__ import annotations
+
+import itertools
+import json
+import math
+import statistics
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hrc.geometry import Vec3, distance
+from hrc.scenario.models import DEFAULT_TOLERANCE_M
+from hrc.study.trial import RECORDING_FILE
+
+from hrc_human_input.motor import MIN_JERK_PEAK_FACTOR, REACTION_LOG_SD, fitts_index
+from hrc_human_input.replay import load_recording
+from hrc_human_input.scripted import GROSS_WIDTH, PICK_WIDTH
+
+EVENTS_FILE = "events.jsonl"
+ONSET_SPEED = 0.03  # m/s: a hand faster than this moves
+NEAR_M = 0.03  # a move ending this close to a grasp / release point ends there
+ABOVE_XY_M = 0.02  # ... this close in x, y (and higher) ends above it
+CAP_SHARE = 0.99  # a move whose peak is this close to the highest peak was capped ...
+CAP_MOVES = 3  # ... when at least this many moves peak there
+# c (the transport term) is fitted only when 3 uncapped moves are this many times longer than the
+# shortest: on moves of one length it cannot be told from the intercept
+C_SPAN = 2.0
+ONSET_LAG_S = 0.05  # a move this long before the cue's record may already answer it
+TRIM_SD = 2.5  # reactions further than this many log-sds from their median are not counted
+SCENARIO_FILE = "scenario.toml"  # the trial's resolved scenario (hrc run writes it)
+
+
+class FitError(ValueError):
+    """Recordings from which no parameter can be estimated (the message says why)."""
+
+
+@dataclass(frozen=True)
+class Move:
+    t_on: float  # onset, corrected to the whole move
+    t_end: float
+    p0: Vec3
+    p1: Vec3
+    path_m: float  # the whole move's path
+    peak: float  # m/s, highest sampled speed
+
+    @property
+    def mt(self) -> float:
+        return self.t_end - self.t_on
+
+
+@dataclass
+class TrialMeasures:
+    """What one trial shows of the person."""
+
+    trial: str
+    moves: list[Move] = field(default_factory=list)
+    classified: list[tuple[Move, float]] = field(default_factory=list)  # (move, Fitts width)
+    reactions_s: list[float] = field(default_factory=list)
+    pick_dwells_s: list[float] = field(default_factory=list)
+    place_half_dwells_s: list[float] = field(default_factory=list)
+    grip_close_s: list[float] = field(default_factory=list)
+    grip_open_s: list[float] = field(default_factory=list)
+    reach_moves: list[int] = field(default_factory=list)  # moves per reach
+
+
+def _jerk_share(fraction_of_peak: float) -> tuple[float, float]:
+    """For a minimum-jerk move, the share of its time and of its path spent below
+    ``fraction_of_peak`` of its peak speed at each end (tau_1, s(tau_1))."""
+    f = min(max(fraction_of_peak, 0.0), 1.0)
+    # speed / peak = 16 tau^2 (1 - tau)^2  ->  4 tau (1 - tau) = sqrt(f)
+    tau = (1.0 - math.sqrt(max(0.0, 1.0 - math.sqrt(f)))) / 2.0
+    s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+    return tau, s
+
+
+def segment_moves(ts: np.ndarray, pos: np.ndarray) -> list[Move]:
+    """The hand's moves: runs of samples faster than ONSET_SPEED, corrected to whole moves."""
+    if len(ts) < 3:
+        return []
+    dt = np.diff(ts)
+    step = np.linalg.norm(np.diff(pos, axis=0), axis=1)
+    speed = np.divide(step, dt, out=np.zeros_like(step), where=dt > 0)
+    moving = speed > ONSET_SPEED
+    moves: list[Move] = []
+    i, n = 0, len(speed)
+    while i < n:
+        if not moving[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and moving[j + 1]:
+            j += 1
+        # samples i .. j+1 span the run (speed k is between samples k and k+1)
+        peak = float(speed[i : j + 1].max())
+        if j - i >= 2 and peak > 2.0 * ONSET_SPEED:
+            tau, s = _jerk_share(ONSET_SPEED / peak)
+            t0, t1 = float(ts[i]), float(ts[j + 1])
+            whole = (t1 - t0) / (1.0 - 2.0 * tau)
+            path = float(step[i : j + 1].sum()) / (1.0 - 2.0 * s)
+            moves.append(
+                Move(
+                    t0 - tau * whole,
+                    t1 + tau * whole,
+                    tuple(pos[i]),
+                    tuple(pos[j + 1]),
+                    path,
+                    peak,
+                )
+            )
+        i = j + 1
+    return moves
+
+
+def _read_events(path: Path) -> list[dict[str, Any]]:
+    out = []
+    for n, line in enumerate(path.read_text(encoding="utf-8").splitlines(), start=1):
+        if not line.strip():
+            continue
+        try:
+            out.append(json.loads(line))
+        except json.JSONDecodeError as exc:
+            raise FitError(f"{path}: line {n} is not JSON: {exc.msg}") from exc
+    return out
+
+
+def _at(ts: np.ndarray, values: np.ndarray, t: float) -> Any:
+    """The sample at or just before time t."""
+    k = int(np.searchsorted(ts, t, side="right")) - 1
+    return values[max(0, min(k, len(values) - 1))]
+
+
+def _ramps(ts: np.ndarray, grip: np.ndarray, closing: bool) -> list[tuple[float, float]]:
+    """(start, end) of each full grip ramp 0 -> 1 (closing) or 1 -> 0."""
+    lo, hi = (0.0, 1.0) if closing else (1.0, 0.0)
+    out = []
+    start: float | None = None
+    for k in range(1, len(grip)):
+        prev, cur = grip[k - 1], grip[k]
+        if prev == lo and cur != lo and (cur > prev) == closing:
+            start = float(ts[k - 1])
+        if start is not None and cur == hi:
+            out.append((start, float(ts[k])))
+            start = None
+        elif start is not None and (cur < prev) == closing and cur != prev:
+            start = None  # turned back
+    return out
+
+
+def _tolerance_m(folder: Path) -> float:
+    """The trial's placement tolerance (its scenario.toml; the default without one)."""
+    try:
+        raw = tomllib.loads((folder / SCENARIO_FILE).read_text(encoding="utf-8"))
+    except (OSError, tomllib.TOMLDecodeError):
+        return DEFAULT_TOLERANCE_M
+    value = raw.get("placement", {}).get("tolerance_m", DEFAULT_TOLERANCE_M)
+    return float(value) if isinstance(value, (int, float)) else DEFAULT_TOLERANCE_M
+
+
+def measure_trial(folder: Path) -> TrialMeasures:
+    tolerance_m = _tolerance_m(folder)
+    rec_path, ev_path = folder / RECORDING_FILE, folder / EVENTS_FILE
+    for p in (rec_path, ev_path):
+        if not p.is_file():
+            raise FitError(
+                f"{folder}: no {p.name} (a trial folder of hrc run --record or a session)"
+            )
+    recording = load_recording(rec_path)
+    events = _read_events(ev_path)
+    grabs = [
+        e
+        for e in events
+        if e.get("type") == "event"
+        and e.get("kind") == "PART_GRABBED"
+        and e.get("agent") == "human"
+    ]
+    if not grabs:
+        raise FitError(f"{folder}: the participant grabbed no part ({ev_path.name})")
+    hand = grabs[0].get("hand") or "right"
+    samples = recording.samples
+    ts = np.array([s.t for s in samples])
+    pos = np.array([s.hand(hand).position for s in samples], dtype=float)
+    grip = np.array([s.left_grip if hand == "left" else s.right_grip for s in samples])
+    m = TrialMeasures(folder.name)
+    m.moves = segment_moves(ts, pos)
+    m.grip_close_s = [b - a for a, b in _ramps(ts, grip, True)]
+    m.grip_open_s = [b - a for a, b in _ramps(ts, grip, False)]
+
+    placed = {
+        e["part"]: e["sim_time"]
+        for e in events
+        if e.get("type") == "event" and e.get("kind") == "PART_PLACED" and e.get("agent") == "human"
+    }
+    cues: dict[str, float] = {}
+    for e in events:
+        if e.get("type") == "cue" and e.get("kind") == "OUTLINE" and e.get("on"):
+            cues.setdefault(e["part"], e["sim_time"])
+    first_grab: dict[str, float] = {}
+    for e in grabs:
+        first_grab.setdefault(e["part"], e["sim_time"])
+    prev_release: Vec3 | None = None
+    for part, t_grab in sorted(first_grab.items(), key=lambda kv: kv[1]):
+        t_cue = cues.get(part, 0.0)
+        # the reaction: from the cue (or the end of the hand's last move, if later) to the onset
+        # of the first move towards the part (not the withdrawal from the last part placed)
+        first = next(
+            (
+                mv
+                for mv in m.moves
+                if t_cue - ONSET_LAG_S <= mv.t_on < t_grab
+                and (prev_release is None or distance(mv.p0, prev_release) > NEAR_M)
+            ),
+            None,
+        )
+        if first is not None:
+            before = [mv.t_end for mv in m.moves if mv.t_end <= first.t_on + 1e-9]
+            start = max([t_cue, *before])
+            m.reactions_s.append(max(0.0, first.t_on - start))
+        if part not in placed:
+            continue
+        t_place = placed[part]
+        grasp = tuple(_at(ts, pos, t_grab))
+        # the release: the last time the grip crossed below 0.5 before the placement
+        opening = [
+            float(ts[k])
+            for k in range(1, len(grip))
+            if grip[k - 1] >= 0.5 > grip[k] and t_grab < ts[k] <= t_place + 1e-9
+        ]
+        if not opening:
+            continue
+        t_release = opening[-1]
+        release = tuple(_at(ts, pos, t_release))
+        prev_release = release
+        reach = [
+            mv
+            for mv in m.moves
+            if t_cue - 1e-9 <= mv.t_end <= t_grab + 1e-9
+            and (distance(mv.p1, grasp) <= NEAR_M or _above(mv.p1, grasp))
+        ]
+        if reach:
+            m.reach_moves.append(len(reach))
+            m.classified += [(mv, PICK_WIDTH) for mv in reach]
+            after = [mv for mv in m.moves if mv.t_on >= reach[-1].t_end - 1e-9]
+            if after and after[0].t_on < t_release:
+                m.pick_dwells_s.append(after[0].t_on - reach[-1].t_end)
+        for mv in m.moves:
+            if not (t_grab - 1e-9 <= mv.t_on and mv.t_end <= t_release + 1e-9):
+                continue
+            if distance(mv.p1, release) <= NEAR_M:
+                m.classified.append((mv, 2.0 * tolerance_m))
+                if 0.0 <= t_release - mv.t_end < 5.0:
+                    m.place_half_dwells_s.append(
+                        max(0.0, _grip_start(ts, grip, mv.t_end) - mv.t_end)
+                    )
+            elif _above(mv.p1, release):
+                m.classified.append((mv, PICK_WIDTH))
+            elif distance(mv.p0, grasp) <= NEAR_M and math.dist(mv.p0[:2], mv.p1[:2]) < ABOVE_XY_M:
+                m.classified.append((mv, GROSS_WIDTH))
+    return m
+
+
+def _above(p: Vec3, q: Vec3) -> bool:
+    return math.dist(p[:2], q[:2]) <= ABOVE_XY_M and p[2] - q[2] > NEAR_M
+
+
+def _grip_start(ts: np.ndarray, grip: np.ndarray, t: float) -> float:
+    """When the grip starts to open after time t."""
+    k = int(np.searchsorted(ts, t, side="left"))
+    for j in range(max(1, k), len(grip)):
+        if grip[j] < grip[j - 1]:
+            return float(ts[j - 1])
+    return t
+
+
+def nonnegative_lstsq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Least squares with every coefficient >= 0, for a few columns: the best of the ordinary
+    fits over each subset of columns whose coefficients all come out >= 0 (the others 0)."""
+    n = x.shape[1]
+    best, best_err = np.zeros(n), float(np.sum(y * y))
+    for mask in itertools.product((False, True), repeat=n):
+        cols = [i for i in range(n) if mask[i]]
+        if not cols:
+            continue
+        sol, *_ = np.linalg.lstsq(x[:, cols], y, rcond=None)
+        if np.any(sol < 0.0):
+            continue
+        coef = np.zeros(n)
+        coef[cols] = sol
+        err = float(np.sum((x @ coef - y) ** 2))
+        if err < best_err - 1e-15:
+            best, best_err = coef, err
+    return best
+
+
+def lognormal_median(values: list[float]) -> float:
+    """The median of the model's lognormal reaction times (log-sd REACTION_LOG_SD): the mean
+    of the logs (its estimate with the least spread), over the values within TRIM_SD log-sds
+    of their median (a reaction held up by a collision or a robot in the way is not one)."""
+    logs = [math.log(v) for v in values if v > 0.0]
+    if not logs:
+        return 0.0
+    centre = statistics.median(logs)
+    kept = [x for x in logs if abs(x - centre) <= TRIM_SD * REACTION_LOG_SD] or [centre]
+    return math.exp(statistics.fmean(kept))
+
+
+@dataclass
+class Fit:
+    """A person's estimated parameters, and how they were found."""
+
+    params: dict[str, float | bool]
+    counts: dict[str, int]
+    notes: list[str]
+
+
+def fit_measures(trials: list[TrialMeasures]) -> Fit:
+    moves = [mv for t in trials for mv in t.moves]
+    if not moves:
+        raise FitError("no hand movement found in the recordings")
+    notes: list[str] = []
+    v_peak = max(mv.peak for mv in moves)
+    # Moves the cap shortened all peak at the cap; free moves peak where their length and time
+    # put them. A cap is seen when several moves share the highest peak.
+    at_cap = [mv for mv in moves if mv.peak >= CAP_SHARE * v_peak]
+    cap_seen = len(at_cap) >= CAP_MOVES
+    classified = [(mv, w) for t in trials for mv, w in t.classified]
+    free = [(mv, w) for mv, w in classified if not (cap_seen and mv.peak >= CAP_SHARE * v_peak)]
+    if cap_seen:
+        # a capped move lasts 1.875 D / v: the cap from those moves' own paths and times
+        peak_hand_speed = statistics.median(
+            MIN_JERK_PEAK_FACTOR * mv.path_m / mv.mt for mv in at_cap
+        )
+    else:
+        peak_hand_speed = v_peak
+        notes.append(
+            "no speed cap seen (fewer than "
+            f"{CAP_MOVES} moves share the highest peak): peak_hand_speed is the highest peak, "
+            "a lower bound"
+        )
+    params: dict[str, float | bool] = {"peak_hand_speed": round(peak_hand_speed, 4)}
+    if len(free) >= 3:
+        paths = [mv.path_m for mv, _w in free]
+        with_c = sum(d >= C_SPAN * min(paths) for d in paths) >= 3
+        x = np.array(
+            [[1.0, fitts_index(mv.path_m, w), mv.path_m][: 3 if with_c else 2] for mv, w in free]
+        )
+        y = np.array([mv.mt for mv, _w in free])
+        coef = nonnegative_lstsq(x, y)
+        params.update(fitts_a_s=round(float(coef[0]), 4), fitts_b_s=round(float(coef[1]), 4))
+        if with_c:
+            params["fitts_c_s_per_m"] = round(float(coef[2]), 4)
+        else:
+            params["fitts_c_s_per_m"] = 0.0
+            notes.append(
+                f"fewer than 3 uncapped moves over {C_SPAN:g} x the shortest "
+                f"({min(paths):.2f} m): fitts_c_s_per_m not fitted (0)"
+            )
+    else:
+        notes.append(f"only {len(free)} uncapped moves of known kind: no movement-time law fitted")
+    reactions = [r for t in trials for r in t.reactions_s]
+    if reactions:
+        params["reaction_time_s"] = round(lognormal_median(reactions), 4)
+    grips_c = [g for t in trials for g in t.grip_close_s]
+    grips_o = [g for t in trials for g in t.grip_open_s]
+    if grips_c:
+        params["grip_close_s"] = round(statistics.median(grips_c), 4)
+    if grips_o:
+        params["grip_open_s"] = round(statistics.median(grips_o), 4)
+    picks = [d for t in trials for d in t.pick_dwells_s]
+    if picks:
+        params["pick_dwell_s"] = round(statistics.median(picks), 4)
+    places = [d for t in trials for d in t.place_half_dwells_s]
+    if places:
+        params["place_dwell_s"] = round(2.0 * statistics.median(places), 4)
+    per_reach = [n for t in trials for n in t.reach_moves]
+    if per_reach:
+        params["stop_above"] = statistics.median(per_reach) >= 2
+    counts = {
+        "moves": len(moves),
+        "moves_of_known_kind": len(classified),
+        "moves_capped": len(at_cap) if cap_seen else 0,
+        "reactions": len(reactions),
+    }
+    return Fit(params, counts, notes)
+
+
+def fit_folders(folders: list[Path]) -> Fit:
+    if not folders:
+        raise FitError("no trial folder given")
+    return fit_measures([measure_trial(f) for f in folders])
