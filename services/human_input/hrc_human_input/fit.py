@@ -106,6 +106,14 @@ def segment_moves(ts: np.ndarray, pos: np.ndarray) -> list[Move]:
     """The hand's moves: runs of samples faster than ONSET_SPEED, corrected to whole moves."""
     if len(ts) < 3:
         return []
+    # A live client updates the hand at its own rate and the recording holds the last pose
+    # between updates: speeds are taken between distinct poses (a still hand's samples are all
+    # one pose, so it stays still).
+    keep = np.concatenate(([True], np.any(np.diff(pos, axis=0) != 0.0, axis=1)))
+    keep[-1] = True
+    ts, pos = ts[keep], pos[keep]
+    if len(ts) < 3:
+        return []
     dt = np.diff(ts)
     step = np.linalg.norm(np.diff(pos, axis=0), axis=1)
     speed = np.divide(step, dt, out=np.zeros_like(step), where=dt > 0)

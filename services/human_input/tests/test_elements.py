@@ -97,3 +97,21 @@ def test_a_cancelled_move_is_followed_without_a_jump() -> None:
         steps.append(float(np.linalg.norm(np.subtract(hand.pos, last))) / dt)
         last = hand.pos
     assert max(steps) <= motor.peak_hand_speed * 1.001
+
+
+def test_the_bench_command_prints_the_figures(capsys: pytest.CaptureFixture[str]) -> None:
+    import argparse
+    import json
+
+    from hrc.cli.bench_participant import run
+
+    assert run(argparse.Namespace(json=True)) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert set(data["profiles"]) == {"baseline", "real", "vr"}
+    assert data["profiles"]["real"]["within_15pct_of_mtm"]
+    assert not data["profiles"]["baseline"]["within_15pct_of_mtm"]
+    elements = {(e["element"], e["distance_cm"]) for e in data["profiles"]["real"]["elements"]}
+    assert ("R-A", 10.2) in elements and ("M-C", 61.0) in elements
+    assert run(argparse.Namespace(json=False)) == 0
+    table = capsys.readouterr().out
+    assert "profile real: max |model/MTM - 1| = 0.137 (within +-15 %)" in table

@@ -59,3 +59,16 @@ def test_a_folder_without_a_recording_or_moves_is_named(tmp_path: Path) -> None:
         measure_trial(tmp_path)
     with pytest.raises(FitError, match="no hand movement"):
         fit_measures([])
+
+
+def test_a_client_slower_than_the_ticks_gives_the_same_moves() -> None:
+    """A live client sends the hand at, say, 60 Hz; the recording repeats each pose until the
+    next: the moves found are those of the 240 Hz path."""
+    motor = MotorParams(fitts_a_s=0.2, fitts_b_s=0.1, peak_hand_speed=3.0)
+    ts, pos, segments = _sampled([Move((0.3, 0.0, 0.1), None, 0.06)], motor)
+    held = pos.copy()
+    for k in range(len(held)):
+        held[k] = pos[k - k % 4]  # each pose held for 4 ticks
+    (mv,) = segment_moves(ts, held)
+    assert mv.mt == pytest.approx(segments[0].mt, rel=0.05)
+    assert mv.path_m == pytest.approx(segments[0].distance, rel=0.03)

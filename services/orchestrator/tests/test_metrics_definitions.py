@@ -108,7 +108,10 @@ def test_conditions_record_every_factor_a_study_varies() -> None:
     line = metrics_schema.settings_line("P07", 3, metrics_schema.conditions(s))
     assert line.startswith("SETTINGS: anticipation off, safety policy stop_colliding, seed 3;")
     assert "r1 max TCP speed 0.25 m/s, r2 max TCP speed 0.5 m/s" in line
-    assert "participant P07: scripted, profile baseline, reaction_time_s 0.4," in line and "caution 0.9" in line
+    assert (
+        "participant P07: scripted, profile baseline, reaction_time_s 0.4," in line
+        and "caution 0.9" in line
+    )
 
 
 def test_conditions_of_a_replayed_participant_leave_the_scripted_parameters_out() -> None:
