@@ -24,6 +24,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
+from hrc.cli.fit import relative_errors
 from hrc.paths import project_root
 from hrc.study.spec import Study
 from hrc.tomlw import dumps
@@ -83,13 +84,7 @@ def prediction(held_out: Any, twins: Any) -> dict[str, Any]:
             "n": len(pairs),
             "mean_abs_error_s": round(sum(abs(p - t) for _w, t, p in pairs) / len(pairs), 3),
         }
-        rel = [(p - t) / t for _w, t, p in pairs if t > 0]
-        if rel:
-            r.update(
-                bias=round(sum(rel) / len(rel), 4),
-                mean_abs_error=round(sum(abs(x) for x in rel) / len(rel), 4),
-                max_abs_error=round(max(abs(x) for x in rel), 4),
-            )
+        r.update(relative_errors([(t, p) for _w, t, p in pairs]))
         r["people"] = [{"participant": w, "actual": t, "twin": p} for w, t, p in pairs]
         out[metric] = r
     return out

@@ -22,6 +22,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from hrc.study.trial import RECORDING_FILE
 from hrc.tomlw import dumps
 
 log = logging.getLogger(__name__)
@@ -60,9 +61,22 @@ def study_groups(folder: Path, where: list[tuple[str, str]]) -> tuple[dict[str, 
         if any(key not in row or not _match(row[key], value) for key, value in where):
             continue
         trial_dir = folder / "trials" / str(row["trial"])
-        if (trial_dir / "participant-input.jsonl").is_file():
+        if (trial_dir / RECORDING_FILE).is_file():
             groups.setdefault(str(row["participant"]), []).append(trial_dir)
     return groups, table
+
+
+def relative_errors(pairs: list[tuple[float, float]]) -> dict[str, float]:
+    """Bias, mean and largest absolute error of (estimate - truth) / truth over (truth,
+    estimate) pairs with a truth > 0 (empty if there is none)."""
+    rel = [(est - true) / true for true, est in pairs if true > 0]
+    if not rel:
+        return {}
+    return {
+        "bias": round(sum(rel) / len(rel), 4),
+        "mean_abs_error": round(sum(abs(r) for r in rel) / len(rel), 4),
+        "max_abs_error": round(max(abs(r) for r in rel), 4),
+    }
 
 
 def recovery(table: Any, fitted: dict[str, dict[str, Any]]) -> dict[str, Any]:
@@ -84,12 +98,9 @@ def recovery(table: Any, fitted: dict[str, dict[str, Any]]) -> dict[str, Any]:
             pairs.append((who, true, float(params[key])))
         if not pairs:
             continue
-        rel = [(fit - true) / true for _w, true, fit in pairs]
         out[key] = {
             "n": len(pairs),
-            "bias": round(sum(rel) / len(rel), 4),
-            "mean_abs_error": round(sum(abs(r) for r in rel) / len(rel), 4),
-            "max_abs_error": round(max(abs(r) for r in rel), 4),
+            **relative_errors([(true, fit) for _w, true, fit in pairs]),
             "people": [{"participant": w, "true": t, "fitted": f} for w, t, f in pairs],
         }
     return out
@@ -146,7 +157,6 @@ def run(args: argparse.Namespace) -> int:
             return 1
         fitted[who] = fit.params
         info[who] = {"trials": [d.name for d in trial_dirs], **fit.counts, "notes": fit.notes}
-        fit.params = {k: v for k, v in fit.params.items()}
     write_fitted(out, fitted, info)
     report: dict[str, Any] = {"fitted": fitted, "file": str(out)}
     if table is not None:

@@ -85,18 +85,6 @@ class ElementTime:
         }
 
 
-def motor_params(p: ScriptedParams) -> MotorParams:
-    return MotorParams(
-        reaction_time_s=p.reaction_time_s,
-        peak_hand_speed=p.peak_hand_speed,
-        fitts_a_s=p.fitts_a_s,
-        fitts_b_s=p.fitts_b_s,
-        fitts_c_s_per_m=p.fitts_c_s_per_m,
-        grip_close_s=p.grip_close_s,
-        grip_open_s=p.grip_open_s,
-    )
-
-
 def plan_time(
     motor: MotorParams, start: tuple[float, float, float], steps: list[Step], seed: int
 ) -> float:
@@ -127,7 +115,7 @@ def move_time(motor: MotorParams, distance_m: float, width_m: float, seed: int) 
 
 
 def element_times(p: ScriptedParams, seed: int = 1) -> list[ElementTime]:
-    motor = motor_params(p)
+    motor = MotorParams.of(p)
     out = []
     for element, tmus in MTM_TMU.items():
         for inches, tmu in zip(DISTANCES_IN, tmus, strict=True):
@@ -141,7 +129,7 @@ def pick_and_place_time(p: ScriptedParams, seed: int = 1) -> ElementTime:
     """The scripted participant's reach, grasp, carry, place and release with hand paths of
     PICK_AND_PLACE_IN inches each (the part at the hand's height, approached from above), the
     mean over SAMPLES / 10 runs."""
-    motor = motor_params(p)
+    motor = MotorParams.of(p)
     d = PICK_AND_PLACE_IN * INCH_M
     grasp = (0.0, 0.0, 0.02)
     above = (grasp[0], grasp[1], grasp[2] + APPROACH_CLEARANCE)

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hrc.geometry import Vec3, distance, lerp, lerp3
+from hrc.scenario import ScriptedParams
 
 # Peak speed of a minimum-jerk reach is this factor times the mean speed D / MT.
 MIN_JERK_PEAK_FACTOR = 1.875
@@ -74,6 +75,19 @@ class MotorParams:
     fitts_c_s_per_m: float = 0.0
     grip_close_s: float = 0.15  # grip 0 -> 1
     grip_open_s: float = 0.10  # grip 1 -> 0
+
+    @classmethod
+    def of(cls, p: ScriptedParams) -> MotorParams:
+        """The motor parameters among a scenario's scripted-participant parameters."""
+        return cls(
+            reaction_time_s=p.reaction_time_s,
+            peak_hand_speed=p.peak_hand_speed,
+            fitts_a_s=p.fitts_a_s,
+            fitts_b_s=p.fitts_b_s,
+            fitts_c_s_per_m=p.fitts_c_s_per_m,
+            grip_close_s=p.grip_close_s,
+            grip_open_s=p.grip_open_s,
+        )
 
 
 def movement_time(

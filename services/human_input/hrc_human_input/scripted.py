@@ -151,15 +151,7 @@ class ScriptedParticipant:
     def __init__(self, facts: ScenarioFacts, seed: int | None = None) -> None:
         self.facts = facts
         p = facts.params
-        self.motor = MotorParams(
-            reaction_time_s=p.reaction_time_s,
-            peak_hand_speed=p.peak_hand_speed,
-            fitts_a_s=p.fitts_a_s,
-            fitts_b_s=p.fitts_b_s,
-            fitts_c_s_per_m=p.fitts_c_s_per_m,
-            grip_close_s=p.grip_close_s,
-            grip_open_s=p.grip_open_s,
-        )
+        self.motor = MotorParams.of(p)
         self.caution = p.caution
         self.pick_dwell = p.pick_dwell_s
         self.place_dwell = p.place_dwell_s

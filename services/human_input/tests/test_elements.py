@@ -17,12 +17,11 @@ from hrc_human_input.elements import (
     MTM_TMU,
     REAL_TOLERANCE,
     element_times,
-    motor_params,
     pick_and_place_time,
     profile_report,
 )
 from hrc_human_input.hand import Hand, Move
-from hrc_human_input.motor import MIN_JERK_PEAK_FACTOR
+from hrc_human_input.motor import MIN_JERK_PEAK_FACTOR, MotorParams
 
 
 def params(profile: str) -> ScriptedParams:
@@ -62,7 +61,7 @@ def test_vr_profile_is_slower_and_later_than_real() -> None:
 
 def test_a_reach_in_one_motion_passes_above_the_part_under_the_speed_cap() -> None:
     p = params("real")
-    motor = motor_params(p)
+    motor = MotorParams.of(p)
     above, goal = (0.3, 0.0, 0.18), (0.3, 0.0, 0.10)
     hand = Hand("right", (0.0, 0.0, 0.18), 0.0, motor, np.random.default_rng(3))
     hand.do(Move(goal, None, 0.06, "reach", via=(above,)))
@@ -82,7 +81,7 @@ def test_a_reach_in_one_motion_passes_above_the_part_under_the_speed_cap() -> No
 def test_a_cancelled_move_is_followed_without_a_jump() -> None:
     """Cancelling a move half-way and starting another goes on from where the hand is: the
     next move starts then, not when the cancelled one did (the hand used to jump)."""
-    motor = motor_params(params("vr"))  # long moves: a jump would be centimetres
+    motor = MotorParams.of(params("vr"))  # long moves: a jump would be centimetres
     hand = Hand("right", (0.0, 0.0, 0.1), 0.0, motor, np.random.default_rng(5))
     hand.do(Move((0.5, 0.0, 0.1), None, 0.06))
     t, dt, last = 0.0, 1.0 / 240.0, (0.0, 0.0, 0.1)
