@@ -185,6 +185,31 @@ def pitch_quat_rad(pitch_rad: float) -> Quat:
     return (math.sin(pitch_rad / 2.0), 0.0, 0.0, math.cos(pitch_rad / 2.0))
 
 
+def rpy_quat_deg(rpy_deg: Sequence[float]) -> Quat:
+    """URDF's roll, pitch, yaw (about the fixed x, y, z axes, in that order: Rz·Ry·Rx), degrees."""
+    qx = (
+        math.sin(math.radians(rpy_deg[0]) / 2.0),
+        0.0,
+        0.0,
+        math.cos(math.radians(rpy_deg[0]) / 2.0),
+    )
+    qy = (
+        0.0,
+        math.sin(math.radians(rpy_deg[1]) / 2.0),
+        0.0,
+        math.cos(math.radians(rpy_deg[1]) / 2.0),
+    )
+    return quat_mul(yaw_quat_deg(rpy_deg[2]), quat_mul(qy, qx))
+
+
+def quat_rpy_deg(q: Sequence[float]) -> Vec3:
+    """The inverse of `rpy_quat_deg` (pitch in [-90, 90] degrees)."""
+    x, y, z, w = q
+    roll = math.atan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    pitch = math.asin(max(-1.0, min(1.0, 2.0 * (w * y - z * x))))
+    return (math.degrees(roll), math.degrees(pitch), quat_yaw_deg(q))
+
+
 def quat_yaw_rad(q: Sequence[float]) -> float:
     """The yaw (about world z) of a rotation, radians in [-pi, pi]."""
     x, y, z, w = q

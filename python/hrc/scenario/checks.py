@@ -9,15 +9,16 @@ the problems of the others.
 from __future__ import annotations
 
 import itertools
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+from hrc.scenario import urdf
 from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
 from hrc.scenario.errors import Problem
 from hrc.scenario.graph import Edge, find_cycles
-from hrc.scenario.models import HUMAN
-from hrc.scenario.paths import installed_root, resolve_path
+from hrc.scenario.models import DEFAULT_BASE_LINK, DEFAULT_TIP_LINK, HUMAN
+from hrc.scenario.paths import installed_root, resolve_dir, resolve_path
 
 
 def part_key(index: int, raw_part: Any) -> str:
@@ -293,9 +294,7 @@ def check_files(raw: dict[str, Any], folder: Path | None, root: Path | None) -> 
 
     problems: list[Problem] = []
     for rid, robot in _table(raw.get("robots")).items():
-        urdf = _table(robot).get("urdf")
-        if isinstance(urdf, str) and urdf and resolve_path(urdf, folder, root) is None:
-            problems.append(Problem(f"robots.{rid}.urdf", missing(urdf)))
+        problems += _check_robot_files(rid, _table(robot), folder, root, missing)
     participant = _table(raw.get("participant"))
     if InputSource.parse(participant.get("input")) == InputSource.REPLAY:
         replay = participant.get("replay_file")
@@ -308,4 +307,139 @@ def check_files(raw: dict[str, Any], folder: Path | None, root: Path | None) -> 
             )
         elif isinstance(replay, str) and resolve_path(replay, folder, root) is None:
             problems.append(Problem("participant.replay_file", missing(replay)))
+    return problems
+
+
+def _check_robot_files(
+    rid: str,
+    robot: dict[str, Any],
+    folder: Path | None,
+    root: Path | None,
+    missing: Callable[[str], str],
+) -> list[Problem]:
+    """The robot's URDF, its `packages` folders, its chain and the meshes it names."""
+    key = f"robots.{rid}"
+    problems: list[Problem] = []
+    packages: list[Path] = []
+    written_packages = robot.get("packages")
+    for i, d in enumerate(written_packages if isinstance(written_packages, list) else []):
+        found = resolve_dir(d, folder, root) if isinstance(d, str) and d else None
+        if isinstance(d, str) and d and found is None:
+            problems.append(Problem(f"{key}.packages[{i}]", f"no such folder: {d}"))
+        elif found is not None:
+            packages.append(found)
+    written = robot.get("urdf")
+    if not isinstance(written, str) or not written:
+        return problems  # the schema check names it
+    if written.startswith(urdf.PACKAGE):
+        path = urdf.resolve(written, None, packages)
+        if path is None:
+            return [*problems, Problem(f"{key}.urdf", _not_found(written, None, packages))]
+    else:
+        path = resolve_path(written, folder, root)
+        if path is None:
+            return [*problems, Problem(f"{key}.urdf", missing(written))]
+    try:
+        info = urdf.read_urdf(path)
+    except urdf.UrdfError as exc:
+        return [*problems, Problem(f"{key}.urdf", str(exc))]
+    links = {}
+    for name, default in (("base_link", DEFAULT_BASE_LINK), ("tip_link", DEFAULT_TIP_LINK)):
+        value = robot.get(name, default)
+        if not isinstance(value, str):
+            return problems  # the schema check names it
+        links[name] = value
+        if value not in info.links:
+            problems.append(
+                Problem(
+                    f"{key}.{name}",
+                    f"{path.name} has no link named {value!r}"
+                    + ("" if name in robot else f" (the default {name})")
+                    + f"; its links: {', '.join(info.links)}",
+                )
+            )
+    if problems:
+        return problems
+    joints = info.chain(links["base_link"], links["tip_link"])
+    if joints is None:
+        problems.append(
+            Problem(
+                f"{key}.tip_link",
+                f"{links['tip_link']!r} is not below {links['base_link']!r} in {path.name}: "
+                f"no chain of joints leads from one to the other; links below "
+                f"{links['base_link']!r}: {', '.join(info.below(links['base_link'])) or '(none)'}",
+            )
+        )
+    elif not any(j.kind in urdf.MOVABLE for j in joints):
+        problems.append(
+            Problem(
+                f"{key}.tip_link",
+                f"the chain {links['base_link']} -> {links['tip_link']} in {path.name} has no "
+                "movable joint",
+            )
+        )
+    else:
+        odd = [f"{j.name} ({j.kind})" for j in joints if j.kind not in (*urdf.MOVABLE, "fixed")]
+        if odd:
+            problems.append(
+                Problem(
+                    f"{key}.tip_link",
+                    f"the chain has joints a serial arm cannot have: {', '.join(odd)}",
+                )
+            )
+    problems += _check_gripper(key, robot.get("gripper"), info, joints or [])
+    for mesh in urdf.missing_meshes(info, packages):
+        problems.append(
+            Problem(f"{key}.urdf", f"{path.name}: mesh " + _not_found(mesh, path.parent, packages))
+        )
+        break  # one names the cause; a description usually misses them all the same way
+    return problems
+
+
+def _not_found(written: str, folder: Path | None, packages: list[Path]) -> str:
+    tried = [str(c) for c in urdf.candidates(written, folder, packages)]
+    hint = ""
+    if written.startswith(urdf.PACKAGE):
+        name = written[len(urdf.PACKAGE) :].partition("/")[0]
+        hint = f"; add the folder that holds {name}/ to packages"
+    return f"{written} not found (tried {', '.join(tried) or 'nothing'}){hint}"
+
+
+def _check_gripper(
+    key: str, gripper: Any, info: urdf.UrdfInfo, chain: list[urdf.UrdfJoint]
+) -> list[Problem]:
+    """The fingers are movable joints of the URDF outside the chain, open and closed within
+    their limits."""
+    if not isinstance(gripper, dict) or not isinstance(gripper.get("joints"), list):
+        return []  # none, or the schema check names it
+    problems: list[Problem] = []
+    by_name = {j.name: j for j in info.joints}
+    in_chain = {j.name for j in chain}
+    movable = [j.name for j in info.joints if j.kind in ("revolute", "prismatic")]
+    for name in gripper["joints"]:
+        joint = by_name.get(name) if isinstance(name, str) else None
+        if joint is None or joint.kind not in ("revolute", "prismatic"):
+            problems.append(
+                Problem(
+                    f"{key}.gripper.joints",
+                    f"{info.path.name} has no revolute or prismatic joint named {name!r}; "
+                    f"its movable joints: {', '.join(movable) or '(none)'}",
+                )
+            )
+        elif name in in_chain:
+            problems.append(
+                Problem(f"{key}.gripper.joints", f"{name!r} is a joint of the arm's chain")
+            )
+        else:
+            for end in ("open", "closed"):
+                v = gripper.get(end)
+                lo, hi = joint.lower, joint.upper
+                known = isinstance(v, int | float) and lo is not None and hi is not None
+                if known and not lo - 1e-9 <= v <= hi + 1e-9:  # type: ignore[operator]
+                    problems.append(
+                        Problem(
+                            f"{key}.gripper.{end}",
+                            f"{v} is outside {name}'s limits [{lo}, {hi}]",
+                        )
+                    )
     return problems

@@ -8,7 +8,15 @@ from typing import TypeVar
 
 from pydantic import ValidationError
 
-from hrc.geometry import pose_yaw_to_pb, vec3_from_pb, vec3_to_pb
+from hrc.geometry import (
+    pose_yaw_to_pb,
+    quat_from_pb,
+    quat_rpy_deg,
+    quat_to_pb,
+    rpy_quat_deg,
+    vec3_from_pb,
+    vec3_to_pb,
+)
 from hrc.scenario.enums import (
     InputSource,
     ParticipantProfile,
@@ -18,9 +26,12 @@ from hrc.scenario.enums import (
 )
 from hrc.scenario.errors import Problem, ScenarioError
 from hrc.scenario.models import (
+    DEFAULT_BASE_LINK,
     DEFAULT_MAX_EXCHANGE_TICKS,
+    DEFAULT_TIP_LINK,
     Box,
     Conditions,
+    Gripper,
     Part,
     Participant,
     Placement,
@@ -30,6 +41,7 @@ from hrc.scenario.models import (
     ScenarioInfo,
     ScriptedParams,
     Ssm,
+    Tcp,
     Workspace,
 )
 from hrc.wire import pb
@@ -77,8 +89,19 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
         rc = msg.robots.add()
         rc.id = rid
         rc.role = robot.role.to_proto()
-        urdf = scenario.resolve(robot.urdf)
+        urdf = scenario.urdf_path(rid)
         rc.urdf_path = str(urdf) if urdf else robot.urdf
+        rc.base_link = robot.base_link
+        rc.tip_link = robot.tip_link
+        if robot.tcp != Tcp():  # unset on the wire: the tip link is the TCP
+            rc.tcp.position.CopyFrom(vec3_to_pb(robot.tcp.xyz))
+            rc.tcp.orientation.CopyFrom(quat_to_pb(rpy_quat_deg(robot.tcp.rpy_deg)))
+        rc.package_dirs.extend(str(d) for d in scenario.package_dirs(rid))
+        rc.own_colors = not robot.tint
+        if robot.gripper is not None:
+            rc.gripper.joints.extend(robot.gripper.joints)
+            rc.gripper.open = robot.gripper.open
+            rc.gripper.closed = robot.gripper.closed
         rc.base.CopyFrom(pose_yaw_to_pb(robot.base.xyz, robot.base.yaw))
         rc.max_tcp_speed = robot.max_tcp_speed
         rc.home.CopyFrom(vec3_to_pb(robot.home))
@@ -226,6 +249,16 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
         robots[rc.id] = Robot(
             role=role,
             urdf=rc.urdf_path,
+            base_link=rc.base_link or DEFAULT_BASE_LINK,
+            tip_link=rc.tip_link or DEFAULT_TIP_LINK,
+            tcp=_tcp_back(rc.tcp) if rc.HasField("tcp") else Tcp(),
+            packages=list(rc.package_dirs),
+            tint=not rc.own_colors,
+            gripper=Gripper(
+                joints=list(rc.gripper.joints), open=rc.gripper.open, closed=rc.gripper.closed
+            )
+            if rc.HasField("gripper")
+            else None,
             base=_pose_back(rc.base),
             max_tcp_speed=rc.max_tcp_speed,
             home=_vec_back(rc.home),
@@ -291,6 +324,11 @@ def _from_proto(msg: pb.Scenario, source: str) -> Scenario:
 
 def _vec_back(v: pb.Vec3) -> list[float]:
     return list(vec3_from_pb(v))  # the models hold lists
+
+
+def _tcp_back(p: pb.Pose) -> Tcp:
+    rpy = quat_rpy_deg(quat_from_pb(p.orientation))
+    return Tcp(xyz=_vec_back(p.position), rpy_deg=[round(a, 9) + 0.0 for a in rpy])
 
 
 def _pose_back(p: pb.PoseYaw) -> PoseYaw:

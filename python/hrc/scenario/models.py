@@ -15,9 +15,10 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
+from hrc.scenario import urdf
 from hrc.scenario.colors import NAMED_RGB
 from hrc.scenario.enums import InputSource, ParticipantProfile, RobotRole, SafetyPolicy
-from hrc.scenario.paths import resolve_path
+from hrc.scenario.paths import resolve_dir, resolve_path
 from hrc.scenario.profiles import profile_defaults
 
 # ---------------------------------------------------------------- constants and conventions
@@ -32,6 +33,8 @@ MAX_EXCHANGE_TICKS = 64
 MAX_TICK_HZ = 2000.0
 MAX_TCP_SPEED = 1.5  # m/s, upper bound allowed for any robot
 DEFAULT_NEAR_MARGIN = 0.05  # m, inflated-volume margin for robot-robot near collisions
+DEFAULT_BASE_LINK = "base_link"  # the chain of the project's own URDFs (robots/README.md)
+DEFAULT_TIP_LINK = "tool"
 # m/s^2: the arms' acceleration limit (the IK service's MotionLimits::max_tcp_accel), so the
 # hardest an arm brakes: an ssm deceleration above it would assume braking the arm cannot do.
 ARM_MAX_TCP_ACCEL = 2.0
@@ -221,11 +224,38 @@ class Conditions(_Strict):
     ssm: Ssm = Field(default_factory=Ssm)
 
 
+class Tcp(_Strict):
+    """The tool centre point in the tip link's frame: a translation (metres) and a rotation
+    (roll, pitch, yaw about the tip link's fixed x, y, z axes, degrees; URDF's order)."""
+
+    xyz: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    rpy_deg: Annotated[
+        list[Annotated[float, Field(ge=-360.0, le=360.0)]], Field(min_length=3, max_length=3)
+    ] = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+
+
+class Gripper(_Strict):
+    """The description's own fingers: joints set to `open` while the arm holds nothing and to
+    `closed` while it holds a part (docs/robots.md)."""
+
+    joints: Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1)]
+    open: Num
+    closed: Num
+
+
 class Robot(_Strict):
     """One arm. Its id is the key under [robots] (available as `.id` once loaded)."""
 
     role: RoleChoice
     urdf: Annotated[str, Field(min_length=1)]
+    # The chain, as MoveIt and KDL name one (docs/robots.md): base_link -> tip_link, then tcp.
+    base_link: Annotated[str, Field(min_length=1)] = DEFAULT_BASE_LINK
+    tip_link: Annotated[str, Field(min_length=1)] = DEFAULT_TIP_LINK
+    tcp: Tcp = Field(default_factory=Tcp)
+    # Folders where package://NAME/... is looked up (relative: like urdf)
+    packages: list[Annotated[str, Field(min_length=1)]] = Field(default_factory=list)
+    tint: bool = True  # the page and the view show it in its colour (false: the URDF's own)
+    gripper: Gripper | None = None
     base: PoseYaw
     max_tcp_speed: Annotated[float, Field(gt=0.0, le=MAX_TCP_SPEED, allow_inf_nan=False)]
     home: Vec3
@@ -329,8 +359,17 @@ class Scenario(_Strict):
         folder = self._source_path.parent if self._source_path else None
         return resolve_path(relative, folder, self._project_root)
 
+    def package_dirs(self, robot_id: str) -> list[Path]:
+        """The robot's `packages` folders that exist (relative ones like `resolve`)."""
+        folder = self._source_path.parent if self._source_path else None
+        found = (resolve_dir(d, folder, self._project_root) for d in self.robots[robot_id].packages)
+        return [d for d in found if d is not None]
+
     def urdf_path(self, robot_id: str) -> Path | None:
-        return self.resolve(self.robots[robot_id].urdf)
+        written = self.robots[robot_id].urdf
+        if written.startswith(urdf.PACKAGE):
+            return urdf.resolve(written, None, self.package_dirs(robot_id))
+        return self.resolve(written)
 
     # -------------------------------------------------- accessors the task logic uses
 

@@ -45,3 +45,14 @@ def resolve_path(written: str, folder: Path | None, root: Path | None) -> Path |
         if base is not None and (base / path).is_file():
             return (base / path).resolve()
     return None
+
+
+def resolve_dir(written: str, folder: Path | None, root: Path | None) -> Path | None:
+    """An existing folder for `written`, looked for as `resolve_path` looks for a file."""
+    path = Path(written).expanduser()
+    if path.is_absolute():
+        return path if path.is_dir() else None
+    for base in (folder, root, installed_root()):
+        if base is not None and (base / path).is_dir():
+            return (base / path).resolve()
+    return None

@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any
 
 from hrc.scenario.enums import InputSource, SafetyPolicy
-from hrc.scenario.models import Scenario, ScenarioInfo
+from hrc.scenario.models import Robot, Scenario, ScenarioInfo, Tcp
 from hrc.tomlw import dumps
 
 
@@ -29,8 +29,15 @@ class Resolved:
     overrides: list[str] = field(default_factory=list)  # "scenario.seed = 7 (--seed)", ...
 
     def settings(self) -> dict[str, Any]:
-        """Every setting (defaults filled in), file paths as written."""
-        return self.scenario.model_dump(mode="json", exclude_none=True)
+        """Every setting (defaults filled in), file paths as written. The robot keys added for
+        real arms (base_link ... tint) appear only when they differ from their defaults, so a
+        scenario that does not use them keeps its hash, and its trials their folder names."""
+        data = self.scenario.model_dump(mode="json", exclude_none=True)
+        for robot in data.get("robots", {}).values():
+            for key, default in CHAIN_DEFAULTS.items():
+                if robot.get(key) == default:
+                    del robot[key]
+        return data
 
     @property
     def hash(self) -> str:
@@ -60,6 +67,8 @@ class Resolved:
             urdf = self.scenario.urdf_path(rid)
             if urdf is not None:
                 robot["urdf"] = str(urdf)
+            if robot.get("packages"):
+                robot["packages"] = [str(d) for d in self.scenario.package_dirs(rid)]
         participant = data.get("participant", {})
         if "replay_file" in participant:
             replay = self.scenario.resolve(participant["replay_file"])
@@ -73,6 +82,12 @@ class Resolved:
         ]
         header += [f"# override: {o}" for o in self.overrides] or ["# overrides: none"]
         return "\n".join(header) + "\n\n" + dumps(data)
+
+
+CHAIN_DEFAULTS: dict[str, Any] = {
+    key: Robot.model_fields[key].get_default(call_default_factory=True)
+    for key in ("base_link", "tip_link", "packages", "tint")
+} | {"tcp": Tcp().model_dump(mode="json")}
 
 
 def slug(text: str) -> str:

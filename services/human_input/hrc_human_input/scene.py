@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import json
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from hrc import scenario as sc
+from hrc.scenario import urdf
 from hrc.scenario.colors import HUMAN_COLOR, hex_color, part_color, rgba_hex
 from hrc.scenario.conventions import (
     CONTINUE_BUTTON_CUE,
@@ -66,9 +68,24 @@ class RobotFiles:
 
     urdfs: dict[str, Path] = field(default_factory=dict)
     folders: list[Path] = field(default_factory=list)
+    # package://NAME/x is asked for as NAME/x: served when it resolves (around a URDF or in a
+    # robot's packages folders) to a mesh one of the URDFs names
+    packages: list[Path] = field(default_factory=list)
+    meshes: set[Path] = field(default_factory=set)
 
-    def add(self, rid: str, path: Path) -> str:
-        """Registers a robot's URDF; returns its URL."""
+    def add(self, rid: str, path: Path, packages: Sequence[Path] = ()) -> str:
+        """Registers a robot's URDF (and the meshes it names); returns its URL."""
+        for d in packages:
+            if d not in self.packages:
+                self.packages.append(d)
+        try:
+            info = urdf.read_urdf(path)
+            for m in info.meshes:
+                found = urdf.resolve(m, path.parent, packages)
+                if found is not None:
+                    self.meshes.add(found)
+        except urdf.UrdfError:
+            pass  # the URDF itself then fails to load in the page, which says so
         for name, known in self.urdfs.items():
             if known == path:
                 return URDF_URL_PREFIX + name
@@ -95,6 +112,10 @@ class RobotFiles:
                 cand = base.joinpath(*parts[skip:]).resolve() if parts[skip:] else None
                 if cand is not None and cand.is_relative_to(base) and cand.is_file():
                     return cand
+        for folder in self.folders:
+            found = urdf.resolve(urdf.PACKAGE + rel, folder, self.packages)
+            if found is not None and found in self.meshes:
+                return found
         return None
 
 
@@ -132,15 +153,16 @@ def build_scene(msg: pb.Scenario, files: RobotFiles) -> dict[str, Any]:
         )
     robots = []
     for rid, r in s.robots.items():
-        urdf = s.urdf_path(rid) or Path(r.urdf)
+        urdf_file = s.urdf_path(rid) or Path(r.urdf)
         robots.append(
             {
                 "id": rid,
                 "role": r.role.value,
                 "color": hex_color(robot_colors[rid]),
-                "urdf_url": files.add(rid, urdf),
+                "urdf_url": files.add(rid, urdf_file, [Path(d) for d in r.packages]),
+                "tint": r.tint,
                 "base": {"xyz": v3(r.base.xyz), "yaw_deg": r4(r.base.yaw)},
-                "joint_names": joint_names(urdf),
+                "joint_names": joint_names(urdf_file),
                 "home": v3(r.home),
                 "feeder": None if r.feeder is None else v3(r.feeder),
             }

@@ -82,12 +82,32 @@ std::vector<RobotSpec> robots_from_scenario(const v2::Scenario& scenario) {
     RobotSpec s;
     s.id = r.id();
     s.urdf_path = r.urdf_path();
+    if (!r.base_link().empty()) s.base_link = r.base_link();
+    if (!r.tip_link().empty()) s.tip_link = r.tip_link();
+    if (r.has_tcp()) {
+      const Eigen::Vector3d p = vec(r.tcp().position());
+      const v2::Quat& q = r.tcp().orientation();
+      const Eigen::Quaterniond rot(q.w(), q.x(), q.y(), q.z());
+      if (!p.allFinite() || !(rot.norm() > 0.5) || !std::isfinite(rot.norm())) {
+        throw std::invalid_argument(who + ": tcp has a NaN, infinite or zero-length value");
+      }
+      s.tip_T_tcp = Eigen::Isometry3d::Identity();
+      s.tip_T_tcp.linear() = rot.normalized().toRotationMatrix();
+      s.tip_T_tcp.translation() = p;
+    }
     s.world_T_base.translation() = base;
     s.world_T_base.linear() =
         Eigen::AngleAxisd(r.base().yaw_deg() * kDegToRad, Eigen::Vector3d::UnitZ())
             .toRotationMatrix();
     s.max_tcp_speed = r.max_tcp_speed();
     s.home = home;
+    if (r.has_gripper()) {
+      s.gripper_joints.assign(r.gripper().joints().begin(), r.gripper().joints().end());
+      s.gripper_open = r.gripper().open();
+      s.gripper_closed = r.gripper().closed();
+      if (!std::isfinite(s.gripper_open) || !std::isfinite(s.gripper_closed))
+        throw std::invalid_argument(who + ": gripper open/closed is NaN or infinite");
+    }
     out.push_back(std::move(s));
   }
   return out;
@@ -112,8 +132,10 @@ IkEngine::IkEngine(std::vector<RobotSpec> robots, double dt) : dt_(dt) {
       throw std::invalid_argument("robot '" + spec.id + "' is listed twice");
     Arm arm;
     try {
-      arm.model =
-          std::make_unique<kin::RobotModel>(kin::RobotModel::from_urdf_file(spec.urdf_path));
+      arm.model = std::make_unique<kin::RobotModel>(
+          kin::RobotModel::from_urdf_file(spec.urdf_path, spec.base_link, spec.tip_link));
+      if (!spec.tip_T_tcp.isApprox(Eigen::Isometry3d::Identity()))
+        arm.model->attach_tcp(spec.tip_T_tcp);
     } catch (const std::exception& e) {
       throw std::runtime_error("robot '" + spec.id + "': " + e.what());
     }
@@ -127,6 +149,24 @@ IkEngine::IkEngine(std::vector<RobotSpec> robots, double dt) : dt_(dt) {
                                spec.urdf_path + ")");
     }
     arm.probe->reset(arm.motion->state().q);
+    const auto fingers = static_cast<Eigen::Index>(spec.gripper_joints.size());
+    arm.grip = Eigen::VectorXd::Constant(fingers, spec.gripper_open);
+    arm.grip_target = arm.grip;
+    arm.grip_step.resize(fingers);
+    for (Eigen::Index k = 0; k < fingers; ++k) {
+      const std::string& name = spec.gripper_joints[static_cast<std::size_t>(k)];
+      const auto limit = arm.model->joint_limit(name);
+      if (!limit) {
+        throw std::runtime_error("robot '" + spec.id + "': gripper joint '" + name +
+                                 "' is not a revolute or prismatic joint with limits in " +
+                                 spec.urdf_path);
+      }
+      // A finger without a velocity limit closes in 0.5 s.
+      const double v = std::isfinite(limit->velocity)
+                           ? limit->velocity
+                           : std::abs(spec.gripper_open - spec.gripper_closed) / 0.5;
+      arm.grip_step[k] = v * dt_;
+    }
     ids_.push_back(spec.id);
     arm.spec = std::move(spec);
     arms_.push_back(std::move(arm));
@@ -183,6 +223,7 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
              " is neither MOVE, HOLD nor SPEED_SCALE";
   }
   arm.command_id = c.command_id();
+  arm.grip_target.setConstant(c.holding() ? arm.spec.gripper_closed : arm.spec.gripper_open);
   plan_speed_bound(arm);
   return {};
 }
@@ -216,6 +257,8 @@ void IkEngine::step() {
   for (Arm& arm : arms_) {
     arm.motion->step();
     ++arm.steps_taken;
+    const Eigen::VectorXd gap = arm.grip_target - arm.grip;
+    arm.grip += gap.cwiseMax(-arm.grip_step).cwiseMin(arm.grip_step);
   }
 }
 
@@ -247,15 +290,18 @@ void IkEngine::fill_state(std::size_t index, v2::RobotState& out) const {
   const Arm& arm = arms_.at(index);
   const kin::MotionState& s = arm.motion->state();
   const auto& names = arm.model->joint_names();
-  const int n = static_cast<int>(names.size());
+  const int n_chain = static_cast<int>(names.size());
+  const int n = n_chain + static_cast<int>(arm.grip.size());  // the chain, then the fingers
   if (out.robot() != arm.spec.id) out.set_robot(arm.spec.id);
   if (out.joint_names_size() != n) {
     out.clear_joint_names();
     for (const auto& name : names) out.add_joint_names(name);
+    for (const auto& name : arm.spec.gripper_joints) out.add_joint_names(name);
   }
   auto* q = out.mutable_joint_positions();
   if (q->size() != n) q->Resize(n, 0.0);
-  for (int i = 0; i < n; ++i) q->Set(i, s.q[i]);
+  for (int i = 0; i < n_chain; ++i) q->Set(i, s.q[i]);
+  for (int k = 0; k < n - n_chain; ++k) q->Set(n_chain + k, arm.grip[k]);
   const Eigen::Vector3d p = s.tcp.translation();
   const Eigen::Quaterniond r = Eigen::Quaterniond(s.tcp.linear()).normalized();
   v2::Pose* tcp = out.mutable_tcp();
@@ -274,7 +320,10 @@ void IkEngine::fill_state(std::size_t index, v2::RobotState& out) const {
   auto* bounds = out.mutable_joint_speed_fraction_bounds();
   if (const std::optional<Eigen::VectorXd> f = joint_speed_fraction_bounds(index)) {
     if (bounds->size() != n) bounds->Resize(n, 0.0);
-    for (int i = 0; i < n; ++i) bounds->Set(i, (*f)[i]);
+    for (int i = 0; i < n_chain; ++i) bounds->Set(i, (*f)[i]);
+    // A finger moves at its velocity limit until it is where the command sends it.
+    for (int k = 0; k < n - n_chain; ++k)
+      bounds->Set(n_chain + k, arm.grip[k] == arm.grip_target[k] ? 0.0 : 1.0);
     out.set_joint_speed_window_ticks(speed_window_);
   } else {
     bounds->Clear();

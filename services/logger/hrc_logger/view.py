@@ -48,6 +48,7 @@ from hrc.scenario import colors
 from hrc.scenario.conventions import WAITING_HEIGHT_M, WAITING_TEXT
 from hrc.scenario.convert import ssm_from_proto
 from hrc.scenario.models import DEFAULT_TICK_HZ, HUMAN
+from hrc.scenario.urdf import localized_urdf
 from hrc.wire import pb
 
 from hrc_logger.blueprint import blueprint
@@ -516,8 +517,12 @@ class View:
         ent = f"robot_{part(r.id)}"
         try:
             rv.model = UrdfModel.from_file(r.urdf_path)
+            # rerun's importer resolves package:// only through ROS's variables: it gets a copy
+            # with absolute mesh paths, every visual in the robot's colour unless told not to
+            tint = None if r.own_colors else [c / 255.0 for c in rv.color]
+            shown = localized_urdf(Path(r.urdf_path), [Path(d) for d in r.package_dirs], None, tint)
             tree = UrdfTree.from_file_path(
-                r.urdf_path,
+                shown,
                 ent,
                 frame_prefix=f"{r.id}/",
                 static_transform_entity_path=f"{ent}/tf_static",

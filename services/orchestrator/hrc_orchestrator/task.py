@@ -296,7 +296,9 @@ class Task:
             # (the goal is most ticks the very object last sent: no field-by-field compare)
             if motion is None or motion is agent.sent or motion == agent.sent:
                 continue
-            cmds.append(motion.to_proto(rid, agent.record_sent(motion)))
+            cmd = motion.to_proto(rid, agent.record_sent(motion))
+            cmd.holding = bool(agent.carrying)  # (a gripper closes on what the arm carries)
+            cmds.append(cmd)
         if self.running:
             for rid, mon in self.safety.ssm.items():
                 if mon.scale != self._sent_scale[rid]:

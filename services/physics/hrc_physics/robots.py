@@ -3,16 +3,27 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import cast
 
 import pybullet as p
 
-from hrc.geometry import Pose, Quat, Vec3, vec3, yaw_quat_deg
+from hrc.geometry import IDENTITY, Pose, Quat, Vec3, compose, relative, vec3, yaw_quat_deg
+from hrc.scenario.models import DEFAULT_BASE_LINK, DEFAULT_TIP_LINK
 from hrc.validate import all_finite
 
-TOOL_LINK = "tool"
 BASE = -1  # pybullet's link index of a body's base
+
+
+@dataclass(frozen=True)
+class Chain:
+    """The scenario's chain: base_link (placed at the robot's base pose), tip_link, and the
+    TCP in the tip link's frame."""
+
+    base_link: str = DEFAULT_BASE_LINK
+    tip_link: str = DEFAULT_TIP_LINK
+    tcp: Pose = Pose((0.0, 0.0, 0.0), IDENTITY)
 
 
 class RobotModelError(Exception):
@@ -31,8 +42,10 @@ class KinematicRobot:
         base_xyz: Sequence[float],
         base_yaw_deg: float,
         near_margin: float,
-        tool_link: str = TOOL_LINK,
+        chain: Chain | None = None,
     ) -> None:
+        chain = chain or Chain()
+        self.tcp = chain.tcp
         self.id = robot_id
         self.near_margin = near_margin
         self._c = client
@@ -55,13 +68,14 @@ class KinematicRobot:
             info = p.getJointInfo(self.body, j, physicsClientId=client)
             name, link = info[1].decode(), info[12].decode()
             self.link_names[j] = link
-            if link == tool_link:
+            if link == chain.tip_link:
                 self.tool = j
             if info[2] != p.JOINT_FIXED:
                 self.joint_index[name] = j
                 self.movable.append(j)
-        if self.tool == BASE:
-            raise RobotModelError(f"robot {robot_id}: {urdf} has no link named {tool_link!r}")
+        if self.tool == BASE and base_name != chain.tip_link:
+            raise RobotModelError(f"robot {robot_id}: {urdf} has no link named {chain.tip_link!r}")
+        self._place_base(chain.base_link, base_xyz, base_yaw_deg, urdf)
         for link in self.link_names:
             p.setCollisionFilterGroupMask(self.body, link, 0, 0, physicsClientId=client)
         # Asleep for good: the solver never integrates the arm (no sagging between our resets,
@@ -151,11 +165,36 @@ class KinematicRobot:
         self._aabb = (vec3(lo), vec3(hi))
         return self._aabb
 
+    def _place_base(
+        self, base_link: str, base_xyz: Sequence[float], base_yaw_deg: float, urdf: Path
+    ) -> None:
+        """Moves the body so that `base_link` (not necessarily the URDF's root: a robot may
+        stand on a pedestal link) is at the base pose."""
+        index = next((i for i, n in self.link_names.items() if n == base_link), None)
+        if index is None:
+            raise RobotModelError(f"robot {self.id}: {urdf} has no link named {base_link!r}")
+        if index == BASE:
+            return
+        c = self._c
+        X_WR = Pose(*map(tuple, p.getBasePositionAndOrientation(self.body, physicsClientId=c)))
+        s = p.getLinkState(self.body, index, computeForwardKinematics=True, physicsClientId=c)
+        X_RB = relative(X_WR, Pose(vec3(s[4]), cast(Quat, tuple(s[5]))))
+        X_WB = Pose(vec3(base_xyz), yaw_quat_deg(base_yaw_deg))
+        X_BR = relative(X_RB, Pose((0.0, 0.0, 0.0), IDENTITY))  # the inverse of X_RB
+        X_WR_new = compose(X_WB, X_BR)
+        p.resetBasePositionAndOrientation(
+            self.body, list(X_WR_new.position), list(X_WR_new.orientation), physicsClientId=c
+        )
+
     def tool_pose(self) -> Pose:
+        """The TCP in the world: the tip link's frame composed with the scenario's tcp."""
+        if self.tool == BASE:
+            pos, quat = p.getBasePositionAndOrientation(self.body, physicsClientId=self._c)
+            return compose(Pose(vec3(pos), cast(Quat, tuple(quat))), self.tcp)
         s = p.getLinkState(
             self.body, self.tool, computeForwardKinematics=True, physicsClientId=self._c
         )
-        return Pose(vec3(s[4]), cast(Quat, tuple(s[5])))
+        return compose(Pose(vec3(s[4]), cast(Quat, tuple(s[5]))), self.tcp)
 
     def link_name(self, index: int) -> str:
         return self.link_names.get(index, str(index))

@@ -33,6 +33,7 @@ from hrc.geometry import (
     pose_to_pb,
     quat_yaw_deg,
     relative,
+    rpy_quat_deg,
     vec3,
     yaw_difference_deg,
     yaw_quat_deg,
@@ -46,6 +47,7 @@ from hrc.scenario.conventions import (
 )
 from hrc.scenario.layout import BUTTON_HEIGHT, BUTTON_RADIUS, FLOOR_Z, StaticBox, furniture
 from hrc.scenario.models import DEFAULT_TICK_HZ, ID_PATTERN
+from hrc.scenario.urdf import localized_urdf
 from hrc.validate import check_pose
 from hrc.wire import pb
 
@@ -53,7 +55,7 @@ from hrc_physics import objects as ob
 from hrc_physics.contacts import ContactKey, ContactTracker, Touch
 from hrc_physics.hands import Hand, create_hand, pose_hand
 from hrc_physics.objects import WorldObject
-from hrc_physics.robots import KinematicRobot
+from hrc_physics.robots import Chain, KinematicRobot
 from hrc_physics.separation import SeparationMonitor
 
 log = logging.getLogger(__name__)
@@ -163,7 +165,17 @@ class World:
         for rid, robot in self.scenario.robots.items():
             urdf = self.scenario.urdf_path(rid) or Path(robot.urdf)
             self.robots[rid] = KinematicRobot(
-                c, rid, urdf, robot.base.xyz, robot.base.yaw, robot.near_margin
+                c,
+                rid,
+                localized_urdf(urdf, [Path(d) for d in robot.packages]),
+                robot.base.xyz,
+                robot.base.yaw,
+                robot.near_margin,
+                chain=Chain(
+                    robot.base_link,
+                    robot.tip_link,
+                    Pose(vec3(robot.tcp.xyz), rpy_quat_deg(robot.tcp.rpy_deg)),
+                ),
             )
         for r in self.robots.values():
             r.apply()  # zero pose until the first RobotState

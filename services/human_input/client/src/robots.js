@@ -2,9 +2,31 @@
 // its base, tinted in its colour and moved by the joint positions streamed in `frame`s.
 import * as THREE from 'three';
 import URDFLoader from 'urdf-loader';
+import { OBJLoader } from 'three/addons/loaders/OBJLoader.js';
 import { mergeGeometries } from 'three/addons/utils/BufferGeometryUtils.js';
 import { painted } from './batch.js';
 import { setPose } from './frames.js';
+
+// urdf-loader reads STL and COLLADA; OBJ (pybullet's data folder writes its meshes so) here.
+function loadMesh(path, manager, material, done) {
+  if (/\.(stl|dae)$/i.test(path)) {
+    URDFLoader.prototype.defaultMeshLoader.call(null, path, manager, material, done);
+    return;
+  }
+  if (!/\.obj$/i.test(path)) {
+    done(null, new Error(`no loader for ${path} (STL, COLLADA and OBJ are read)`));
+    return;
+  }
+  new OBJLoader(manager).load(
+    path,
+    (group) => {
+      if (material) group.traverse((o) => { if (o.isMesh) o.material = material; });
+      done(group);
+    },
+    null,
+    (err) => done(null, err),
+  );
+}
 
 // The URDF's own colours are kept for the dark/grey parts; its coloured links take the robot's
 // colour, so the participant can tell the robots apart (and match them to their cues).
@@ -17,9 +39,10 @@ function tint(model, color) {
       const mat = new THREE.MeshStandardMaterial({ roughness: 0.6, metalness: 0.1 });
       const base = m?.color ? m.color.clone() : new THREE.Color('#bbb');
       const hsl = base.getHSL({});
-      // saturated links (the URDF's accent colour) become the robot's colour; the grey ones
-      // take a third of it, so a base stands out from a grey floor and reads as this robot's
-      mat.color = hsl.s > 0.3 ? c.clone() : base.lerp(c, 0.35);
+      // saturated links (the URDF's accent colour) and white ones (a maker's shells, e.g. the
+      // Panda's) become the robot's colour; the grey ones take a third of it, so a base stands
+      // out from a grey floor and reads as this robot's
+      mat.color = hsl.s > 0.3 || hsl.l > 0.85 ? c.clone() : base.lerp(c, 0.35);
       return mat;
     });
     if (o.material.length === 1) o.material = o.material[0];
@@ -105,20 +128,45 @@ export class Robots {
       this.parent.add(holder);
       const entry = { spec, holder, model: null, q: null, tcp: null, loaded: false, zone: null };
       this.robots.set(spec.id, entry);
+      // The URDF is parsed first and its meshes arrive later: the robot is shown once it has
+      // them all (a half-loaded arm would be tinted and merged without its meshes). Counted
+      // here, not by a LoadingManager: three's FileLoader joins requests for a URL already on
+      // its way (two robots from one URDF) without telling the second robot's manager.
       const loader = new URDFLoader();
       const url = new URL(spec.urdf_url, this.baseUrl || window.location.href);
       const base = url.href.slice(0, url.href.lastIndexOf('/'));
-      loader.packages = () => base; // package:// meshes live beside the URDF on the bridge
+      // package://NAME/x is asked for as /robots/NAME/x: the bridge finds it around the URDF
+      loader.packages = (pkg) => `${base}/${pkg}`;
+      let parsed = null;
+      let pending = 0;
+      const failed = [];
+      const finish = () => {
+        if (!parsed || pending > 0 || entry.model) return;
+        if (failed.length) {
+          this.onError?.(`robot ${spec.id}: cannot load ${failed.join(', ')}`);
+        }
+        if (spec.tint !== false) tint(parsed, spec.color || '#ff8800');
+        mergePerLink(parsed);
+        holder.add(parsed);
+        entry.model = parsed;
+        entry.loaded = true;
+        if (entry.q) this.setJoints(spec.id, entry.q);
+        if (entry.zone) this.setZone(spec.id, entry.zone);
+      };
+      loader.loadMeshCb = (path, manager, material, done) => {
+        pending += 1;
+        loadMesh(path, manager, material, (mesh, err) => {
+          done(mesh, err);
+          pending -= 1;
+          if (err || !mesh) failed.push(path);
+          finish();
+        });
+      };
       loader.load(
         url.href,
         (model) => {
-          tint(model, spec.color || '#ff8800');
-          mergePerLink(model);
-          holder.add(model);
-          entry.model = model;
-          entry.loaded = true;
-          if (entry.q) this.setJoints(spec.id, entry.q);
-          if (entry.zone) this.setZone(spec.id, entry.zone);
+          parsed = model;
+          finish();
         },
         undefined,
         (err) => this.onError?.(`robot ${spec.id}: cannot load ${spec.urdf_url}: ${err}`),

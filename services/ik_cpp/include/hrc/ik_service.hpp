@@ -34,6 +34,13 @@ constexpr double kHomeYaw = 0.0;
 struct RobotSpec {
   std::string id;
   std::string urdf_path;
+  std::string base_link = "base_link";  // the chain base_link -> tip_link, then the TCP
+  std::string tip_link = "tool";
+  Eigen::Isometry3d tip_T_tcp = Eigen::Isometry3d::Identity();
+  // The description's own fingers (RobotConfig.gripper): none, or joints set to open / closed.
+  std::vector<std::string> gripper_joints;
+  double gripper_open = 0.0;
+  double gripper_closed = 0.0;
   Eigen::Isometry3d world_T_base = Eigen::Isometry3d::Identity();
   double max_tcp_speed = 0.0;                      // m/s
   Eigen::Vector3d home = Eigen::Vector3d::Zero();  // reached tool down, with kHomeYaw
@@ -106,6 +113,8 @@ class IkEngine {
     std::unique_ptr<kin::MotionGenerator> motion;  // the arm (tick thread only)
     std::unique_ptr<kin::MotionGenerator> probe;   // reach queries (under reach_mutex_)
     uint64_t command_id = 0;
+    // The fingers: where they are, where the last command sends them, how fast (per tick).
+    Eigen::VectorXd grip, grip_target, grip_step;
     // The motion's joint speed fractions, row i the max over the speed window's steps from i
     // on, for the exchange step's gap rules; steps_taken since it was computed. speed_known
     // is false when the table does not hold (speed scale < 1, motion past the lookahead).

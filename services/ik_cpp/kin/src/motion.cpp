@@ -122,6 +122,7 @@ bool MotionGenerator::reset_to_pose(const Eigen::Vector3d& position, double yaw)
   IkResult res;
   if (!solve_pose(position, tool_down_rotation(yaw), model_.mid_range(), res)) return false;
   reset(res.q);
+  rest_ = res.q;
   return true;
 }
 
@@ -517,6 +518,9 @@ bool MotionGenerator::plan_joint(const MoveCommand& cmd, const Eigen::Matrix3d& 
   // Candidate configurations at the approach point: the branch nearest the arm first, then the
   // other branches (elbow flipped, base turned half a turn, the middle of the ranges).
   std::vector<Eigen::VectorXd> seeds{c.q, model_.mid_range()};
+  // A redundant arm (more joints than a pose's six) is solved from its home posture first, so
+  // its goals depend on the target, not on the arm's history: repeated moves do not drift.
+  if (model_.dof() > 6 && rest_.size() == model_.dof()) seeds.insert(seeds.begin(), rest_);
   if (model_.dof() >= 3) {
     Eigen::VectorXd e = c.q;
     e[2] = -e[2];

@@ -60,6 +60,15 @@ RobotModel RobotModel::from_urdf_string(const std::string& xml, const std::strin
   }
 
   RobotModel m;
+  for (const auto& [name, joint] : urdf_model->joints_) {
+    if (!joint->limits ||
+        (joint->type != urdf::Joint::REVOLUTE && joint->type != urdf::Joint::PRISMATIC)) {
+      continue;
+    }
+    const double v = joint->limits->velocity > 0.0 ? joint->limits->velocity
+                                                   : std::numeric_limits<double>::infinity();
+    m.all_limits_[name] = JointLimit{joint->limits->lower, joint->limits->upper, v};
+  }
   m.name_ = urdf_model->getName();
   m.base_ = base;
   m.tip_ = tip;
@@ -111,6 +120,21 @@ RobotModel RobotModel::from_urdf_string(const std::string& xml, const std::strin
   m.upper_ = Eigen::Map<Eigen::VectorXd>(hi.data(), n);
   m.max_velocity_ = Eigen::Map<Eigen::VectorXd>(vel.data(), n);
   return m;
+}
+
+std::optional<RobotModel::JointLimit> RobotModel::joint_limit(const std::string& name) const {
+  const auto it = all_limits_.find(name);
+  if (it == all_limits_.end()) return std::nullopt;
+  return it->second;
+}
+
+void RobotModel::attach_tcp(const Eigen::Isometry3d& tip_T_tcp) {
+  const Eigen::Matrix3d R = tip_T_tcp.linear();
+  const Eigen::Vector3d p = tip_T_tcp.translation();
+  const KDL::Frame frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
+                                       R(2, 0), R(2, 1), R(2, 2)),
+                         KDL::Vector(p.x(), p.y(), p.z()));
+  chain_.addSegment(KDL::Segment("tcp", KDL::Joint("tcp_joint", KDL::Joint::None), frame));
 }
 
 bool RobotModel::within_limits(const Eigen::VectorXd& q, double tol) const {

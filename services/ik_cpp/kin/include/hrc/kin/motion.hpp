@@ -234,6 +234,9 @@ class MotionGenerator {
   double dt_;
   MotionLimits limits_;
   IkSolver ik_;
+  // The home pose's joints (reset_to_pose): a redundant arm's joint moves are solved from
+  // there first (plan_joint). Empty: no home yet.
+  Eigen::VectorXd rest_;
 
   MotionState state_;
   std::deque<Segment> segments_;

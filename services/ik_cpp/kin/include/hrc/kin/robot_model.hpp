@@ -2,8 +2,11 @@
 // A serial chain loaded from a URDF: the KDL chain base -> tip plus joint names and limits.
 
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <kdl/chain.hpp>
 
+#include <map>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -20,6 +23,10 @@ class RobotModel {
                                      const std::string& tip = "tool",
                                      const std::string& source = "<string>");
 
+  // Appends the tool centre point, a fixed pose in the tip link's frame (a gripper's
+  // fingertips): the chain then ends at the TCP, so FK and IK speak of it.
+  void attach_tcp(const Eigen::Isometry3d& tip_T_tcp);
+
   const std::string& name() const { return name_; }
   const std::string& base_link() const { return base_; }
   const std::string& tip_link() const { return tip_; }
@@ -34,6 +41,12 @@ class RobotModel {
   const Eigen::VectorXd& max_velocity() const { return max_velocity_; }
   bool bounded(int i) const { return bounded_[static_cast<std::size_t>(i)]; }
   bool revolute(int i) const { return revolute_[static_cast<std::size_t>(i)]; }
+
+  // Any movable joint of the URDF, in the chain or not (a gripper's fingers): its limits.
+  struct JointLimit {
+    double lower, upper, velocity;  // velocity +inf where the URDF gives none
+  };
+  std::optional<JointLimit> joint_limit(const std::string& name) const;
 
   bool within_limits(const Eigen::VectorXd& q, double tol = 1e-9) const;
   Eigen::VectorXd clamp(const Eigen::VectorXd& q) const;
@@ -50,6 +63,7 @@ class RobotModel {
   Eigen::VectorXd lower_, upper_, max_velocity_;
   std::vector<bool> bounded_;
   std::vector<bool> revolute_;
+  std::map<std::string, JointLimit> all_limits_;
 };
 
 }  // namespace hrc::kin

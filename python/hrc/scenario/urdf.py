@@ -1,0 +1,211 @@
+"""What the project needs to know of a robot's URDF before any service loads it: its links and
+joints, the chain between two links, and where the files it names are.
+
+A URDF names a mesh (or, in a scenario, the URDF itself) three ways (docs/robots.md):
+
+- ``package://NAME/rest``: looked up as ``NAME/rest`` in each folder of the robot's ``packages``,
+  then in the folders around the URDF (a folder called NAME at or above it, as a ROS package
+  holds its ``urdf/``; or NAME beside it, as pybullet's data folder writes ``package://meshes/``),
+  then in an installed Python package called NAME (``package://pybullet_data/franka_panda/...``);
+- ``file:///absolute/path``, or an absolute path;
+- a relative path: against the URDF's folder.
+
+Physics loads a copy of the URDF with every mesh path made absolute (`localized_urdf`), so
+pybullet never guesses; the participant page asks the bridge for them under ``/robots/``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+PACKAGE = "package://"
+FILE = "file://"
+MOVABLE = ("revolute", "continuous", "prismatic")
+
+
+class UrdfError(ValueError):
+    """The file is not a URDF this project can use; the message names the file and why."""
+
+
+@dataclass(frozen=True)
+class UrdfJoint:
+    name: str
+    kind: str  # revolute | continuous | prismatic | fixed | ...
+    parent: str
+    child: str
+    lower: float | None = None  # the limit's lower and upper (None: not given)
+    upper: float | None = None
+
+
+@dataclass(frozen=True)
+class UrdfInfo:
+    path: Path
+    name: str
+    links: list[str]
+    joints: list[UrdfJoint]
+    meshes: list[str]  # mesh file names as written, each once, collision and visual
+
+    def chain(self, base: str, tip: str) -> list[UrdfJoint] | None:
+        """The joints from `base` down to `tip` (None when `tip` is not below `base`)."""
+        by_child = {j.child: j for j in self.joints}
+        out: list[UrdfJoint] = []
+        link = tip
+        while link != base:
+            joint = by_child.get(link)
+            if joint is None:
+                return None
+            out.append(joint)
+            link = joint.parent
+        return out[::-1]
+
+    def root(self) -> str:
+        """The link no joint moves (the first link when the tree is broken)."""
+        children = {j.child for j in self.joints}
+        return next((link for link in self.links if link not in children), self.links[0])
+
+    def below(self, link: str) -> list[str]:
+        """The links whose chain from the root passes through `link` (itself excluded)."""
+        out: list[str] = []
+        frontier = [link]
+        while frontier:
+            parent = frontier.pop()
+            for j in self.joints:
+                if j.parent == parent:
+                    out.append(j.child)
+                    frontier.append(j.child)
+        return out
+
+
+def _float(value: str | None) -> float | None:
+    try:
+        return float(value) if value is not None else None
+    except ValueError:
+        return None
+
+
+def read_urdf(path: Path) -> UrdfInfo:
+    try:
+        root = ET.parse(path).getroot()
+    except OSError as exc:
+        raise UrdfError(f"URDF {path}: cannot read it ({exc.strerror or exc})") from exc
+    except ET.ParseError as exc:
+        raise UrdfError(f"URDF {path}: not valid XML ({exc})") from exc
+    if root.tag != "robot":
+        raise UrdfError(f"URDF {path}: the top element is <{root.tag}>, not <robot>")
+    links = [e.get("name", "") for e in root.findall("link")]
+    if not links or not all(links):
+        raise UrdfError(f"URDF {path}: no <link>, or a <link> without a name")
+    joints = []
+    for e in root.findall("joint"):
+        parent, child, limit = e.find("parent"), e.find("child"), e.find("limit")
+        joints.append(
+            UrdfJoint(
+                name=e.get("name", ""),
+                kind=e.get("type", ""),
+                parent=parent.get("link", "") if parent is not None else "",
+                child=child.get("link", "") if child is not None else "",
+                lower=_float(limit.get("lower")) if limit is not None else None,
+                upper=_float(limit.get("upper")) if limit is not None else None,
+            )
+        )
+    meshes = [
+        m.get("filename", "")
+        for link in root.findall("link")
+        for m in link.iter("mesh")
+        if m.get("filename")
+    ]
+    return UrdfInfo(path, root.get("name", ""), links, joints, list(dict.fromkeys(meshes)))
+
+
+def _installed_package(name: str) -> Path | None:
+    """The folder of an installed Python package called `name` (not imported)."""
+    if not name.isidentifier():
+        return None
+    try:
+        spec = importlib.util.find_spec(name)
+    except (ImportError, ValueError):
+        return None
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    return Path(next(iter(spec.submodule_search_locations)))
+
+
+def candidates(written: str, folder: Path | None, packages: Sequence[Path]) -> list[Path]:
+    """Where `written` may be, in the order they are tried (see the module's docstring)."""
+    if written.startswith(FILE):
+        return [Path(written[len(FILE) :])]
+    if not written.startswith(PACKAGE):
+        path = Path(written).expanduser()
+        if path.is_absolute() or folder is None:
+            return [path]
+        return [folder / path]
+    name, _, rest = written[len(PACKAGE) :].partition("/")
+    out = [Path(d) / name / rest for d in packages]
+    if folder is not None:
+        for up in (folder, *folder.parents):
+            if up.name == name:
+                out.append(up / rest)
+            out.append(up / name / rest)
+    installed = _installed_package(name)
+    if installed is not None:
+        out.append(installed / rest)
+    return out
+
+
+def resolve(written: str, folder: Path | None, packages: Sequence[Path]) -> Path | None:
+    """The existing file `written` names, or None."""
+    for cand in candidates(written, folder, packages):
+        if cand.is_file():
+            return cand.resolve()
+    return None
+
+
+def missing_meshes(info: UrdfInfo, packages: Sequence[Path]) -> list[str]:
+    return [m for m in info.meshes if resolve(m, info.path.parent, packages) is None]
+
+
+def localized_urdf(
+    path: Path,
+    packages: Sequence[Path],
+    out_dir: Path | None = None,
+    tint_rgb: Sequence[float] | None = None,
+) -> Path:
+    """`path` itself when every mesh it names is a plain relative or absolute path and no tint
+    is asked for; otherwise a copy (in `out_dir`, by default a per-user temporary folder, named
+    by its content) whose mesh paths are absolute, and whose visuals all have the colour
+    `tint_rgb` (0..1) if given. A mesh that is found nowhere is left as written: the scenario
+    check has named it already, and pybullet then says what it could not load."""
+    tree = ET.parse(path)
+    meshes = list(tree.getroot().iter("mesh"))
+    if tint_rgb is None and not any(
+        m.get("filename", "").startswith((PACKAGE, FILE)) for m in meshes
+    ):
+        return path
+    for mesh in meshes:  # all of them: the copy lives elsewhere, relative paths would break
+        found = resolve(mesh.get("filename", ""), path.parent, packages)
+        if found is not None:
+            mesh.set("filename", str(found))
+    if tint_rgb is not None:
+        rgba = " ".join(f"{c:.4g}" for c in (*tint_rgb[:3], 1.0))
+        for visual in tree.getroot().iter("visual"):
+            for old in visual.findall("material"):
+                visual.remove(old)
+            material = ET.SubElement(visual, "material", name=f"hrc_tint_{rgba.replace(' ', '_')}")
+            ET.SubElement(material, "color", rgba=rgba)
+    text = ET.tostring(tree.getroot(), encoding="unicode")
+    digest = hashlib.sha256(f"{path.resolve()}\n{text}".encode()).hexdigest()[:16]
+    folder = out_dir or Path(tempfile.gettempdir()) / f"hrc-urdf-{os.getuid()}"
+    folder.mkdir(parents=True, exist_ok=True)
+    out = folder / f"{path.stem}-{digest}.urdf"
+    if not out.is_file():
+        tmp = out.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(out)  # atomic: trials started together may write the same copy
+    return out
