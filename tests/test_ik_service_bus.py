@@ -648,7 +648,8 @@ def test_bench_ik_passes_json_through(capsys: pytest.CaptureFixture[str]) -> Non
         pytest.fail(f"{ik_bench_binary()} is missing: build services/ik_cpp (see its README)")
     assert bench_ik(argparse.Namespace(what="ik", json=True, n=20)) == 0
     out = json.loads(capsys.readouterr().out)
-    assert set(out["chains"]) == {"arm5", "ur5", "panda"}
+    # the benchmark's own three, and the real arms of the shipped scenarios
+    assert set(out["chains"]) == {"arm5", "ur5", "panda", "franka_panda/panda", "ur5e"}
     for chain in out["chains"].values():
         assert set(chain) == {"service", "kdl_nr_jl", "kdl_lma", "gradient_descent"}
         for solver in chain.values():

@@ -12,13 +12,41 @@ import argparse
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 from hrc.paths import ik_bench_binary, project_root
+from hrc.scenario import ScenarioError, load
+
+
+def shipped_chains(root: Path) -> list[str]:
+    """``NAME=URDF:BASE:TIP`` of every robot description the shipped scenarios use besides the
+    benchmark's own three (the real arms: scenarios/thesis-panda.toml, thesis-ur5e.toml), named
+    after the URDF file, with its folder in front when the name is taken (franka_panda/panda:
+    pybullet's Panda, beside the benchmark's kinematic stand-in panda)."""
+    own = {root / "robots" / f"{n}.urdf" for n in ("arm5", "ur5", "panda")}
+    chains: dict[tuple[str, str, str], str] = {}
+    for path in sorted((root / "scenarios").glob("*.toml")):
+        try:
+            s = load(path, root, motion_check=False)
+        except ScenarioError:
+            continue  # hrc validate names it; the benchmark runs what it can
+        for rid, robot in s.robots.items():
+            urdf = s.urdf_path(rid)
+            if urdf is None or urdf in own:
+                continue
+            key = (str(urdf), robot.base_link, robot.tip_link)
+            taken = {"arm5", "ur5", "panda", *chains.values()}
+            name = urdf.stem if urdf.stem not in taken else f"{urdf.parent.name}/{urdf.stem}"
+            chains.setdefault(key, name)
+    return [f"{name}={u}:{b}:{t}" for (u, b, t), name in chains.items()]
 
 
 def bench_argv(args: argparse.Namespace) -> list[str]:
     """The command line of the benchmark for ``hrc bench ik`` arguments (``json``, ``n``)."""
-    argv = [str(ik_bench_binary()), "--robots-dir", str(project_root() / "robots")]
+    root = project_root()
+    argv = [str(ik_bench_binary()), "--robots-dir", str(root / "robots")]
+    for chain in shipped_chains(root):
+        argv += ["--chain", chain]
     if getattr(args, "n", 0):
         argv += ["--n", str(args.n)]  # the (slow) gradient descent runs on min(n, 1000) of them
     if getattr(args, "json", False):

@@ -236,7 +236,7 @@ class Tcp(_Strict):
 
 class Gripper(_Strict):
     """The description's own fingers: joints set to `open` while the arm holds nothing and to
-    `closed` while it holds a part (docs/robots.md)."""
+    `closed` while it holds a part (robots/README.md)."""
 
     joints: Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1)]
     open: Num
@@ -248,7 +248,7 @@ class Robot(_Strict):
 
     role: RoleChoice
     urdf: Annotated[str, Field(min_length=1)]
-    # The chain, as MoveIt and KDL name one (docs/robots.md): base_link -> tip_link, then tcp.
+    # The chain, as MoveIt and KDL name one (robots/README.md): base_link -> tip_link, then tcp.
     base_link: Annotated[str, Field(min_length=1)] = DEFAULT_BASE_LINK
     tip_link: Annotated[str, Field(min_length=1)] = DEFAULT_TIP_LINK
     tcp: Tcp = Field(default_factory=Tcp)

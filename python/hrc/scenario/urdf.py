@@ -1,7 +1,7 @@
 """What the project needs to know of a robot's URDF before any service loads it: its links and
 joints, the chain between two links, and where the files it names are.
 
-A URDF names a mesh (or, in a scenario, the URDF itself) three ways (docs/robots.md):
+A URDF names a mesh (or, in a scenario, the URDF itself) three ways (robots/README.md):
 
 - ``package://NAME/rest``: looked up as ``NAME/rest`` in each folder of the robot's ``packages``,
   then in the folders around the URDF (a folder called NAME at or above it, as a ROS package

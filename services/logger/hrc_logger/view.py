@@ -83,6 +83,11 @@ def rgba(c: tuple[int, int, int], a: int) -> tuple[int, int, int, int]:
     return c[0], c[1], c[2], a
 
 
+def srgb_to_linear(c: float) -> float:
+    """An sRGB channel (0..1) as linear light."""
+    return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
+
+
 def part(name: str) -> str:
     """One entity-path segment (ids are already [A-Za-z0-9_-], but cue ids carry ':')."""
     return _ENTITY_SAFE.sub("_", name) or "_"
@@ -519,7 +524,8 @@ class View:
             rv.model = UrdfModel.from_file(r.urdf_path)
             # rerun's importer resolves package:// only through ROS's variables: it gets a copy
             # with absolute mesh paths, every visual in the robot's colour unless told not to
-            tint = None if r.own_colors else [c / 255.0 for c in rv.color]
+            # (written linear: the importer reads a URDF colour as linear and shows it as sRGB)
+            tint = None if r.own_colors else [srgb_to_linear(c / 255.0) for c in rv.color]
             shown = localized_urdf(Path(r.urdf_path), [Path(d) for d in r.package_dirs], None, tint)
             tree = UrdfTree.from_file_path(
                 shown,

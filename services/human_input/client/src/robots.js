@@ -20,7 +20,14 @@ function loadMesh(path, manager, material, done) {
   new OBJLoader(manager).load(
     path,
     (group) => {
-      if (material) group.traverse((o) => { if (o.isMesh) o.material = material; });
+      // Faces only: some makers' OBJ files carry stray line elements (the Panda's link5/6),
+      // which three draws as white lines over the arm.
+      const strays = [];
+      group.traverse((o) => {
+        if (o.isLine || o.isPoints) strays.push(o);
+        else if (o.isMesh && material) o.material = material;
+      });
+      for (const o of strays) o.parent.remove(o);
       done(group);
     },
     null,

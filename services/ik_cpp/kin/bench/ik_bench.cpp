@@ -43,6 +43,7 @@ struct Options {
   std::string robots_dir;
   bool json = false;
   int tick_seconds = 30;
+  std::vector<std::string> extra_chains;  // NAME=URDF:BASE:TIP (--chain)
 };
 
 struct Stats {
@@ -61,7 +62,7 @@ double median(std::vector<double> v) {
   if (!err.empty()) std::cerr << "hrc-ik-bench: " << err << "\n";
   std::cerr
       << "usage: hrc-ik-bench [--n N] [--gd-n M] [--seed S] [--robots-dir DIR] "
-         "[--tick-seconds T] [--json]\n"
+         "[--tick-seconds T] [--chain NAME=URDF:BASE:TIP]... [--json]\n"
          "  --n N            targets per chain (default 10000)\n"
          "  --gd-n M         targets for the (slow) gradient descent baseline, <= N "
          "(default 1000)\n"
@@ -69,6 +70,8 @@ double median(std::vector<double> v) {
          "  --robots-dir DIR folder with arm5.urdf, ur5.urdf, panda.urdf (default: robots/ "
          "found from the cwd or the executable upwards)\n"
          "  --tick-seconds T simulated seconds of the 2-arm 1 kHz tick benchmark (default 30)\n"
+         "  --chain NAME=URDF:BASE:TIP  also benchmark this chain (repeatable; a shipped real\n"
+         "                   robot's description, e.g. hrc bench ik passes the scenarios' ones)\n"
          "  --json           print one JSON object instead of a table\n";
   std::exit(err.empty() ? 0 : 2);
 }
@@ -101,6 +104,8 @@ Options parse(int argc, char** argv) {
       o.robots_dir = value();
     else if (a == "--tick-seconds")
       o.tick_seconds = static_cast<int>(parse_int(a, value(), 1));
+    else if (a == "--chain")
+      o.extra_chains.emplace_back(value());
     else if (a == "--json")
       o.json = true;
     else if (a == "-h" || a == "--help")
@@ -155,8 +160,20 @@ double micros(Clock::time_point a, Clock::time_point b) {
 
 struct Chain {
   std::string name;
-  bool axis_only;  // arm5: position + tool axis
+  bool axis_only;                                      // arm5: position + tool axis
+  std::string path, base = "base_link", tip = "tool";  // path empty: DIR/NAME.urdf
 };
+
+// NAME=URDF:BASE:TIP (the URDF path may not hold ':').
+Chain parse_chain(const std::string& spec) {
+  const auto eq = spec.find('=');
+  const auto c1 = spec.find(':', eq == std::string::npos ? 0 : eq);
+  const auto c2 = c1 == std::string::npos ? c1 : spec.find(':', c1 + 1);
+  if (eq == std::string::npos || eq == 0 || c1 == std::string::npos || c2 == std::string::npos)
+    usage("--chain expects NAME=URDF:BASE:TIP, got '" + spec + "'");
+  return Chain{spec.substr(0, eq), false, spec.substr(eq + 1, c1 - eq - 1),
+               spec.substr(c1 + 1, c2 - c1 - 1), spec.substr(c2 + 1)};
+}
 
 std::map<std::string, Stats> bench_chain(const RobotModel& model, bool axis_only,
                                          const Options& o) {
@@ -330,12 +347,14 @@ double tick_bench(const RobotModel& arm5, const Options& o) {
 int main(int argc, char** argv) {
   const Options o = parse(argc, argv);
   const std::string dir = find_robots_dir(o.robots_dir);
-  const std::vector<Chain> chains{{"arm5", true}, {"ur5", false}, {"panda", false}};
+  std::vector<Chain> chains{{"arm5", true}, {"ur5", false}, {"panda", false}};
+  for (const std::string& spec : o.extra_chains) chains.push_back(parse_chain(spec));
   std::map<std::string, std::map<std::string, Stats>> results;
   std::unique_ptr<RobotModel> arm5;
   try {
     for (const auto& c : chains) {
-      const RobotModel model = RobotModel::from_urdf_file(dir + "/" + c.name + ".urdf");
+      const std::string path = c.path.empty() ? dir + "/" + c.name + ".urdf" : c.path;
+      const RobotModel model = RobotModel::from_urdf_file(path, c.base, c.tip);
       if (!o.json) std::cerr << "benchmarking " << c.name << " (" << model.dof() << " DOF)...\n";
       results[c.name] = bench_chain(model, c.axis_only, o);
       if (c.name == "arm5") arm5 = std::make_unique<RobotModel>(model);
@@ -367,12 +386,12 @@ int main(int argc, char** argv) {
     std::printf("}, \"tick_p99_us\": %.3f, \"seed\": %llu}\n", tick_p99,
                 static_cast<unsigned long long>(o.seed));
   } else {
-    std::printf("%-6s %-17s %9s %10s %10s %7s %12s %12s\n", "chain", "solver", "success", "mean_us",
-                "p99_us", "n", "med_pos_mm", "med_ang_deg");
+    std::printf("%-18s %-17s %9s %10s %10s %7s %12s %12s\n", "chain", "solver", "success",
+                "mean_us", "p99_us", "n", "med_pos_mm", "med_ang_deg");
     for (const auto& c : chains)
       for (const char* s : solvers) {
         const Stats& st = results[c.name][s];
-        std::printf("%-6s %-17s %8.2f%% %10.1f %10.1f %7d %12.2e %12.2e\n", c.name.c_str(), s,
+        std::printf("%-18s %-17s %8.2f%% %10.1f %10.1f %7d %12.2e %12.2e\n", c.name.c_str(), s,
                     100.0 * st.success, st.mean_us, st.p99_us, st.n, st.median_pos_mm,
                     st.median_ang_deg);
       }
