@@ -6,6 +6,7 @@ rerun recording holds the meshes in the robot's colour, and the Panda's fingers 
 
 from __future__ import annotations
 
+import itertools
 import math
 import subprocess
 from pathlib import Path
@@ -138,7 +139,7 @@ def test_the_recording_holds_the_meshes_and_the_fingers_move(tmp_path: Path, ik_
     # The fingers open while the arm carries nothing and close on every part it carries.
     fingers = [t[1][1] for t in _transforms(rrd, "/robot_r1/joints/panda_finger_joint1")]
     assert fingers, "no finger transforms in the recording"
-    opened = sum(1 for a, b in zip(fingers, fingers[1:], strict=False) if a < 0.02 <= b)
+    opened = sum(1 for a, b in itertools.pairwise(fingers) if a < 0.02 <= b)
     assert max(fingers) == pytest.approx(0.04, abs=1e-6) and min(fingers) < 0.011
     assert opened >= 6, f"the fingers opened {opened} times for r1's 6 parts"
 

@@ -344,6 +344,7 @@ def _check_robot_files(
     except urdf.UrdfError as exc:
         return [*problems, Problem(f"{key}.urdf", str(exc))]
     links = {}
+    before = len(problems)
     for name, default in (("base_link", DEFAULT_BASE_LINK), ("tip_link", DEFAULT_TIP_LINK)):
         value = robot.get(name, default)
         if not isinstance(value, str):
@@ -358,8 +359,8 @@ def _check_robot_files(
                     + f"; its links: {', '.join(info.links)}",
                 )
             )
-    if problems:
-        return problems
+    if len(problems) > before:
+        return problems  # no chain to speak of
     joints = info.chain(links["base_link"], links["tip_link"])
     if joints is None:
         problems.append(

@@ -98,7 +98,7 @@ def to_proto(scenario: Scenario) -> pb.Scenario:
             rc.tcp.orientation.CopyFrom(quat_to_pb(rpy_quat_deg(robot.tcp.rpy_deg)))
         rc.package_dirs.extend(str(d) for d in scenario.package_dirs(rid))
         rc.own_colors = not robot.tint
-        if robot.gripper is not None:
+        if robot.gripper is not None and robot.gripper.joints:
             rc.gripper.joints.extend(robot.gripper.joints)
             rc.gripper.open = robot.gripper.open
             rc.gripper.closed = robot.gripper.closed

@@ -238,9 +238,10 @@ class Gripper(_Strict):
     """The description's own fingers: joints set to `open` while the arm holds nothing and to
     `closed` while it holds a part (robots/README.md)."""
 
-    joints: Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1)]
-    open: Num
-    closed: Num
+    # none: no fingers (what a study's condition writes for an arm without them)
+    joints: list[Annotated[str, Field(min_length=1)]]
+    open: Num = 0.0
+    closed: Num = 0.0
 
 
 class Robot(_Strict):

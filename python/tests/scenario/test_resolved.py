@@ -29,7 +29,7 @@ def test_the_copy_loads_back_into_the_same_settings_from_any_folder(
     for rid in settings["robots"]:
         assert Path(back.robots[rid].urdf) == s.urdf_path(rid)
         settings["robots"][rid]["urdf"] = back.robots[rid].urdf
-    assert back.model_dump(mode="json", exclude_none=True) == settings
+    assert resolve(back).settings() == settings
     assert "# overrides: none" in run.toml()
 
 

@@ -57,7 +57,8 @@ def _aabb_radius(origin: tuple[float, ...], box: tuple[tuple[float, ...], ...]) 
 
 def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
     """Per movable joint j, v_j * r_j in m/s: the speed it alone can give any point of the arm's
-    colliders (the arm's bound is their sum, at most sum_j |qdot_j| * r_j).
+    colliders (the arm's bound is their sum, at most sum_j |qdot_j| * r_j); v_j for a prismatic
+    joint.
 
     Each link's reach from joint j is bounded by the chain of joint offsets from j to the link
     plus the link's own radius (link frame to its collider's AABB corners), so it holds in any
@@ -68,6 +69,7 @@ def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
     parent: dict[int, int] = {}
     vmax: dict[int, float] = {}
     names: dict[int, str] = {}
+    prismatic: set[int] = set()
     origin: dict[int, tuple[float, ...]] = {-1: tuple(p.getBasePositionAndOrientation(body, c)[0])}
     for j in range(n):
         info = p.getJointInfo(body, j, physicsClientId=c)
@@ -75,6 +77,8 @@ def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
         if info[2] != p.JOINT_FIXED:
             vmax[j] = info[11] if info[11] > 0 else 2 * math.pi
             names[j] = info[1].decode()
+            if info[2] == p.JOINT_PRISMATIC:
+                prismatic.add(j)
         origin[j] = tuple(p.getLinkState(body, j, physicsClientId=c)[4])
     radius: dict[int, float] = {}
     for link in range(n):
@@ -93,7 +97,8 @@ def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
                 at = parent[at]
             if at == j:
                 reach = max(reach, length + radius[link])
-        terms[names[j]] = v * reach
+        # a sliding joint (a gripper's finger) moves every point below it at its own speed
+        terms[names[j]] = v if j in prismatic else v * reach
     return terms
 
 

@@ -1,0 +1,148 @@
+"""A robot's description: where its files are found, what the checks say about its chain, its
+meshes and its fingers (robots/README.md, "Bring your own robot")."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from hrc import scenario as sc
+from hrc.scenario import urdf
+from hrc.scenario.errors import ScenarioError
+from hrc.scenario.paths import installed_root
+
+ROBOT = """<robot name="toy">
+  <link name="stand"/>
+  <link name="base"><visual><geometry><mesh filename="{mesh}"/></geometry></visual></link>
+  <link name="arm"/>
+  <link name="finger"/>
+  <joint name="bolt" type="fixed"><parent link="stand"/><child link="base"/></joint>
+  <joint name="turn" type="revolute"><parent link="base"/><child link="arm"/>
+    <axis xyz="0 0 1"/><limit lower="-3" upper="3" velocity="2" effort="1"/></joint>
+  <joint name="slide" type="prismatic"><parent link="arm"/><child link="finger"/>
+    <axis xyz="1 0 0"/><limit lower="0" upper="0.04" velocity="0.1" effort="1"/></joint>
+</robot>
+"""
+
+
+def make_robot(folder: Path, mesh: str) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / "toy.urdf"
+    path.write_text(ROBOT.format(mesh=mesh))
+    return path
+
+
+def test_package_paths_are_found_in_packages_around_the_urdf_and_installed(
+    tmp_path: Path,
+) -> None:
+    ws = tmp_path / "ws"
+    (ws / "toy_description" / "meshes").mkdir(parents=True)
+    (ws / "toy_description" / "meshes" / "base.stl").write_text("solid x\nendsolid x\n")
+    path = make_robot(ws / "toy_description" / "urdf", "package://toy_description/meshes/base.stl")
+    want = ws / "toy_description" / "meshes" / "base.stl"
+    # a ROS package: the folder named like the package, above the URDF
+    assert urdf.resolve("package://toy_description/meshes/base.stl", path.parent, []) == want
+    # a packages folder (ROS_PACKAGE_PATH style), without the URDF's folder
+    assert urdf.resolve("package://toy_description/meshes/base.stl", None, [ws]) == want
+    # an installed Python package: pybullet's data folder ships a Panda
+    found = urdf.resolve("package://pybullet_data/franka_panda/panda.urdf", None, [])
+    assert found is not None and found.name == "panda.urdf"
+    assert urdf.resolve("package://no_such_pkg/x.stl", path.parent, [ws]) is None
+    assert urdf.missing_meshes(urdf.read_urdf(path), []) == []
+
+
+def test_a_copy_for_physics_has_absolute_mesh_paths_and_the_tint(tmp_path: Path) -> None:
+    (tmp_path / "pkg" / "meshes").mkdir(parents=True)
+    mesh = tmp_path / "pkg" / "meshes" / "base.obj"
+    mesh.write_text("v 0 0 0\n")
+    plain = make_robot(tmp_path / "plain", str(mesh))
+    assert urdf.localized_urdf(plain, []) == plain  # nothing to rewrite: the file itself
+    path = make_robot(tmp_path / "pkg" / "urdf", "package://pkg/meshes/base.obj")
+    copy = urdf.localized_urdf(path, [], tmp_path / "out", tint_rgb=(1.0, 0.5, 0.0))
+    root = ET.parse(copy).getroot()
+    assert [m.get("filename") for m in root.iter("mesh")] == [str(mesh)]
+    colors = [c.get("rgba") for c in root.iter("color")]
+    assert colors == ["1 0.5 0 1"]
+    assert urdf.localized_urdf(path, [], tmp_path / "out", tint_rgb=(1.0, 0.5, 0.0)) == copy
+
+
+def scenario_with(tmp_path: Path, robot_keys: str) -> Path:
+    text = (installed_root() / "scenarios" / "minimal.toml").read_text()
+    text = text.replace('urdf = "robots/arm5.urdf"', robot_keys, 1)
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    return path
+
+
+def problems(path: Path) -> list[str]:
+    with pytest.raises(ScenarioError) as err:
+        sc.load(path, motion_check=False)
+    return [str(p) for p in err.value.problems]
+
+
+def test_the_checks_name_the_key_and_what_the_file_has(tmp_path: Path) -> None:
+    robot = make_robot(tmp_path / "d", "meshes/base.stl")
+    got = problems(scenario_with(tmp_path, f'urdf = "{robot}"'))
+    assert any(
+        "robots.r1.base_link: toy.urdf has no link named 'base_link' (the default base_link); "
+        "its links: stand, base, arm, finger" in p
+        for p in got
+    ), got
+    got = problems(
+        scenario_with(tmp_path, f'urdf = "{robot}"\nbase_link = "arm"\ntip_link = "base"')
+    )
+    assert any("robots.r1.tip_link: 'base' is not below 'arm' in toy.urdf" in p for p in got), got
+    got = problems(
+        scenario_with(tmp_path, f'urdf = "{robot}"\nbase_link = "base"\ntip_link = "arm"')
+    )
+    assert any(
+        "robots.r1.urdf: toy.urdf: mesh meshes/base.stl not found (tried " in p for p in got
+    ), got
+    pkg = make_robot(tmp_path / "p", "package://toy_description/meshes/base.stl")
+    got = problems(
+        scenario_with(
+            tmp_path,
+            f'urdf = "{pkg}"\nbase_link = "base"\ntip_link = "arm"\npackages = ["nowhere"]\n'
+            'gripper = { joints = ["turn", "nail"], open = 0.05, closed = 0.0 }',
+        )
+    )
+    assert any("robots.r1.packages[0]: no such folder: nowhere" in p for p in got), got
+    assert any("add the folder that holds toy_description/ to packages" in p for p in got), got
+    assert any("robots.r1.gripper.joints: 'turn' is a joint of the arm's chain" in p for p in got)
+    assert any(
+        "robots.r1.gripper.joints: toy.urdf has no revolute or prismatic joint named 'nail'; "
+        "its movable joints: turn, slide" in p
+        for p in got
+    ), got
+    got = problems(
+        scenario_with(
+            tmp_path,
+            f'urdf = "{pkg}"\nbase_link = "base"\ntip_link = "arm"\npackages = ["{tmp_path}"]\n'
+            'gripper = { joints = ["slide"], open = 0.05, closed = 0.0 }',
+        )
+    )
+    assert any(
+        "robots.r1.gripper.open: 0.05 is outside slide's limits [0.0, 0.04]" in p for p in got
+    )
+
+
+def test_the_shipped_real_arm_scenarios_load_with_their_chains() -> None:
+    root = installed_root() / "scenarios"
+    panda = sc.load(root / "thesis-panda.toml", motion_check=False)
+    r1 = panda.robots["r1"]
+    assert (r1.base_link, r1.tip_link, r1.tcp.xyz) == ("panda_link0", "panda_hand", [0, 0, 0.1034])
+    assert r1.gripper is not None and r1.gripper.joints == [
+        "panda_finger_joint1",
+        "panda_finger_joint2",
+    ]
+    path = panda.urdf_path("r1")
+    assert path is not None and path.parent.name == "franka_panda"
+    wire = sc.to_proto(panda).robots[0]
+    assert (wire.base_link, wire.tip_link) == ("panda_link0", "panda_hand")
+    assert wire.tcp.position.z == pytest.approx(0.1034) and list(wire.gripper.joints)
+    back = sc.from_proto(sc.to_proto(panda))
+    assert back.robots["r1"].tcp == r1.tcp and back.robots["r1"].gripper == r1.gripper
+    ur5e = sc.load(root / "thesis-ur5e.toml", motion_check=False)
+    assert ur5e.robots["r2"].tip_link == "tool" and ur5e.robots["r2"].gripper is None
