@@ -534,8 +534,13 @@ class View:
                 static_transform_entity_path=f"{ent}/tf_static",
             )
             # Geometry only: every joint transform comes from us (fixed ones static, the others
-            # per state), so no child frame has two sources.
-            rr.send_chunks(tree.stream(include_joint_transforms=False), recording=self.rec)
+            # per state), so no child frame has two sources. Visuals only: the collision shapes
+            # (a maker's plain meshes) would be drawn over them, white, and double the file.
+            chunks = tree.stream(include_joint_transforms=False)
+            rr.send_chunks(
+                (c for c in chunks if "/collision_geometries/" not in c.entity_path),
+                recording=self.rec,
+            )
         except (UrdfError, OSError, ValueError, RuntimeError) as exc:
             log.warning("robot %s: no URDF view (%s); showing its TCP only", r.id, exc)
             rv.model = None
