@@ -15,7 +15,7 @@ from typing import Any
 import pytest
 import rerun as rr
 
-from hrc.scenario import colors
+from hrc.scenario import colors, urdf
 
 from .conftest import HRC, ROOT, strip_fields
 from .goldens import normalised
@@ -26,8 +26,11 @@ PANDA = ROOT / "scenarios" / "thesis-panda.toml"
 UR5E = ROOT / "scenarios" / "thesis-ur5e.toml"
 THESIS_PARTS = 18
 POLICIES = ("retreat", "retreat_button", "stop_colliding", "ssm")
-# A lab's own arm, as its maker publishes it: the project's tests use it from there, never a copy.
+# A lab's own arm, as its maker publishes it: the project's tests use it from there, never a copy
+# (it is beside the project on the development machines, not beside every clone); and the xArm 6
+# of pybullet's data folder (its meshes named package://...), which every setup installs.
 XARM6 = ROOT.parent / "shared" / "robots" / "xarm6" / "xarm6.urdf"
+PYBULLET_XARM6 = urdf.resolve("package://pybullet_data/xarm/xarm6_robot.urdf", None, [])
 WALL = {"wall_time", "wall_s", "realtime_factor", "end_reason"}
 
 
@@ -144,14 +147,16 @@ def test_the_recording_holds_the_meshes_and_the_fingers_move(tmp_path: Path, ik_
     assert opened >= 6, f"the fingers opened {opened} times for r1's 6 parts"
 
 
-@pytest.mark.skipif(not XARM6.is_file(), reason=f"{XARM6} is not on this machine")
+@pytest.mark.parametrize("description", [PYBULLET_XARM6, XARM6], ids=["pybullet", "maker"])
 def test_a_description_from_outside_the_project_runs_the_minimal_scenario(
-    tmp_path: Path, ik_bin: Path
+    description: Path | None, tmp_path: Path, ik_bin: Path
 ) -> None:
+    if description is None or not description.is_file():
+        pytest.skip(f"{description or 'pybullet_data/xarm'} is not on this machine")
     text = (ROOT / "scenarios" / "minimal.toml").read_text()
     own = text.replace(
         'urdf = "robots/arm5.urdf"',
-        f'urdf = "{XARM6}"\nbase_link = "link_base"\ntip_link = "link6"\n'
+        f'urdf = "{description}"\nbase_link = "link_base"\ntip_link = "link6"\n'
         "tcp = { xyz = [0.0, 0.0, 0.172] }",
     )
     scenario = tmp_path / "xarm6.toml"
@@ -160,10 +165,11 @@ def test_a_description_from_outside_the_project_runs_the_minimal_scenario(
     assert m["task"]["finished"] and all(p["placed_s"] is not None for p in m["parts"].values())
     # Without the chain, the check names what is missing and what the file has.
     bare = tmp_path / "bare.toml"
-    bare.write_text(text.replace('urdf = "robots/arm5.urdf"', f'urdf = "{XARM6}"'))
+    bare.write_text(text.replace('urdf = "robots/arm5.urdf"', f'urdf = "{description}"'))
     proc = subprocess.run([HRC, "validate", str(bare)], capture_output=True, text=True, timeout=120)
     assert proc.returncode != 0
-    assert "robots.r1.tip_link: xarm6.urdf has no link named 'tool' (the default tip_link)" in (
-        proc.stdout + proc.stderr
+    assert (
+        f"robots.r1.tip_link: {description.name} has no link named 'tool' (the default tip_link)"
+        in proc.stdout + proc.stderr
     )
     assert "its links: world, link_base, link1" in proc.stdout + proc.stderr
