@@ -18,7 +18,7 @@ from hrc.scenario.enums import InputSource, RobotRole, SafetyPolicy
 from hrc.scenario.errors import Problem
 from hrc.scenario.graph import Edge, find_cycles
 from hrc.scenario.models import DEFAULT_BASE_LINK, DEFAULT_TIP_LINK, HUMAN
-from hrc.scenario.paths import installed_root, resolve_dir, resolve_path
+from hrc.scenario.paths import installed_root, resolve_dir, resolve_path, resolve_urdf
 
 
 def part_key(index: int, raw_part: Any) -> str:
@@ -331,14 +331,11 @@ def _check_robot_files(
     written = robot.get("urdf")
     if not isinstance(written, str) or not written:
         return problems  # the schema check names it
-    if written.startswith(urdf.PACKAGE):
-        path = urdf.resolve(written, None, packages)
-        if path is None:
-            return [*problems, Problem(f"{key}.urdf", _not_found(written, None, packages))]
-    else:
-        path = resolve_path(written, folder, root)
-        if path is None:
-            return [*problems, Problem(f"{key}.urdf", missing(written))]
+    path = resolve_urdf(written, folder, root, packages)
+    if path is None:
+        package = written.startswith(urdf.PACKAGE)
+        why = _not_found(written, None, packages) if package else missing(written)
+        return [*problems, Problem(f"{key}.urdf", why)]
     try:
         info = urdf.read_urdf(path)
     except urdf.UrdfError as exc:
@@ -416,10 +413,10 @@ def _check_gripper(
     problems: list[Problem] = []
     by_name = {j.name: j for j in info.joints}
     in_chain = {j.name for j in chain}
-    movable = [j.name for j in info.joints if j.kind in ("revolute", "prismatic")]
+    movable = [j.name for j in info.joints if j.kind in urdf.LIMITED]
     for name in gripper["joints"]:
         joint = by_name.get(name) if isinstance(name, str) else None
-        if joint is None or joint.kind not in ("revolute", "prismatic"):
+        if joint is None or joint.kind not in urdf.LIMITED:
             problems.append(
                 Problem(
                     f"{key}.gripper.joints",

@@ -15,10 +15,9 @@ from typing import Annotated, Any
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
-from hrc.scenario import urdf
 from hrc.scenario.colors import NAMED_RGB
 from hrc.scenario.enums import InputSource, ParticipantProfile, RobotRole, SafetyPolicy
-from hrc.scenario.paths import resolve_dir, resolve_path
+from hrc.scenario.paths import resolve_dir, resolve_path, resolve_urdf
 from hrc.scenario.profiles import profile_defaults
 
 # ---------------------------------------------------------------- constants and conventions
@@ -367,10 +366,9 @@ class Scenario(_Strict):
         return [d for d in found if d is not None]
 
     def urdf_path(self, robot_id: str) -> Path | None:
+        folder = self._source_path.parent if self._source_path else None
         written = self.robots[robot_id].urdf
-        if written.startswith(urdf.PACKAGE):
-            return urdf.resolve(written, None, self.package_dirs(robot_id))
-        return self.resolve(written)
+        return resolve_urdf(written, folder, self._project_root, self.package_dirs(robot_id))
 
     # -------------------------------------------------- accessors the task logic uses
 

@@ -3,7 +3,10 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Sequence
 from pathlib import Path
+
+from hrc.scenario import urdf
 
 ROOT_ENV = "HRC_ROOT"
 ROOT_MARKER = "scenarios"
@@ -38,21 +41,31 @@ def resolve_path(written: str, folder: Path | None, root: Path | None) -> Path |
     first, then the project root, then the installed project (a scenario anywhere, e.g. in a
     study folder with its own `scenarios/`, finds the bundled robots/arm5.urdf). None when it
     exists nowhere."""
-    path = Path(written).expanduser()
-    if path.is_absolute():
-        return path if path.is_file() else None
-    for base in (folder, root, installed_root()):
-        if base is not None and (base / path).is_file():
-            return (base / path).resolve()
-    return None
+    return _resolve(written, folder, root, Path.is_file)
 
 
 def resolve_dir(written: str, folder: Path | None, root: Path | None) -> Path | None:
     """An existing folder for `written`, looked for as `resolve_path` looks for a file."""
+    return _resolve(written, folder, root, Path.is_dir)
+
+
+def _resolve(
+    written: str, folder: Path | None, root: Path | None, exists: Callable[[Path], bool]
+) -> Path | None:
     path = Path(written).expanduser()
     if path.is_absolute():
-        return path if path.is_dir() else None
+        return path if exists(path) else None
     for base in (folder, root, installed_root()):
-        if base is not None and (base / path).is_dir():
+        if base is not None and exists(base / path):
             return (base / path).resolve()
     return None
+
+
+def resolve_urdf(
+    written: str, folder: Path | None, root: Path | None, packages: Sequence[Path]
+) -> Path | None:
+    """A robot's `urdf`: ``package://NAME/...`` as robots/README.md says (``packages``, then an
+    installed Python package NAME), anything else as `resolve_path`."""
+    if written.startswith(urdf.PACKAGE):
+        return urdf.resolve(written, None, packages)
+    return resolve_path(written, folder, root)

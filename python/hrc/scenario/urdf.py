@@ -28,6 +28,7 @@ from pathlib import Path
 PACKAGE = "package://"
 FILE = "file://"
 MOVABLE = ("revolute", "continuous", "prismatic")
+LIMITED = ("revolute", "prismatic")  # movable with position limits: what a finger may be
 
 
 class UrdfError(ValueError):
@@ -64,11 +65,6 @@ class UrdfInfo:
             out.append(joint)
             link = joint.parent
         return out[::-1]
-
-    def root(self) -> str:
-        """The link no joint moves (the first link when the tree is broken)."""
-        children = {j.child for j in self.joints}
-        return next((link for link in self.links if link not in children), self.links[0])
 
     def below(self, link: str) -> list[str]:
         """The links whose chain from the root passes through `link` (itself excluded)."""

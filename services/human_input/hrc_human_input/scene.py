@@ -9,7 +9,6 @@ files next to them, nothing else.
 from __future__ import annotations
 
 import json
-import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +31,6 @@ from hrc.wire import pb
 
 PROTOCOL_VERSION = 1
 DEFAULT_FRAME_RATE_HZ = 90.0
-MOVABLE_JOINTS = ("revolute", "continuous", "prismatic")
 # Files a URDF may reference (meshes, their textures) that the bridge serves from its folder.
 MESH_SUFFIXES = (".stl", ".dae", ".obj", ".mtl", ".glb", ".gltf", ".bin", ".png", ".jpg", ".jpeg")
 URDF_URL_PREFIX = "/robots/"
@@ -48,18 +46,14 @@ def v3(xs: Any) -> list[float]:
     return [r4(x) for x in xs]
 
 
-def joint_names(urdf: Path) -> list[str]:
+def joint_names(path: Path) -> list[str]:
     """The movable joints of a URDF in file order (the order of ``RobotState.joint_names`` for
     the shipped arms; frames reorder by name anyway)."""
     try:
-        root = ET.parse(urdf).getroot()
-    except (OSError, ET.ParseError):
+        info = urdf.read_urdf(path)
+    except urdf.UrdfError:
         return []
-    return [
-        j.get("name", "")
-        for j in root.iter("joint")
-        if j.get("type") in MOVABLE_JOINTS and j.get("name")
-    ]
+    return [j.name for j in info.joints if j.kind in urdf.MOVABLE and j.name]
 
 
 @dataclass

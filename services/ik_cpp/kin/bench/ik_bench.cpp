@@ -347,7 +347,9 @@ double tick_bench(const RobotModel& arm5, const Options& o) {
 int main(int argc, char** argv) {
   const Options o = parse(argc, argv);
   const std::string dir = find_robots_dir(o.robots_dir);
-  std::vector<Chain> chains{{"arm5", true}, {"ur5", false}, {"panda", false}};
+  std::vector<Chain> chains{{"arm5", true, "", "base_link", "tool"},
+                            {"ur5", false, "", "base_link", "tool"},
+                            {"panda", false, "", "base_link", "tool"}};
   for (const std::string& spec : o.extra_chains) chains.push_back(parse_chain(spec));
   std::map<std::string, std::map<std::string, Stats>> results;
   std::unique_ptr<RobotModel> arm5;

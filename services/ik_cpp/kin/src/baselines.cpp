@@ -7,13 +7,6 @@
 namespace hrc::kin {
 namespace {
 
-KDL::Frame to_kdl(const Eigen::Isometry3d& T) {
-  const Eigen::Matrix3d& R = T.linear();
-  return KDL::Frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0),
-                                  R(2, 1), R(2, 2)),
-                    KDL::Vector(T.translation().x(), T.translation().y(), T.translation().z()));
-}
-
 KDL::JntArray limit_array(const Eigen::VectorXd& v) {
   KDL::JntArray a(static_cast<unsigned>(v.size()));
   for (Eigen::Index i = 0; i < v.size(); ++i)

@@ -128,13 +128,16 @@ std::optional<RobotModel::JointLimit> RobotModel::joint_limit(const std::string&
   return it->second;
 }
 
+KDL::Frame to_kdl(const Eigen::Isometry3d& X) {
+  const Eigen::Matrix3d& R = X.linear();
+  return KDL::Frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2), R(2, 0),
+                                  R(2, 1), R(2, 2)),
+                    KDL::Vector(X.translation().x(), X.translation().y(), X.translation().z()));
+}
+
 void RobotModel::attach_tcp(const Eigen::Isometry3d& tip_T_tcp) {
-  const Eigen::Matrix3d R = tip_T_tcp.linear();
-  const Eigen::Vector3d p = tip_T_tcp.translation();
-  const KDL::Frame frame(KDL::Rotation(R(0, 0), R(0, 1), R(0, 2), R(1, 0), R(1, 1), R(1, 2),
-                                       R(2, 0), R(2, 1), R(2, 2)),
-                         KDL::Vector(p.x(), p.y(), p.z()));
-  chain_.addSegment(KDL::Segment("tcp", KDL::Joint("tcp_joint", KDL::Joint::None), frame));
+  chain_.addSegment(
+      KDL::Segment("tcp", KDL::Joint("tcp_joint", KDL::Joint::None), to_kdl(tip_T_tcp)));
 }
 
 bool RobotModel::within_limits(const Eigen::VectorXd& q, double tol) const {

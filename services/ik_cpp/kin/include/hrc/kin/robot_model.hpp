@@ -12,6 +12,9 @@
 
 namespace hrc::kin {
 
+// An Eigen pose as KDL's frame (the chain's fixed segments, KDL's solvers' targets).
+KDL::Frame to_kdl(const Eigen::Isometry3d& X);
+
 class RobotModel {
  public:
   // Parse a URDF file (urdfdom) and extract the chain from `base` to `tip`.
