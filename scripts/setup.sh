@@ -1,17 +1,19 @@
 #!/usr/bin/env bash
 # Idempotent setup of hrc-cosim on a Debian 12 machine.
 #
-#   scripts/setup.sh [--no-apt] [--no-cpp] [--no-process-compose] [--verbose]
+#   scripts/setup.sh [--no-apt] [--no-cpp] [--with-process-compose] [--verbose]
 #
 # Steps (each one is skipped when its outputs are already up to date):
 #   1. apt packages (only when one is missing; sudo only when not root)
 #   2. toolchains: cargo/rustc (+ rustfmt, clippy) for the Rust crate, go for process-compose
-#      (optional)
+#      (only with --with-process-compose)
 #   3. wire contract: proto/hrc/v2/hrc.proto -> python/hrc/wire/hrc_pb2.py
 #   4. .venv with the pinned Python dependencies and the editable project packages, then the
 #      wire contract's type stubs hrc_pb2.pyi (protoc-gen-mypy comes from the venv)
 #   5. C++ build (CMake, which also builds the Rust crate with cargo) in build/ik_cpp
-#   6. process-compose, built from the Go module proxy into tools/bin/
+#   6. process-compose, built from the Go module proxy into tools/bin/: only with
+#      --with-process-compose (scripts/test-all.sh; scripts/process-compose.sh on first use), since
+#      only deploy/process-compose.yaml needs it
 #   7. participant client: npm ci (package-lock.json) and the esbuild bundle in
 #      services/human_input/client/dist/ (served by the VR bridge)
 #
@@ -21,6 +23,7 @@
 #   HRC_JOBS    parallel build jobs (default 2)
 #   HRC_PYTHON  interpreter for the venv (default python3, must be >= 3.11)
 #   HRC_APT_EXTRA             extra apt packages to ensure (space separated)
+#   HRC_WITH_PROCESS_COMPOSE=1     as --with-process-compose
 #   HRC_REQUIRE_PROCESS_COMPOSE=1  fail (instead of warn) when process-compose can't be built
 #   HRC_VERBOSE=1             stream tool output instead of writing it to build/setup-logs/
 set -euo pipefail
@@ -34,7 +37,7 @@ PYTHON="${HRC_PYTHON:-python3}"
 VERBOSE="${HRC_VERBOSE:-0}"
 DO_APT=1
 DO_CPP=1
-DO_PC=1
+DO_PC="${HRC_WITH_PROCESS_COMPOSE:-0}"
 
 # --- pins -------------------------------------------------------------------
 PIP_VERSION="25.1.1"
@@ -71,7 +74,8 @@ for arg in "$@"; do
   case "$arg" in
     --no-apt) DO_APT=0 ;;
     --no-cpp) DO_CPP=0 ;;
-    --no-process-compose) DO_PC=0 ;;
+    --with-process-compose) DO_PC=1 ;;
+    --no-process-compose) DO_PC=0 ;;  # the default
     --verbose|-v) VERBOSE=1 ;;
     -h|--help) usage; exit 0 ;;
     *) echo "setup: unknown option '$arg' (see --help)" >&2; exit 2 ;;
@@ -392,10 +396,10 @@ fi
 step "process-compose $PC_VERSION (tools/bin)"
 PC_BIN="$ROOT/tools/bin/process-compose"
 pc_have="$("$PC_BIN" version --short 2>/dev/null || true)"
-if [ "$DO_PC" = 0 ]; then
-  done_step "skipped (--no-process-compose)"
-elif [ "$pc_have" = "$PC_VERSION" ]; then
+if [ "$pc_have" = "$PC_VERSION" ]; then
   done_step "up to date"
+elif [ "$DO_PC" = 0 ]; then
+  done_step "not needed ('hrc run' does not use it; scripts/process-compose.sh builds it on first use)"
 elif [ "$GO_OK" = 0 ]; then
   msg="process-compose not built: $go_reason. Only deploy/process-compose.yaml needs it ('hrc run' does not)."
   [ "${HRC_REQUIRE_PROCESS_COMPOSE:-0}" = 1 ] && die "$msg"

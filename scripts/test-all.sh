@@ -17,7 +17,8 @@ JOBS="${HRC_JOBS:-2}"
 LOG_DIR="$ROOT/build/test-logs"
 
 echo "[test-all] setup"
-if ! "$ROOT/scripts/setup.sh"; then
+# process-compose too: tests/test_deploy_session.py runs deploy/process-compose.yaml
+if ! "$ROOT/scripts/setup.sh" --with-process-compose; then
   echo "[test-all] FAILED: scripts/setup.sh (see its message above)" >&2
   exit 1
 fi

@@ -16,8 +16,8 @@ from typing import Any
 import pytest
 
 from hrc.bus import Bus, BusConfig, access
-from hrc.cli.runner import free_port  # tests import it from here too
 from hrc.paths import ik_binary, project_root
+from hrc.ports import free_port  # tests import it from here too
 from hrc.services import SERVICES
 from hrc.wire import pb
 

@@ -11,7 +11,7 @@ import zenoh
 
 from hrc.bus import Bus, BusConfig
 from hrc.bus.bus import BATCH_SUFFIX
-from hrc.cli.runner import free_port
+from hrc.ports import free_port
 from hrc.wire import pb
 
 from .conftest import wait_until

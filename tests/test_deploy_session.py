@@ -30,7 +30,10 @@ PC_FILE = ROOT / "deploy" / "process-compose.yaml"
 @pytest.mark.timeout(400)
 def test_a_deployed_session_admits_only_its_own_services(tmp_path: Path) -> None:
     if not PC_BIN.exists():
-        pytest.skip("tools/bin/process-compose not built (scripts/setup.sh builds it)")
+        pytest.skip(
+            "tools/bin/process-compose not built "
+            "(scripts/setup.sh --with-process-compose builds it)"
+        )
     session, port = f"dep{os.getpid()}", free_port()
     out, access = tmp_path / "trial", tmp_path / "access"
     thesis = (ROOT / "scenarios" / "thesis.toml").read_text()

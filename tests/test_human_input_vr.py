@@ -25,8 +25,8 @@ from websockets.sync.client import connect
 
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings
-from hrc.cli.runner import free_port
 from hrc.paths import project_root
+from hrc.ports import free_port
 from hrc.wire import pb
 
 ROOT = project_root()

@@ -29,9 +29,9 @@ import pytest
 
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings, LockstepParticipant
-from hrc.cli.runner import free_port
 from hrc.geometry import quat_from_pb, vec3_from_pb
 from hrc.paths import ik_binary, project_root
+from hrc.ports import free_port
 from hrc.wire import pb
 
 from .conftest import wait_until

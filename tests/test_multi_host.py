@@ -6,6 +6,7 @@ publish the clock), and the run finishes as if nobody had tried."""
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import os
 import signal
@@ -19,6 +20,8 @@ from hrc.bus import Bus, BusConfig, Keys, access
 from hrc.wire import pb
 
 from .conftest import HRC, ROOT, free_port, wait_until
+from .goldens import normalised
+from .netns import Hosts
 from .test_intruders import FORGED, forge, intruder
 
 pytestmark = [pytest.mark.e2e]
@@ -139,3 +142,122 @@ def test_a_session_over_a_router_admits_only_its_own_services(tmp_path: Path, ik
     # the router says each link it refused, by reason
     refused = access.count_refusals(logs / "router.log")
     assert refused is not None and all(refused[k] >= 1 for k in access.REFUSALS), refused
+
+
+# --- two hosts: network namespaces joined by a cable (tests/netns.py) -----------------------
+MINIMAL = ROOT / "scenarios" / "minimal.toml"
+COMPUTE = ("physics", "ik_cpp")  # on the router's host; the others on the second host
+WORKSTATION = ("orchestrator", "human_input", "logger")
+LOG_TIME = "%Y-%m-%d %H:%M:%S,%f"  # hrc.logsetup's asctime
+RUNNER_SECTIONS = {"access", "recording"}
+
+
+def _split_trial(
+    hosts: Hosts, tmp_path: Path, ik_bin: Path, scenario: Path, out: Path
+) -> dict[str, subprocess.Popen[bytes]]:
+    """docs/multi-host.md over a cable: the router, physics and ik_cpp on host a; the
+    orchestrator, human_input and the logger on host b, all clients of the router."""
+    session = f"nh{os.getpid()}"
+    folder = tmp_path / "access" / session
+    made = subprocess.run(
+        [HRC, "deploy-access", "--session", session, "--out", str(folder)],
+        capture_output=True,
+        text=True,
+    )
+    assert made.returncode == 0, made.stderr
+    addr_a, _addr_b = hosts.cable("a", "b")
+    router = f"tcp/{addr_a}:7447"
+    hosts.start("a", "router", [HRC, "router", "--config", str(folder / "router.json5")])
+    common = ["--session", session, "--zenoh-mode", "client", "--connect", router]
+    commands = {
+        "physics": [str(BIN / "hrc-physics"), "--clock", "lockstep", "--ticks", "0"],
+        "ik_cpp": [str(ik_bin)],
+        "orchestrator": [
+            str(BIN / "hrc-orchestrator"),
+            "--scenario",
+            str(scenario),
+            "--out",
+            str(out),
+        ],
+        "human_input": [str(BIN / "hrc-human-input")],
+        "logger": [str(BIN / "hrc-logger"), "--out", str(out)],
+    }
+    return {
+        name: hosts.start(
+            "a" if name in COMPUTE else "b",
+            name,
+            [*argv, *common, "--zenoh-config", str(folder / f"{name}.json5")],
+        )
+        for name, argv in commands.items()
+    }
+
+
+def _only_the_router_is_left(hosts: Hosts, procs: dict[str, subprocess.Popen[bytes]]) -> None:
+    router = {p.pid for p in hosts.procs} - {p.pid for p in procs.values()}
+    assert wait_until(lambda: set(hosts.pids("a")) <= router and not hosts.pids("b"), 15, 0.1), (
+        f"left on host a: {hosts.pids('a')} (router {router}), on host b: {hosts.pids('b')}"
+    )
+
+
+@pytest.mark.timeout(600)
+def test_a_trial_over_two_hosts_gives_the_events_and_metrics_of_one_host(
+    tmp_path: Path, ik_bin: Path
+) -> None:
+    one = tmp_path / "one-host"
+    run = subprocess.run(
+        [HRC, "run", str(MINIMAL), "--out", str(one)], capture_output=True, text=True, timeout=300
+    )
+    assert run.returncode == 0, run.stderr[-2000:]
+    two = tmp_path / "two-hosts"
+    with Hosts(f"hrc{os.getpid() % 100000}", ["a", "b"], tmp_path / "logs") as hosts:
+        procs = _split_trial(hosts, tmp_path, ik_bin, MINIMAL, two)
+        for name, proc in procs.items():
+            try:
+                rc = proc.wait(300)
+            except subprocess.TimeoutExpired:
+                pytest.fail(f"{name} still running after 300 s:\n{hosts.log(name)[-2000:]}")
+            assert rc == 0, f"{name} exited {rc}:\n{hosts.log(name)[-2000:]}"
+        _only_the_router_is_left(hosts, procs)
+    a, b = normalised(one), normalised(two)
+    assert b["metrics.json"]["task"]["finished"] is True
+    assert len(a["events.jsonl"]) == len(b["events.jsonl"])
+    for i, (x, y) in enumerate(zip(a["events.jsonl"], b["events.jsonl"], strict=True)):
+        assert x == y, f"event {i} differs"
+    assert a["log.txt"] == b["log.txt"]
+    # hrc run fills two sections from its services' logs (refused links, the recording's
+    # losses); services started by hand leave them empty
+    assert b["metrics.json"]["access"] is None and b["metrics.json"]["recording"] is None
+    ours = {k: v for k, v in a["metrics.json"].items() if k not in RUNNER_SECTIONS}
+    assert ours == {k: v for k, v in b["metrics.json"].items() if k not in RUNNER_SECTIONS}
+
+
+@pytest.mark.timeout(600)
+def test_a_cable_pulled_mid_run_ends_the_trial_within_2_s_naming_who_is_gone(
+    tmp_path: Path, ik_bin: Path
+) -> None:
+    out = tmp_path / "trial"
+    with Hosts(f"hrc{os.getpid() % 100000}", ["a", "b"], tmp_path / "logs") as hosts:
+        procs = _split_trial(hosts, tmp_path, ik_bin, ROOT / "scenarios" / "thesis.toml", out)
+        events = out / "events.jsonl"
+
+        def running() -> bool:  # a few task events recorded: the run is under way
+            return events.exists() and len(events.read_text().splitlines()) >= 3
+
+        assert wait_until(running, 180, 0.05), hosts.log("physics")[-2000:]
+        cut_at = dt.datetime.now()
+        hosts.cut("a", "b")
+        for name, proc in procs.items():
+            try:
+                rc = proc.wait(30)
+            except subprocess.TimeoutExpired:
+                pytest.fail(f"{name} still running 30 s after the cut:\n{hosts.log(name)[-2000:]}")
+            assert rc != 0, f"{name} exited 0 after the cut:\n{hosts.log(name)[-2000:]}"
+        _only_the_router_is_left(hosts, procs)
+        physics = hosts.log("physics")
+    failed = [line for line in physics.splitlines() if "run failed:" in line]
+    assert failed, physics[-2000:]
+    ended_at = dt.datetime.strptime(" ".join(failed[0].split()[:2]), LOG_TIME)
+    took = (ended_at - cut_at).total_seconds()
+    print(f"the run ended {took:.2f} s after the cut: {failed[0]}")
+    assert any(f"service '{name}' left the bus" in failed[0] for name in WORKSTATION), failed[0]
+    assert took <= 2.0, failed[0]

@@ -19,7 +19,7 @@ import pytest
 
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, ClockMaster, ClockSettings, LockstepParticipant
-from hrc.cli.runner import free_port
+from hrc.ports import free_port
 from hrc.wire import pb
 
 ROOT = Path(__file__).resolve().parents[1]

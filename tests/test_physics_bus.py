@@ -26,9 +26,9 @@ import pytest
 
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, LockstepParticipant
-from hrc.cli.runner import free_port
 from hrc.geometry import IDENTITY, Pose, pose_to_pb, yaw_quat_deg
 from hrc.paths import project_root
+from hrc.ports import free_port
 from hrc.scenario.conventions import HAND_SIZE
 from hrc.scenario.models import DEFAULT_MAX_EXCHANGE_TICKS
 from hrc.wire import pb

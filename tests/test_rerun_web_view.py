@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from hrc.browser import headless_chromium, output_dir
-from hrc.cli.runner import free_port
+from hrc.ports import free_port
 
 from .conftest import HRC, ROOT
 from hrc_logger.view import HUMAN_PART_RGB, rgb

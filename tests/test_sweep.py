@@ -19,6 +19,7 @@ import pytest
 from hrc.browser import headless_chromium, output_dir
 
 from .conftest import HRC, ROOT, wait_until
+from .netns import Hosts
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
@@ -285,3 +286,63 @@ def _processes_under(folder: Path) -> list[str]:
         if str(folder) in cmd:
             found.append(cmd)
     return found
+
+
+@pytest.mark.timeout(600)
+def test_a_cluster_over_three_hosts_gives_the_same_table(
+    local_sweep, study_file, tmp_path: Path
+) -> None:
+    """The scheduler (and the sweep) on one host, a worker on each of two more, joined by
+    cables (network namespaces, tests/netns.py): the table is the local run's."""
+    dask = str(Path(sys.executable).with_name("dask"))
+    out = study_file.parent / "hosts"
+    with Hosts(f"hrs{os.getpid() % 100000}", ["s", "w1", "w2"], tmp_path / "logs") as hosts:
+        s1, w1 = hosts.cable("s", "w1")
+        _s2, w2 = hosts.cable("s", "w2")
+        address = f"tcp://{s1}:8786"
+        hosts.start("s", "scheduler", [dask, "scheduler", "--host", s1, "--no-dashboard"])
+        for name, addr in (("w1", w1), ("w2", w2)):
+            hosts.start(
+                name,
+                name,
+                [
+                    dask,
+                    "worker",
+                    address,
+                    "--nthreads",
+                    "1",
+                    "--host",
+                    addr,
+                    "--name",
+                    name,
+                    "--local-directory",
+                    str(tmp_path / name),
+                    "--no-dashboard",
+                ],
+            )
+
+        def joined() -> bool:
+            log = hosts.log("scheduler")
+            return all(f"Register worker addr: tcp://{a}:" in log for a in (w1, w2))
+
+        assert wait_until(joined, 120, 0.2), hosts.log("scheduler")[-3000:]
+        idle = {w: len(hosts.pids(w)) for w in ("w1", "w2")}  # the worker and its nanny
+        busiest = dict(idle)
+        sweep = hosts.start(
+            "s", "sweep", [HRC, "sweep", str(study_file), "--out", str(out), "--cluster", address]
+        )
+        deadline = time.monotonic() + 400
+        while sweep.poll() is None:  # watch each worker host run trials (hrc run + 5 services)
+            if time.monotonic() > deadline:
+                pytest.fail(f"the sweep still runs after 400 s:\n{hosts.log('sweep')[-3000:]}")
+            for w in busiest:
+                busiest[w] = max(busiest[w], len(hosts.pids(w)))
+            time.sleep(0.2)
+        assert sweep.returncode == 0, hosts.log("sweep")[-3000:]
+    assert all(busiest[w] >= idle[w] + 4 for w in idle), (idle, busiest)
+    local, _ = local_sweep
+    a = pd.read_parquet(local / "trials.parquet").sort_values("trial").reset_index(drop=True)
+    b = pd.read_parquet(out / "trials.parquet").sort_values("trial").reset_index(drop=True)
+    assert list(b["outcome"]) == ["ok"] * 8
+    keep = [c for c in a.columns if c not in WALL]
+    pd.testing.assert_frame_equal(a[keep], b[keep])

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from hrc.cli.bench_client import REST_LEFT, REST_RIGHT, LiveClient, connect_when_up, grab, move
-from hrc.cli.runner import free_port
+from hrc.ports import free_port
 
 from .conftest import ROOT
 

@@ -267,6 +267,7 @@ def write_credentials(
     users: Iterable[str],
     authenticate: bool = True,
     router: bool = False,
+    lease_s: float | None = None,
 ) -> None:
     """Writes into ``folder`` (which only this user may enter) the credentials of ``users`` and
     the experimenter: one random password each, their dictionary (``users``), and one Zenoh
@@ -274,7 +275,10 @@ def write_credentials(
     the configuration of a separate router that every service is a client of (several hosts:
     docs/multi-host.md). Paths inside the files are ``folder``'s as given: every process must see
     the folder at that path (a relative one: from the same working directory). Without
-    ``authenticate`` the files hold no credentials."""
+    ``authenticate`` the files hold no credentials. ``lease_s``: how long a link may be silent
+    before the other end closes it (Zenoh's lease; its default, 10 s, if None), for every file
+    but the observers': a host cut off is then gone for the others, and the run ends naming a
+    participant on it, after about that long plus physics's 1 s grace."""
     names = [*dict.fromkeys([*users, EXPERIMENTER])]
     passwords = {n: secrets.token_hex(16) for n in names}
     zids = observer_ids(names)
@@ -282,7 +286,11 @@ def write_credentials(
     if router:
         _write_private(
             config_path(folder, ROUTER),
-            json.dumps(_router_config(folder, session, names, zids, authenticate), indent=1) + "\n",
+            json.dumps(
+                _with_lease(_router_config(folder, session, names, zids, authenticate), lease_s),
+                indent=1,
+            )
+            + "\n",
         )
     for n, p in passwords.items():
         usrpwd: dict[str, str] = {"user": n, "password": p}
@@ -301,7 +309,27 @@ def write_credentials(
             transport["auth"] = {"usrpwd": usrpwd}
         if transport:
             cfg["transport"] = transport
+        # not an observer's: at idle priority on a busy host it may not send its keep-alives
+        # for a while, and nothing waits for it (the participants' leases end the run)
+        cfg = _with_lease(cfg, None if n in OBSERVERS else lease_s)
         _write_private(config_path(folder, n), json.dumps(cfg, indent=1) + "\n")
+
+
+LEASE_KEEPALIVES = 4  # Zenoh's: a silent link sends this many keep-alives per lease
+
+
+def _with_lease(cfg: dict[str, object], lease_s: float | None) -> dict[str, object]:
+    """``cfg`` with Zenoh's link lease set to ``lease_s`` (unchanged if None)."""
+    if lease_s is None:
+        return cfg
+    if not lease_s > 0:
+        raise ValueError(f"the lease must be > 0 s, got {lease_s}")
+    transport = cfg.setdefault("transport", {})
+    assert isinstance(transport, dict)
+    tx = transport.setdefault("link", {}).setdefault("tx", {})
+    tx["lease"] = max(1, round(lease_s * 1000))
+    tx["keep_alive"] = LEASE_KEEPALIVES
+    return cfg
 
 
 def _as_router(

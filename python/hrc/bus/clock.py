@@ -70,6 +70,14 @@ LOST_GRACE_S = 1.0
 # Realtime: an observer that left may come back this long after (a frozen logger's link closes
 # when its lease runs out; after a SIGCONT it reconnects, and records what it lost).
 OBSERVER_RETURN_S = 30.0
+# An observer acks the arrival of run/end with this tick. At the end the clock master stays
+# until each observer has it (or has left): a slow observer (the logger behind on a loaded
+# machine) reads run/end only after its backlog, and a link closed before that would lose it.
+# It waits while the observer's acks advance (it is still reading), at most OBSERVER_LINGER_S,
+# and gives up on one whose acks stop for OBSERVER_STALL_S (frozen).
+RUN_END_RECEIVED = 2**62
+OBSERVER_STALL_S = 2.0
+OBSERVER_LINGER_S = 8.0
 
 
 def left_the_bus(name: str) -> str:
@@ -200,6 +208,11 @@ class ClockMaster:
                 if ack.header.tick <= self._observed[name]:
                     return
                 self._observed[name] = ack.header.tick
+                if ack.header.tick == RUN_END_RECEIVED:
+                    self._cond.notify_all()  # _linger
+                    return
+                if not self._window:  # realtime: nothing waits for an observer's acks
+                    return
             elif name not in self._acked:
                 log.warning("ack from %r, which is not a participant of this run", name)
                 return
@@ -658,15 +671,36 @@ class ClockMaster:
                 self._cond.wait(0.1)
 
     def _linger(self, timeout: float = 3.0) -> None:
-        """Stays until the other services have left, so run/end reaches them before we go."""
-        others = set(self.settings.participants) | set(self.settings.observers)
-        deadline = time.monotonic() + timeout
+        """Stays until the other services have left, so run/end reaches them before we go:
+        participants up to ``timeout``; an observer until it has acked run/end's arrival, while
+        its acks advance (see RUN_END_RECEIVED)."""
+        participants = set(self.settings.participants)
+        start = time.monotonic()
+        progress = {o: (self._observed.get(o, -1), start) for o in self.settings.observers}
+
+        def waiting_for(now: float) -> set[str]:
+            left = self._alive & participants if now - start < timeout else set()
+            for o, (seen, since) in progress.items():
+                got = self._observed.get(o, -1)
+                if got != seen:  # still reading
+                    progress[o] = (got, since := now)
+                if (
+                    o in self._alive
+                    and got < RUN_END_RECEIVED
+                    and now - since < OBSERVER_STALL_S
+                    and now - start < OBSERVER_LINGER_S
+                ):
+                    left.add(o)
+            return left
+
         with self._cond:
-            while self._alive & others:
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    log.warning(
-                        "still present after run end: %s", ", ".join(sorted(self._alive & others))
-                    )
-                    return
-                self._cond.wait(left)
+            while waiting_for(time.monotonic()):
+                self._cond.wait(0.05)
+            still = self._alive & participants
+            still |= {o for o in progress if o in self._alive and o in self._unreceived()}
+            if still:
+                log.warning("still present after run end: %s", ", ".join(sorted(still)))
+
+    def _unreceived(self) -> set[str]:
+        """The observers that have not acked run/end's arrival. Under the lock."""
+        return {o for o, t in self._observed.items() if t < RUN_END_RECEIVED}

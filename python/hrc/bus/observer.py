@@ -9,10 +9,11 @@ clock, keeps going when a tick's inputs never arrive (it logs what did arrive), 
 end works off the queued ticks, then waits for the session to go quiet and hands over whatever
 is left (the last outputs of the final tick are listed by no clock tick).
 
-Every OBSERVER_ACK_TICKS of lockstep it acks the newest clock tick it has received, from the
-Zenoh thread that received it (what lockstep's window waits for: receiving, not processing, so a
-slow step never slows the clock). In realtime nothing waits for it: what the router could not
-hand over is dropped, and shows here as sequence gaps (counted, with their ticks).
+Every OBSERVER_ACK_TICKS it acks the newest clock tick it has received, from the Zenoh thread
+that received it (what lockstep's window waits for: receiving, not processing, so a slow step
+never slows the clock). In realtime nothing waits for it during the run: what the router could
+not hand over is dropped, and shows here as sequence gaps (counted, with their ticks). At the end
+it acks run/end's arrival, and the clock master stays while it is still reading towards it.
 
 Lag: for each tick processed, the newest clock tick already received minus the tick being
 processed (ticks), and the wall time since that tick arrived.
@@ -26,7 +27,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from hrc.bus.bus import Bus, M, Publisher
-from hrc.bus.clock import OBSERVER_ACK_TICKS
+from hrc.bus.clock import OBSERVER_ACK_TICKS, RUN_END_RECEIVED
 from hrc.bus.lockstep import ClockFollower, Outcome, describe_marks
 from hrc.bus.sequence import SeqChecker
 from hrc.wire import pb
@@ -110,18 +111,23 @@ class Observer(ClockFollower):
     def _on_clock(self, key: str, tick: pb.ClockTick) -> None:
         k = tick.header.tick
         self.seq.check(key, tick.header.sender, tick.header.seq, k)
-        if (
-            tick.mode == pb.CLOCK_MODE_LOCKSTEP
-            and k >= self._acked + OBSERVER_ACK_TICKS
-            and self._ack_pub is not None
-        ):
+        if k >= self._acked + OBSERVER_ACK_TICKS and self._ack_pub is not None:
             self._acked = k
             self._ack_pub.put(pb.TickAck(participant=self.name), k, tick.header.sim_time)
         super()._on_clock(key, tick)
 
+    def _on_run_end(self, key: str, end: pb.RunEnd) -> None:
+        # The clock master stays until we have it (hrc.bus.clock.RUN_END_RECEIVED).
+        if self._ack_pub is not None:
+            self._ack_pub.put(pb.TickAck(participant=self.name), RUN_END_RECEIVED, end.sim_time)
+        super()._on_run_end(key, end)
+
     def _finish(self, outcome: Outcome) -> None:
-        # Any failed end (a stop, a lost clock master, run/end not ok): don't wait for inputs.
-        if not outcome.ok:
+        # A failed end (a stop, a lost clock master, run/end not ok): don't wait for inputs.
+        # Only the end that counts (the first): the clock master leaving after a good run/end
+        # must not hurry the work still queued (the view, the last ticks).
+        # (No lock: stop() may come from a signal handler; one attribute read is atomic.)
+        if self._end is None and not outcome.ok:
             self._hurry = True
         super()._finish(outcome)
 

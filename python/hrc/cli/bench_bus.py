@@ -104,7 +104,7 @@ def measure_lockstep(ticks: int, lowlatency: bool = False) -> float:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hrc.cli.runner import free_port
+    from hrc.ports import free_port
 
     n = args.n or 5000
     probe = bus_probe_binary()

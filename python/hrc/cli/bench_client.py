@@ -38,8 +38,9 @@ from websockets.sync.client import ClientConnection, connect
 from hrc import scenario as sc
 from hrc.bus import Bus, access
 from hrc.cli.bench_page import page_figures
-from hrc.cli.runner import TrialOptions, TrialResult, VrOptions, free_port, run_trial
+from hrc.cli.runner import TrialOptions, TrialResult, VrOptions, run_trial
 from hrc.paths import project_root
+from hrc.ports import free_port
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)

@@ -9,6 +9,10 @@ only a key's own publisher put on it, exactly as in a trial of ``hrc run``. ``ro
 the same for a separate router (``hrc router --config <folder>/router.json5``) when the services
 are spread over several hosts (docs/multi-host.md). Run again, it writes new passwords (the
 session's services must all be restarted with them).
+
+Every file but the logger's sets Zenoh's link lease to ``--lease-s`` (default 0.5 s; Zenoh's own
+is 10 s): a host whose cable is pulled is gone for the router within it, and physics ends the run
+naming a service on it a second later (docs/multi-host.md).
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ def main(args: argparse.Namespace) -> int:
     folder = Path(args.out)
     try:
         make_private(folder, parents=True)
-        write_credentials(folder, args.session, services.names(), router=True)
+        write_credentials(folder, args.session, services.names(), router=True, lease_s=args.lease_s)
     except (OSError, ValueError) as exc:
         print(f"hrc deploy-access: no credentials written: {exc}", file=sys.stderr)
         return 2

@@ -28,10 +28,10 @@ WIDTH = 100
 PC_HEADER = """\
 # One hrc-cosim session: the services as separate processes on this machine.
 #
-#   scripts/setup.sh                                   # builds tools/bin/process-compose too
-#   tools/bin/process-compose -f deploy/process-compose.yaml up -U     # from the repo root; TUI
+#   scripts/process-compose.sh -f deploy/process-compose.yaml up -U   # from the repo root; TUI
+#     (builds tools/bin/process-compose on first use: scripts/setup.sh --with-process-compose)
 #   HRC_SESSION=s2 HRC_PORT=7461 HRC_TICKS=2000 \\
-#     tools/bin/process-compose -f deploy/process-compose.yaml up -U -t=false  # logs on stdout
+#     scripts/process-compose.sh -f deploy/process-compose.yaml up -U -t=false  # logs on stdout
 # (-U: control socket instead of TCP port 8080, so several sessions can run at once)
 #
 # Settings (environment, with defaults):

@@ -18,6 +18,9 @@ from hrc.services import VR_DEFAULT_HOST, VR_DEFAULT_PORT, VR_DEFAULT_WAIT_S
 
 log = logging.getLogger("hrc")
 
+# hrc deploy-access's link lease: a host cut off is gone for the others within it (several hosts)
+DEPLOY_LEASE_S = 0.5
+
 
 def _cmd_validate(args: argparse.Namespace) -> int:
     from hrc import scenario as sc
@@ -50,13 +53,13 @@ def _cmd_run(args: argparse.Namespace) -> int:
         TrialOptions,
         VrOptions,
         default_trial_dir,
-        free_port,
         run_trial,
         stop_on_signals,
         web_viewer_url,
         write_scenario_copy,
     )
     from hrc.cli.summary import print_summary
+    from hrc.ports import free_port
     from hrc.scenario.models import NAME_PATTERN
     from hrc.scenario.resolved import resolve
 
@@ -570,6 +573,14 @@ def build_parser() -> argparse.ArgumentParser:
     da.add_argument("--session", required=True, help="the session id (HRC_SESSION of deploy/)")
     da.add_argument(
         "--out", required=True, metavar="DIR", help="the folder to write (made mode 0700)"
+    )
+    da.add_argument(
+        "--lease-s",
+        type=float,
+        default=DEPLOY_LEASE_S,
+        metavar="S",
+        help="how long a silent link stays open (Zenoh's lease; default %(default)g s; the "
+        "logger keeps Zenoh's 10 s): a host cut off ends the run after about this long plus 1 s",
     )
     da.set_defaults(func=_cmd_deploy_access)
 

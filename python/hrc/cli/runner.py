@@ -12,15 +12,13 @@ import functools
 import json
 import logging
 import os
-import random
 import signal
-import socket
 import subprocess
 import sys
 import threading
 import time
 import uuid
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
@@ -33,6 +31,7 @@ from hrc.cli.console import LiveConsole
 from hrc.cli.prefork import ForkedProcess, can_fork, fork_service
 from hrc.diskspace import NO_SPACE, low_space
 from hrc.paths import build_dir
+from hrc.ports import free_port, release_port
 from hrc.scenario.resolved import Resolved, slug
 from hrc.wire import pb
 
@@ -174,37 +173,6 @@ def stop_on_signals() -> None:
     die_with_parent(signal.SIGTERM)
     if os.getppid() != parent:  # it died before prctl took effect
         raise Terminated(signal.SIGTERM)
-
-
-def _ephemeral_range() -> tuple[int, int]:
-    try:
-        with open("/proc/sys/net/ipv4/ip_local_port_range") as f:
-            lo, hi = (int(x) for x in f.read().split())
-            return lo, hi
-    except (OSError, ValueError):
-        return 32768, 60999
-
-
-def free_port() -> int:
-    """A free loopback port below the ephemeral range.
-
-    Between picking a port and physics binding it, an outgoing connection of any process could be
-    given the same port if it came from the ephemeral range (port 0); ports below that range are
-    only ever taken by an explicit bind.
-    """
-    lo, _hi = _ephemeral_range()
-    rng = random.Random()
-    for _ in range(200):
-        port = rng.randrange(max(1024, lo - 12000), lo)
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-            try:
-                s.bind(("127.0.0.1", port))
-            except OSError:
-                continue
-            return port
-    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
 
 
 def default_trial_dir(base: Path, participant: str, name: str) -> Path:
@@ -384,6 +352,15 @@ class ServiceGroup:
         """The services whose process is stopped (not running, not gone), in table order."""
         return [n for n, p in self.procs.items() if p.returncode is None and process_stopped(p.pid)]
 
+    def lift_observers(self) -> None:
+        """The observers (the logger) back from SCHED_IDLE: at the run's end, when nobody waits
+        on their account any more. A logger starved on a busy machine would otherwise read the
+        end only after its backlog, and physics may be gone by then (hrc.bus.clock._linger)."""
+        for name in services.OBSERVERS:
+            p = self.procs.get(name)
+            if p is not None and p.poll() is None:
+                priority.leave_idle(p.pid)
+
     def stop_all(self, grace_s: float = 2.0) -> None:
         """SIGTERM (a service writes its files within its grace), then SIGKILL; a stopped
         process gets SIGKILL at once (SIGTERM would wait for a SIGCONT that never comes)."""
@@ -541,8 +518,15 @@ def service_argv(
 class _EndWatcher:
     """Listens for ``run/end`` so the CLI can name the reason even if a service log is terse."""
 
-    def __init__(self, session: str, port: int, access: TrialAccess | None) -> None:
+    def __init__(
+        self,
+        session: str,
+        port: int,
+        access: TrialAccess | None,
+        on_end: Callable[[], None] = lambda: None,
+    ) -> None:
         self.end: pb.RunEnd | None = None
+        self._on_end_hook = on_end
         self.end_at: float | None = None  # time.monotonic() when run/end came
         self._event = threading.Event()
         cfg = BusConfig(
@@ -560,6 +544,10 @@ class _EndWatcher:
         self.end_at = time.monotonic()
         self.end = end
         self._event.set()
+        try:
+            self._on_end_hook()
+        except Exception as exc:  # a nicety: never the watcher's end
+            log.debug("after run/end: %s", exc)
 
     def stop_run(self, reason: str, failed_service: str = "") -> None:
         """Asks the clock master to end the run, with ``reason``: as a normal stop, or (with
@@ -653,8 +641,17 @@ def _await_leaving(group: ServiceGroup, limit_s: float) -> None:
 
 
 def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
-    session = opts.session or f"t{uuid.uuid4().hex[:10]}"
+    # the port stays reserved (hrc.ports) until the trial's physics has gone
     port = opts.port or free_port()
+    try:
+        return _run_trial(opts, trial_dir, port)
+    finally:
+        if not opts.port:
+            release_port(port)
+
+
+def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
+    session = opts.session or f"t{uuid.uuid4().hex[:10]}"
     lowlatency = opts.lowlatency and fits_lowlatency(opts.scenario)
     master = services.CLOCK_MASTER
     for svc in services.SERVICES:
@@ -687,7 +684,7 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
             group.start(name, argv, services.service(name).module)
         time.sleep(0.2)
         try:
-            watcher = _EndWatcher(session, port, access)
+            watcher = _EndWatcher(session, port, access, on_end=group.lift_observers)
             if opts.vr is not None:
                 console = LiveConsole(watcher.bus, opts.participant, opts.parts_total)
         except Exception as exc:  # the bus is optional for the CLI; process status still works

@@ -429,7 +429,7 @@ class Session:
             keep.parent.mkdir(parents=True, exist_ok=True)
             shutil.rmtree(keep, ignore_errors=True)
             shutil.move(str(trial_dir), keep)
-        from hrc.cli.runner import free_port
+        from hrc.ports import free_port
 
         port = self.opts.vr_port or free_port()
         log_path = self.dir / f"hrc-run-{ts.id}-{len(ts.attempts) + 1}.log"

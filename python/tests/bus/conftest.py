@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import pytest
 
 from hrc.bus import Bus, BusConfig
-from hrc.cli.runner import free_port  # tests import it from here too
+from hrc.ports import free_port  # tests import it from here too
 
 
 @pytest.fixture

@@ -16,7 +16,7 @@ import zenoh
 
 from hrc import services
 from hrc.bus import access
-from hrc.cli.runner import free_port
+from hrc.ports import free_port
 
 from .conftest import wait_until
 

@@ -17,6 +17,7 @@ from hrc.bus import (
     Observer,
     Outcome,
 )
+from hrc.bus.clock import RUN_END_RECEIVED
 from hrc.wire import pb
 
 from .conftest import free_port, wait_until
@@ -304,5 +305,50 @@ def test_a_service_whose_step_raises_ends_the_run_at_once_naming_it(
         assert failed.run_end is not None and failed.run_end.failed_participant == failing
         for n in names:
             assert not outcomes[n].ok, n  # everybody learns the run failed
+    finally:
+        s.close()
+
+
+class _SlowReader(Observer):
+    """An observer whose Zenoh thread takes 20 ms per clock message: what comes after waits in
+    its link, as for a logger starved on a loaded machine."""
+
+    got_end_at: float | None = None
+
+    def _on_clock(self, key: str, tick: pb.ClockTick) -> None:
+        if self.ended:  # (the test closes the bus then; the rest would fail to ack)
+            return
+        time.sleep(0.02)
+        super()._on_clock(key, tick)
+
+    def _on_run_end(self, key: str, end: pb.RunEnd) -> None:
+        self.got_end_at = time.monotonic()
+        super()._on_run_end(key, end)
+
+
+def test_the_clock_master_stays_until_a_slow_observer_has_the_run_end(session_id: str) -> None:
+    # Lockstep keeps the clock within 240 ticks of what the observer acked; reading those at
+    # 20 ms each, the observer gets run/end about 4.8 s after the last tick, past the 3 s the
+    # clock master waits for the others to leave. It stays while the observer's acks advance,
+    # so its process (and link) cannot go before the observer has run/end: a link closed with
+    # run/end still in the clock master's queue loses it.
+    settings = ClockSettings(ticks=480, participants=[], observers=["logger"])
+    s = Session(session_id, settings, ["logger"])
+    try:
+        observer = _SlowReader(s.buses["logger"])
+        observer.start()
+        outcome: list[Outcome] = []
+        th = threading.Thread(target=lambda: outcome.append(observer.run(60)))
+        th.start()
+        s.clock.start()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)
+        left_at = time.monotonic()
+        th.join(30)
+        assert end.ok and end.ticks == 480, end
+        assert outcome and outcome[0].ok, outcome
+        assert observer.got_end_at is not None
+        # the observer said it has run/end (hrc.bus.clock.RUN_END_RECEIVED), before physics left
+        assert s.clock._observed["logger"] == RUN_END_RECEIVED
+        assert observer.got_end_at <= left_at, "the clock master left before the observer had it"
     finally:
         s.close()

@@ -8,7 +8,7 @@ import time
 import zenoh
 
 from hrc.bus import BusConfig
-from hrc.cli.runner import free_port
+from hrc.ports import free_port
 
 
 def test_a_client_started_first_connects_soon_after_the_router_listens() -> None:

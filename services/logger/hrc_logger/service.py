@@ -195,12 +195,13 @@ class LoggerService(Service):
     def _open_view(self) -> None:
         args, t0 = self.args, time.monotonic()
         try:
-            from hrc_logger.view import View, ViewSettings, open_recording
-
+            # The scenario before rerun's import (seconds where the logger was not forked ready):
+            # a short run is over by then, and the orchestrator that answers with it gone.
             self._bus_up.wait()
             self.scenario = fetch_scenario(self.bus, args.scenario_timeout)
             # log.txt's first line; events wait for the view (_view_up), so none comes before
             self.recorder.write_settings(self.scenario)
+            from hrc_logger.view import View, ViewSettings, open_recording
 
             rec = open_recording(
                 self.out / RRD_FILE,
