@@ -8,7 +8,8 @@ set -euo pipefail
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 
-if ! "$ROOT/scripts/setup.sh"; then
+# --only-run: what hrc run needs (the C++ tests and benches are built by scripts/test-all.sh)
+if ! "$ROOT/scripts/setup.sh" --only-run; then
   echo "[run-default] FAILED: scripts/setup.sh (see its message above)" >&2
   exit 1
 fi

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Idempotent setup of hrc-cosim on a Debian 12 machine.
 #
-#   scripts/setup.sh [--no-apt] [--no-cpp] [--with-process-compose] [--verbose]
+#   scripts/setup.sh [--no-apt] [--no-cpp] [--only-run] [--with-process-compose] [--verbose]
 #
 # Steps (each one is skipped when its outputs are already up to date):
 #   1. apt packages (only when one is missing; sudo only when not root)
@@ -10,7 +10,8 @@
 #   3. wire contract: proto/hrc/v2/hrc.proto -> python/hrc/wire/hrc_pb2.py
 #   4. .venv with the pinned Python dependencies and the editable project packages, then the
 #      wire contract's type stubs hrc_pb2.pyi (protoc-gen-mypy comes from the venv)
-#   5. C++ build (CMake, which also builds the Rust crate with cargo) in build/ik_cpp
+#   5. C++ build (CMake, which also builds the Rust crate with cargo) in build/ik_cpp; with
+#      --only-run (scripts/run-default.sh) only the IK service, not the C++ tests, bench, probe
 #   6. process-compose, built from the Go module proxy into tools/bin/: only with
 #      --with-process-compose (scripts/test-all.sh; scripts/process-compose.sh on first use), since
 #      only deploy/process-compose.yaml needs it
@@ -38,6 +39,7 @@ VERBOSE="${HRC_VERBOSE:-0}"
 DO_APT=1
 DO_CPP=1
 DO_PC="${HRC_WITH_PROCESS_COMPOSE:-0}"
+CPP_TARGETS=()  # empty: all
 
 # --- pins -------------------------------------------------------------------
 PIP_VERSION="25.1.1"
@@ -75,6 +77,7 @@ for arg in "$@"; do
     --no-apt) DO_APT=0 ;;
     --no-cpp) DO_CPP=0 ;;
     --with-process-compose) DO_PC=1 ;;
+    --only-run) CPP_TARGETS=(--target hrc-ik) ;;
     --no-process-compose) DO_PC=0 ;;  # the default
     --verbose|-v) VERBOSE=1 ;;
     -h|--help) usage; exit 0 ;;
@@ -386,8 +389,8 @@ if [ "$DO_CPP" = 1 ]; then
   fi
   # Incremental: a no-op when nothing changed (cmake re-configures by itself
   # when a CMakeLists.txt changed, cargo checks its own fingerprints).
-  run_logged cmake-build cmake --build build/ik_cpp -j "$JOBS"
-  done_step "built (log: build/setup-logs/cmake-build.log)"
+  run_logged cmake-build cmake --build build/ik_cpp -j "$JOBS" "${CPP_TARGETS[@]}"
+  done_step "built${CPP_TARGETS[*]:+ (the IK service only: --only-run)} (log: build/setup-logs/cmake-build.log)"
 else
   done_step "skipped (--no-cpp)"
 fi

@@ -12,7 +12,10 @@ as a user would and reports:
 - ``exchanges``, ``mean_span``: clock exchanges and ticks per exchange;
 - ``us_per_exchange_by_service``: each service's CPU microseconds per exchange;
 - ``cosim_us_per_tick``: run-phase wall microseconds per tick; ``raw_physics_us_per_tick``: the
-  physics bench's tick of the same board measured right after it; ``ratio`` of the two.
+  physics bench's tick of the same board measured right after it; ``ratio`` of the two;
+- ``raw_physics_cpu_s_per_sim_s``: the physics bench's CPU per simulated second, and
+  ``cpu_ratio``: the trial's CPU per simulated second over it (what a trial costs beyond its
+  physics: the bus, the other services, start-up).
 
 Figures only, never asserted (the machine's load moves them; CPU seconds move least).
 """
@@ -99,6 +102,7 @@ def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> di
     sim_s = run["wall_s"] * run["realtime_factor"]
     cosim_us = run["wall_s"] / ticks * 1e6
     raw_us = raw_physics_us(scenario, physics_n)
+    raw_cpu = raw_us * 1e-6 * ticks / sim_s
     return {
         "scenario": str(scenario),
         "ticks": ticks,
@@ -121,6 +125,9 @@ def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> di
         "cosim_us_per_tick": round(cosim_us, 1),
         "raw_physics_us_per_tick": round(raw_us, 1),
         "ratio": round(cosim_us / raw_us, 2),
+        # the physics bench is one thread that never waits: its wall per tick is its CPU
+        "raw_physics_cpu_s_per_sim_s": round(raw_cpu, 4),
+        "cpu_ratio": round(cpu / sim_s / raw_cpu, 2),
     }
 
 
@@ -150,7 +157,10 @@ def run(args: argparse.Namespace) -> int:
         )
         print(f"  phases (s): {f['phases_s']}")
         print(f"  exits after run/end (s): {f['exit_after_run_end_s']}")
-        print(f"  CPU {f['cpu_s']} s = {f['cpu_s_per_sim_s']} CPU-s per simulated s")
+        print(
+            f"  CPU {f['cpu_s']} s = {f['cpu_s_per_sim_s']} CPU-s per simulated s; raw physics "
+            f"{f['raw_physics_cpu_s_per_sim_s']}; CPU ratio {f['cpu_ratio']}"
+        )
         print(f"  CPU us per exchange: {f['us_per_exchange_by_service']}")
         print(
             f"  co-simulated tick {f['cosim_us_per_tick']} us, raw physics tick "
