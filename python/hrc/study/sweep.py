@@ -14,7 +14,7 @@ from concurrent.futures import ThreadPoolExecutor, as_completed
 from pathlib import Path
 from typing import IO, Any
 
-from hrc.diskspace import low_space
+from hrc.diskspace import SIMULATED_TRIAL_MB, low_space
 from hrc.study.spec import Study, Trial
 from hrc.study.table import write_table
 from hrc.study.trial import Job, Record, allow_trials, run_job, stop_running
@@ -160,7 +160,7 @@ def sweep(
     todo = [t for t in study.trials if not manifest.done(t)]
     skipped = len(study.trials) - len(todo)
     log.info("%d trials: %d to run, %d done before", len(study.trials), len(todo), skipped)
-    if (warning := low_space(out, len(todo))) is not None:
+    if (warning := low_space(out, len(todo), SIMULATED_TRIAL_MB)) is not None:
         log.warning("%s", warning)
     bar = Progress(len(study.trials), skipped)
     jobs = [
