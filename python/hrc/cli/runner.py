@@ -358,7 +358,9 @@ class ServiceGroup:
         end only after its backlog, and physics may be gone by then (hrc.bus.clock._linger)."""
         for name in services.OBSERVERS:
             p = self.procs.get(name)
-            if p is not None and p.poll() is None:
+            # (returncode, not poll(): the run thread reaps, with wait4 for the CPU figures;
+            # an exited but unreaped process keeps its pid)
+            if p is not None and p.returncode is None:
                 priority.leave_idle(p.pid)
 
     def stop_all(self, grace_s: float = 2.0) -> None:
