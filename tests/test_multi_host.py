@@ -48,9 +48,9 @@ def delivered(router: str, cfg: Path, session: str, key: str, sender: Path, msg:
     return bool(got)
 
 
-@pytest.mark.timeout(420)
-def test_a_session_over_a_router_admits_only_its_own_services(tmp_path: Path, ik_bin: Path) -> None:
-    session = f"mh{os.getpid()}"
+def deploy_access(tmp_path: Path, session: str) -> Path:
+    """docs/multi-host.md, step 0: the session's credentials and router.json5 (hrc
+    deploy-access); returns their folder."""
     folder = tmp_path / "access" / session
     made = subprocess.run(
         [HRC, "deploy-access", "--session", session, "--out", str(folder)],
@@ -58,6 +58,30 @@ def test_a_session_over_a_router_admits_only_its_own_services(tmp_path: Path, ik
         text=True,
     )
     assert made.returncode == 0, made.stderr
+    return folder
+
+
+def service_commands(ik_bin: Path, scenario: Path, out: Path) -> dict[str, list[str]]:
+    """docs/multi-host.md, step 2: each service's command line, before the bus options."""
+    return {
+        "physics": [str(BIN / "hrc-physics"), "--clock", "lockstep", "--ticks", "0"],
+        "ik_cpp": [str(ik_bin)],
+        "orchestrator": [
+            str(BIN / "hrc-orchestrator"),
+            "--scenario",
+            str(scenario),
+            "--out",
+            str(out),
+        ],
+        "human_input": [str(BIN / "hrc-human-input")],
+        "logger": [str(BIN / "hrc-logger"), "--out", str(out)],
+    }
+
+
+@pytest.mark.timeout(420)
+def test_a_session_over_a_router_admits_only_its_own_services(tmp_path: Path, ik_bin: Path) -> None:
+    session = f"mh{os.getpid()}"
+    folder = deploy_access(tmp_path, session)
     router_ep = f"tcp/127.0.0.1:{free_port()}"
     procs: dict[str, subprocess.Popen[bytes]] = {}
     logs = tmp_path / "logs"
@@ -97,18 +121,8 @@ def test_a_session_over_a_router_admits_only_its_own_services(tmp_path: Path, ik
         # docs/multi-host.md, step 2: every service a client of the router, with its own file
         common = ["--session", session, "--zenoh-mode", "client", "--connect", router_ep]
         out = tmp_path / "trial"
-        commands = {
-            "physics": [str(BIN / "hrc-physics"), "--clock", "lockstep", "--ticks", "0"],
-            "ik_cpp": [str(ik_bin)],
-            "orchestrator": [
-                str(BIN / "hrc-orchestrator"),
-                "--scenario",
-                str(ROOT / "scenarios" / "thesis.toml"),
-                "--out",
-                str(out),
-            ],
-            "human_input": [str(BIN / "hrc-human-input")],
-        }
+        commands = service_commands(ik_bin, ROOT / "scenarios" / "thesis.toml", out)
+        logger = commands.pop("logger")
         for name, argv in commands.items():
             start(name, [*argv, *common, "--zenoh-config", str(folder / f"{name}.json5")])
         # Intruders while the session gathers (physics waits for the logger's token before the
@@ -121,8 +135,7 @@ def test_a_session_over_a_router_admits_only_its_own_services(tmp_path: Path, ik
                 forge(s, keys)
                 s.close()
         assert not admitted, admitted
-        logger = [str(BIN / "hrc-logger"), "--out", str(out), *common]
-        start("logger", [*logger, "--zenoh-config", str(folder / "logger.json5")])
+        start("logger", [*logger, *common, "--zenoh-config", str(folder / "logger.json5")])
         for name in ("physics", "ik_cpp", "orchestrator", "human_input", "logger"):
             try:
                 rc = procs[name].wait(300)
@@ -158,30 +171,12 @@ def _split_trial(
     """docs/multi-host.md over a cable: the router, physics and ik_cpp on host a; the
     orchestrator, human_input and the logger on host b, all clients of the router."""
     session = f"nh{os.getpid()}"
-    folder = tmp_path / "access" / session
-    made = subprocess.run(
-        [HRC, "deploy-access", "--session", session, "--out", str(folder)],
-        capture_output=True,
-        text=True,
-    )
-    assert made.returncode == 0, made.stderr
+    folder = deploy_access(tmp_path, session)
     addr_a, _addr_b = hosts.cable("a", "b")
     router = f"tcp/{addr_a}:7447"
     hosts.start("a", "router", [HRC, "router", "--config", str(folder / "router.json5")])
     common = ["--session", session, "--zenoh-mode", "client", "--connect", router]
-    commands = {
-        "physics": [str(BIN / "hrc-physics"), "--clock", "lockstep", "--ticks", "0"],
-        "ik_cpp": [str(ik_bin)],
-        "orchestrator": [
-            str(BIN / "hrc-orchestrator"),
-            "--scenario",
-            str(scenario),
-            "--out",
-            str(out),
-        ],
-        "human_input": [str(BIN / "hrc-human-input")],
-        "logger": [str(BIN / "hrc-logger"), "--out", str(out)],
-    }
+    commands = service_commands(ik_bin, scenario, out)
     return {
         name: hosts.start(
             "a" if name in COMPUTE else "b",

@@ -40,6 +40,7 @@ reaction_time_s = {{ dist = "normal", mean = 0.4, sd = 0.08, min = 0.15, max = 0
 peak_hand_speed = {{ dist = "normal", mean = 1.0, sd = 0.15, min = 0.5, max = 1.6 }}
 caution = {{ dist = "uniform", min = 0.0, max = 1.0 }}
 """
+DASK = str(Path(sys.executable).with_name("dask"))
 # wall-clock fields legitimately differ between two runs of the same trial
 WALL = {"wall_s", "run.wall_s", "run.realtime_factor"}
 
@@ -144,17 +145,33 @@ def _free_port() -> int:
         return int(s.getsockname()[1])
 
 
+def dask_worker(scheduler: str, name: str, host: str, folder: Path) -> list[str]:
+    """A single-threaded Dask worker named ``name`` listening on ``host``."""
+    return [
+        *(DASK, "worker", scheduler, "--nthreads", "1", "--nworkers", "1", "--host", host),
+        *("--name", name, "--local-directory", str(folder), "--no-dashboard"),
+    ]
+
+
+def assert_same_table(local: Path, out: Path) -> None:
+    """The sweep in ``out`` ran all 8 trials and gives ``local``'s table (wall times aside)."""
+    a = pd.read_parquet(local / "trials.parquet").sort_values("trial").reset_index(drop=True)
+    b = pd.read_parquet(out / "trials.parquet").sort_values("trial").reset_index(drop=True)
+    assert list(b["outcome"]) == ["ok"] * 8
+    keep = [c for c in a.columns if c not in WALL]
+    assert keep == [c for c in b.columns if c not in WALL]
+    pd.testing.assert_frame_equal(a[keep], b[keep])
+
+
 @pytest.fixture()
 def dask_cluster(tmp_path: Path) -> Iterator[str]:
     """A Dask scheduler and 2 single-threaded workers on loopback, as processes."""
-    dask = str(Path(sys.executable).with_name("dask"))
     port = _free_port()
     address = f"tcp://127.0.0.1:{port}"
-    common = ["--no-dashboard"]
     logs = [open(tmp_path / f"dask-{i}.log", "w") for i in range(3)]
     procs = [
         subprocess.Popen(
-            [dask, "scheduler", "--host", "127.0.0.1", "--port", str(port), *common],
+            [DASK, "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard"],
             stdout=logs[0],
             stderr=subprocess.STDOUT,
         )
@@ -163,22 +180,7 @@ def dask_cluster(tmp_path: Path) -> Iterator[str]:
         for i in (1, 2):
             procs.append(
                 subprocess.Popen(
-                    [
-                        dask,
-                        "worker",
-                        address,
-                        "--nthreads",
-                        "1",
-                        "--nworkers",
-                        "1",
-                        "--host",
-                        "127.0.0.1",
-                        "--name",
-                        f"w{i}",
-                        "--local-directory",
-                        str(tmp_path / f"w{i}"),
-                        *common,
-                    ],
+                    dask_worker(address, f"w{i}", "127.0.0.1", tmp_path / f"w{i}"),
                     stdout=logs[i],
                     stderr=subprocess.STDOUT,
                 )
@@ -208,14 +210,9 @@ def test_the_cluster_gives_the_same_table_as_the_local_run(
     out = study_file.parent / "cluster"
     proc = _sweep(str(study_file), "--out", str(out), "--cluster", dask_cluster)
     assert proc.returncode == 0, proc.stderr
-    a = pd.read_parquet(local / "trials.parquet").sort_values("trial").reset_index(drop=True)
-    b = pd.read_parquet(out / "trials.parquet").sort_values("trial").reset_index(drop=True)
-    assert list(b["outcome"]) == ["ok"] * 8
     manifest = json.loads((out / "manifest.json").read_text())["trials"]
     assert all(r["host"] for r in manifest.values())
-    keep = [c for c in a.columns if c not in WALL]
-    assert keep == [c for c in b.columns if c not in WALL]
-    pd.testing.assert_frame_equal(a[keep], b[keep])
+    assert_same_table(local, out)
 
 
 def test_the_report_has_every_section_and_reads_well(local_sweep) -> None:
@@ -294,32 +291,14 @@ def test_a_cluster_over_three_hosts_gives_the_same_table(
 ) -> None:
     """The scheduler (and the sweep) on one host, a worker on each of two more, joined by
     cables (network namespaces, tests/netns.py): the table is the local run's."""
-    dask = str(Path(sys.executable).with_name("dask"))
     out = study_file.parent / "hosts"
     with Hosts(f"hrs{os.getpid() % 100000}", ["s", "w1", "w2"], tmp_path / "logs") as hosts:
         s1, w1 = hosts.cable("s", "w1")
         _s2, w2 = hosts.cable("s", "w2")
         address = f"tcp://{s1}:8786"
-        hosts.start("s", "scheduler", [dask, "scheduler", "--host", s1, "--no-dashboard"])
+        hosts.start("s", "scheduler", [DASK, "scheduler", "--host", s1, "--no-dashboard"])
         for name, addr in (("w1", w1), ("w2", w2)):
-            hosts.start(
-                name,
-                name,
-                [
-                    dask,
-                    "worker",
-                    address,
-                    "--nthreads",
-                    "1",
-                    "--host",
-                    addr,
-                    "--name",
-                    name,
-                    "--local-directory",
-                    str(tmp_path / name),
-                    "--no-dashboard",
-                ],
-            )
+            hosts.start(name, name, dask_worker(address, name, addr, tmp_path / name))
 
         def joined() -> bool:
             log = hosts.log("scheduler")
@@ -340,9 +319,4 @@ def test_a_cluster_over_three_hosts_gives_the_same_table(
             time.sleep(0.2)
         assert sweep.returncode == 0, hosts.log("sweep")[-3000:]
     assert all(busiest[w] >= idle[w] + 4 for w in idle), (idle, busiest)
-    local, _ = local_sweep
-    a = pd.read_parquet(local / "trials.parquet").sort_values("trial").reset_index(drop=True)
-    b = pd.read_parquet(out / "trials.parquet").sort_values("trial").reset_index(drop=True)
-    assert list(b["outcome"]) == ["ok"] * 8
-    keep = [c for c in a.columns if c not in WALL]
-    pd.testing.assert_frame_equal(a[keep], b[keep])
+    assert_same_table(local_sweep[0], out)

@@ -41,6 +41,12 @@ def _ephemeral_range() -> tuple[int, int]:
         return 32768, 60999
 
 
+def pick_range() -> range:
+    """The ports picks come from: the 12,000 below the ephemeral range (see free_port)."""
+    lo, _hi = _ephemeral_range()
+    return range(max(1024, lo - 12000), lo)
+
+
 def _lock_fd() -> int | None:
     """The shared lock file, opened once per process (closing any descriptor of it would drop
     all of this process's locks on it); None where it cannot be opened."""
@@ -100,14 +106,14 @@ def free_port() -> int:
     port from that range between our pick and the bind; ports below it are only ever taken by an
     explicit bind.
     """
-    lo, _hi = _ephemeral_range()
+    candidates = pick_range()
     rng = random.Random()
     with _lock:
         for _ in range(ATTEMPTS):
-            port = rng.randrange(max(1024, lo - 12000), lo)
+            port = rng.choice(candidates)
             if not _reserve(port):
                 continue
             if _bindable(port):
                 return port
             _unreserve(port)
-    raise OSError(f"no free loopback port below {lo} after {ATTEMPTS} tries")
+    raise OSError(f"no free loopback port below {candidates.stop} after {ATTEMPTS} tries")

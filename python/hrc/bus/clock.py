@@ -676,12 +676,12 @@ class ClockMaster:
         its acks advance (see RUN_END_RECEIVED)."""
         participants = set(self.settings.participants)
         start = time.monotonic()
-        progress = {o: (self._observed.get(o, -1), start) for o in self.settings.observers}
+        progress = {o: (self._observed[o], start) for o in self.settings.observers}
 
         def waiting_for(now: float) -> set[str]:
             left = self._alive & participants if now - start < timeout else set()
             for o, (seen, since) in progress.items():
-                got = self._observed.get(o, -1)
+                got = self._observed[o]
                 if got != seen:  # still reading
                     progress[o] = (got, since := now)
                 if (
@@ -696,11 +696,6 @@ class ClockMaster:
         with self._cond:
             while waiting_for(time.monotonic()):
                 self._cond.wait(0.05)
-            still = self._alive & participants
-            still |= {o for o in progress if o in self._alive and o in self._unreceived()}
-            if still:
+            unreceived = {o for o, t in self._observed.items() if t < RUN_END_RECEIVED}
+            if still := self._alive & (participants | unreceived):
                 log.warning("still present after run end: %s", ", ".join(sorted(still)))
-
-    def _unreceived(self) -> set[str]:
-        """The observers that have not acked run/end's arrival. Under the lock."""
-        return {o for o, t in self._observed.items() if t < RUN_END_RECEIVED}
