@@ -157,6 +157,7 @@ def run_synthetic(
                         ticks=trial.n,
                         sim_time=trial.n * dt,
                         mode=pb.CLOCK_MODE_LOCKSTEP,
+                        last_clock_seq=fake.clock.seq,
                     ),
                     trial.n,
                     trial.n * dt,

@@ -639,6 +639,7 @@ class ClockMaster:
             wall_s=wall,
             mode=self._mode,
             realtime_factor=(k * self.dt / wall) if wall > 0 else 0.0,
+            last_clock_seq=self._clock_pub.seq,
         )
         for p, n in self.misses.items():
             end.deadline_misses[p] = n

@@ -128,6 +128,7 @@ class ClockFollower:
         self._busy = False  # a tick is being computed (one at a time, whichever thread)
         self._running = False
         self._latest_seen = -1  # the newest clock tick received
+        self._clock_seq = 0  # the highest ClockTick header.seq received
         self._end: Outcome | None = None
         self._aborted = False  # our own step failed and we asked the clock master to abort
         self._master_done = False  # run/end came, or the clock master is gone
@@ -171,6 +172,7 @@ class ClockFollower:
         with self._cond:
             if tick.header.tick > self._latest_seen:
                 self._latest_seen = tick.header.tick
+            self._clock_seq = max(self._clock_seq, tick.header.seq)
             # Fast path: when nothing is queued and every input of the tick is here, compute it
             # right on this thread; otherwise the run() thread does (and waits for the inputs).
             inline = (
@@ -237,6 +239,10 @@ class ClockFollower:
                     lambda: (self._ticks and not self._busy) or self._end is not None, timeout
                 )
                 if self._end is not None and not (self._ticks and self._work_off_queue()):
+                    left = self._tail_wait_s()
+                    if left > 0:  # run/end overtook ticks still on their way
+                        self._cond.wait_for(lambda: bool(self._ticks), left)
+                        continue
                     # An inline tick may still be under way: let it end before the bus goes.
                     self._cond.wait_for(lambda: not self._busy, self.input_timeout_s)
                     break
@@ -254,6 +260,11 @@ class ClockFollower:
         end = self._end
         assert end is not None
         return end
+
+    def _tail_wait_s(self) -> float:
+        """After the end, with nothing queued: how long to wait still for clock ticks sent
+        before run/end (called under the lock; 0: none, or don't wait)."""
+        return 0.0
 
     def _wind_up(self) -> None:
         """The role's last work after the end (observers: the late messages)."""

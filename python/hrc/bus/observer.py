@@ -88,6 +88,8 @@ class Observer(ClockFollower):
         self._hurry = False  # stop waiting for inputs (stopped, or the run failed)
         self._ack_pub: Publisher[pb.TickAck] | None = None
         self._acked = -OBSERVER_ACK_TICKS  # the newest tick acknowledged
+        self._tail_deadline: float | None = None  # when to stop waiting for the last ticks
+        self._tail_missed = False
 
     def input(
         self,
@@ -144,6 +146,28 @@ class Observer(ClockFollower):
 
     def _work_off_queue(self) -> bool:
         return not self._aborted
+
+    def _tail_wait_s(self) -> float:
+        # Each key's callbacks run on a thread of their own, so run/end can be handled before
+        # the last clock ticks; RunEnd.last_clock_seq says which one was last.
+        end = self._end.run_end if self._end is not None else None
+        if end is None or self._hurry or self._clock_seq >= end.last_clock_seq:
+            return 0.0
+        now = time.monotonic()
+        if self._tail_deadline is None:
+            self._tail_deadline = now + self.drain_max_s
+        left = self._tail_deadline - now
+        if left > 0:
+            return left
+        if not self._tail_missed:
+            self._tail_missed = True
+            log.error(
+                "clock ticks seq %d..%d never arrived (run/end came %.1f s before)",
+                self._clock_seq + 1,
+                end.last_clock_seq,
+                self.drain_max_s,
+            )
+        return 0.0
 
     def _input_wait_s(self) -> float:
         return 0.0 if self._hurry else self.input_timeout_s

@@ -352,3 +352,38 @@ def test_the_clock_master_stays_until_a_slow_observer_has_the_run_end(session_id
         assert observer.got_end_at <= left_at, "the clock master left before the observer had it"
     finally:
         s.close()
+
+
+class _LateLastTick(Observer):
+    """An observer whose clock thread gets to the last tick only after run/end was handled:
+    each key's callbacks run on a thread of their own, so a starved clock thread does this."""
+
+    def __init__(self, bus: Bus, last: int) -> None:
+        super().__init__(bus)
+        self.last = last
+        self.steps: list[int] = []
+        self.on_tick(lambda t: self.steps.append(t.header.tick))
+
+    def _on_clock(self, key: str, tick: pb.ClockTick) -> None:
+        if tick.header.tick == self.last:
+            wait_until(lambda: self.ended, timeout=10)
+        super()._on_clock(key, tick)
+
+
+def test_an_observer_reads_the_ticks_run_end_overtook(session_id: str) -> None:
+    settings = ClockSettings(ticks=60, participants=[], observers=["logger"])
+    s = Session(session_id, settings, ["logger"])
+    try:
+        observer = _LateLastTick(s.buses["logger"], last=59)
+        observer.start()
+        outcome: list[Outcome] = []
+        th = threading.Thread(target=lambda: outcome.append(observer.run(60)))
+        th.start()
+        s.clock.start()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)
+        th.join(30)
+        assert end.ok and end.last_clock_seq == 60, end
+        assert outcome and outcome[0].ok, outcome
+        assert observer.steps == list(range(60)), observer.steps[-3:]
+    finally:
+        s.close()
