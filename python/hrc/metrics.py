@@ -38,6 +38,7 @@ log = logging.getLogger(__name__)
 METRICS_FILE = "metrics.json"
 LOGGER_STATS_FILE = "logger_stats.json"  # the logger's own counters (its lag, what it lost)
 TEXT_LOG_FILE = "log.txt"  # the logger's readable log (hrc run adds its ACCESS REFUSED line)
+EVENTS_FILE = "events.jsonl"  # the logger's records: events, cues, metrics (docs/metrics.md)
 
 
 def add_recording(trial_dir: Path) -> bool:

@@ -17,6 +17,13 @@ as a user would and reports:
   ``cpu_ratio``: the trial's CPU per simulated second over it (what a trial costs beyond its
   physics: the bus, the other services, start-up).
 
+And the floor under ``cpu_ratio`` (``floor``, measured in the same run): the services' start-up
+(``startup_cpu_s``: ``hrc run`` of ``scenarios/empty.toml`` for 10 ticks) and one bare exchange
+(``bare_exchange_cpu_us``: the same scenario with one-tick exchanges, 2,000 ticks more: a clock
+tick to every service and their acks, nothing computed); per board ``floor_cpu_ratio``, the
+ratio the trial would have if every service's own work cost nothing: (start-up + exchanges x
+bare exchange + raw physics) / raw physics.
+
 Figures only, never asserted (the machine's load moves them; CPU seconds move least).
 """
 
@@ -65,6 +72,14 @@ def board_3x_toml(thesis: Path) -> str:
     if human is None:
         raise ValueError(f"{thesis}: no human sequence to extend")
     return text.replace(human.group(0), f"human = [{human.group(1)}, {spares}]")
+
+
+def empty_one_tick_toml(empty: Path) -> str:
+    """``scenarios/empty.toml`` with one-tick exchanges (its idle ones would span many)."""
+    text = empty.read_text()
+    if "\n[scenario]\n" not in text:
+        raise ValueError(f"{empty}: no [scenario] table")
+    return text.replace("\n[scenario]\n", "\n[scenario]\nmax_exchange_ticks = 1\n", 1)
 
 
 def _children_cpu() -> float:
@@ -131,6 +146,36 @@ def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> di
     }
 
 
+def _run_cpu(scenario: Path, out: Path, ticks: int) -> float:
+    """CPU seconds of ``hrc run scenario --ticks N`` and its services."""
+    argv = [sys.executable, "-m", "hrc.cli.main", "run", str(scenario), "--out", str(out)]
+    argv += ["--ticks", str(ticks)]
+    cpu0 = _children_cpu()
+    proc = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    if proc.returncode != 0:
+        raise RuntimeError(f"hrc run {scenario} failed ({proc.returncode}):\n{proc.stdout}")
+    return _children_cpu() - cpu0
+
+
+FLOOR_TICKS = 2000
+
+
+def measure_floor(empty: Path, tmpdir: Path) -> dict[str, float]:
+    """Start-up and one bare exchange, from two runs of the one-tick empty scenario."""
+    startup = _run_cpu(empty, tmpdir / "floor-start", 10)
+    longer = _run_cpu(empty, tmpdir / "floor-long", 10 + FLOOR_TICKS)
+    return {
+        "startup_cpu_s": round(startup, 3),
+        "bare_exchange_cpu_us": round((longer - startup) / FLOOR_TICKS * 1e6),
+    }
+
+
+def floor_ratio(f: dict[str, Any], floor: dict[str, float]) -> float:
+    raw = f["raw_physics_cpu_s_per_sim_s"] * f["sim_s"]
+    least = floor["startup_cpu_s"] + f["exchanges"] * floor["bare_exchange_cpu_us"] * 1e-6
+    return round(float((least + raw) / raw), 2)
+
+
 def run(args: argparse.Namespace) -> int:
     root = project_root()
     n = getattr(args, "n", 0) or 2000
@@ -144,10 +189,25 @@ def run(args: argparse.Namespace) -> int:
             "thesis": thesis,
             "board_3x": measure(board, tmpdir / "board-3x", n, thesis["ticks"]),
         }
+        empty = tmpdir / "empty-one-tick.toml"
+        empty.write_text(empty_one_tick_toml(root / "scenarios" / "empty.toml"))
+        floor = measure_floor(empty, tmpdir)
+        for f in figures.values():
+            f["floor_cpu_ratio"] = floor_ratio(f, floor)
+        figures["floor"] = floor
+    if getattr(args, "json", False):
+        print(json.dumps(figures))
+        return 0
+    print(
+        f"floor: start-up {floor['startup_cpu_s']} CPU-s, a bare exchange "
+        f"{floor['bare_exchange_cpu_us']} CPU-us (every service, nothing computed)"
+    )
     if getattr(args, "json", False):
         print(json.dumps(figures))
         return 0
     for name, f in figures.items():
+        if name == "floor":
+            continue
         print(
             f"{name}: {f['ticks']} ticks ({f['sim_s']} s simulated) in {f['exchanges']} exchanges"
         )
@@ -159,7 +219,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"  exits after run/end (s): {f['exit_after_run_end_s']}")
         print(
             f"  CPU {f['cpu_s']} s = {f['cpu_s_per_sim_s']} CPU-s per simulated s; raw physics "
-            f"{f['raw_physics_cpu_s_per_sim_s']}; CPU ratio {f['cpu_ratio']}"
+            f"{f['raw_physics_cpu_s_per_sim_s']}; CPU ratio {f['cpu_ratio']} (floor "
+            f"{f['floor_cpu_ratio']}: start-up and bare exchanges only)"
         )
         print(f"  CPU us per exchange: {f['us_per_exchange_by_service']}")
         print(

@@ -38,6 +38,7 @@ from typing import Any
 import numpy as np
 
 from hrc.geometry import Vec3, distance
+from hrc.metrics import EVENTS_FILE
 from hrc.scenario.models import DEFAULT_TOLERANCE_M
 from hrc.study.trial import RECORDING_FILE
 
@@ -45,7 +46,6 @@ from hrc_human_input.motor import MIN_JERK_PEAK_FACTOR, REACTION_LOG_SD, fitts_i
 from hrc_human_input.replay import load_recording
 from hrc_human_input.scripted import GROSS_WIDTH, PICK_WIDTH
 
-EVENTS_FILE = "events.jsonl"
 ONSET_SPEED = 0.03  # m/s: a hand faster than this moves
 NEAR_M = 0.03  # a move ending this close to a grasp / release point ends there
 ABOVE_XY_M = 0.02  # ... this close in x, y (and higher) ends above it

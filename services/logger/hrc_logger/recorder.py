@@ -24,8 +24,6 @@ if TYPE_CHECKING:  # rerun is imported only by whoever builds a View (slow to im
 
 log = logging.getLogger(__name__)
 
-EVENTS_FILE = "events.jsonl"
-
 
 class TrialRecorder:
     """Writes every task event, cue and final metrics; forwards world state to the view."""
@@ -33,7 +31,7 @@ class TrialRecorder:
     def __init__(self, out: Path, view: View | None = None) -> None:
         self.out = out
         out.mkdir(parents=True, exist_ok=True)
-        self.events = JsonlFile(out / EVENTS_FILE)
+        self.events = JsonlFile(out / metrics_schema.EVENTS_FILE)
         self.text = LineFile(out / metrics_schema.TEXT_LOG_FILE)
         self.thesis = ThesisLog()
         self.view = view
