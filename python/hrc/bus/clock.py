@@ -331,9 +331,11 @@ class ClockMaster:
             missing = self.inbox.wait_for(marks, self.settings.barrier_timeout_s)
             if missing:
                 m = missing[0]
+                got = self.inbox.last_seq(m.key, m.sender)
                 raise RunFailed(
                     f"tick {k}: {m.key} #{m.seq} from '{m.sender}' was acknowledged "
-                    f"but never arrived within {self.settings.barrier_timeout_s:g} s",
+                    f"but never arrived within {self.settings.barrier_timeout_s:g} s "
+                    f"(received up to #{got})",
                     m.sender,
                 )
         else:  # realtime: whatever is late is applied with the next tick

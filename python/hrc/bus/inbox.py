@@ -114,6 +114,11 @@ class Inbox:
                 if self._subscribed(m.key) and self._received.get((m.key, m.sender), 0) < m.seq
             ]
 
+    def last_seq(self, key: str, sender: str) -> int:
+        """The highest seq received on ``key`` from ``sender`` (0: none yet)."""
+        with self._lock:
+            return self._received.get((key, sender), 0)
+
     def wait_for(self, marks: list[pb.PublishedMark], timeout: float) -> list[pb.PublishedMark]:
         """Waits until every mark is satisfied; returns what is still missing at the timeout."""
         wanted = [m for m in marks if self._subscribed(m.key)]

@@ -228,6 +228,38 @@ def test_an_output_acked_before_it_arrives_is_waited_for_and_applied_in_its_tick
         s.close()
 
 
+def test_an_output_acked_but_never_sent_ends_the_run_naming_it_and_what_came(
+    session_id: str,
+) -> None:
+    settings = ClockSettings(ticks=30, participants=["ik_cpp"], observers=[], barrier_timeout_s=1.0)
+    s = Session(session_id, settings, ["ik_cpp"])
+    try:
+        bus = s.buses["ik_cpp"]
+        out_key = bus.keys.robot_state("r1")
+        out = bus.publisher(out_key)
+        ack = bus.publisher(bus.keys.clock_ack("ik_cpp"))
+
+        def on_clock(_k: str, tick: pb.ClockTick) -> None:
+            k = tick.header.tick
+            if k < 5:
+                out.put(pb.RobotState(robot="r1"), k)
+                mark = pb.PublishedMark(key=out_key, sender="ik_cpp", seq=out.seq)
+            else:  # vouches for a sixth state that never goes out
+                mark = pb.PublishedMark(key=out_key, sender="ik_cpp", seq=out.seq + 1)
+            ack.put(pb.TickAck(participant="ik_cpp", published=[mark]), k)
+
+        bus.subscribe(bus.keys.clock(), pb.ClockTick, on_clock)
+        bus.declare_token()
+        s.clock.input(out_key, pb.RobotState, lambda _k, _m: None)
+        s.clock.start()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)
+        assert not end.ok and end.failed_participant == "ik_cpp", end
+        assert f"{out_key} #6 from 'ik_cpp' was acknowledged but never arrived" in end.reason
+        assert "(received up to #5)" in end.reason, end.reason
+    finally:
+        s.close()
+
+
 def test_a_participant_follows_the_clock_master_its_config_names(session_id: str) -> None:
     # hrc run passes --clock-master; the lost token of that service, not physics's, ends the run.
     ep = f"tcp/127.0.0.1:{free_port()}"
