@@ -338,6 +338,9 @@ class ClockFollower:
         with self._cond:
             first = self._end is None and not self._aborted
             self._aborted = True
+        # Our end before the abort goes out: the clock master's run/end, which answers it on
+        # another thread, would otherwise be first to end the run and take our reason's place.
+        self._finish(Outcome(False, reason))
         if first and self._control_pub is not None:
             try:
                 self._control_pub.put(
@@ -347,7 +350,6 @@ class ClockFollower:
                 )
             except Exception:  # the bus itself may be what failed
                 log.exception("could not ask the clock master to abort")
-        self._finish(Outcome(False, reason))
 
 
 class LockstepParticipant(ClockFollower):

@@ -248,6 +248,11 @@ void LockstepParticipant::abort(const v2::ClockTick& tick, const std::string& er
     first = !end_.has_value() && !aborted_;
     aborted_ = true;
   }
+  // Our end before the abort goes out: the clock master's run/end, which answers it on another
+  // thread, would otherwise be first to end the run and take the place of our reason.
+  Outcome o;
+  o.reason = reason;
+  finish(std::move(o));
   if (first && control_pub_ != nullptr) {
     try {
       v2::RunControl ctl;
@@ -258,9 +263,6 @@ void LockstepParticipant::abort(const v2::ClockTick& tick, const std::string& er
       log::error(std::string("could not ask the clock master to abort: ") + e.what());
     }
   }
-  Outcome o;
-  o.reason = reason;
-  finish(std::move(o));
 }
 
 }  // namespace hrc
