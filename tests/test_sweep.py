@@ -6,7 +6,6 @@ from __future__ import annotations
 import json
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -18,7 +17,7 @@ import pytest
 
 from hrc.browser import headless_chromium, output_dir
 
-from .conftest import HRC, ROOT, wait_until
+from .conftest import HRC, ROOT, free_port, wait_until
 from .netns import Hosts
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
@@ -139,12 +138,6 @@ def test_a_stalled_trial_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> No
     assert "rt10_stall1_P01_r1" in page and "stalled for 1 s" in page
 
 
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return int(s.getsockname()[1])
-
-
 def dask_worker(scheduler: str, name: str, host: str, folder: Path) -> list[str]:
     """A single-threaded Dask worker named ``name`` listening on ``host``."""
     return [
@@ -166,7 +159,7 @@ def assert_same_table(local: Path, out: Path) -> None:
 @pytest.fixture()
 def dask_cluster(tmp_path: Path) -> Iterator[str]:
     """A Dask scheduler and 2 single-threaded workers on loopback, as processes."""
-    port = _free_port()
+    port = free_port()
     address = f"tcp://127.0.0.1:{port}"
     logs = [open(tmp_path / f"dask-{i}.log", "w") for i in range(3)]
     procs = [

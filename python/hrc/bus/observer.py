@@ -89,7 +89,6 @@ class Observer(ClockFollower):
         self._ack_pub: Publisher[pb.TickAck] | None = None
         self._acked = -OBSERVER_ACK_TICKS  # the newest tick acknowledged
         self._tail_deadline: float | None = None  # when to stop waiting for the last ticks
-        self._tail_missed = False
 
     def input(
         self,
@@ -147,27 +146,22 @@ class Observer(ClockFollower):
     def _work_off_queue(self) -> bool:
         return not self._aborted
 
-    def _tail_wait_s(self) -> float:
-        # Each key's callbacks run on a thread of their own, so run/end can be handled before
-        # the last clock ticks; RunEnd.last_clock_seq says which one was last.
+    def _ticks_unseen(self) -> pb.RunEnd | None:
+        """The good run/end when clock ticks it says were sent have not arrived (each key's
+        callbacks run on a thread of their own, so run/end can be handled before the last
+        ticks; RunEnd.last_clock_seq says which one was last). Under the lock, or after run()."""
         end = self._end.run_end if self._end is not None else None
         if end is None or self._hurry or self._clock_seq >= end.last_clock_seq:
+            return None
+        return end
+
+    def _tail_wait_s(self) -> float:
+        if self._ticks_unseen() is None:
             return 0.0
         now = time.monotonic()
         if self._tail_deadline is None:
             self._tail_deadline = now + self.drain_max_s
-        left = self._tail_deadline - now
-        if left > 0:
-            return left
-        if not self._tail_missed:
-            self._tail_missed = True
-            log.error(
-                "clock ticks seq %d..%d never arrived (run/end came %.1f s before)",
-                self._clock_seq + 1,
-                end.last_clock_seq,
-                self.drain_max_s,
-            )
-        return 0.0
+        return max(0.0, self._tail_deadline - now)
 
     def _input_wait_s(self) -> float:
         return 0.0 if self._hurry else self.input_timeout_s
@@ -187,6 +181,14 @@ class Observer(ClockFollower):
         """Waits until the session is quiet for ``quiet_s``, then hands over everything still
         held at once (sorted: the last outputs, which no clock tick lists, may come on several
         keys, and their order must not depend on when each arrived)."""
+        unseen = self._ticks_unseen()
+        if unseen is not None:
+            log.error(
+                "clock ticks seq %d..%d never arrived (run/end came %.1f s before)",
+                self._clock_seq + 1,
+                unseen.last_clock_seq,
+                self.drain_max_s,
+            )
         deadline = time.monotonic() + (0.5 if self._hurry else self.drain_max_s)
         quiet_since = time.monotonic()
         seen = self.inbox.arrived

@@ -87,6 +87,20 @@ def _children_cpu() -> float:
     return ru.ru_utime + ru.ru_stime
 
 
+def hrc_run(scenario: Path, out: Path, options: list[str]) -> tuple[float, float]:
+    """``hrc run scenario --out out OPTIONS`` as a user would: its wall seconds and the CPU
+    seconds of it and its services; RuntimeError with its output when it fails."""
+    argv = [sys.executable, "-m", "hrc.cli.main", "run", str(scenario), "--out", str(out)]
+    cpu0, t0 = _children_cpu(), time.monotonic()
+    proc = subprocess.run(
+        [*argv, *options], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
+    wall, cpu = time.monotonic() - t0, _children_cpu() - cpu0
+    if proc.returncode != 0:
+        raise RuntimeError(f"hrc run {scenario} failed ({proc.returncode}):\n{proc.stdout}")
+    return wall, cpu
+
+
 def raw_physics_us(scenario: Path, n: int) -> float:
     argv = [sys.executable, "-m", f"{services.service('physics').module}.bench", "--json"]
     argv += ["--scenario", str(scenario), "--n", str(n)]
@@ -97,14 +111,7 @@ def raw_physics_us(scenario: Path, n: int) -> float:
 def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> dict[str, Any]:
     """One ``hrc run`` of ``scenario`` into ``out`` (at most ``max_ticks``), then the physics
     bench of the same board."""
-    argv = [sys.executable, "-m", "hrc.cli.main", "run", str(scenario), "--out", str(out)]
-    if max_ticks:
-        argv += ["--max-ticks", str(max_ticks)]
-    cpu0, t0 = _children_cpu(), time.monotonic()
-    proc = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    wall, cpu = time.monotonic() - t0, _children_cpu() - cpu0
-    if proc.returncode != 0:
-        raise RuntimeError(f"hrc run {scenario} failed ({proc.returncode}):\n{proc.stdout}")
+    wall, cpu = hrc_run(scenario, out, ["--max-ticks", str(max_ticks)] if max_ticks else [])
     run = json.loads((out / "metrics.json").read_text())["run"]
     by_service = {
         name: round(v["user_s"] + v["system_s"], 3)
@@ -146,24 +153,13 @@ def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> di
     }
 
 
-def _run_cpu(scenario: Path, out: Path, ticks: int) -> float:
-    """CPU seconds of ``hrc run scenario --ticks N`` and its services."""
-    argv = [sys.executable, "-m", "hrc.cli.main", "run", str(scenario), "--out", str(out)]
-    argv += ["--ticks", str(ticks)]
-    cpu0 = _children_cpu()
-    proc = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"hrc run {scenario} failed ({proc.returncode}):\n{proc.stdout}")
-    return _children_cpu() - cpu0
-
-
 FLOOR_TICKS = 2000
 
 
 def measure_floor(empty: Path, tmpdir: Path) -> dict[str, float]:
     """Start-up and one bare exchange, from two runs of the one-tick empty scenario."""
-    startup = _run_cpu(empty, tmpdir / "floor-start", 10)
-    longer = _run_cpu(empty, tmpdir / "floor-long", 10 + FLOOR_TICKS)
+    _wall, startup = hrc_run(empty, tmpdir / "floor-start", ["--ticks", "10"])
+    _wall, longer = hrc_run(empty, tmpdir / "floor-long", ["--ticks", str(10 + FLOOR_TICKS)])
     return {
         "startup_cpu_s": round(startup, 3),
         "bare_exchange_cpu_us": round((longer - startup) / FLOOR_TICKS * 1e6),
@@ -202,9 +198,6 @@ def run(args: argparse.Namespace) -> int:
         f"floor: start-up {floor['startup_cpu_s']} CPU-s, a bare exchange "
         f"{floor['bare_exchange_cpu_us']} CPU-us (every service, nothing computed)"
     )
-    if getattr(args, "json", False):
-        print(json.dumps(figures))
-        return 0
     for name, f in figures.items():
         if name == "floor":
             continue
