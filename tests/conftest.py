@@ -21,6 +21,8 @@ from hrc.ports import free_port  # tests import it from here too
 from hrc.services import SERVICES
 from hrc.wire import pb
 
+from .goldens import THESIS, Finished, run_trial
+
 ROOT = project_root()
 HRC = str(Path(sys.executable).with_name("hrc"))
 # what identifies each service's process on its command line (hrc run: python -m / the binary)
@@ -215,3 +217,11 @@ def trial_factory(tmp_path: Path, ik_bin: Path) -> Iterator:
 @pytest.fixture
 def session_id() -> str:
     return f"s{uuid.uuid4().hex[:8]}"
+
+
+@pytest.fixture(scope="session")
+def thesis_trial(tmp_path_factory: pytest.TempPathFactory, ik_bin: Path) -> Finished:
+    """The unmodified thesis trial (`hrc run scenarios/thesis.toml`), run once for every test that
+    only reads its outputs (the golden files, the metrics, the logger's files). A test that needs
+    a trial of its own, or two runs of one (determinism), runs them itself."""
+    return run_trial(HRC, THESIS, tmp_path_factory.mktemp("thesis") / "trial")

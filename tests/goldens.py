@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import subprocess
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -51,13 +52,42 @@ def strip_wall(obj: Any) -> Any:
     return obj
 
 
-def run_trial(hrc: str, scenario: Path, out: Path) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [hrc, "run", str(scenario), "--out", str(out), "--max-ticks", "60000"],
+@dataclass
+class Finished:
+    """A trial `hrc run` has run: its folder, exit code and output, and its files as read."""
+
+    folder: Path
+    returncode: int
+    stdout: str
+    stderr: str
+
+    @property
+    def metrics(self) -> dict[str, Any]:
+        return dict(json.loads((self.folder / "metrics.json").read_text()))
+
+    @property
+    def events(self) -> list[dict[str, Any]]:
+        lines = (self.folder / "events.jsonl").read_text().splitlines()
+        return [json.loads(line) for line in lines]
+
+    @property
+    def log_lines(self) -> list[str]:
+        return (self.folder / "log.txt").read_text().splitlines()
+
+
+def run_trial(
+    hrc: str, scenario: Path, out: Path, *extra: str, max_ticks: int = 60000, timeout: float = 900
+) -> Finished:
+    """`hrc run SCENARIO --out OUT --max-ticks N EXTRA...` to its end (the tests' one way to run a
+    whole trial from the command line; the cap only ends a trial that would never finish)."""
+    proc = subprocess.run(
+        [hrc, "run", str(scenario), "--out", str(out), "--max-ticks", str(max_ticks), *extra],
         capture_output=True,
         text=True,
-        timeout=900,
+        timeout=timeout,
+        stdin=subprocess.DEVNULL,
     )
+    return Finished(out, proc.returncode, proc.stdout, proc.stderr)
 
 
 def normalised(folder: Path) -> dict[str, Any]:

@@ -1,11 +1,13 @@
 """hrc fit end to end: parameter recovery and held-out prediction (docs/participant-model.md).
 
-20 simulated people with known, varied parameters are each recorded in two real trials (the
-five services, `studies/recovery.toml`); `hrc fit` estimates their parameters back from the
-recordings and events alone. The same people also run a condition the fit did not see (the
-robots at 1.0 m/s instead of 0.5), and so do their twins (`participants.fitted`): each twin's
-completion time is compared with its person's. Figures are printed (`-s`); `hrc bench fit`
-prints the same.
+The first PEOPLE of the 20 simulated people of `studies/recovery.toml` (known, varied
+parameters: reaction 0.23-0.38 s, peak speed 0.68-1.06 m/s, Fitts a 0.06-0.13 s, b 0.11-0.19
+s/bit, dwells 0.22-0.43 s) are each recorded in two real trials (the five services); `hrc fit`
+estimates their parameters back from the recordings and events alone. The same people also run a
+condition the fit did not see (the robots at 1.0 m/s instead of 0.5), and so do their twins
+(`participants.fitted`): each twin's completion time is compared with its person's. Figures are
+printed (`-s`). `hrc bench fit` runs all 20 people (80 trials; its figures in bench/README.md):
+the test runs 16 trials, enough to see a fit that is biased or a twin that does not predict.
 """
 
 from __future__ import annotations
@@ -23,11 +25,13 @@ from hrc.cli.bench_fit import bench
 from .conftest import HRC
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
+PEOPLE = 4
 
 
-@pytest.mark.timeout(2400)
+@pytest.mark.timeout(900)
 def test_fit_recovers_people_and_their_twins_predict_a_held_out_condition(tmp_path: Path) -> None:
-    report = bench(tmp_path, workers=2)
+    report = bench(tmp_path, workers=2, people=PEOPLE)
+    assert report["trials"] == 4 * PEOPLE  # two recorded, one held out, one twin each
     rec, pred = report["recovery"], report["prediction"]
     print(f"\n{report['trials']} trials in {report['wall_s']} s")
     for key, r in {**rec, **pred}.items():
@@ -39,13 +43,13 @@ def test_fit_recovers_people_and_their_twins_predict_a_held_out_condition(tmp_pa
         )
     assert not report["failed"], report["failed"]
     for key in ("reaction_time_s", "peak_hand_speed"):
-        assert rec[key]["n"] == 20
+        assert rec[key]["n"] == PEOPLE
         assert abs(rec[key]["bias"]) <= 0.10, (key, rec[key])
         assert rec[key]["mean_abs_error"] <= 0.10, (key, rec[key])
     for key in ("fitts_a_s", "fitts_b_s", "pick_dwell_s", "place_dwell_s"):
-        assert rec[key]["n"] == 20 and rec[key]["mean_abs_error"] <= 0.25, (key, rec[key])
+        assert rec[key]["n"] == PEOPLE and rec[key]["mean_abs_error"] <= 0.25, (key, rec[key])
     completion = pred["human.completion_s"]
-    assert completion["n"] == 20 and completion["mean_abs_error"] <= 0.15, completion
+    assert completion["n"] == PEOPLE and completion["mean_abs_error"] <= 0.15, completion
 
     # the command on the same folder: one table per person, read back by a study
     people = tmp_path / "people"
@@ -60,11 +64,11 @@ def test_fit_recovers_people_and_their_twins_predict_a_held_out_condition(tmp_pa
     assert proc.returncode == 0, proc.stderr
     printed = json.loads(proc.stdout)
     written = tomllib.loads(out.read_text())["fitted"]
-    assert sorted(written) == [f"P{i:02d}" for i in range(1, 21)]
+    assert sorted(written) == [f"P{i:02d}" for i in range(1, PEOPLE + 1)]
     assert written == printed["fitted"]
-    assert printed["recovery"]["reaction_time_s"]["n"] == 20
+    assert printed["recovery"]["reaction_time_s"]["n"] == PEOPLE
     twins = pd.read_csv(tmp_path / "twins" / "trials.csv")
-    assert list(twins["participant_kind"]) == ["fitted"] * 20
+    assert list(twins["participant_kind"]) == ["fitted"] * PEOPLE
 
 
 def test_fit_names_what_is_missing(tmp_path: Path) -> None:

@@ -52,8 +52,18 @@ def strip(obj: Any) -> Any:
 
 
 @pytest.mark.parametrize("scenario", ["minimal", "thesis"])
-def test_scripted_participant_completes_the_scenario(scenario: str, tmp_path: Path) -> None:
-    d = trial(scenario, tmp_path / "trial")
+def test_scripted_participant_completes_the_scenario(
+    scenario: str, tmp_path: Path, request: pytest.FixtureRequest
+) -> None:
+    if scenario == "thesis":  # the session's shared run of the unmodified thesis trial
+        shared = request.getfixturevalue("thesis_trial")
+        assert shared.returncode == 0, shared.stderr[-3000:]
+        assert shared.metrics["run"]["end_reason"].startswith("stopped"), (
+            f"the run did not end by the task finishing: {shared.metrics['run']['end_reason']}"
+        )
+        d = shared.folder
+    else:
+        d = trial(scenario, tmp_path / "trial")
     kinds = [e.get("kind") for e in events(d)]
     assert "TASK_FINISHED" in kinds and "HUMAN_FINISHED" in kinds
     metrics = json.loads((d / "metrics.json").read_text())

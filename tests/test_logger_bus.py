@@ -11,7 +11,6 @@ from __future__ import annotations
 import json
 import subprocess
 import sys
-import time
 import uuid
 from collections import Counter
 from pathlib import Path
@@ -22,7 +21,8 @@ from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, Publisher
 from hrc.wire import pb
 
-from .conftest import HRC, ROOT, free_port, wait_until
+from .conftest import ROOT, free_port, wait_until
+from .goldens import Finished
 from hrc_logger.rrd import summarize
 
 sys.path.insert(0, str(ROOT / "services" / "logger" / "tests"))
@@ -284,18 +284,10 @@ def test_sigterm_mid_trial_closes_every_file_readable(tmp_path: Path) -> None:
 
 
 @pytest.mark.e2e
-def test_full_thesis_trial_logger_outputs(tmp_path: Path) -> None:
-    from hrc.paths import ik_binary
-
-    if not ik_binary().exists():
-        pytest.skip(f"{ik_binary()} is missing (build the C++ IK service)")
-    out = tmp_path / "trial"
-    t0 = time.monotonic()
-    proc = subprocess.run(
-        [HRC, "run", str(THESIS), "--out", str(out)], capture_output=True, text=True, timeout=1800
-    )
-    assert proc.returncode == 0, proc.stdout + proc.stderr
-    metrics = json.loads((out / "metrics.json").read_text())
+def test_full_thesis_trial_logger_outputs(thesis_trial: Finished) -> None:
+    out = thesis_trial.folder
+    assert thesis_trial.returncode == 0, thesis_trial.stdout + thesis_trial.stderr
+    metrics = thesis_trial.metrics
     lines = (out / "log.txt").read_text().splitlines()
     assert lines[0].startswith("SETTINGS: ") and lines[1].endswith(" - TASK STARTED.")
     assert lines[-2].startswith(
@@ -344,6 +336,6 @@ def test_full_thesis_trial_logger_outputs(tmp_path: Path) -> None:
     stats = json.loads((out / "logger_stats.json").read_text())
     assert stats["seq_gaps"] == 0
     print(
-        f"e2e thesis trial: {ticks} ticks in {time.monotonic() - t0:.1f} s; logger lag mean "
+        f"e2e thesis trial: {ticks} ticks in {metrics['run']['wall_s']:.1f} s; logger lag mean "
         f"{stats['lag_mean_ticks']} max {stats['lag_max_ticks']} ticks"
     )

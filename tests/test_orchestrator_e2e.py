@@ -8,16 +8,16 @@ per published event (``event <KIND> | <text>``) and per robot command
 
 from __future__ import annotations
 
-import json
-import os
 import re
-import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 
 from hrc.paths import ik_binary
+
+from . import goldens
+from .goldens import Finished
 
 ROOT = Path(__file__).resolve().parents[1]
 HRC = ROOT / ".venv" / "bin" / "hrc"
@@ -73,23 +73,18 @@ class Line:
 
 
 def run_trial(scenario: Path, out: Path, ticks: int = TICK_CAP) -> tuple[dict, list[Line]]:
-    env = dict(os.environ, HRC_ROOT=str(ROOT))
-    proc = subprocess.run(
-        [str(HRC), "run", str(scenario), "--out", str(out), "--max-ticks", str(ticks)],
-        cwd=ROOT,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    orch_log = out / "services" / "orchestrator.log"
+    return read_trial(goldens.run_trial(str(HRC), scenario, out, max_ticks=ticks))
+
+
+def read_trial(trial: Finished) -> tuple[dict, list[Line]]:
+    """The trial's metrics and the events and commands of its orchestrator's log."""
+    orch_log = trial.folder / "services" / "orchestrator.log"
     log_text = orch_log.read_text(errors="replace") if orch_log.exists() else ""
-    assert proc.returncode == 0, (
-        f"hrc run failed ({proc.returncode}):\n{proc.stdout}\n"
-        f"{proc.stderr}\n--- orchestrator log tail:\n{log_text[-3000:]}"
+    assert trial.returncode == 0, (
+        f"hrc run failed ({trial.returncode}):\n{trial.stdout}\n"
+        f"{trial.stderr}\n--- orchestrator log tail:\n{log_text[-3000:]}"
     )
-    metrics = json.loads((out / "metrics.json").read_text())
-    return metrics, parse_log(log_text)
+    return trial.metrics, parse_log(log_text)
 
 
 def parse_log(text: str) -> list[Line]:
@@ -136,8 +131,8 @@ def first(lines: list[Line], kind: str, after: int = -1) -> Line | None:
     return next((ln for ln in lines if ln.kind == kind and ln.index > after), None)
 
 
-def test_thesis_run_writes_every_spec_metric(tmp_path: Path) -> None:
-    data, lines = run_trial(THESIS, tmp_path / "trial")
+def test_thesis_run_writes_every_spec_metric(thesis_trial: Finished) -> None:
+    data, lines = read_trial(thesis_trial)
     for path in SPEC_FIELDS:
         dig(data, path)
     assert data["scenario"] == "thesis-board" and data["participant"] == "P01"

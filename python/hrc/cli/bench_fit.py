@@ -9,8 +9,10 @@ predicts its person in a condition it was not fitted on (docs/participant-model.
    their twins (`participants.fitted`: the fitted parameters) in it; the twins' human completion
    and idle times against the people's.
 
-``--json`` prints ``{"recovery": {PARAM: {"n", "bias", "mean_abs_error", "max_abs_error", ...}},
-"prediction": {METRIC: {...}}, "trials": N, "wall_s": S}``.
+``--n N`` fits the first N people of the 20 (the same people, the same draws: a smaller run of
+the same bench, as the test does). ``--json`` prints ``{"recovery": {PARAM: {"n", "bias",
+"mean_abs_error", "max_abs_error", ...}}, "prediction": {METRIC: {...}}, "trials": N,
+"wall_s": S}``.
 """
 
 from __future__ import annotations
@@ -90,7 +92,25 @@ def prediction(held_out: Any, twins: Any) -> dict[str, Any]:
     return out
 
 
-def bench(out: Path, workers: int = 2) -> dict[str, Any]:
+def _recovery_study(out: Path, people: int) -> Path:
+    """`studies/recovery.toml`, or a copy of it with only its first ``people`` people (their
+    parameters are drawn per person from the seed base, so they are the same people)."""
+    path = project_root() / RECOVERY_STUDY
+    if not people:
+        return path
+    raw = tomllib.loads(path.read_text(encoding="utf-8"))
+    if not 0 < people <= raw["participants"]["n"]:
+        raise ValueError(f"--n: between 1 and {raw['participants']['n']} people (got {people})")
+    raw["participants"]["n"] = people
+    raw["study"]["scenario"] = str((path.parent / raw["study"]["scenario"]).resolve())
+    out.mkdir(parents=True, exist_ok=True)
+    smaller = out / "recovery.toml"
+    smaller.write_text(dumps(raw))
+    return smaller
+
+
+def bench(out: Path, workers: int = 2, people: int = 0) -> dict[str, Any]:
+    """The bench in folder ``out``; ``people`` (0: all of them) keeps the study's first ones."""
     import pandas as pd
 
     from hrc.cli.fit import recovery, write_fitted
@@ -98,7 +118,7 @@ def bench(out: Path, workers: int = 2) -> dict[str, Any]:
     from hrc.study.sweep import sweep
 
     t0 = time.monotonic()
-    study = load_study(project_root() / RECOVERY_STUDY)
+    study = load_study(_recovery_study(out, people))
     people_dir = out / "people"
     records = sweep(study, people_dir, workers=workers)
     fitted, table = _fit_all(people_dir, [])
@@ -144,7 +164,7 @@ def _summary(report: dict[str, Any]) -> str:
 def run(args: argparse.Namespace) -> int:
     with tempfile.TemporaryDirectory(prefix="hrc-bench-fit-") as tmp:
         try:
-            report = bench(Path(tmp))
+            report = bench(Path(tmp), people=args.n)
         except Exception as exc:
             print(f"fit bench failed: {exc}", file=sys.stderr)
             return 1
