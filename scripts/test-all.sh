@@ -5,15 +5,17 @@
 #
 #   scripts/test-all.sh [PYTEST_ARGS...]
 #
-# Lint and both runners always run; the script exits non-zero when setup fails,
-# when lint finds anything, when either runner fails, or when a runner ran no
-# test at all (ctest without tests, pytest exit code 5). It ends with the
-# closing line of lint and of each runner.
+# pytest runs in two phases (conftest.py): first the live trials with a browser page, one at a
+# time (they must have the machine to themselves), then every other test in HRC_TEST_WORKERS
+# parallel workers (pytest-xdist; default 2, one per core of the CI machine), handed one test at
+# a time, the longest first. HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the
+# same order. Each phase prints its 30 slowest tests.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 JOBS="${HRC_JOBS:-2}"
+WORKERS="${HRC_TEST_WORKERS:-2}"
 LOG_DIR="$ROOT/build/test-logs"
 
 echo "[test-all] setup"
@@ -40,32 +42,54 @@ ctest --test-dir build/ik_cpp --output-on-failure --no-tests=error -j "$JOBS" 2>
 [ "$ctest_rc" -eq 0 ] || failed+=("ctest (exit $ctest_rc)")
 
 # --- Python ------------------------------------------------------------------
-echo "[test-all] pytest"
-pytest_rc=0
-"$ROOT/.venv/bin/python" -m pytest "$@" 2>&1 | tee "$LOG_DIR/pytest.log" || pytest_rc=$?
-case "$pytest_rc" in
-  0) ;;
-  5) failed+=("pytest collected no tests (exit 5)") ;;
-  *) failed+=("pytest (exit $pytest_rc)") ;;
-esac
+: >"$LOG_DIR/pytest.log"
+# run_pytest NAME ARGS...: one pytest run, its output on the terminal and appended to the log; a
+# run that selected no test (exit 5) is no failure here, as long as the whole command ran some.
+run_pytest() {
+  local name="$1" rc=0
+  shift
+  echo "[test-all] pytest ($name)"
+  "$ROOT/.venv/bin/python" -m pytest --durations=30 "$@" 2>&1 | tee -a "$LOG_DIR/pytest.log" \
+    || rc=$?
+  case "$rc" in
+    0 | 5) ;;
+    *) failed+=("pytest, $name (exit $rc)") ;;
+  esac
+  [ "$rc" -eq 0 ] && ran_tests=1
+  return 0
+}
+ran_tests=0
+if [ "$WORKERS" -gt 0 ]; then
+  HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" "$@"
+  HRC_TEST_PHASE=parallel run_pytest "the rest, $WORKERS workers" \
+    -n "$WORKERS" --dist load --maxschedchunk 1 "$@"
+else
+  run_pytest "one process" "$@"
+fi
+[ "$ran_tests" -eq 1 ] || failed+=("pytest collected no tests (exit 5)")
 
 # --- summary -----------------------------------------------------------------
 lint_line="$(grep -E '^\[lint\] (clean|FAILED)' "$LOG_DIR/lint.log" | tail -n 1 || true)"
 ctest_line="$(grep -E 'tests passed|No tests were found' "$LOG_DIR/ctest.log" | tail -n 1 || true)"
-pytest_line="$(grep -E '^=+ .*(passed|failed|error|skipped|no tests ran|deselected).* =+$' "$LOG_DIR/pytest.log" | tail -n 1 || true)"
+# pytest's closing lines (one per phase)
+pytest_lines="$(grep -E '^=+ .*(passed|failed|error|skipped|no tests ran|deselected).* =+$' "$LOG_DIR/pytest.log" || true)"
 # count "N <word>" in a runner's closing line (0 when absent)
 count() { sed -n "s/.*[^0-9]\([0-9][0-9]*\) $2.*/\1/p" <<<" $1" | head -n 1 | grep . || echo 0; }
 c_total="$(sed -n 's/.*out of \([0-9][0-9]*\).*/\1/p' <<<"$ctest_line" | head -n 1)"
 c_failed="$(count "$ctest_line" "tests failed")"
 c_passed=$(( ${c_total:-0} - c_failed ))
-p_passed="$(count "$pytest_line" passed)"
-p_failed=$(( $(count "$pytest_line" failed) + $(count "$pytest_line" error) ))
-p_skipped="$(count "$pytest_line" skipped)"
+p_passed=0 p_failed=0 p_skipped=0
+while IFS= read -r line; do
+  [ -n "$line" ] || continue
+  p_passed=$(( p_passed + $(count "$line" passed) ))
+  p_failed=$(( p_failed + $(count "$line" failed) + $(count "$line" error) ))
+  p_skipped=$(( p_skipped + $(count "$line" skipped) ))
+done <<<"$pytest_lines"
 echo
 echo "[test-all] summary"
 echo "  lint  : ${lint_line:-no summary line (exit $lint_rc)}"
 echo "  ctest : ${ctest_line:-no summary line (exit $ctest_rc)}"
-echo "  pytest: ${pytest_line:-no summary line (exit $pytest_rc)}"
+echo "  pytest: ${pytest_lines:-no summary line}" | sed '2,$s/^/          /'
 echo "total: $((c_passed + p_passed)) passed, $((c_failed + p_failed)) failed, $p_skipped skipped"
 if [ "${#failed[@]}" -gt 0 ]; then
   printf '[test-all] FAILED: %s\n' "${failed[@]}" >&2

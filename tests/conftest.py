@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import contextlib
+import fcntl
+import json
 import os
 import signal
 import subprocess
@@ -80,6 +82,10 @@ def _cmdline(pid: int) -> str:
         return ""
 
 
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 class Trial:
     """``hrc run`` in the background, with a test-side Zenoh session into its bus."""
 
@@ -90,6 +96,7 @@ class Trial:
         ticks: int = 0,
         extra: list[str] = (),
         env: dict[str, str] | None = None,
+        sigint_ignored: bool = False,
     ) -> None:
         self.session = f"it{uuid.uuid4().hex[:8]}"
         self.port = free_port()
@@ -116,6 +123,8 @@ class Trial:
             text=True,
             env={**os.environ, **(env or {})},
             start_new_session=True,  # its own process group, as a command typed in a terminal
+            # as a script's background job (or nohup, or a CI runner) starts it
+            preexec_fn=_ignore_sigint if sigint_ignored else None,
         )
         self._bus: Bus | None = None
         self.stdout = ""
@@ -204,8 +213,9 @@ def trial_factory(tmp_path: Path, ik_bin: Path) -> Iterator:
         extra: list[str] = (),
         name: str = "trial",
         env: dict[str, str] | None = None,
+        sigint_ignored: bool = False,
     ) -> Trial:
-        t = Trial(scenario, tmp_path / name, ticks, list(extra), env)
+        t = Trial(scenario, tmp_path / name, ticks, list(extra), env, sigint_ignored)
         trials.append(t)
         return t
 
@@ -219,9 +229,29 @@ def session_id() -> str:
     return f"s{uuid.uuid4().hex[:8]}"
 
 
+def shared_trial(factory: pytest.TempPathFactory, name: str, scenario: Path) -> Finished:
+    """`hrc run SCENARIO` once per test session, for every test that only reads its outputs:
+    with pytest-xdist the first worker that asks runs it (under a file lock) and the others read
+    its folder."""
+    root = factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        root = root.parent  # the workers' base folders sit side by side in one folder
+    folder = root / f"shared-{name}"
+    with open(root / f"shared-{name}.lock", "a+") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        done = folder / "finished.json"
+        if done.exists():
+            return Finished(folder / "trial", **json.loads(done.read_text()))
+        trial = run_trial(HRC, scenario, folder / "trial")
+        folder.mkdir(parents=True, exist_ok=True)
+        said = {"returncode": trial.returncode, "stdout": trial.stdout, "stderr": trial.stderr}
+        done.write_text(json.dumps(said))
+        return trial
+
+
 @pytest.fixture(scope="session")
 def thesis_trial(tmp_path_factory: pytest.TempPathFactory, ik_bin: Path) -> Finished:
     """The unmodified thesis trial (`hrc run scenarios/thesis.toml`), run once for every test that
     only reads its outputs (the golden files, the metrics, the logger's files). A test that needs
     a trial of its own, or two runs of one (determinism), runs them itself."""
-    return run_trial(HRC, THESIS, tmp_path_factory.mktemp("thesis") / "trial")
+    return shared_trial(tmp_path_factory, "thesis", THESIS)

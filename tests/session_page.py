@@ -44,10 +44,21 @@ def write_study(folder: Path, live: str, simulated: int = 2, factors: str = "") 
     return path
 
 
+def _ignore_sigint() -> None:
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 class Session:
     """`hrc session STUDY --participant ID` in the background; its console lines kept."""
 
-    def __init__(self, study: Path, participant: str, out: Path, mode: str = "desktop") -> None:
+    def __init__(
+        self,
+        study: Path,
+        participant: str,
+        out: Path,
+        mode: str = "desktop",
+        sigint_ignored: bool = False,
+    ) -> None:
         self.port = free_port()
         self.argv = [
             HRC, "session", str(study), "--participant", participant, "--out", str(out),
@@ -63,6 +74,8 @@ class Session:
             cwd=ROOT,
             start_new_session=True,
             env={**os.environ, "CI": "true"},
+            # as a script's background job (or nohup, or a CI runner) starts it
+            preexec_fn=_ignore_sigint if sigint_ignored else None,
         )
         threading.Thread(target=self._read, daemon=True).start()
         ok = wait_until(lambda: self.url() is not None or self.proc.poll() is not None, 120, 0.1)

@@ -42,6 +42,26 @@ def test_hrc_run_stopped_by_a_signal_leaves_no_service(trial_factory, sig: int) 
 
 
 @pytest.mark.slow
+def test_ctrl_c_ends_hrc_run_even_when_it_was_started_with_sigint_ignored(trial_factory) -> None:
+    """A script's background job, nohup or a CI runner starts a program with SIGINT ignored, and
+    Python leaves it so: a Ctrl-C (SIGINT to the process group) was lost and the trial went on
+    (issue 41). hrc run takes it as Ctrl-C whatever it inherited."""
+    trial = trial_factory(ROOT / "scenarios" / "thesis.toml", sigint_ignored=True)
+    trial.wait_ticking()
+    pids = trial.service_pids()
+    assert len(pids) == 5, pids
+    os.killpg(trial.proc.pid, signal.SIGINT)
+    code, _out, err = trial.communicate(timeout=30)
+    assert code == 130, (code, err[-2000:])
+    assert "trial interrupted" in err, err[-2000:]
+    metrics = json.loads((trial.out / "metrics.json").read_text())
+    assert "interrupted (Ctrl-C)" in metrics["run"]["end_reason"], metrics["run"]
+    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), 3.0), {
+        n: p for n, p in pids.items() if _alive(p)
+    }
+
+
+@pytest.mark.slow
 def test_an_infeasible_move_at_run_time_ends_the_trial_at_once_naming_it(
     tmp_path: Path, ik_bin: Path
 ) -> None:

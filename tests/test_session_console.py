@@ -82,6 +82,19 @@ def test_only_the_participants_page_takes_part_and_declining_consent_ends_it(
     assert "L01 declined consent" in again.stderr and "does not run again" in again.stderr
 
 
+def test_ctrl_c_ends_a_session_started_with_sigint_ignored(
+    sessions: list[Session], tmp_path: Path
+) -> None:
+    """A script's background job, nohup or a CI runner starts a program with SIGINT ignored, and
+    Python leaves it so: the experimenter's Ctrl-C was lost and `hrc session` went on waiting
+    for the page (issue 41). It takes SIGINT as Ctrl-C whatever it inherited."""
+    study = write_study(tmp_path / "study", LIVE, simulated=0)
+    s = Session(study, "L01", tmp_path / "out", sigint_ignored=True)
+    sessions.append(s)
+    assert s.interrupt() == 130, s.console()
+    s.said("session interrupted; resume with the same command", 10)
+
+
 def test_one_session_per_participant_paused_and_ended_by_the_experimenter_then_resumed(
     sessions: list[Session], tmp_path: Path
 ) -> None:

@@ -166,7 +166,12 @@ def _service_preexec(mask: Iterable[int]) -> None:
 
 def stop_on_signals() -> None:
     """SIGTERM and SIGHUP (a process manager, a CI timeout, a closed terminal) and the death of
-    our own parent end ``hrc run`` as Ctrl-C does: run_trial's cleanup stops every service."""
+    our own parent end ``hrc run`` as Ctrl-C does: run_trial's cleanup stops every service.
+
+    Ctrl-C (SIGINT) is taken whatever this process inherited: a script's background job, nohup or
+    a CI runner starts a program with SIGINT ignored, and Python then leaves it ignored, so a
+    Ctrl-C (or ``kill -INT``) was lost and the trial went on."""
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     for sig in (signal.SIGTERM, signal.SIGHUP):
         signal.signal(sig, _raise_terminated)
     parent = os.getppid()
