@@ -38,9 +38,10 @@ from .participant_page import (
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 # A person reading, putting on the headset, asking the experimenter: each pause outlasts the stall
 # watchdog (given WATCHDOG_S here instead of the scenario's 60 s, so the test need not wait 90 s
-# twice) and the notice of a wait on the participant (10 s).
+# twice) and the notice of a wait on the participant (10 s of quiet).
 WATCHDOG_S = 15.0
 PAUSE_S = 25.0
+NOTICE_S = 10.0
 
 
 def enter_headset(page: Page) -> Page:
@@ -61,6 +62,22 @@ def pause(run: Live, seconds: float) -> None:
     """The person does nothing for `seconds`; the trial must go on all along."""
     ended = wait_until(lambda: run.trial.proc.poll() is not None, seconds, 0.5)
     assert not ended, f"the trial ended while the person paused: {run.trial.communicate()}"
+
+
+def pause_until_waited_on(page: Page, run: Live) -> None:
+    """Mid-task, the person does nothing until the trial waits on them (the robots have gone as
+    far as they can, then NOTICE_S of quiet: the page says so), and for WATCHDOG_S more: the
+    quiet outlasts the watchdog. The trial must go on all along."""
+
+    def waited_on(t: dict[str, str]) -> bool:
+        if run.trial.proc.poll() is not None:
+            raise AssertionError(
+                f"the trial ended while the person paused: {run.trial.communicate()}"
+            )
+        return "waiting for you:" in t["status"] and "waiting for you: H1" not in t["status"]
+
+    page.wait_text("the wait on the participant shown", waited_on, 180)
+    pause(run, WATCHDOG_S)
 
 
 def holding(events: list[dict[str, Any]], t_s: float) -> bool:
@@ -133,7 +150,8 @@ def test_pauses_never_end_a_live_trial_and_a_withdrawing_hand_meets_no_robot(
     pause(run, PAUSE_S)  # (a) no grab for PAUSE_S: the watchdog's WATCHDOG_S pass
     page.wait_text("the wait shown", lambda t: "waiting for you: H1" in t["status"], 10)
     assert page.state()["run"] == "waiting_first_grab"
-    done = do_the_task(page, after_first=lambda: pause(run, PAUSE_S))  # (b) a pause mid-task
+    # (b) a pause mid-task: at least NOTICE_S + WATCHDOG_S (= PAUSE_S) of quiet
+    done = do_the_task(page, after_first=lambda: pause_until_waited_on(page, run))
     assert len(done) == 6, done
     page.wait("task finished", lambda s: s["run"] == "finished", 240)
     rc, out, err = run.trial.communicate(timeout=90)
