@@ -5,6 +5,11 @@
 #
 #   scripts/test-all.sh [PYTEST_ARGS...]
 #
+# Lint and both runners always run; the script exits non-zero when setup fails,
+# when lint finds anything, when either runner fails, or when a runner ran no
+# test at all (ctest without tests, pytest exit code 5 in both phases). It ends with the
+# closing line of lint and of each runner.
+#
 # pytest runs in two phases (conftest.py): first the live trials with a browser page, one at a
 # time (they must have the machine to themselves), then every other test in HRC_TEST_WORKERS
 # parallel workers (pytest-xdist; default 2, one per core of the CI machine), handed one test at
