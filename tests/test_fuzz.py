@@ -9,7 +9,8 @@ by `hrc validate` with its reasons or finishes; none stalls, none fails, none re
 cap (issue 24: everything validate accepts must finish).
 
 The test runs a fixed set of the generator's variants (seed 12): v00-v07, which cover each safety
-policy on each base layout, and v16, which once stalled (the ssm case of docs/scenario.md), plus
+policy on each base layout, and v16 (every agent's order shuffled, four parts dropped: with v06,
+the variants this file's docs named to run again), plus
 one fresh variant drawn from a new generator seed at each run (its seed and index are printed:
 `HRC_FUZZ_SEED=S HRC_FUZZ_ONLY=I` runs it again). `HRC_FUZZ_N=32` (or more) runs the first N
 variants instead, as the test did before; `HRC_FUZZ_SEED` sets the generator's seed,
@@ -39,7 +40,7 @@ from .conftest import HRC, ROOT
 N_VARIANTS = int(os.environ.get("HRC_FUZZ_N", "0"))  # 0: the fixed set and a fresh one
 GENERATOR_SEED = int(os.environ.get("HRC_FUZZ_SEED", "12"))
 ONLY = [int(x) for x in os.environ.get("HRC_FUZZ_ONLY", "").split(",") if x.strip()]
-# v00-v07: each policy on each base; v16: the ssm stall of docs/scenario.md
+# v00-v07: each policy on each base; v16: shuffled orders, parts dropped
 FIXED = [*range(8), 16]
 GENERATED = 32  # the fixed set's indices are of the first GENERATED variants
 MAX_TICKS = 150_000  # 625 s of simulated time at 240 Hz: a safety cap, never reached by a pass
