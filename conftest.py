@@ -64,9 +64,10 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     if phase:
         if phase not in PHASES:
             raise pytest.UsageError(f"HRC_TEST_PHASE: one of {', '.join(PHASES)} (got {phase!r})")
-        keep = [it for it in items if (_module(it) in ALONE) == (phase == "alone")]
-        kept = {id(it) for it in keep}
-        dropped = [it for it in items if id(it) not in kept]
+        keep: list[pytest.Item] = []
+        dropped: list[pytest.Item] = []
+        for it in items:
+            (keep if (_module(it) in ALONE) == (phase == "alone") else dropped).append(it)
         if dropped:
             config.hook.pytest_deselected(items=dropped)
         items[:] = keep

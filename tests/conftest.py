@@ -82,7 +82,9 @@ def _cmdline(pid: int) -> str:
         return ""
 
 
-def _ignore_sigint() -> None:
+def ignore_sigint() -> None:
+    """A child's pre-exec: SIGINT ignored, as a script's background job (or nohup, or a CI
+    runner) starts a program."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
@@ -124,7 +126,7 @@ class Trial:
             env={**os.environ, **(env or {})},
             start_new_session=True,  # its own process group, as a command typed in a terminal
             # as a script's background job (or nohup, or a CI runner) starts it
-            preexec_fn=_ignore_sigint if sigint_ignored else None,
+            preexec_fn=ignore_sigint if sigint_ignored else None,
         )
         self._bus: Bus | None = None
         self.stdout = ""

@@ -14,7 +14,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
-from .conftest import HRC, ROOT, free_port, wait_until
+from .conftest import HRC, ROOT, free_port, ignore_sigint, wait_until
 from .participant_page import MINIMAL, Page, grab_part, place_part
 
 CONSENT = (
@@ -44,10 +44,6 @@ def write_study(folder: Path, live: str, simulated: int = 2, factors: str = "") 
     return path
 
 
-def _ignore_sigint() -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
 class Session:
     """`hrc session STUDY --participant ID` in the background; its console lines kept."""
 
@@ -75,7 +71,7 @@ class Session:
             start_new_session=True,
             env={**os.environ, "CI": "true"},
             # as a script's background job (or nohup, or a CI runner) starts it
-            preexec_fn=_ignore_sigint if sigint_ignored else None,
+            preexec_fn=ignore_sigint if sigint_ignored else None,
         )
         threading.Thread(target=self._read, daemon=True).start()
         ok = wait_until(lambda: self.url() is not None or self.proc.poll() is not None, 120, 0.1)

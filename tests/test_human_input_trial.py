@@ -58,8 +58,9 @@ def test_scripted_participant_completes_the_scenario(
     if scenario == "thesis":  # the session's shared run of the unmodified thesis trial
         shared = request.getfixturevalue("thesis_trial")
         assert shared.returncode == 0, shared.stderr[-3000:]
-        assert shared.metrics["run"]["end_reason"].startswith("stopped"), (
-            f"the run did not end by the task finishing: {shared.metrics['run']['end_reason']}"
+        end_reason = shared.metrics["run"]["end_reason"]
+        assert end_reason.startswith("stopped"), (
+            f"the run did not end by the task finishing: {end_reason}"
         )
         d = shared.folder
     else:

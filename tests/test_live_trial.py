@@ -34,14 +34,15 @@ from .participant_page import (
     metrics,
     place_part,
 )
+from hrc_orchestrator.watchdog import PARTICIPANT_WAIT_NOTICE_S
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 # A person reading, putting on the headset, asking the experimenter: each pause outlasts the stall
 # watchdog (given WATCHDOG_S here instead of the scenario's 60 s, so the test need not wait 90 s
 # twice) and the notice of a wait on the participant (10 s of quiet).
 WATCHDOG_S = 15.0
-PAUSE_S = 25.0
-NOTICE_S = 10.0
+NOTICE_S = PARTICIPANT_WAIT_NOTICE_S
+PAUSE_S = NOTICE_S + WATCHDOG_S  # 25 s
 
 
 def enter_headset(page: Page) -> Page:
@@ -150,7 +151,7 @@ def test_pauses_never_end_a_live_trial_and_a_withdrawing_hand_meets_no_robot(
     pause(run, PAUSE_S)  # (a) no grab for PAUSE_S: the watchdog's WATCHDOG_S pass
     page.wait_text("the wait shown", lambda t: "waiting for you: H1" in t["status"], 10)
     assert page.state()["run"] == "waiting_first_grab"
-    # (b) a pause mid-task: at least NOTICE_S + WATCHDOG_S (= PAUSE_S) of quiet
+    # (b) a pause mid-task: at least PAUSE_S of quiet
     done = do_the_task(page, after_first=lambda: pause_until_waited_on(page, run))
     assert len(done) == 6, done
     page.wait("task finished", lambda s: s["run"] == "finished", 240)

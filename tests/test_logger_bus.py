@@ -288,7 +288,7 @@ def test_full_thesis_trial_logger_outputs(thesis_trial: Finished) -> None:
     out = thesis_trial.folder
     assert thesis_trial.returncode == 0, thesis_trial.stdout + thesis_trial.stderr
     metrics = thesis_trial.metrics
-    lines = (out / "log.txt").read_text().splitlines()
+    lines = thesis_trial.log_lines
     assert lines[0].startswith("SETTINGS: ") and lines[1].endswith(" - TASK STARTED.")
     assert lines[-2].startswith(
         f"{metrics['task']['completion_s']:.3f} sec : TASK FINISHED"
@@ -303,7 +303,7 @@ def test_full_thesis_trial_logger_outputs(thesis_trial: Finished) -> None:
         metrics["robots"]
     )
     assert sum(" : Human - task FINISHED" in line for line in lines) == 1
-    records = [json.loads(line) for line in (out / "events.jsonl").read_text().splitlines()]
+    records = thesis_trial.events
     kinds = Counter(r["kind"] for r in records if r["type"] == "event")
     assert kinds["COLLISION"] == col["human_robot_count"]
     assert kinds["NEAR_COLLISION"] == col["near_count"]
