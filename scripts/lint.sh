@@ -11,6 +11,8 @@
 # Tools (configuration in the files named):
 #   ruff check, ruff format   Python lint and format      ruff.toml
 #   mypy                      Python types                mypy.ini (strict on python/hrc)
+#   imports                   the library below every     scripts/check_imports.py
+#                             service, no import cycle
 #   clang-format              C++ format                  services/ik_cpp/.clang-format
 #   clang-tidy                C++ naming                  services/ik_cpp/.clang-tidy
 #                             (needs build/ik_cpp/compile_commands.json: scripts/setup.sh)
@@ -109,6 +111,10 @@ mypy_check() {
   "$VENV_BIN/mypy"  # files and strictness: mypy.ini
 }
 
+imports_check() {
+  "$VENV_BIN/python" "$ROOT/scripts/check_imports.py"
+}
+
 clang_format_check() {
   command -v clang-format >/dev/null || missing_tool clang-format "Debian package clang-format" \
     || return 1
@@ -191,6 +197,7 @@ apply_fixes() {
 run_tool ruff-check ruff_check '^(Found [0-9]+ errors?|All checks passed)'
 run_tool ruff-format ruff_format 'would be reformatted|already formatted'
 run_tool mypy mypy_check '^(Found [0-9]+ errors?|Success:)'
+run_tool imports imports_check '^imports:'
 run_tool clang-format clang_format_check '^clang-format:'
 run_tool clang-tidy clang_tidy_check '^clang-tidy:'
 run_tool cargo-fmt cargo_fmt_check '^cargo fmt:'

@@ -20,7 +20,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from hrc.cli.bench_fit import bench
+from hrc.bench.fit import bench
 
 from .conftest import HRC
 

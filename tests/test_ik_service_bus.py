@@ -641,7 +641,7 @@ def test_bench_ik_passes_json_through(capsys: pytest.CaptureFixture[str]) -> Non
     import argparse
     import json
 
-    from hrc.cli.bench_ik import run as bench_ik
+    from hrc.bench.ik import run as bench_ik
     from hrc.paths import ik_bench_binary
 
     if not ik_bench_binary().exists():

@@ -21,9 +21,9 @@ import pytest
 
 from hrc.bus import Bus, access
 from hrc.bus.bus import Publisher
-from hrc.cli.runner import TrialOptions, TrialResult, run_trial
 from hrc.paths import ik_binary
 from hrc.ports import free_port
+from hrc.trial import TrialOptions, TrialResult, run_trial
 from hrc.wire import pb
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -17,11 +17,11 @@ from pathlib import Path
 import pytest
 
 from hrc import services
-from hrc.cli import runner
-from hrc.cli.runner import TrialOptions
 from hrc.paths import build_dir, project_root
 from hrc.service import parse_args
 from hrc.services import Role, Settings
+from hrc.trial import TrialOptions
+from hrc.trial import options as trial_options
 
 THESIS = project_root() / "scenarios" / "thesis.toml"
 PYTHON = [s for s in services.SERVICES if s.module is not None]
@@ -30,7 +30,7 @@ CPP = [s for s in services.SERVICES if s.binary is not None]
 
 def _trial_argv(name: str, **opts: object) -> list[str]:
     options = TrialOptions(scenario=THESIS, **opts)  # type: ignore[arg-type]
-    return runner.service_argv(
+    return trial_options.service_argv(
         name, options, "s1", 7471, Path("/tmp/trial"), Path("/tmp/hrc-s1.sock"), True
     )
 
@@ -100,10 +100,12 @@ def test_hrc_run_command_lines_parse_in_the_cpp_services(svc: services.Service) 
 
 def test_hrc_run_starts_every_service_of_the_table_with_the_table_arguments() -> None:
     opts = TrialOptions(scenario=THESIS, seed=3)
-    settings = runner.trial_settings(opts, "s1", 7471, Path("/tmp/trial"), None, False)
+    settings = trial_options.trial_settings(opts, "s1", 7471, Path("/tmp/trial"), None, False)
     for svc in services.SERVICES:
-        argv = runner.service_argv(svc.name, opts, "s1", 7471, Path("/tmp/trial"), None, False)
-        assert argv == runner.program(svc) + services.argv(svc, settings)
+        argv = trial_options.service_argv(
+            svc.name, opts, "s1", 7471, Path("/tmp/trial"), None, False
+        )
+        assert argv == trial_options.program(svc) + services.argv(svc, settings)
 
 
 def test_options_left_out_when_unset_and_required_ones_enforced() -> None:

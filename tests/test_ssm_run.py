@@ -11,8 +11,8 @@ from typing import Any
 
 import pytest
 
-from hrc.cli.runner import TrialOptions, run_trial
 from hrc.paths import ik_binary, project_root
+from hrc.trial import TrialOptions, run_trial
 
 from .conftest import strip_fields
 

@@ -14,7 +14,7 @@ import time
 from websockets.sync.client import connect
 
 from hrc.bus import Bus, access
-from hrc.cli.runner import TrialOptions, run_trial
+from hrc.trial import TrialOptions, run_trial
 from hrc.wire import pb
 
 from .conftest import ROOT, free_port, wait_until

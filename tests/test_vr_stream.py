@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from hrc.cli.bench_client import REST_LEFT, REST_RIGHT, LiveClient, connect_when_up, grab, move
+from hrc.bench.client import REST_LEFT, REST_RIGHT, LiveClient, connect_when_up, grab, move
 from hrc.ports import free_port
 
 from .conftest import ROOT
@@ -26,7 +26,7 @@ MINIMAL = ROOT / "scenarios" / "minimal.toml"
 
 
 def live(tmp_path: Path, ik_bin: Path, name: str = "trial"):
-    from hrc.cli.bench_client import live_trial
+    from hrc.bench.client import live_trial
 
     port = free_port()
     return port, live_trial(MINIMAL, tmp_path / name, port, stall_timeout_s=0.0)
@@ -239,7 +239,7 @@ def test_a_stalled_client_neither_slows_the_trial_nor_the_others(tmp_path, ik_bi
 
 
 def test_a_live_trial_nobody_joins_ends_naming_the_url(tmp_path, ik_bin) -> None:
-    from hrc.cli.runner import TrialOptions, VrOptions, run_trial
+    from hrc.trial import TrialOptions, VrOptions, run_trial
 
     port = free_port()
     opts = TrialOptions(

@@ -2,7 +2,7 @@
 
 Everything that starts services reads this table:
 
-- ``hrc run`` (``hrc.cli.runner``) builds every process's command line with :func:`argv`;
+- ``hrc run`` (``hrc.trial``) builds every process's command line with :func:`argv`;
 - the clock master (physics, ``hrc.bus.ClockSettings``) takes the barrier's participants and
   observers from it, and the others learn the clock master's name from it (``--clock-master``,
   which every command line built here passes explicitly);

@@ -1,4 +1,4 @@
-"""The experimenter's console of a live trial (hrc.cli.console): its lines and status line, fed
+"""The experimenter's console of a live trial (hrc.trial.console): its lines and status line, fed
 the messages it gets from the bus (the bus itself is exercised by tests/test_live_trial.py)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ import io
 from typing import Any
 
 from hrc.bus import Keys
-from hrc.cli.console import LiveConsole
+from hrc.trial.console import LiveConsole
 from hrc.wire import pb
 
 K = pb.TaskEventKind

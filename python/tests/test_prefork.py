@@ -1,4 +1,4 @@
-"""Python services forked from hrc run (hrc.cli.prefork) behave as new interpreters would.
+"""Python services forked from hrc run (hrc.trial.prefork) behave as new interpreters would.
 
 Each case runs hrc run's ServiceGroup in a fresh interpreter (one thread, as hrc run is when it
 starts the services) on a small probe module, and reads what the probe wrote to its log."""
@@ -50,11 +50,11 @@ DRIVER = textwrap.dedent(
     """
     import atexit, json, sys, time
     from pathlib import Path
-    from hrc.cli import runner
-    from hrc.cli.prefork import ForkedProcess
+    from hrc.trial import processes
+    from hrc.trial.prefork import ForkedProcess
     atexit.register(lambda: print("parent exit handler ran", file=sys.stderr))
     out, what = Path(sys.argv[1]), sys.argv[2]
-    group = runner.ServiceGroup(out)
+    group = processes.ServiceGroup(out)
     group.start("probe", [sys.executable, "-m", "hrc_probe", what], "hrc_probe")
     p = group.procs["probe"]
     if what == "wait":

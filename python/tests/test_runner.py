@@ -15,9 +15,10 @@ import pytest
 
 from hrc import priority, services
 from hrc.bus import access
-from hrc.cli import runner
-from hrc.cli.runner import TrialOptions, fits_lowlatency, service_argv
 from hrc.paths import project_root
+from hrc.trial import TrialOptions, processes
+from hrc.trial import options as trial_options
+from hrc.trial.options import fits_lowlatency, service_argv
 
 THESIS = project_root() / "scenarios" / "thesis.toml"
 SERVICES = services.names()  # the clock master first
@@ -59,7 +60,7 @@ def test_every_participant_gets_the_same_transport_and_observers_the_standard_on
 
 def test_a_scenario_too_large_for_the_low_latency_transport_falls_back(monkeypatch) -> None:
     assert fits_lowlatency(THESIS)  # 18 parts: about 9 KiB on the wire
-    monkeypatch.setattr(runner, "LOWLATENCY_MAX_SCENARIO_BYTES", 4096)
+    monkeypatch.setattr(trial_options, "LOWLATENCY_MAX_SCENARIO_BYTES", 4096)
     assert not fits_lowlatency(THESIS)
     assert not fits_lowlatency(Path("/nonexistent/scenario.toml"))  # the orchestrator says why
 
@@ -141,7 +142,7 @@ def test_a_service_under_sched_idle_is_back_to_normal_priority_before_it_is_stop
 
 
 def test_a_service_gets_the_signal_mask_hrc_run_had_not_the_held_stop_signals(tmp_path) -> None:
-    group = runner.ServiceGroup(tmp_path)
+    group = processes.ServiceGroup(tmp_path)
     try:
         group.start("probe", [sys.executable, "-c", "print(open('/proc/self/status').read())"])
         assert group.procs["probe"].wait(timeout=30) == 0
@@ -153,7 +154,7 @@ def test_a_service_gets_the_signal_mask_hrc_run_had_not_the_held_stop_signals(tm
     assert blocked & (1 << (signal.SIGTERM - 1)) == 0
     assert blocked & (1 << (signal.SIGINT - 1)) == 0
     # and hrc run itself holds nothing once the service is started
-    assert not signal.pthread_sigmask(signal.SIG_BLOCK, set()) & runner.STOP_SIGNALS
+    assert not signal.pthread_sigmask(signal.SIG_BLOCK, set()) & processes.STOP_SIGNALS
 
 
 def test_observer_ids_are_ones_zenoh_accepts() -> None:
@@ -172,7 +173,7 @@ def test_hrc_run_waits_neither_for_a_hung_nor_for_a_stopped_service(tmp_path) ->
     stopped one)."""
     import time
 
-    group = runner.ServiceGroup(tmp_path)
+    group = processes.ServiceGroup(tmp_path)
     try:
         group.start("hung", ["sleep", "600"])
         group.start("stopped", ["sleep", "600"])
@@ -182,9 +183,9 @@ def test_hrc_run_waits_neither_for_a_hung_nor_for_a_stopped_service(tmp_path) ->
             time.sleep(0.01)
         assert group.stopped() == ["stopped"]
         t0 = time.monotonic()
-        runner._await_leaving(group, 60.0)
+        processes.await_leaving(group, 60.0)
         waited = time.monotonic() - t0
-        assert runner.LEAVE_IDLE_S <= waited < runner.LEAVE_IDLE_S + 3.0, waited
+        assert processes.LEAVE_IDLE_S <= waited < processes.LEAVE_IDLE_S + 3.0, waited
         t0 = time.monotonic()
         group.stop_all(grace_s=1.0)
         assert time.monotonic() - t0 < 3.0

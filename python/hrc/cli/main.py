@@ -14,7 +14,8 @@ import time
 from pathlib import Path
 
 from hrc.logsetup import setup_logging
-from hrc.services import VR_DEFAULT_HOST, VR_DEFAULT_PORT, VR_DEFAULT_WAIT_S
+from hrc.services import VR_DEFAULT_PORT, VR_DEFAULT_WAIT_S
+from hrc.webpage import add_address_options
 
 log = logging.getLogger("hrc")
 
@@ -48,20 +49,19 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # share the cores anyway).
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     from hrc import scenario as sc
-    from hrc.cli.runner import (
+    from hrc.cli.summary import print_summary
+    from hrc.ports import free_port
+    from hrc.scenario.models import NAME_PATTERN
+    from hrc.scenario.resolved import resolve
+    from hrc.trial import (
         Terminated,
         TrialOptions,
         VrOptions,
         default_trial_dir,
         run_trial,
         stop_on_signals,
-        web_viewer_url,
-        write_scenario_copy,
     )
-    from hrc.cli.summary import print_summary
-    from hrc.ports import free_port
-    from hrc.scenario.models import NAME_PATTERN
-    from hrc.scenario.resolved import resolve
+    from hrc.trial.options import web_viewer_url, write_scenario_copy
 
     try:
         s = sc.load(args.scenario, motion_check=not args.no_reach_check)
@@ -179,9 +179,9 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_sweep(args: argparse.Namespace) -> int:
-    from hrc.cli.runner import Terminated, stop_on_signals
     from hrc.study import StudyError, load_study, sweep
     from hrc.study.sweep import ClusterError
+    from hrc.trial import Terminated, stop_on_signals
 
     try:
         study = load_study(args.study, motion_check=not args.no_reach)
@@ -220,10 +220,10 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
 
 
 def _cmd_session(args: argparse.Namespace) -> int:
-    from hrc.cli.runner import Terminated, stop_on_signals
     from hrc.session.run import Options, Session, SessionEnd
     from hrc.session.web import check_bind
     from hrc.study import StudyError, load_study
+    from hrc.trial import Terminated, stop_on_signals
 
     try:
         study = load_study(args.study, motion_check=not args.no_reach)
@@ -335,7 +335,7 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 
 
 def _cmd_bench(args: argparse.Namespace) -> int:
-    from hrc.cli import bench
+    from hrc import bench
 
     return bench.main(args)
 
@@ -364,16 +364,10 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         help="the participant's input, whatever the scenario says (vr: a live trial)",
     )
-    r.add_argument(
-        "--vr-host",
-        default=os.environ.get("HRC_VR_HOST", VR_DEFAULT_HOST),
-        help="live trial: the bridge's address (non-loopback needs HRC_VR_TOKEN)",
-    )
-    r.add_argument(
-        "--vr-port",
-        type=int,
-        default=int(os.environ.get("HRC_VR_PORT", VR_DEFAULT_PORT)),
-        help="live trial: the bridge's port, the page's URL (default 8765)",
+    add_address_options(
+        r,
+        host_help="live trial: the bridge's address (non-loopback needs HRC_VR_TOKEN)",
+        port_help=f"live trial: the bridge's port, the page's URL (default {VR_DEFAULT_PORT})",
     )
     r.add_argument(
         "--vr-wait",
@@ -506,10 +500,10 @@ def build_parser() -> argparse.ArgumentParser:
     ss.add_argument("study", help="study TOML file with a [live] table")
     ss.add_argument("--participant", required=True, metavar="ID", help="a [live] participant id")
     ss.add_argument("--out", default=None, help="study folder (default runs/studies/<name>/)")
-    ss.add_argument(
-        "--host",
-        default=os.environ.get("HRC_VR_HOST", VR_DEFAULT_HOST),
-        help="address of the session's page and of each trial's bridge (non-loopback needs "
+    add_address_options(
+        ss,
+        host_flag="--host",
+        host_help="address of the session's page and of each trial's bridge (non-loopback needs "
         "HRC_VR_TOKEN)",
     )
     ss.add_argument("--port", type=int, default=8770, help="the session page's port (8770)")

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from hrc.session import state as st
 from hrc.session.web import SessionServer
+from hrc.study import session_state as st
 from hrc.study.live import LiveSpec
 from hrc.study.questionnaires import Questionnaire
 from hrc.study.spec import LiveTrial, Study

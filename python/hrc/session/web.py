@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-import hmac
 import json
 import logging
 import queue
@@ -21,14 +20,21 @@ from typing import Any
 from urllib.parse import parse_qs, unquote, urlsplit
 
 from websockets.asyncio.server import ServerConnection, serve
-from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
 from hrc import jsontext
-
-from hrc_human_input.vr_bridge import CLIENT_DIST, CONTENT_TYPES, page_html, safe_file
-from hrc_human_input.vr_options import is_loopback
+from hrc.webpage import (
+    HTML,
+    bind_problem,
+    built_page,
+    client_dist,
+    content_type,
+    key_ok,
+    not_built_page,
+    page_file,
+    response,
+)
 
 log = logging.getLogger(__name__)
 
@@ -38,24 +44,12 @@ MAX_MESSAGE_BYTES = 256 * 1024  # a questionnaire's answers with free text
 def check_bind(host: str, token: str | None) -> str:
     """A problem with serving the session on `host` ("" if none): off loopback, anyone on
     the network could answer for the participant without a token."""
-    if not is_loopback(host) and not token:
-        return (
-            f"refusing to serve the session on {host!r} without a token (HRC_VR_TOKEN): anyone "
-            "on the network could take the participant's place; or bind 127.0.0.1"
-        )
-    return ""
+    return bind_problem(host, token, "the session's page", "take the participant's place")
 
 
 def _first(query: dict[str, list[str]], key: str) -> str | None:
     values = query.get(key)
     return values[0] if values else None
-
-
-def _response(status: HTTPStatus, body: bytes, ctype: str) -> Response:
-    headers = Headers(
-        [("Content-Type", ctype), ("Content-Length", str(len(body))), ("Cache-Control", "no-store")]
-    )
-    return Response(status.value, status.phrase, headers, body)
 
 
 class SessionServer:
@@ -72,7 +66,8 @@ class SessionServer:
         self._error: BaseException | None = None
         self._thread: threading.Thread | None = None
         self.bound_port = 0
-        self._html = page_html(CLIENT_DIST)
+        self.client_dir = client_dist()
+        self._html = built_page(self.client_dir) or not_built_page()
 
     # ------------------------------------------------------------------ main thread
     def start(self, timeout: float = 10.0) -> int:
@@ -143,38 +138,24 @@ class SessionServer:
         with contextlib.suppress(ConnectionClosed):
             await ws.send(text)
 
-    def _key_ok(self, given: str | None, expected: str | None) -> bool:
-        if expected is None:
-            return True
-        return given is not None and hmac.compare_digest(given.encode(), expected.encode())
-
     def _http(self, connection: ServerConnection, request: Request) -> Response | None:
         parts = urlsplit(request.path)
         if request.headers.get("Upgrade", "").lower() != "websocket":
-            path = unquote(parts.path)
-            if path in ("/", "/index.html"):
-                return _response(HTTPStatus.OK, self._html, CONTENT_TYPES[".html"])
-            found = (
-                safe_file(CLIENT_DIST / "assets", path.removeprefix("/assets/"))
-                if path.startswith("/assets/")
-                else None
-            )
+            found = page_file(unquote(parts.path), self._html, self.client_dir)
+            if isinstance(found, bytes):
+                return response(HTTPStatus.OK, found, HTML)
             if found is None:
-                return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain")
-            ctype = CONTENT_TYPES.get(found.suffix.lower(), "application/octet-stream")
-            return _response(HTTPStatus.OK, found.read_bytes(), ctype)
+                return response(HTTPStatus.NOT_FOUND, b"not found\n")
+            return response(HTTPStatus.OK, found.read_bytes(), content_type(found))
         query = parse_qs(parts.query)
         if parts.path != "/session":
-            return _response(
-                HTTPStatus.NOT_FOUND, b"the session's endpoint is /session\n", "text/plain"
-            )
-        if not self._key_ok(_first(query, "token"), self.token):
-            return _response(HTTPStatus.UNAUTHORIZED, b"wrong token\n", "text/plain")
-        if not self._key_ok(_first(query, "driver"), self.driver_key):
-            return _response(
+            return response(HTTPStatus.NOT_FOUND, b"the session's endpoint is /session\n")
+        if not key_ok(_first(query, "token"), self.token):
+            return response(HTTPStatus.UNAUTHORIZED, b"wrong token\n")
+        if not key_ok(_first(query, "driver"), self.driver_key):
+            return response(
                 HTTPStatus.FORBIDDEN,
                 b"only the participant's page (its link's driver key) takes part in the session\n",
-                "text/plain",
             )
         return None
 

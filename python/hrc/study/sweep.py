@@ -15,40 +15,19 @@ from pathlib import Path
 from typing import IO, Any
 
 from hrc.diskspace import SIMULATED_TRIAL_MB, low_space
-from hrc.study.spec import Study, Trial
+from hrc.study.spec import Study
 from hrc.study.table import write_table
-from hrc.study.trial import Job, Record, allow_trials, run_job, stop_running
+from hrc.study.trial import (
+    MANIFEST,
+    Job,
+    Manifest,
+    Record,
+    allow_trials,
+    run_job,
+    stop_running,
+)
 
 log = logging.getLogger(__name__)
-
-MANIFEST = "manifest.json"
-DONE = ("ok", "stalled")  # outcomes a resumed sweep keeps (deterministic in the inputs)
-
-
-class Manifest:
-    """`<out>/manifest.json`: each trial's input hash and record, rewritten after every trial
-    (atomically: an interrupted sweep leaves a readable manifest)."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        self.records: dict[str, Record] = {}
-        if path.exists():
-            try:
-                data = json.loads(path.read_text(encoding="utf-8"))
-                self.records = {k: Record.from_dict(v) for k, v in data["trials"].items()}
-            except (OSError, ValueError, KeyError, TypeError) as exc:
-                log.warning("%s unreadable (%s): every trial runs again", path, exc)
-
-    def done(self, trial: Trial) -> bool:
-        rec = self.records.get(trial.id)
-        return rec is not None and rec.input_hash == trial.input_hash and rec.outcome in DONE
-
-    def put(self, rec: Record) -> None:
-        self.records[rec.trial] = rec
-        tmp = self.path.with_suffix(".tmp")
-        doc = {"trials": {k: v.to_dict() for k, v in sorted(self.records.items())}}
-        tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
-        os.replace(tmp, self.path)
 
 
 class Progress:

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from hrc.study.spec import Person, Study
-from hrc.study.trial import Record
+from hrc.study.trial import MANIFEST, Manifest, Record
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -93,7 +93,7 @@ def _kind(person: Person) -> str:
 def live_rows(study: Study, out: Path) -> list[dict[str, Any]]:
     """One row per trial of the live sessions in `out` that has run (pending ones are left
     out), in session order."""
-    from hrc.session.state import all_sessions
+    from hrc.study.session_state import all_sessions
     from hrc.study.trial import read_metrics
 
     result: list[dict[str, Any]] = []
@@ -172,7 +172,6 @@ def write_table(study: Study, records: list[Record], out: Path) -> pd.DataFrame:
 
 def write_study_table(study: Study, out: Path) -> pd.DataFrame:
     """The table from what is on disk: the sweep's manifest and the live sessions."""
-    from hrc.study.sweep import MANIFEST, Manifest
 
     manifest = Manifest(out / MANIFEST)
     records = [manifest.records[t.id] for t in study.trials if t.id in manifest.records]

@@ -18,7 +18,10 @@ import threading
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from hrc.study.spec import Trial
 
 log = logging.getLogger(__name__)
 
@@ -183,3 +186,33 @@ def read_metrics(path: Path) -> dict[str, Any] | None:
     except (OSError, ValueError):
         return None
     return data if isinstance(data, dict) else None
+
+
+MANIFEST = "manifest.json"
+DONE = ("ok", "stalled")  # outcomes a resumed sweep keeps (deterministic in the inputs)
+
+
+class Manifest:
+    """`<out>/manifest.json`: each trial's input hash and record, rewritten after every trial
+    (atomically: an interrupted sweep leaves a readable manifest)."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.records: dict[str, Record] = {}
+        if path.exists():
+            try:
+                data = json.loads(path.read_text(encoding="utf-8"))
+                self.records = {k: Record.from_dict(v) for k, v in data["trials"].items()}
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                log.warning("%s unreadable (%s): every trial runs again", path, exc)
+
+    def done(self, trial: Trial) -> bool:
+        rec = self.records.get(trial.id)
+        return rec is not None and rec.input_hash == trial.input_hash and rec.outcome in DONE
+
+    def put(self, rec: Record) -> None:
+        self.records[rec.trial] = rec
+        tmp = self.path.with_suffix(".tmp")
+        doc = {"trials": {k: v.to_dict() for k, v in sorted(self.records.items())}}
+        tmp.write_text(json.dumps(doc, indent=1), encoding="utf-8")
+        os.replace(tmp, self.path)

@@ -38,14 +38,21 @@ from enum import Enum
 import numpy as np
 
 from hrc.geometry import Pose, Vec3, add, distance, look_quat, rotate_z_rad, slerp
+from hrc.participant.hand import Dwell, Grip, Hand, Move
+from hrc.participant.motor import FIXED_PLACE, MotorParams, reaction_draw, reaction_time
+from hrc.participant.plans import (
+    APPROACH_CLEARANCE,
+    CARRY_CLEARANCE,
+    GROSS_WIDTH,
+    place_plan,
+    reach_plan,
+)
+from hrc.participant.sample import Sample
 from hrc.scenario import SafetyPolicy
 from hrc.scenario.conventions import CONTINUE_BUTTON_CUE, GRIP_CLOSED
 from hrc.wire import pb
 
 from hrc_human_input.facts import PartFacts, ScenarioFacts
-from hrc_human_input.hand import Dwell, Grip, Hand, Move, Step
-from hrc_human_input.motor import FIXED_PLACE, MotorParams, reaction_draw, reaction_time
-from hrc_human_input.sample import Sample
 from hrc_human_input.task_view import TaskView
 
 log = logging.getLogger(__name__)
@@ -58,11 +65,7 @@ REST: dict[str, Vec3] = {"left": (-0.22, -0.56, 0.10), "right": (0.22, -0.56, 0.
 WAIT_SSM: dict[str, Vec3] = {"left": (-0.30, -0.74, 0.0), "right": (0.30, -0.74, 0.0)}
 STILL_SPEED = 0.02  # m/s: a robot TCP slower than this stands still
 GRASP_HEIGHT_MAX = 0.02  # hand this far above a part's centre at most (top face if lower)
-APPROACH_CLEARANCE = 0.08  # approach and leave a part vertically from this far above
-CARRY_CLEARANCE = 0.10  # carry a held part this far above the higher of start and goal
 RELEASE_CLEARANCE = 0.003  # let go this far above the resting height
-PICK_WIDTH = 0.06  # Fitts width: a grasp succeeds within 3 cm
-GROSS_WIDTH = 0.10  # Fitts width of lifts, withdrawals and pull-backs
 # (moves to the hands' resting and waiting places: FIXED_PLACE, no homing)
 PULLBACK = (0.0, -0.20, 0.08)
 HAND_Y_MIN = -0.60
@@ -74,62 +77,6 @@ PROVOKE_GIVE_UP_S = 4.0
 BUTTON_REPEAT_S = 3.0
 TOUCH_MAX_S = 2.0  # a hand touching a robot this long is pulled right back
 HEAD_TIME_CONSTANT_S = 0.15
-
-
-def reach_plan(
-    above: Vec3,
-    goal: Vec3,
-    yaw_rad: float,
-    motor: MotorParams,
-    stop_above: bool,
-    pick_dwell_s: float,
-) -> list[Step]:
-    """Open the hand, reach the grasp point from above (stopping there first, or passing
-    through in one motion), close the grip and dwell: the reach for a part."""
-    if stop_above:
-        moves = [
-            Move(above, yaw_rad, PICK_WIDTH, "reach"),
-            Move(goal, yaw_rad, PICK_WIDTH, "descend"),
-        ]
-    else:
-        moves = [Move(goal, yaw_rad, PICK_WIDTH, "reach", via=(above,))]
-    return [
-        Grip(0.0),
-        *moves,
-        Grip(1.0, "grip"),
-        Dwell(max(0.0, pick_dwell_s - motor.grip_close_s), "pick dwell"),
-    ]
-
-
-def place_plan(
-    start: Vec3,
-    carry_z: float,
-    release: Vec3,
-    yaw_rad: float,
-    place_width: float,
-    stop_above: bool,
-    place_dwell_s: float,
-) -> list[Step]:
-    """Carry a held part from ``start`` at height ``carry_z`` to above its release point, lower
-    it, dwell, let go, dwell: lift, carry and lower as three moves, or as one motion."""
-    lift = (start[0], start[1], carry_z)
-    hover = (release[0], release[1], carry_z)
-    lifts = carry_z - start[2] > 0.01
-    if stop_above:
-        moves = [Move(lift, None, GROSS_WIDTH, "lift")] if lifts else []
-        moves += [
-            Move(hover, yaw_rad, PICK_WIDTH, "carry"),
-            Move(release, yaw_rad, place_width, "lower"),
-        ]
-    else:
-        via = (lift, hover) if lifts else (hover,)
-        moves = [Move(release, yaw_rad, place_width, "carry", via=via)]
-    return [
-        *moves,
-        Dwell(place_dwell_s / 2.0, "place dwell"),
-        Grip(0.0, "release"),
-        Dwell(place_dwell_s / 2.0, "after release"),
-    ]
 
 
 class Phase(str, Enum):

@@ -15,14 +15,16 @@ import os
 from pathlib import Path
 
 from hrc.bus import Bus, Outcome
+from hrc.participant.recording import Recorder, Recording, ReplayError, load_recording
+from hrc.participant.sample import Sample
 from hrc.scenario import InputSource, ScenarioError
 from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit, fetch_scenario
 from hrc.services import VR_DEFAULT_WAIT_S, vr_client_url
+from hrc.webpage import add_address_options
 from hrc.wire import pb
 
 from hrc_human_input import facts as facts_mod
-from hrc_human_input.replay import Recorder, Recording, Replayer, ReplayError, load_recording
-from hrc_human_input.sample import Sample
+from hrc_human_input.replay import Replayer
 from hrc_human_input.scene import RobotFiles, build_scene, scene_cue_json
 from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.sources import ReplaySource, ScriptedSource, Source, VrSource
@@ -30,7 +32,6 @@ from hrc_human_input.stream import WorldMirror, ssm_zones
 from hrc_human_input.task_view import TaskView
 from hrc_human_input.vr_options import (
     CLIENT_DIST,
-    DEFAULT_HOST,
     DEFAULT_PORT,
     BridgeConfigError,
     check_bind,
@@ -73,16 +74,11 @@ class HumanInputService(Service):
             metavar="FILE",
             help="record what the source relayed to FILE (replay format, JSONL)",
         )
-        p.add_argument(
-            "--vr-host",
-            default=os.environ.get("HRC_VR_HOST", DEFAULT_HOST),
-            help="address the VR bridge binds (default 127.0.0.1; anything else needs a token)",
-        )
-        p.add_argument(
-            "--vr-port",
-            type=int,
-            default=int(os.environ.get("HRC_VR_PORT", DEFAULT_PORT)),
-            help=f"port of the VR bridge and its page (default {DEFAULT_PORT}; 0 = any)",
+        add_address_options(
+            p,
+            host_help="address the VR bridge binds (default 127.0.0.1; anything else needs a "
+            "token)",
+            port_help=f"port of the VR bridge and its page (default {DEFAULT_PORT}; 0 = any)",
         )
         p.add_argument(
             "--vr-token",

@@ -8,13 +8,13 @@ from typing import TYPE_CHECKING, Any, Protocol
 
 from hrc.bus import Keys
 from hrc.geometry import Pose, look_quat
+from hrc.participant.sample import Sample
 from hrc.scenario import InputSource
 from hrc.scenario.conventions import GRIP_CLOSED
 from hrc.service import Inputs
 from hrc.wire import pb
 
 from hrc_human_input.replay import Replayer
-from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import HEAD_POS, REST, ScriptedParticipant
 from hrc_human_input.stream import RunState, WorldMirror
 from hrc_human_input.task_view import TaskView

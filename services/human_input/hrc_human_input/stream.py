@@ -12,11 +12,11 @@ import json
 from dataclasses import dataclass, field
 from typing import Any
 
+from hrc.participant.sample import Sample
 from hrc.scenario.convert import ssm_from_proto
 from hrc.ssm import Zone
 from hrc.wire import pb
 
-from hrc_human_input.sample import Sample
 from hrc_human_input.scene import cue_def, r4, scene_cue_json, v3
 
 # The task events a participant perceives, forwarded as `event` messages.

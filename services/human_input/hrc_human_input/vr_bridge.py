@@ -26,14 +26,22 @@ from typing import Any
 from urllib.parse import parse_qs, unquote, urlsplit
 
 from websockets.asyncio.server import Server, ServerConnection, serve
-from websockets.datastructures import Headers
 from websockets.exceptions import ConnectionClosed
 from websockets.http11 import Request, Response
 
 from hrc import jsontext
+from hrc.participant.sample import Sample, parse_sample
 from hrc.scenario.conventions import MAX_HELD_GRIP_CHANGES
+from hrc.webpage import (
+    HTML,
+    NOT_BUILT_NOTE,
+    TEXT,
+    built_page,
+    content_type,
+    page_file,
+    response,
+)
 
-from hrc_human_input.sample import Sample, parse_sample
 from hrc_human_input.scene import PROTOCOL_VERSION, RobotFiles
 from hrc_human_input.stream import ClientView, Snapshot, frame_json
 from hrc_human_input.vr_options import (  # noqa: F401  (re-exported: the bridge's options)
@@ -51,7 +59,7 @@ log = logging.getLogger(__name__)
 
 MAX_FRAME_BYTES = 64 * 1024
 WS_PATHS = ("/ws", "/")
-PAGE_PATHS = ("/", "/index.html")
+FALLBACK_NOTE = NOT_BUILT_NOTE[:-4] + b" This is the minimal fallback page.</p>"
 DEFAULT_RATE_HZ = 90.0
 MAX_RATE_HZ = 240.0
 EVENT_QUEUE = 256  # events waiting for one client; beyond that it is disconnected (1013)
@@ -63,34 +71,6 @@ RELEASE_GRACE_S = 3.0
 WRITE_LIMIT = 16 * 1024
 SOCKET_SEND_BUFFER = 64 * 1024
 CLOSE_TOO_SLOW = 1013
-CONTENT_TYPES = {
-    ".html": "text/html; charset=utf-8",
-    ".js": "text/javascript; charset=utf-8",
-    ".mjs": "text/javascript; charset=utf-8",
-    ".css": "text/css; charset=utf-8",
-    ".json": "application/json",
-    ".map": "application/json",
-    ".wasm": "application/wasm",
-    ".svg": "image/svg+xml",
-    ".png": "image/png",
-    ".jpg": "image/jpeg",
-    ".jpeg": "image/jpeg",
-    ".urdf": "application/xml",
-    ".xml": "application/xml",
-    ".stl": "model/stl",
-    ".dae": "model/vnd.collada+xml",
-    ".obj": "model/obj",
-    ".mtl": "text/plain",
-    ".glb": "model/gltf-binary",
-    ".gltf": "model/gltf+json",
-    ".bin": "application/octet-stream",
-    ".txt": "text/plain; charset=utf-8",
-}
-FALLBACK_NOTE = (
-    b'<p style="background:#fe9;padding:6px">The 3D participant client is not built: run '
-    b"<code>scripts/setup.sh</code> (it bundles services/human_input/client/ into "
-    b"client/dist/). This is the minimal fallback page.</p>"
-)
 
 
 def fallback_page() -> bytes:
@@ -101,21 +81,7 @@ def fallback_page() -> bytes:
 
 def page_html(client_dir: Path | None = CLIENT_DIST) -> bytes:
     """The client's index.html if its bundle is built, else the fallback page."""
-    if client_dir is not None:
-        index = client_dir / "index.html"
-        if index.is_file():
-            return index.read_bytes()
-    return fallback_page()
-
-
-def safe_file(root: Path, rel: str) -> Path | None:
-    """``root/rel`` if it is a file inside ``root`` (no ``..``, no way out through a link)."""
-    parts = [p for p in rel.split("/") if p]
-    if not parts or any(p in (".", "..") or "\\" in p or "\x00" in p for p in parts):
-        return None
-    base = root.resolve()
-    cand = base.joinpath(*parts).resolve()
-    return cand if cand.is_relative_to(base) and cand.is_file() else None
+    return built_page(client_dir) or fallback_page()
 
 
 @dataclass
@@ -549,9 +515,7 @@ class VrBridge:
         if not upgrade:
             return self._file(unquote(parts.path))
         if parts.path not in WS_PATHS:
-            return _response(
-                HTTPStatus.NOT_FOUND, b"WebSocket endpoint is /ws\n", "text/plain; charset=utf-8"
-            )
+            return _response(HTTPStatus.NOT_FOUND, b"WebSocket endpoint is /ws\n", TEXT)
         origin = request.headers.get("Origin")
         if origin is not None and not self._origin_ok(origin, request.headers.get("Host", "")):
             self.stats.auth_failures += 1
@@ -560,32 +524,29 @@ class VrBridge:
                 HTTPStatus.FORBIDDEN,
                 b"a page from another site may not connect (this host's pages, or the origins "
                 b"given with HRC_VR_ORIGINS)\n",
-                "text/plain; charset=utf-8",
+                TEXT,
             )
         given = parse_qs(parts.query).get("token")
         if given is not None and self.token is not None and not self._token_ok(given[0]):
             self.stats.auth_failures += 1
             log.warning("VR client %s: wrong token in the URL", _peer(connection))
-            return _response(HTTPStatus.UNAUTHORIZED, b"wrong token\n", "text/plain; charset=utf-8")
+            return _response(HTTPStatus.UNAUTHORIZED, b"wrong token\n", TEXT)
         return None
 
     def _file(self, path: str) -> Response:
         """GET: the page, the client's bundle, the scenario's robot files; nothing else."""
-        if path in PAGE_PATHS:
-            return _response(HTTPStatus.OK, self._page, CONTENT_TYPES[".html"])
-        found: Path | None = None
-        if path.startswith("/assets/") and self.client_dir is not None:
-            found = safe_file(self.client_dir / "assets", path.removeprefix("/assets/"))
-        elif path.startswith("/robots/"):
+        found = page_file(path, self._page, self.client_dir)
+        if isinstance(found, bytes):
+            return _response(HTTPStatus.OK, found, HTML)
+        if found is None and path.startswith("/robots/"):
             found = self.robot_files.lookup(path.removeprefix("/robots/"))
         if found is None:
-            return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")
+            return _response(HTTPStatus.NOT_FOUND, b"not found\n", TEXT)
         try:
             body = found.read_bytes()
         except OSError:
-            return _response(HTTPStatus.NOT_FOUND, b"not found\n", "text/plain; charset=utf-8")
-        ctype = CONTENT_TYPES.get(found.suffix.lower(), "application/octet-stream")
-        resp = _response(HTTPStatus.OK, body, ctype)
+            return _response(HTTPStatus.NOT_FOUND, b"not found\n", TEXT)
+        resp = _response(HTTPStatus.OK, body, content_type(found))
         if path.startswith("/robots/"):
             # a session's page (`hrc session`) comes from another port of this host and loads
             # the robots from here: static files, served to anybody already
@@ -752,16 +713,8 @@ def _limit_send_buffer(ws: ServerConnection) -> None:
             sock.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, SOCKET_SEND_BUFFER)
 
 
-def _response(status: HTTPStatus, body: bytes, content_type: str) -> Response:
-    headers = Headers(
-        [
-            ("Content-Type", content_type),
-            ("Content-Length", str(len(body))),
-            ("Cache-Control", "no-store"),
-            ("Connection", "close"),
-        ]
-    )
-    return Response(status.value, status.phrase, headers, body)
+def _response(status: HTTPStatus, body: bytes, ctype: str) -> Response:
+    return response(status, body, ctype, close=True)
 
 
 def _peer(conn: ServerConnection) -> str:

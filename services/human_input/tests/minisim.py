@@ -29,6 +29,7 @@ from hrc.geometry import (
     wrap_angle_rad,
     yaw_quat_rad,
 )
+from hrc.participant.sample import Sample
 from hrc.scenario.conventions import (
     GRASP_DISTANCE_M,
     GRIP_CLOSED,
@@ -40,7 +41,6 @@ from hrc.scenario.models import DEFAULT_TOLERANCE_DEG, HUMAN
 from hrc.wire import pb
 
 from hrc_human_input.facts import ScenarioFacts
-from hrc_human_input.sample import Sample
 from hrc_human_input.scripted import ScriptedParticipant
 from hrc_human_input.task_view import TaskView
 

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 
 from hrc.geometry import Pose, distance, rotate_z_rad, yaw_quat_rad
+from hrc.participant.hand import Dwell, Grip, Hand, Move
+from hrc.participant.motor import MotorParams
+from hrc.participant.recording import Recording
+from hrc.participant.sample import Sample
 from hrc.scenario.conventions import GRIP_CLOSED, HAND_RADIUS_M
 
-from hrc_human_input.hand import Dwell, Grip, Hand, Move
-from hrc_human_input.motor import MotorParams
-from hrc_human_input.replay import Recording, Replayer
-from hrc_human_input.sample import Sample
+from hrc_human_input.replay import Replayer
 
 HZ = 240.0
 DT = 1.0 / HZ

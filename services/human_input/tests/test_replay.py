@@ -9,17 +9,17 @@ from pathlib import Path
 import pytest
 
 from hrc.geometry import Pose, quat_norm, quat_yaw_rad, yaw_quat_rad
-
-from hrc_human_input.replay import (
+from hrc.participant.recording import (
     FORMAT,
     VERSION,
     Recorder,
-    Replayer,
     ReplayError,
     load_recording,
     parse_recording,
 )
-from hrc_human_input.sample import Sample, interpolate, parse_sample
+from hrc.participant.sample import Sample, interpolate, parse_sample
+
+from hrc_human_input.replay import Replayer
 
 HEADER = json.dumps({"format": FORMAT, "version": VERSION, "scenario": "x"})
 

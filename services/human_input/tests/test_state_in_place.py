@@ -9,12 +9,11 @@ import numpy as np
 from test_scripted import make_world
 
 from hrc.geometry import Pose, yaw_quat_rad
+from hrc.participant.hand import Hand, Move
+from hrc.participant.motor import MotorParams
+from hrc.participant.sample import Sample
 from hrc.scenario import InputSource
 from hrc.wire import pb
-
-from hrc_human_input.hand import Hand, Move
-from hrc_human_input.motor import MotorParams
-from hrc_human_input.sample import Sample
 
 
 def test_a_message_filled_again_serializes_like_a_fresh_one() -> None:

@@ -14,7 +14,6 @@ from __future__ import annotations
 import datetime as dt
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 from hrc import scenario as sc
 from hrc.geometry import Vec3, add, vec3, vec3_from_pb, vec3_to_pb
@@ -32,6 +31,7 @@ from hrc.wire import pb
 from hrc_orchestrator import events as ev
 from hrc_orchestrator.board import Board
 from hrc_orchestrator.cues import HUMAN_COLOR, CueBoard
+from hrc_orchestrator.exchange import Inputs, Outputs
 from hrc_orchestrator.human import HumanAgent
 from hrc_orchestrator.robots import Phase, RobotAgent
 from hrc_orchestrator.safety import Safety
@@ -48,26 +48,6 @@ from hrc_orchestrator.watchdog import (
 def wall_clock_now() -> str:
     """The one wall-clock read of the task: the start date, logged, never computed with."""
     return dt.datetime.now().astimezone().isoformat(timespec="seconds")
-
-
-@dataclass
-class Inputs:
-    """The messages received for one tick, in delivery order."""
-
-    robot_states: list[pb.RobotState] = field(default_factory=list)
-    objects: list[pb.WorldObjects] = field(default_factory=list)
-    contacts: list[pb.WorldContacts] = field(default_factory=list)
-    separations: list[pb.Separations] = field(default_factory=list)  # ssm only
-
-
-@dataclass
-class Outputs:
-    robot_commands: list[pb.RobotCommand] = field(default_factory=list)  # only new ones
-    world_commands: list[pb.WorldCommand] = field(default_factory=list)
-    events: list[pb.TaskEvent] = field(default_factory=list)
-    cues: list[pb.Cue] = field(default_factory=list)  # on/off changes
-    stop: str = ""  # non-empty once: the task finished, end the run
-    stalled: str = ""  # non-empty once: the watchdog fired, end the run with this message
 
 
 class Task:

@@ -15,14 +15,26 @@ only the experimenter ends such a trial; a robot that is stuck still ends it.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Protocol
 
 from hrc.wire import pb
 
+from hrc_orchestrator.board import Board
+from hrc_orchestrator.exchange import Outputs
+from hrc_orchestrator.human import HumanAgent
 from hrc_orchestrator.robots import Phase, RobotAgent
+from hrc_orchestrator.safety import Safety
 
-if TYPE_CHECKING:
-    from hrc_orchestrator.task import Outputs, Task
+
+class Task(Protocol):
+    """What the watchdog reads of the task (hrc_orchestrator.task.Task), and never changes."""
+
+    board: Board
+    human: HumanAgent
+    agents: dict[str, RobotAgent]
+    safety: Safety
+    started: bool
+
 
 K = pb.TaskEventKind
 # Events that do not show the task moving on: hands wandering in and out of the workspace, and a

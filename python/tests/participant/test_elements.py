@@ -10,9 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from hrc.scenario import ParticipantProfile, ScriptedParams
-
-from hrc_human_input.elements import (
+from hrc.participant.elements import (
     DISTANCES_IN,
     MTM_TMU,
     REAL_TOLERANCE,
@@ -20,8 +18,9 @@ from hrc_human_input.elements import (
     pick_and_place_time,
     profile_report,
 )
-from hrc_human_input.hand import Hand, Move
-from hrc_human_input.motor import MIN_JERK_PEAK_FACTOR, MotorParams
+from hrc.participant.hand import Hand, Move
+from hrc.participant.motor import MIN_JERK_PEAK_FACTOR, MotorParams
+from hrc.scenario import ParticipantProfile, ScriptedParams
 
 
 def params(profile: str) -> ScriptedParams:
@@ -102,7 +101,7 @@ def test_the_bench_command_prints_the_figures(capsys: pytest.CaptureFixture[str]
     import argparse
     import json
 
-    from hrc.cli.bench_participant import run
+    from hrc.bench.participant import run
 
     assert run(argparse.Namespace(json=True)) == 0
     data = json.loads(capsys.readouterr().out)

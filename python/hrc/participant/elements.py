@@ -22,18 +22,17 @@ from typing import Any
 
 import numpy as np
 
-from hrc.scenario import ParticipantProfile, ScriptedParams
-from hrc.scenario.models import DEFAULT_TOLERANCE_M
-
-from hrc_human_input.hand import Hand, Move, Step
-from hrc_human_input.motor import FIXED_PLACE, MotorParams, fitts_index
-from hrc_human_input.scripted import (
+from hrc.participant.hand import Hand, Move, Step
+from hrc.participant.motor import FIXED_PLACE, MotorParams, fitts_index
+from hrc.participant.plans import (
     APPROACH_CLEARANCE,
     CARRY_CLEARANCE,
     PICK_WIDTH,
     place_plan,
     reach_plan,
 )
+from hrc.scenario import ParticipantProfile, ScriptedParams
+from hrc.scenario.models import DEFAULT_TOLERANCE_M
 
 TMU_S = 0.036  # MTM's time measurement unit: 1e-5 h
 INCH_M = 0.0254

@@ -26,7 +26,7 @@ import tomllib
 from pathlib import Path
 from typing import Any
 
-from hrc.cli.fit import relative_errors
+from hrc.participant.fitted import relative_errors
 from hrc.paths import project_root
 from hrc.study.spec import Study
 from hrc.tomlw import dumps
@@ -38,9 +38,8 @@ HELD_OUT = 1.0  # m/s: the condition the twins predict
 
 
 def _fit_all(folder: Path, where: list[tuple[str, str]]) -> tuple[dict[str, dict[str, Any]], Any]:
-    from hrc.cli.fit import study_groups
-
-    from hrc_human_input.fit import fit_folders
+    from hrc.participant.fit import fit_folders
+    from hrc.participant.fitted import study_groups
 
     groups, table = study_groups(folder, where)
     return {who: fit_folders(dirs).params for who, dirs in sorted(groups.items())}, table
@@ -113,7 +112,7 @@ def bench(out: Path, workers: int = 2, people: int = 0) -> dict[str, Any]:
     """The bench in folder ``out``; ``people`` (0: all of them) keeps the study's first ones."""
     import pandas as pd
 
-    from hrc.cli.fit import recovery, write_fitted
+    from hrc.participant.fitted import recovery, write_fitted
     from hrc.study.spec import load_study
     from hrc.study.sweep import sweep
 

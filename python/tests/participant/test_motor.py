@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from hrc_human_input.motor import (
+from hrc.participant.motor import (
     MIN_JERK_PEAK_FACTOR,
     MotorParams,
     Segment,

@@ -89,7 +89,7 @@ def measure_rtt(
 
 
 def measure_lockstep(ticks: int, lowlatency: bool = False) -> float:
-    from hrc.cli.runner import TrialOptions, run_trial
+    from hrc.trial import TrialOptions, run_trial
 
     scenario = project_root() / "scenarios" / "empty.toml"
     opts = TrialOptions(scenario=scenario, ticks=ticks, lowlatency=lowlatency)

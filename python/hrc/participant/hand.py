@@ -10,9 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from hrc.geometry import Pose, Vec3, distance, wrap_angle_rad, yaw_quat_rad
-from hrc.scenario.conventions import HAND_RADIUS_M
-
-from hrc_human_input.motor import (
+from hrc.participant.motor import (
     MIN_JERK_PEAK_FACTOR,
     MIN_MOVEMENT_TIME_S,
     MotorParams,
@@ -20,6 +18,7 @@ from hrc_human_input.motor import (
     movement_time,
     path_length,
 )
+from hrc.scenario.conventions import HAND_RADIUS_M
 
 
 @dataclass(frozen=True)

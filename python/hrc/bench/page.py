@@ -16,10 +16,14 @@ On a loaded machine the interval between frames is mostly waiting for a core.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from hrc.browser import headless_chromium
@@ -27,7 +31,6 @@ from hrc.browser import headless_chromium
 if TYPE_CHECKING:
     from playwright.sync_api import ViewportSize
 
-    from hrc.cli.bench_client import BenchContext
 
 log = logging.getLogger(__name__)
 VIEWPORT: ViewportSize = {"width": 1280, "height": 800}
@@ -148,8 +151,20 @@ def page_frame_time(
     return out
 
 
+@dataclass
+class BenchContext:
+    """What a figure function gets: the running trial's page URL and scenario, and
+    ``robots_busy()``, a context in which the driver keeps provoking collisions (both robots
+    retreat and go on: both move)."""
+
+    url: str
+    scenario: Path
+    n: int
+    robots_busy: Callable[[], contextlib.AbstractContextManager[None]]
+
+
 def page_figures(ctx: BenchContext) -> dict[str, Any]:
-    """For :data:`hrc.cli.bench_client.EXTRA_FIGURES`: the page on a desktop and in a headset
+    """For :data:`hrc.bench.client.EXTRA_FIGURES`: the page on a desktop and in a headset
     while the robots are kept moving; a page that fails (no chromium, not ready in time) is
     reported as the figure's error, not the end of the whole bench."""
     out: dict[str, Any] = {}

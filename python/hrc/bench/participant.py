@@ -1,5 +1,5 @@
 """``hrc bench participant``: the scripted participant's element times against MTM-1, VR reaching
-and reaction-time data, per profile (services/human_input/hrc_human_input/elements.py).
+and reaction-time data, per profile (hrc.participant.elements).
 
 No services run: the participant's own hand model performs each element. ``--json`` prints one
 object ``{"reference": ..., "profiles": {PROFILE: {"elements": [{"element", "distance_cm",
@@ -52,7 +52,7 @@ def _table(report: dict[str, Any]) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    from hrc_human_input.elements import bench
+    from hrc.participant.elements import bench
 
     report = bench()
     if getattr(args, "json", False):

@@ -36,11 +36,11 @@ from typing import Any
 from websockets.sync.client import ClientConnection, connect
 
 from hrc import scenario as sc
+from hrc.bench.page import BenchContext, page_figures
 from hrc.bus import Bus, access
-from hrc.cli.bench_page import page_figures
-from hrc.cli.runner import TrialOptions, TrialResult, VrOptions, run_trial
 from hrc.paths import project_root
 from hrc.ports import free_port
+from hrc.trial import TrialOptions, TrialResult, VrOptions, run_trial
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
@@ -171,18 +171,6 @@ def percentile(xs: list[float], q: float) -> float:
         return math.nan
     s = sorted(xs)
     return s[max(0, min(len(s) - 1, math.ceil(q / 100 * len(s)) - 1))]
-
-
-@dataclass
-class BenchContext:
-    """What a figure function gets: the running trial's page URL and scenario, and
-    ``robots_busy()``, a context in which the driver keeps provoking collisions (both robots
-    retreat and go on: both move)."""
-
-    url: str
-    scenario: Path
-    n: int
-    robots_busy: Callable[[], contextlib.AbstractContextManager[None]]
 
 
 EXTRA_FIGURES: list[Callable[[BenchContext], dict[str, Any]]] = [page_figures]

@@ -36,16 +36,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from hrc.geometry import Vec3, distance
 from hrc.metrics import EVENTS_FILE
+from hrc.participant.motor import MIN_JERK_PEAK_FACTOR, REACTION_LOG_SD, fitts_index
+from hrc.participant.plans import GROSS_WIDTH, PICK_WIDTH
+from hrc.participant.recording import load_recording
 from hrc.scenario.models import DEFAULT_TOLERANCE_M
 from hrc.study.trial import RECORDING_FILE
 
-from hrc_human_input.motor import MIN_JERK_PEAK_FACTOR, REACTION_LOG_SD, fitts_index
-from hrc_human_input.replay import load_recording
-from hrc_human_input.scripted import GROSS_WIDTH, PICK_WIDTH
-
+Array = npt.NDArray[np.float64]
 ONSET_SPEED = 0.03  # m/s: a hand faster than this moves
 NEAR_M = 0.03  # a move ending this close to a grasp / release point ends there
 ABOVE_XY_M = 0.02  # ... this close in x, y (and higher) ends above it
@@ -102,7 +103,7 @@ def _jerk_share(fraction_of_peak: float) -> tuple[float, float]:
     return tau, s
 
 
-def segment_moves(ts: np.ndarray, pos: np.ndarray) -> list[Move]:
+def segment_moves(ts: Array, pos: Array) -> list[Move]:
     """The hand's moves: runs of samples faster than ONSET_SPEED, corrected to whole moves."""
     if len(ts) < 3:
         return []
@@ -160,13 +161,13 @@ def _read_events(path: Path) -> list[dict[str, Any]]:
     return out
 
 
-def _at(ts: np.ndarray, values: np.ndarray, t: float) -> Any:
+def _at(ts: Array, values: Array, t: float) -> Any:
     """The sample at or just before time t."""
     k = int(np.searchsorted(ts, t, side="right")) - 1
     return values[max(0, min(k, len(values) - 1))]
 
 
-def _ramps(ts: np.ndarray, grip: np.ndarray, closing: bool) -> list[tuple[float, float]]:
+def _ramps(ts: Array, grip: Array, closing: bool) -> list[tuple[float, float]]:
     """(start, end) of each full grip ramp 0 -> 1 (closing) or 1 -> 0."""
     lo, hi = (0.0, 1.0) if closing else (1.0, 0.0)
     out = []
@@ -299,7 +300,7 @@ def _above(p: Vec3, q: Vec3) -> bool:
     return math.dist(p[:2], q[:2]) <= ABOVE_XY_M and p[2] - q[2] > NEAR_M
 
 
-def _grip_start(ts: np.ndarray, grip: np.ndarray, t: float) -> float:
+def _grip_start(ts: Array, grip: Array, t: float) -> float:
     """When the grip starts to open after time t."""
     k = int(np.searchsorted(ts, t, side="left"))
     for j in range(max(1, k), len(grip)):
@@ -308,7 +309,7 @@ def _grip_start(ts: np.ndarray, grip: np.ndarray, t: float) -> float:
     return t
 
 
-def nonnegative_lstsq(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+def nonnegative_lstsq(x: Array, y: Array) -> Array:
     """Least squares with every coefficient >= 0, for a few columns: the best of the ordinary
     fits over each subset of columns whose coefficients all come out >= 0 (the others 0)."""
     n = x.shape[1]

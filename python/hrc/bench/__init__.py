@@ -6,13 +6,13 @@ import argparse
 import importlib
 
 _MODULES = {
-    "bus": "hrc.cli.bench_bus",
-    "physics": "hrc.cli.bench_physics",
-    "ik": "hrc.cli.bench_ik",
-    "client": "hrc.cli.bench_client",
-    "trial": "hrc.cli.bench_trial",
-    "participant": "hrc.cli.bench_participant",
-    "fit": "hrc.cli.bench_fit",
+    "bus": "hrc.bench.bus",
+    "physics": "hrc.bench.physics",
+    "ik": "hrc.bench.ik",
+    "client": "hrc.bench.client",
+    "trial": "hrc.bench.trial",
+    "participant": "hrc.bench.participant",
+    "fit": "hrc.bench.fit",
 }
 
 

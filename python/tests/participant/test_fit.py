@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hrc_human_input.fit import FitError, fit_measures, measure_trial, segment_moves
-from hrc_human_input.hand import Hand, Move
-from hrc_human_input.motor import MotorParams
+from hrc.participant.fit import FitError, fit_measures, measure_trial, segment_moves
+from hrc.participant.hand import Hand, Move
+from hrc.participant.motor import MotorParams
 
 
 def _sampled(moves: list[Move], motor: MotorParams, hz: float = 240.0) -> tuple:

@@ -1,0 +1,295 @@
+"""``hrc run``: start the five services of one trial as separate processes and watch them.
+
+The trial ends when physics publishes ``run/end``. A service that dies before that ends the trial:
+the others are stopped, the dead one is named, and the exit status is non-zero. Every service's
+own log goes to ``<trial>/services/<name>.log``.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+import uuid
+from collections.abc import Callable
+from pathlib import Path
+
+from hrc import metrics as metrics_schema
+from hrc import services
+from hrc.bus import Bus, BusConfig
+from hrc.bus.access import EXPERIMENTER, TrialAccess, count_refusals
+from hrc.diskspace import NO_SPACE, low_space
+from hrc.paths import build_dir
+from hrc.ports import free_port, release_port
+from hrc.trial.console import LiveConsole
+from hrc.trial.options import TrialOptions, TrialResult, fits_lowlatency, service_argv
+from hrc.trial.processes import (
+    INTERRUPT_LEAVE_S,
+    SERVICES_ABANDONED_S,
+    SERVICES_LEAVE_S,
+    Phases,
+    ServiceGroup,
+    Terminated,
+    await_leaving,
+    describe_exit,
+    not_responding,
+    process_age_s,
+)
+from hrc.wire import pb
+
+log = logging.getLogger(__name__)
+
+
+class _EndWatcher:
+    """Listens for ``run/end`` so the CLI can name the reason even if a service log is terse."""
+
+    def __init__(
+        self,
+        session: str,
+        port: int,
+        access: TrialAccess | None,
+        on_end: Callable[[], None] = lambda: None,
+    ) -> None:
+        self.end: pb.RunEnd | None = None
+        self._on_end_hook = on_end
+        self.end_at: float | None = None  # time.monotonic() when run/end came
+        self._event = threading.Event()
+        cfg = BusConfig(
+            session=session,
+            connect=[f"tcp/127.0.0.1:{port}"],
+            listen=[],
+            config_file=str(access.config(EXPERIMENTER)) if access is not None else None,
+        )
+        # the experimenter's side of the trial: what stops it is named so ("stopped by
+        # experimenter: ...")
+        self.bus = Bus(cfg, EXPERIMENTER)
+        self.bus.subscribe(self.bus.keys.run_end(), pb.RunEnd, self._on_end)
+
+    def _on_end(self, _key: str, end: pb.RunEnd) -> None:
+        self.end_at = time.monotonic()
+        self.end = end
+        self._event.set()
+        try:
+            self._on_end_hook()
+        except Exception as exc:  # a nicety: never the watcher's end
+            log.debug("after run/end: %s", exc)
+
+    def stop_run(self, reason: str, failed_service: str = "") -> None:
+        """Asks the clock master to end the run, with ``reason``: as a normal stop, or (with
+        ``failed_service``) as a failure of that service, which hrc run saw end or stop. Every
+        service then writes its files as at any end (metrics.json among them)."""
+        ctl = pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason)
+        if failed_service:
+            ctl.command = pb.RunControl.COMMAND_ABORT
+            ctl.failed_service = failed_service
+        self.bus.publisher(self.bus.keys.run_control()).put(ctl)
+
+    def failed_end(self, wait_s: float) -> bool:
+        """A run/end with ok = false came (waiting up to ``wait_s`` for one)."""
+        return self._event.wait(wait_s) and self.end is not None and not self.end.ok
+
+    def close(self) -> None:
+        self.bus.close()
+
+
+def _phases(phases: Phases, t0: float, group: ServiceGroup, watcher: _EndWatcher | None) -> Phases:
+    end_at = watcher.end_at if watcher is not None else None
+    if watcher is None or watcher.end is None or end_at is None:
+        return phases
+    phases.run = watcher.end.wall_s
+    phases.start = max(0.0, end_at - watcher.end.wall_s - t0)
+    phases.exit_by_service = {n: group.exited_at[n] - end_at for n in group.exited_at}
+    if group.exited_at:
+        phases.end = max(group.exited_at.values()) - end_at
+    return phases
+
+
+def _watch(group: ServiceGroup, console: LiveConsole | None) -> None:
+    """Until a service exits: refreshes the live console (the loop below judges the exit)."""
+    while all(rc is None for rc in group.poll().values()):
+        if console is not None:
+            console.update()
+        time.sleep(0.05)
+
+
+def _interrupted(group: ServiceGroup, watcher: _EndWatcher | None, exc: BaseException) -> None:
+    """Ctrl-C or SIGTERM during the run: the run is ended as a stop by the experimenter, so every
+    service writes its files (metrics.json with that end reason); then the caller stops them."""
+    how = "Ctrl-C" if isinstance(exc, KeyboardInterrupt) else str(exc)
+    _end_run(group, watcher, f"interrupted ({how})")
+
+
+def _end_run(
+    group: ServiceGroup, watcher: _EndWatcher | None, reason: str, failed_service: str = ""
+) -> None:
+    """Ends the run over the bus (see :meth:`_EndWatcher.stop_run`) and gives the services
+    INTERRUPT_LEAVE_S to write their files and leave (a stopped one is not waited for); the
+    caller then stops what is left."""
+    if watcher is None or watcher.end is not None:
+        return
+    try:
+        watcher.stop_run(reason, failed_service)
+    except Exception as err:  # the bus is gone: the services are stopped as before
+        log.debug("could not ask for the run's end: %s", err)
+        return
+    await_leaving(group, INTERRUPT_LEAVE_S)
+
+
+def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
+    # the port stays reserved (hrc.ports) until the trial's physics has gone
+    port = opts.port or free_port()
+    try:
+        return _run_trial(opts, trial_dir, port)
+    finally:
+        if not opts.port:
+            release_port(port)
+
+
+def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
+    session = opts.session or f"t{uuid.uuid4().hex[:10]}"
+    lowlatency = opts.lowlatency and fits_lowlatency(opts.scenario)
+    master = services.CLOCK_MASTER
+    for svc in services.SERVICES:
+        if svc.binary is not None and not (build_dir() / svc.binary).exists():
+            return TrialResult(
+                False,
+                2,
+                trial_dir,
+                f"the {svc.name} service binary "
+                f"{build_dir() / svc.binary} is missing: run scripts/setup.sh",
+            )
+    if (warning := low_space(trial_dir)) is not None:
+        log.warning("%s", warning)
+    try:
+        trial_dir.mkdir(parents=True, exist_ok=True)
+        group = ServiceGroup(trial_dir)
+    except OSError as exc:
+        return TrialResult(False, 2, trial_dir, f"cannot write to {trial_dir}: {exc.strerror}")
+    watcher: _EndWatcher | None = None
+    console: LiveConsole | None = None
+    t0 = time.monotonic()
+    phases = Phases(prepare=process_age_s())
+    # (routers of other hosts know none of the trial's credentials)
+    access = TrialAccess.create(session, services.names(), authenticate=not opts.connect)
+    sock = access.socket if access is not None and opts.unix_socket else None
+    try:
+        # the table lists the clock master first: it listens where everybody else connects.
+        for name in services.names():
+            argv = service_argv(name, opts, session, port, trial_dir, sock, lowlatency, access)
+            group.start(name, argv, services.service(name).module)
+        time.sleep(0.2)
+        try:
+            watcher = _EndWatcher(session, port, access, on_end=group.lift_observers)
+            if opts.vr is not None:
+                console = LiveConsole(watcher.bus, opts.participant, opts.parts_total)
+        except Exception as exc:  # the bus is optional for the CLI; process status still works
+            log.debug("no run/end watcher: %s", exc)
+        failed = ""
+        failure = ""
+        try:
+            _watch(group, console)
+        except (KeyboardInterrupt, Terminated) as exc:
+            _interrupted(group, watcher, exc)
+            raise
+        while True:
+            status = group.poll()
+            dead = [n for n, rc in status.items() if rc is not None and rc != 0 and n != master]
+            if status[master] is not None:
+                break
+            # After a failed run/end the services exit 1 on their own: the end names the cause.
+            # a stopped clock master is the cause (the others left when its link died): no
+            # run/end can come then
+            stopped = group.stopped() if dead else []
+            if dead and (
+                master in stopped
+                or not (
+                    watcher is not None
+                    and all((status[n] or 0) > 0 for n in dead)
+                    and watcher.failed_end(1.0)
+                )
+            ):
+                # A clean exit (0) is not a failure by itself: the clock master notices the lost
+                # liveliness and ends the run naming the service, if the run was still going.
+                failed = dead[0]
+                failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
+                if stopped:
+                    failed, failure = stopped[0], not_responding(stopped[0])
+                # the run's end names the cause, and every service writes its files with it
+                _end_run(group, watcher, failure, failed)
+                break
+            time.sleep(0.05)
+        if not failed:
+            # the clock master is done; the others leave on run/end.
+            # (the logger may still be catching up: it writes every file before it leaves)
+            ended = watcher is not None and watcher.end is not None
+            master_rc = status[master]
+            leave_s = SERVICES_LEAVE_S if ended or master_rc == 0 else SERVICES_ABANDONED_S
+            await_leaving(group, leave_s)  # hrc run returns as soon as the last one has left
+        # judge by how each ended on its own, before we stop the stragglers
+        status = group.poll()
+        stopped = group.stopped()
+        # SIGTERM: a service still writes its files (metrics.json) within its grace
+        group.stop_all(grace_s=services.STOP_GRACE_S + 0.5)
+        end = watcher.end if watcher else None
+        wall = time.monotonic() - t0
+        killed = [n for n in services.names() if (status.get(n) or 0) < 0]
+        if killed and (not failed or (status.get(failed) or 0) >= 0):
+            # a service killed by a signal is the root cause; the others' errors follow from it
+            failed = killed[0]
+            failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
+        phys = status.get(master)
+        if not failed and phys is not None and (phys < 0 or (end is None and phys != 0)):
+            # the clock master itself died: the others' errors ("clock master disappeared")
+            # follow from it
+            failed = master
+            failure = f"service '{master}' {describe_exit(phys)} during the run"
+        if (
+            not failed
+            and stopped
+            and not (end is not None and not end.ok and end.failed_participant in stopped)
+        ):
+            # stopped at the end of a run that did not name it (it wrote none of its last files)
+            failed = stopped[0]
+            failure = not_responding(failed, " at the run's end")
+        if not failed:
+            bad = [n for n in services.names() if status.get(n) not in (0, None)]
+            if end is not None and not end.ok:
+                failed = end.failed_participant or (bad[0] if bad else master)
+                failure = f"run failed: {end.reason}"
+            elif bad:
+                failed = bad[0]
+                failure = f"service '{failed}' {describe_exit(status[failed] or 0)}"
+        full = group.out_of_space() if failed or end is None or not end.ok else None
+        if full is not None:
+            failed = full
+            failure = f"no space left on {trial_dir} (service '{full}' could not write its files)"
+        if failed:
+            detail = group.tail(failed)
+            if full is not None:  # the one line that says it, not a traceback
+                said = [ln for ln in group.tail(failed, 40).splitlines() if NO_SPACE in ln]
+                detail = said[0] if said else detail
+            msg = failure + (
+                f"\n--- last lines of {group.log_path(failed)}:\n{detail}" if detail else ""
+            )
+            return TrialResult(False, 3, trial_dir, msg, failed, end, wall)
+        return TrialResult(True, 0, trial_dir, "trial completed", "", end, wall)
+    finally:
+        if console is not None:
+            end = watcher.end if watcher is not None else None
+            console.close(end.reason if end is not None else "")
+        if watcher is not None:
+            watcher.close()
+        group.stop_all(grace_s=1.0)
+        metrics_schema.add_recording(trial_dir)
+        if access is not None and not opts.connect:  # physics checked every link
+            counts = count_refusals(group.log_path(master))
+            if counts is not None:
+                refused = metrics_schema.access_metrics(counts)
+                metrics_schema.add_access(trial_dir, refused)
+                if refused.refused_links:
+                    log.warning("%s", metrics_schema.access_line(refused))
+        group.write_cpu()
+        group.write_timing(_phases(phases, t0, group, watcher))
+        group.close()
+        if access is not None:
+            access.remove()
