@@ -19,7 +19,8 @@ from hrc.browser import headless_chromium, output_dir
 from hrc.ports import free_port
 
 from .conftest import HRC, ROOT
-from hrc_logger.view import HUMAN_PART_RGB, rgb
+from hrc_logger.entities import rgb
+from hrc_logger.view import HUMAN_PART_RGB
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 

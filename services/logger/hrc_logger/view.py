@@ -31,36 +31,34 @@ from __future__ import annotations
 
 import logging
 import math
-import re
 import shutil
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Generic, TypeVar
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
 import rerun as rr
 from rerun.urdf import UrdfTree
 
-from hrc.geometry import to_array, vec3_from_array, vec3_from_pb, yaw_quat_deg
+from hrc.geometry import vec3_from_pb, yaw_quat_deg
 from hrc.scenario import colors
-from hrc.scenario.conventions import WAITING_HEIGHT_M, WAITING_TEXT
 from hrc.scenario.convert import ssm_from_proto
 from hrc.scenario.models import DEFAULT_TICK_HZ, HUMAN
 from hrc.scenario.urdf import localized_urdf
 from hrc.wire import pb
 
 from hrc_logger.blueprint import blueprint
+from hrc_logger.cues import WHITE, CueView, cue_archetype
+from hrc_logger.entities import CLEAR, cue_entity, finite, part, rgb, rgba, srgb_to_linear
+from hrc_logger.series import PointRow, SeriesBatch, StateStream
 from hrc_logger.ssm_zone import Zone
 from hrc_logger.textlog import kind_name
 from hrc_logger.urdf_fk import (
-    Joint,
     UrdfError,
     UrdfModel,
     matrix_to_quat_xyzw,
-    point_polyline_distance,
-    polyline_distances,
     yaw_transform,
 )
 
@@ -74,31 +72,6 @@ ROOT_FRAME = "tf#/"  # rerun's implicit frame of the root entity: the world
 # colour, as physics and the participant's page draw them.
 HUMAN_PART_RGB = colors.rgb(colors.HUMAN_PART_COLOR)
 UNKNOWN_COLOR = colors.UNKNOWN_RGB
-rgb = colors.rgb
-_ENTITY_SAFE = re.compile(r"[^A-Za-z0-9_\-]")
-CLEAR = rr.Clear(recursive=False)  # one archetype for every clear (building one costs ~0.2 ms)
-
-
-def rgba(c: tuple[int, int, int], a: int) -> tuple[int, int, int, int]:
-    return c[0], c[1], c[2], a
-
-
-def srgb_to_linear(c: float) -> float:
-    """An sRGB channel (0..1) as linear light."""
-    return c / 12.92 if c <= 0.04045 else ((c + 0.055) / 1.055) ** 2.4
-
-
-def part(name: str) -> str:
-    """One entity-path segment (ids are already [A-Za-z0-9_-], but cue ids carry ':')."""
-    return _ENTITY_SAFE.sub("_", name) or "_"
-
-
-def cue_entity(cue_id: str) -> str:
-    return "world/cues/" + "/".join(part(p) for p in cue_id.split(":"))
-
-
-def finite(values: Any) -> bool:
-    return all(math.isfinite(x) for x in values)
 
 
 @dataclass
@@ -110,143 +83,6 @@ class ViewSettings:
     # many simulated seconds have gathered (None: at the end): a rerun log call per row was
     # most of the logger's CPU time.
     series_flush_s: float | None = None
-
-
-S = TypeVar("S", pb.RobotState, pb.HumanState)
-
-
-class StateStream(Generic[S]):
-    """One robot's (or the hands') states for the view: at most one logged per ``every`` ticks;
-    the last one held back is logged at the end, and, since states come on change, the last one
-    seen is logged once more at the final clock tick so the timeline reaches it."""
-
-    def __init__(self) -> None:
-        self.next_due = 0
-        self.pending: S | None = None  # held back by the rate limit
-        self.last: S | None = None  # in force until the next one
-        self.logged_tick = -1
-
-    def offer(self, msg: S, every: int) -> bool:
-        """Takes a new state; True if it is to be logged now."""
-        self.last = msg
-        tick = msg.header.tick
-        if tick < self.next_due:
-            self.pending = msg
-            return False
-        self.next_due = tick + every
-        self.pending = None
-        return True
-
-    def logged(self, msg: S) -> None:
-        self.logged_tick = msg.header.tick
-
-    def closing(self, clock: tuple[int, float] | None) -> list[S]:
-        """What is still to be logged at the end, in order."""
-        out: list[S] = []
-        if self.pending is not None:
-            out.append(self.pending)
-            self.logged_tick = self.pending.header.tick
-            self.pending = None
-        if clock is not None and self.last is not None and self.logged_tick < clock[0]:
-            held = type(self.last)()
-            held.CopyFrom(self.last)
-            held.header.tick, held.header.sim_time = clock
-            out.append(held)
-        return out
-
-
-@dataclass(frozen=True)
-class PointRow:
-    """One point of a point entity (the TCP, the head, a hand) at one time."""
-
-    position: npt.NDArray[np.float64]
-    radius: float
-    color: tuple[int, int, int]
-    label: str | None = None
-
-
-@dataclass(frozen=True)
-class JointEntity:
-    """A movable joint's entity in a robot's joint series; ``index``: its position in the
-    model's joint vector (``UrdfModel.joint_vector``)."""
-
-    entity: str
-    joint: Joint
-    frames: tuple[str, str]  # (parent, child) frame of its transform
-    index: int
-
-
-@dataclass
-class Series:
-    """One entity's rows not yet sent, at (tick, sim time): scalars, a robot's joint transforms
-    (``joints``: values are joint vectors, sent as one entity per movable joint), part poses
-    (``pose``: values are (translation, xyzw)), points (``points``: values are PointRows) or a
-    hand's distance to a robot (``chain``: values are (hand position, the robot's joint vector);
-    ``polyline``: values are (hand position, points)), computed for the whole column when
-    sent."""
-
-    ticks: list[int] = field(default_factory=list)
-    times: list[float] = field(default_factory=list)
-    values: list[Any] = field(default_factory=list)  # see the class docstring
-    joints: list[JointEntity] | None = None
-    pose: bool = False  # a Transform3D without frames (a part's pose in the world)
-    points: bool = False
-    show_labels: bool | None = None  # points: whether the viewer shows their labels
-    chain: tuple[UrdfModel, np.ndarray] | None = None  # (model, base) of the robot
-    polyline: bool = False
-
-    def send(self, rec: rr.RecordingStream, entity: str) -> None:
-        if not self.ticks:
-            return
-        n = len(self.ticks)
-        # nanoseconds rounded as set_time rounds a float duration
-        nanos = np.round(np.asarray(self.times, dtype=np.float64) * 1e9).astype(np.int64)
-        indexes = [
-            rr.TimeColumn("tick", sequence=np.asarray(self.ticks, dtype=np.int64)),
-            rr.TimeColumn("sim_time", duration=nanos.astype("timedelta64[ns]")),
-        ]
-        columns: Any
-        if self.joints is not None:
-            qs = np.asarray(self.values, dtype=np.float64)
-            for je in self.joints:
-                translations, quats = je.joint.local_columns(qs[:, je.index])
-                columns = rr.Transform3D.columns(
-                    translation=translations,
-                    quaternion=quats,
-                    parent_frame=[je.frames[0]] * n,
-                    child_frame=[je.frames[1]] * n,
-                )
-                rr.send_columns(je.entity, indexes=indexes, columns=columns, recording=rec)
-            self.ticks, self.times, self.values = [], [], []
-            return
-        if self.points:
-            rows: list[PointRow] = self.values
-            labels = [r.label or "" for r in rows] if rows[0].label is not None else None
-            columns = rr.Points3D.columns(
-                positions=np.asarray([r.position for r in rows], dtype=np.float32),
-                radii=np.asarray([r.radius for r in rows], dtype=np.float32),
-                colors=np.asarray([r.color for r in rows], dtype=np.uint8),
-                labels=labels,
-                show_labels=None if self.show_labels is None else [self.show_labels] * n,
-            )
-        elif self.chain is not None:
-            model, base = self.chain
-            hands = np.asarray([v[0] for v in self.values], dtype=np.float64)
-            chains = model.chain_points_columns(np.asarray([v[1] for v in self.values]), base)
-            columns = rr.Scalars.columns(scalars=polyline_distances(hands, chains))
-        elif self.polyline:
-            columns = rr.Scalars.columns(
-                scalars=np.asarray([point_polyline_distance(p, pts) for p, pts in self.values])
-            )
-        elif self.pose:
-            columns = rr.Transform3D.columns(
-                translation=np.asarray([v[0] for v in self.values], dtype=np.float64),
-                quaternion=np.asarray([v[1] for v in self.values], dtype=np.float64),
-            )
-        else:
-            columns = rr.Scalars.columns(scalars=np.asarray(self.values, dtype=np.float64))
-        rr.send_columns(entity, indexes=indexes, columns=columns, recording=rec)
-        self.ticks, self.times, self.values = [], [], []
 
 
 @dataclass
@@ -275,16 +111,6 @@ class ObjectView:
     next_due: int = 0
     held_by: str = ""
     placed: bool = False
-
-
-@dataclass
-class CueView:
-    cue: pb.Cue
-    visible: bool = False
-    # The archetype last shown and what it was built from (an outline: its part's pose): a
-    # flashing cue is shown again every second, and building an archetype costs ~1 ms.
-    shown: Any = None
-    shown_for: tuple[float, ...] | None = None
 
 
 def open_recording(
@@ -337,12 +163,10 @@ class View:
         self.button: npt.NDArray[np.float64] = np.zeros(3)
         self._flash_phase: int | None = None
         self.zones: dict[str, Zone] = {}  # ssm only: the protective zone per robot
-        self.logged = 0  # rerun log calls (and rows sent in columns), for the service's summary
+        self._log_calls = 0
         self._now = (0, 0.0)  # the time set by _time
         self._time_sent = False  # rerun has been told _now (set_time before a log call)
-        self._series: dict[str, Series] = {}
-        self._series_since = 0.0  # sim time of the oldest unsent row
-        self._pending_rows = 0
+        self.batch = SeriesBatch(rec, self.s.series_flush_s)
 
     # ------------------------------------------------------------------ helpers
     def _log(self, entity: str, *archetypes: Any, static: bool = False) -> None:
@@ -351,52 +175,28 @@ class View:
             self.rec.set_time("sim_time", duration=self._now[1])
             self._time_sent = True
         self.rec.log(entity, *archetypes, static=static)
-        self.logged += 1
+        self._log_calls += 1
+
+    @property
+    def logged(self) -> int:
+        """Rerun log calls and rows sent in columns, for the service's summary."""
+        return self._log_calls + self.batch.rows
 
     def _time(self, tick: int, sim_time: float) -> None:
         """The time of what follows; rerun is told only before a log call (rows in columns
         carry their own times), as set_time costs more than most rows."""
         now = (int(tick), float(sim_time))
         if now != self._now:
-            self._now = now
+            self._now = self.batch.now = now
             self._time_sent = False
 
-    def _row(self, entity: str, value: float) -> None:
-        """A scalar's row at the current time, sent later in columns (flush_series)."""
-        series = self._series.get(entity)
-        if series is None:
-            series = self._series[entity] = Series()
-        self._append(series, value)
-
-    def _joints_row(self, rv: RobotView, model: UrdfModel, qvec: np.ndarray) -> None:
-        """A robot's joint positions at the current time; each movable joint's transforms are
-        computed for a whole column at once when sent (Joint.local_columns)."""
-        key = f"robot_{part(rv.rid)}/joints"
-        series = self._series.get(key)
-        if series is None:
-            joints = [
-                JointEntity(
-                    f"{key}/{part(j.name)}", j, (f"{rv.rid}/{j.parent}", f"{rv.rid}/{j.child}"), i
-                )
-                for i, j in enumerate(model.joints)
-                if j.kind != "fixed"
-            ]
-            series = self._series[key] = Series(joints=joints)
-        assert series.joints is not None
-        self._append(series, qvec, len(series.joints))
-
     def _distance_row(self, entity: str, rv: RobotView, hand: np.ndarray) -> None:
-        """A hand's distance to a robot's link chain (segments through its link origins; the
-        TCP without a URDF) at the current time, computed for a whole column when sent."""
-        series = self._series.get(entity)
+        """A hand's distance to a robot's link chain (the TCP without a URDF) at the current
+        time, computed for a whole column when sent."""
         if rv.model is not None and rv.qvec is not None:
-            if series is None:
-                series = self._series[entity] = Series(chain=(rv.model, rv.base))
-            self._append(series, (hand, rv.qvec))
+            self.batch.chain_distance(entity, rv.model, rv.base, rv.qvec, hand)
         elif rv.tcp is not None:
-            if series is None:
-                series = self._series[entity] = Series(polyline=True)
-            self._append(series, (hand, rv.tcp[None, :]))
+            self.batch.polyline_distance(entity, rv.tcp[None, :], hand)
 
     def _chain(self, rv: RobotView) -> np.ndarray | None:
         """The robot's link origins at its last logged state (None without a URDF)."""
@@ -404,39 +204,9 @@ class View:
             rv.chain = rv.model.chain_points_columns(rv.qvec[None, :], rv.base)[0]
         return rv.chain
 
-    def _point(self, entity: str, row: PointRow, show_labels: bool | None = None) -> None:
-        """A point entity's row (one point) at the current time, sent later in columns: a
-        rerun log call per point was most of the logger's CPU after the plots went to columns."""
-        series = self._series.get(entity)
-        if series is None:
-            series = self._series[entity] = Series(points=True, show_labels=show_labels)
-        self._append(series, row)
-
-    def _pose(self, entity: str, translation: Any, xyzw: Any) -> None:
-        """A part's pose at the current time, sent later in columns."""
-        series = self._series.get(entity)
-        if series is None:
-            series = self._series[entity] = Series(pose=True)
-        self._append(series, (translation, xyzw))
-
-    def _append(self, series: Series, value: Any, rows: int = 1) -> None:
-        """``rows``: the entity rows this value makes (a robot's joint vector: one per joint)."""
-        if not self._pending_rows:
-            self._series_since = self._now[1]
-        self._pending_rows += rows
-        series.ticks.append(self._now[0])
-        series.times.append(self._now[1])
-        series.values.append(value)
-        self.logged += rows
-        every = self.s.series_flush_s
-        if every is not None and self._now[1] - self._series_since >= every:
-            self.flush_series()
-
     def flush_series(self) -> None:
         """Sends every gathered time-series row (one call per entity)."""
-        for entity, series in self._series.items():
-            series.send(self.rec, entity)
-        self._pending_rows = 0
+        self.batch.flush()
 
     def set_tick_hz(self, hz: float) -> None:
         if hz > 0 and math.isfinite(hz):
@@ -612,11 +382,11 @@ class View:
                 )
             rv.qvec = rv.model.joint_vector(rv.q)
             rv.chain = None
-            self._joints_row(rv, rv.model, rv.qvec)
+            self.batch.joints(f"robot_{part(rv.rid)}/joints", rv.rid, rv.model, rv.qvec)
         if rv.tcp is not None:
-            self._point(f"world/tcp/{part(rv.rid)}", PointRow(rv.tcp, 0.01, rv.color))
+            self.batch.point(f"world/tcp/{part(rv.rid)}", PointRow(rv.tcp, 0.01, rv.color))
         if math.isfinite(st.tcp_speed):
-            self._row(f"plots/tcp_speed/{part(rv.rid)}", st.tcp_speed)
+            self.batch.row(f"plots/tcp_speed/{part(rv.rid)}", st.tcp_speed)
         zone = self.zones.get(rv.rid)
         if zone is not None:
             zone.observe(st)
@@ -643,7 +413,7 @@ class View:
         h = hs.head.position
         if finite((h.x, h.y, h.z)):
             # smaller than life: seen from behind, a life-size head hides the board
-            self._point(
+            self.batch.point(
                 "world/human/head",
                 PointRow(np.array([h.x, h.y, h.z]), HEAD_RADIUS_M, (230, 190, 160)),
             )
@@ -653,7 +423,7 @@ class View:
                 continue
             g = min(1.0, max(0.0, grip if math.isfinite(grip) else 0.0))
             color = (int(240 - 90 * g), int(200 - 110 * g), int(170 - 110 * g))
-            self._point(
+            self.batch.point(
                 f"world/human/{hand}_hand",
                 PointRow(pos, HAND_RADIUS_M, color, f"{hand} {g:.1f}"),
                 show_labels=False,  # the grip shows as the colour; labels crowd the board
@@ -710,7 +480,7 @@ class View:
                     ),
                 )
                 ov.shown = True
-            self._pose(ent, pos, quat)
+            self.batch.pose(ent, pos, quat)
             ov.pose = pose
             ov.held_by, ov.placed = o.held_by, o.placed
             ov.next_due = tick + self.every
@@ -763,68 +533,18 @@ class View:
         ov = self.objects.get(c.part) if c.kind == pb.CUE_KIND_OUTLINE else None
         shown_for = ov.pose if ov is not None else ()
         if cv.shown is None or cv.shown_for != shown_for:
-            cv.shown, cv.shown_for = self._cue_archetype(c), shown_for
-        self._log(ent, cv.shown)
-
-    def _cue_archetype(self, c: pb.Cue) -> Any:
-        """What shows the cue, from the cue, the scenario and (an outline) its part's pose."""
-        color = rgb(c.color, self.owner_color.get(c.robot, (255, 255, 255)))
-        pos = vec3_from_pb(c.position)
-        given = any(abs(v) > 1e-12 for v in pos) and finite(pos)
-        p = self.parts.get(c.part)
-        if c.kind == pb.CUE_KIND_TARGET and p is not None:
-            size = np.array([p.size.x, p.size.y, p.size.z]) * 1.15
-            return rr.Boxes3D(
-                half_sizes=[size / 2],
-                centers=[vec3_from_pb(p.target.xyz)],
-                quaternions=[yaw_quat_deg(p.target.yaw_deg)],
-                colors=[rgba(color, 170)],
-                fill_mode="solid",
-                labels=[c.text or f"{c.part}"],
-                show_labels=False,  # the part it is for carries the name
-            )
-        elif c.kind == pb.CUE_KIND_OUTLINE and (
-            (c.part in self.objects and self.objects[c.part].pose)
-            or (p is not None and p.start_given)
-        ):
-            ov = self.objects.get(c.part)
-            if ov is not None and ov.pose:  # seen on world/objects
-                size = np.array(ov.size)
-                center, quat = np.array(ov.pose[:3]), np.array(ov.pose[3:])
-            else:  # not seen on world/objects yet: where the scenario puts it
-                assert p is not None
-                size = np.array([p.size.x, p.size.y, p.size.z])
-                center = to_array(vec3_from_pb(p.start.xyz))
-                quat = to_array(yaw_quat_deg(p.start.yaw_deg))
-            return rr.Boxes3D(
-                half_sizes=[size * 1.3 / 2],
-                centers=[center],
-                quaternions=[quat],
-                colors=[rgba(color, 255)],
-                fill_mode="majorwireframe",
-            )
-        elif c.kind == pb.CUE_KIND_WAITING:
             rv = self.robots.get(c.robot)
-            if not given and rv is not None:
-                pos = vec3_from_array(rv.base[:3, 3] + np.array([0.0, 0.0, WAITING_HEIGHT_M]))
-            return rr.Points3D(
-                [pos],
-                radii=[0.02],
-                colors=[color],
-                labels=[c.text or WAITING_TEXT],
-                show_labels=True,
+            seen = (ov.size, ov.pose) if ov is not None and ov.pose else None
+            cv.shown = cue_archetype(
+                c,
+                self.parts.get(c.part),
+                seen,
+                self.owner_color.get(c.robot, WHITE),
+                rv.base if rv is not None else None,
+                self.button,
             )
-        elif c.kind == pb.CUE_KIND_CONTINUE_BUTTON:
-            where = pos if given else list(self.button)
-            return rr.Points3D(
-                [where],
-                radii=[0.03],
-                colors=[rgb(c.color, (255, 60, 60))],
-                labels=[c.text or "Continue"],
-                show_labels=True,
-            )
-        else:
-            return rr.Points3D([pos], radii=[0.02], colors=[color], labels=[c.text or c.id])
+            cv.shown_for = shown_for
+        self._log(ent, cv.shown)
 
     def tick(self, k: int, sim_time: float) -> None:
         """Blinks the flashing cues on the sim timeline (on for the first half of each period)."""

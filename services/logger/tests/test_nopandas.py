@@ -11,7 +11,8 @@ import sys
 from hrc_logger.nopandas import block_pandas
 block_pandas()
 import rerun as rr
-from hrc_logger.view import CLEAR, View, open_recording
+from hrc_logger.entities import CLEAR
+from hrc_logger.view import View, open_recording
 view = View(open_recording(sys.argv[1], "nopandas"))
 view.setup(None)
 view._log("events", rr.TextLog("hello"))

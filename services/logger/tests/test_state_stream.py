@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from hrc.wire import pb
 
-from hrc_logger.view import StateStream
+from hrc_logger.series import StateStream
 
 
 def _state(tick: int, speed: float) -> pb.RobotState:
