@@ -205,9 +205,9 @@ run_tool clippy cargo_clippy_check '^error: could not compile|^ *Finished'
 
 echo
 echo "[lint] summary"
-for name in ruff-check ruff-format mypy clang-format clang-tidy cargo-fmt clippy; do
+for name in ruff-check ruff-format mypy imports clang-format clang-tidy cargo-fmt clippy; do
   printf '  %-12s: %s\n' "$name" \
-    "$(sed -E 's/^(clang-format|clang-tidy|cargo fmt): //' <<<"${CLOSING[$name]:-no output}")"
+    "$(sed -E 's/^(clang-format|clang-tidy|cargo fmt|imports): //' <<<"${CLOSING[$name]:-no output}")"
 done
 if [ "${#failed[@]}" -gt 0 ]; then
   echo "[lint] FAILED: ${failed[*]}"

@@ -100,15 +100,25 @@ unsafe impl Sync for Ctx {}
 
 /// Open while the handle is declared; undeclare closes it under the lock, so no callback runs
 /// after undeclare returns, and callbacks of one handle never run concurrently.
-type Gate = Arc<Mutex<bool>>;
+#[derive(Clone)]
+struct Gate(Arc<Mutex<bool>>);
 
-fn new_gate() -> Gate {
-    Arc::new(Mutex::new(true))
-}
+impl Gate {
+    fn new() -> Self {
+        Gate(Arc::new(Mutex::new(true)))
+    }
 
-fn close_gate(gate: &Gate) {
-    let mut open = gate.lock().unwrap_or_else(|p| p.into_inner());
-    *open = false;
+    /// Runs `f` under the gate's lock if the handle is still declared.
+    fn pass(&self, f: impl FnOnce()) {
+        let open = self.0.lock().unwrap_or_else(|p| p.into_inner());
+        if *open {
+            f();
+        }
+    }
+
+    fn close(&self) {
+        *self.0.lock().unwrap_or_else(|p| p.into_inner()) = false;
+    }
 }
 
 fn zbytes_cow(z: Option<&ZBytes>) -> std::borrow::Cow<'_, [u8]> {
@@ -372,29 +382,27 @@ pub unsafe extern "C" fn hrcz_declare_subscriber(
         let key = cstr(key_expr, "key_expr")?.to_string();
         let cb = callback.ok_or("callback is NULL")?;
         let ctx = Ctx(ctx);
-        let gate = new_gate();
+        let gate = Gate::new();
         let g = gate.clone();
         let subscriber = s
             .session
             .declare_subscriber(key.clone())
             .callback(move |sample: Sample| {
-                let open = g.lock().unwrap_or_else(|p| p.into_inner());
-                if !*open {
-                    return;
-                }
-                let k = sample.key_expr().as_str();
-                let payload = sample.payload().to_bytes();
-                let att = zbytes_cow(sample.attachment());
-                let c = ctx;
-                cb(
-                    c.0,
-                    k.as_ptr() as *const c_char,
-                    k.len(),
-                    payload.as_ptr(),
-                    payload.len(),
-                    att.as_ptr(),
-                    att.len(),
-                );
+                g.pass(|| {
+                    let k = sample.key_expr().as_str();
+                    let payload = sample.payload().to_bytes();
+                    let att = zbytes_cow(sample.attachment());
+                    let c = ctx;
+                    cb(
+                        c.0,
+                        k.as_ptr() as *const c_char,
+                        k.len(),
+                        payload.as_ptr(),
+                        payload.len(),
+                        att.as_ptr(),
+                        att.len(),
+                    );
+                });
             })
             .wait()
             .map_err(|e| format!("cannot declare subscriber on '{key}': {e}"))?;
@@ -424,7 +432,7 @@ pub unsafe extern "C" fn hrcz_declare_liveliness_subscriber(
         let key = cstr(key_expr, "key_expr")?.to_string();
         let cb = callback.ok_or("callback is NULL")?;
         let ctx = Ctx(ctx);
-        let gate = new_gate();
+        let gate = Gate::new();
         let g = gate.clone();
         let subscriber = s
             .session
@@ -432,18 +440,16 @@ pub unsafe extern "C" fn hrcz_declare_liveliness_subscriber(
             .declare_subscriber(key.clone())
             .history(history != 0)
             .callback(move |sample: Sample| {
-                let open = g.lock().unwrap_or_else(|p| p.into_inner());
-                if !*open {
-                    return;
-                }
-                let k = sample.key_expr().as_str();
-                let alive = if sample.kind() == SampleKind::Put {
-                    1
-                } else {
-                    0
-                };
-                let c = ctx;
-                cb(c.0, k.as_ptr() as *const c_char, k.len(), alive);
+                g.pass(|| {
+                    let k = sample.key_expr().as_str();
+                    let alive = if sample.kind() == SampleKind::Put {
+                        1
+                    } else {
+                        0
+                    };
+                    let c = ctx;
+                    cb(c.0, k.as_ptr() as *const c_char, k.len(), alive);
+                });
             })
             .wait()
             .map_err(|e| format!("cannot declare liveliness subscriber on '{key}': {e}"))?;
@@ -465,7 +471,7 @@ pub unsafe extern "C" fn hrcz_undeclare_subscriber(subscriber: *mut HrczSubscrib
     }
     let _ = catch_unwind(AssertUnwindSafe(|| {
         let s = Box::from_raw(subscriber);
-        close_gate(&s.gate);
+        s.gate.close();
         let _ = s.subscriber.undeclare().wait();
     }));
 }
@@ -569,35 +575,33 @@ pub unsafe extern "C" fn hrcz_declare_queryable(
         let key = cstr(key, "key")?.to_string();
         let cb = callback.ok_or("callback is NULL")?;
         let ctx = Ctx(ctx);
-        let gate = new_gate();
+        let gate = Gate::new();
         let g = gate.clone();
         let reply_key = key.clone();
         let queryable = s
             .session
             .declare_queryable(key.clone())
             .callback(move |query: Query| {
-                let open = g.lock().unwrap_or_else(|p| p.into_inner());
-                if !*open {
-                    return;
-                }
-                let k = query.key_expr().as_str().to_string();
-                let payload = zbytes_cow(query.payload()).into_owned();
-                let att = zbytes_cow(query.attachment()).into_owned();
-                let q = HrczQuery {
-                    query: &query,
-                    reply_key: &reply_key,
-                };
-                let c = ctx;
-                cb(
-                    c.0,
-                    &q as *const HrczQuery,
-                    k.as_ptr() as *const c_char,
-                    k.len(),
-                    payload.as_ptr(),
-                    payload.len(),
-                    att.as_ptr(),
-                    att.len(),
-                );
+                g.pass(|| {
+                    let k = query.key_expr().as_str().to_string();
+                    let payload = zbytes_cow(query.payload()).into_owned();
+                    let att = zbytes_cow(query.attachment()).into_owned();
+                    let q = HrczQuery {
+                        query: &query,
+                        reply_key: &reply_key,
+                    };
+                    let c = ctx;
+                    cb(
+                        c.0,
+                        &q as *const HrczQuery,
+                        k.as_ptr() as *const c_char,
+                        k.len(),
+                        payload.as_ptr(),
+                        payload.len(),
+                        att.as_ptr(),
+                        att.len(),
+                    );
+                });
             })
             .wait()
             .map_err(|e| format!("cannot declare queryable on '{key}': {e}"))?;
@@ -673,7 +677,7 @@ pub unsafe extern "C" fn hrcz_undeclare_queryable(queryable: *mut HrczQueryable)
     }
     let _ = catch_unwind(AssertUnwindSafe(|| {
         let q = Box::from_raw(queryable);
-        close_gate(&q.gate);
+        q.gate.close();
         let _ = q.queryable.undeclare().wait();
     }));
 }
