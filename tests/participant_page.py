@@ -113,7 +113,10 @@ class Page:
 
     def __init__(self, browser: Any, url: str, ready: bool = True) -> None:
         """``ready``: wait for the world on the page (a spectator who comes before the
-        participant sees it only once the trial runs)."""
+        participant sees it only once the trial runs). The page loads its test hooks only
+        with ``test=`` in its URL (``test=iwer`` too): ``test=hooks`` is added otherwise."""
+        if "test=" not in url:
+            url = with_query(url, "test=hooks")
         self.context = browser.new_context(viewport=VIEWPORT)
         self.page = self.context.new_page()
         self.errors: list[str] = []

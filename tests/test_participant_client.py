@@ -27,6 +27,7 @@ import pytest
 from .conftest import wait_until
 from .participant_page import (
     MINIMAL,
+    VIEWPORT,
     Live,
     Page,
     assert_whole_scene,
@@ -65,6 +66,26 @@ def test_desktop_page_completes_the_minimal_task(
     sounds = page.page.evaluate("window.hrcAudioLog")
     assert [a["sound"] for a in sounds if a["cause"] == "part_placed:H1"] == ["chime"], sounds
     assert not page.errors, page.errors
+
+
+def test_a_participants_page_has_no_test_hooks(
+    browser: Any,  # noqa: F811
+    live: Callable[..., Live],  # noqa: F811
+) -> None:
+    """The hooks the browser tests drive the page with (window.hrcTest) are a chunk of their
+    own, loaded only with ?test= in the URL: the page a participant opens has none of them."""
+    run = live()
+    tab = browser.new_page(viewport=VIEWPORT)
+    try:
+        loaded: list[str] = []
+        tab.on("request", lambda r: loaded.append(r.url))
+        tab.goto(run.url + "&mode=desktop")
+        tab.wait_for_function("window.hrcApp && window.hrcApp.frames > 0", timeout=90_000)
+        assert tab.evaluate("typeof window.hrcTest") == "undefined"
+        assert not [u for u in loaded if "test-hooks" in u], loaded
+        assert any(u.endswith("/assets/main.js") for u in loaded), loaded
+    finally:
+        tab.close()
 
 
 def test_immersive_controller_grabs_and_places_h1(

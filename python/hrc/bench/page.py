@@ -133,7 +133,8 @@ def page_frame_time(
     at the table looking 35 degrees down), and measures its frames; p50 / p95 in ms."""
     with headless_chromium() as browser:
         page = browser.new_page(viewport=viewport)
-        page.goto(url + ("?mode=desktop" if mode == "desktop" else "?test=iwer"))
+        # test=...: the page loads its test hooks (window.hrcTest), which the bench reads
+        page.goto(url + ("?mode=desktop&test=hooks" if mode == "desktop" else "?test=iwer"))
         page.wait_for_function("window.hrcTest && window.hrcTest.ready()", timeout=120_000)
         if mode == "xr":
             page.click("#enter-vr")

@@ -13,6 +13,9 @@ so a frozen observer stops a lockstep run after the barrier timeout, named. Real
 for an observer: the router drops what it cannot take (docs/ARCHITECTURE.md, "Observers"), and
 one that left the bus (its link's lease ran out while it was frozen) may come back within
 OBSERVER_RETURN_S.
+
+Why one file of over 600 lines: the barrier, the exchange spans and the judging of faults act
+on one clock's state within each tick; the protocol is docs/ARCHITECTURE.md, "Tick protocol".
 """
 
 from __future__ import annotations

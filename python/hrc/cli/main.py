@@ -1,4 +1,8 @@
-"""The ``hrc`` command: run trials, validate scenarios, benchmarks and bus tools."""
+"""The ``hrc`` command: run trials, validate scenarios, benchmarks and bus tools.
+
+Why one file of over 600 lines: the parser of every subcommand, so their options are read and
+kept consistent in one place; each command's body only parses and calls the library.
+"""
 
 from __future__ import annotations
 

@@ -8,6 +8,9 @@ session.json before the next begins, so the same command resumes after any crash
 is a live `hrc run --input vr` in its own process group, bounded by the study's
 `trial_timeout_s`. Everything the main thread waits for (the page, the trial's process, the
 experimenter's commands) arrives in one queue.
+
+Why one file of over 600 lines: the session's steps are one sequence over one state and one
+queue; split, a step's resume rule would live apart from the step.
 """
 
 from __future__ import annotations

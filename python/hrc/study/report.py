@@ -5,6 +5,9 @@ plots (the speed factor against each other factor: anticipation, policy, ...); a
 mixed-effects model per outcome (statsmodels MixedLM, a random intercept per participant) with
 its effect estimates and CIs; and the list of trials that did not end ok. Only trials that ended
 ok enter the statistics. What each outcome is made of is in docs/studies.md.
+
+Why one file of over 600 lines: the report's sections are built from one table in one pass and
+written as one page; each section is a function of its own.
 """
 
 from __future__ import annotations

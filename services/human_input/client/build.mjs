@@ -1,5 +1,7 @@
-// Bundles the page into dist/ (index.html + assets/): main.js (three.js, urdf-loader, the page)
-// and iwer.js (the WebXR emulation, loaded only with ?test=iwer). Run by scripts/setup.sh.
+// Bundles the page into dist/ (index.html + assets/): main.js (three.js, urdf-loader, the page),
+// test-hooks.js (window.hrcTest, a chunk main.js loads only with ?test=...; three.js in a chunk
+// both share) and iwer.js (the WebXR emulation, loaded only with ?test=iwer). Run by
+// scripts/setup.sh.
 import { build } from 'esbuild';
 import { copyFileSync, mkdirSync, rmSync } from 'node:fs';
 import { dirname, join } from 'node:path';
@@ -20,6 +22,13 @@ const common = {
   logLevel: 'warning',
   legalComments: 'none',
 };
-await build({ ...common, entryPoints: [join(here, 'src/main.js')], outfile: join(dist, 'assets/main.js') });
+await build({
+  ...common,
+  entryPoints: [join(here, 'src/main.js')],
+  outdir: join(dist, 'assets'),
+  splitting: true, // the dynamic import of test-hooks.js becomes a chunk of its own
+  entryNames: '[name]',
+  chunkNames: '[name]-[hash]',
+});
 await build({ ...common, entryPoints: [join(here, 'src/iwer.js')], outfile: join(dist, 'assets/iwer.js') });
 copyFileSync(join(here, 'index.html'), join(dist, 'index.html'));

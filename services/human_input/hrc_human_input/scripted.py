@@ -27,6 +27,9 @@ Around that:
   (docs/task-semantics.md, "How the scripted participant waits").
 - `provoke_collisions`: at the given task times, or with the given probability on the first reach
   for each part, it reaches into the nearest robot's tool instead (until physics reports contact).
+
+Why one file of over 600 lines: one participant's decisions form one state machine (its phases);
+the motor law, the hand and the plans it drives are the library's (hrc.participant).
 """
 
 from __future__ import annotations

@@ -6,6 +6,9 @@ latest accepted sample (:meth:`VrBridge.latest`) and hands over the latest world
 (:meth:`VrBridge.publish`, which never waits on a client). Per client a sender task sends its
 events in order and at most ``rate_hz`` frames a second, always of the latest snapshot: a slow
 or stalled client only loses frames (counted), never slows the trial.
+
+Why one file of over 600 lines: the roles, the per-client senders and the handshake share one
+event loop and one lock; what it shares with a session's page server is in hrc.webpage.
 """
 
 from __future__ import annotations

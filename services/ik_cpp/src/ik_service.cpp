@@ -1,3 +1,7 @@
+// The service logic of hrc-ik (IkEngine, IkService; interface: include/hrc/ik_service.hpp).
+// Why one file of over 600 lines: the engine's tick (commands in, motion generators stepped,
+// states out) and the service's handlers share the per-robot state; the motion itself is
+// hrc_kin's (kin/src/motion*.cpp).
 #include "hrc/ik_service.hpp"
 
 #include <algorithm>

@@ -7,6 +7,9 @@ Tick work (:meth:`World.step`, called with the participants' outputs of tick k):
 4. held parts follow their holder; open hands release, then closed hands grasp (GRIP_CLOSED);
 the world is then the world of tick k + 1: :meth:`contact_events` and :meth:`object_states` read
 it for `world/contacts` and `world/objects`.
+
+Why one file of over 600 lines: the tick's steps above share one pybullet client and its body
+ids; they read best in the order they run.
 """
 
 from __future__ import annotations
