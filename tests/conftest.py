@@ -20,7 +20,7 @@ import pytest
 from hrc.bus import Bus, BusConfig, access
 from hrc.paths import ik_binary, project_root
 from hrc.ports import free_port  # tests import it from here too
-from hrc.services import SERVICES
+from hrc.service_table import SERVICES
 from hrc.wire import pb
 
 from .goldens import THESIS, Finished, run_trial

@@ -12,7 +12,7 @@ from pathlib import Path
 import zenoh
 
 from hrc.bus import Bus, Keys, access
-from hrc.services import CLOCK_MASTER, names
+from hrc.service_table import CLOCK_MASTER, names
 
 from .conftest import wait_until
 

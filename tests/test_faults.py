@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from hrc.services import OBSERVERS, PARTICIPANTS
+from hrc.service_table import OBSERVERS, PARTICIPANTS
 
 from .conftest import Trial, wait_until
 

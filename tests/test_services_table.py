@@ -1,4 +1,4 @@
-"""The service table (hrc.services) against what it describes: the installed programs, the
+"""The service table (hrc.service_table) against what it describes: the installed programs, the
 services' own command-line parsers, and the processes ``hrc run`` starts.
 
 Here, not in python/tests, because it imports the services and runs the C++ one. The deploy files
@@ -16,16 +16,16 @@ from pathlib import Path
 
 import pytest
 
-from hrc import services
+from hrc import service_table
 from hrc.paths import build_dir, project_root
 from hrc.service import parse_args
-from hrc.services import Role, Settings
+from hrc.service_table import Role, Settings
 from hrc.trial import TrialOptions
 from hrc.trial import options as trial_options
 
 THESIS = project_root() / "scenarios" / "thesis.toml"
-PYTHON = [s for s in services.SERVICES if s.module is not None]
-CPP = [s for s in services.SERVICES if s.binary is not None]
+PYTHON = [s for s in service_table.SERVICES if s.module is not None]
+CPP = [s for s in service_table.SERVICES if s.binary is not None]
 
 
 def _trial_argv(name: str, **opts: object) -> list[str]:
@@ -36,28 +36,28 @@ def _trial_argv(name: str, **opts: object) -> list[str]:
 
 
 def test_one_clock_master_listed_first_and_unique_names() -> None:
-    assert [s.role for s in services.SERVICES].count(Role.CLOCK_MASTER) == 1
-    assert services.SERVICES[0].name == services.CLOCK_MASTER
-    assert len(set(services.names())) == len(services.SERVICES)
-    assert set(services.PARTICIPANTS) | set(services.OBSERVERS) | {services.CLOCK_MASTER} == set(
-        services.names()
-    )
+    assert [s.role for s in service_table.SERVICES].count(Role.CLOCK_MASTER) == 1
+    assert service_table.SERVICES[0].name == service_table.CLOCK_MASTER
+    assert len(set(service_table.names())) == len(service_table.SERVICES)
+    assert set(service_table.PARTICIPANTS) | set(service_table.OBSERVERS) | {
+        service_table.CLOCK_MASTER
+    } == set(service_table.names())
 
 
 @pytest.mark.parametrize("svc", PYTHON, ids=lambda s: s.name)
-def test_python_service_script_and_module_start_the_same_main(svc: services.Service) -> None:
+def test_python_service_script_and_module_start_the_same_main(svc: service_table.Service) -> None:
     scripts = {e.name: e.value for e in importlib.metadata.entry_points(group="console_scripts")}
     assert scripts.get(svc.script) == f"{svc.module}.main:main"
     assert importlib.util.find_spec(f"{svc.module}.__main__") is not None
 
 
 @pytest.mark.parametrize("svc", CPP, ids=lambda s: s.name)
-def test_cpp_service_script_is_its_binary(svc: services.Service) -> None:
+def test_cpp_service_script_is_its_binary(svc: service_table.Service) -> None:
     assert svc.binary is not None and Path(svc.binary).name == svc.script
 
 
 @pytest.mark.parametrize("svc", PYTHON, ids=lambda s: s.name)
-def test_hrc_run_command_lines_parse_in_the_python_services(svc: services.Service) -> None:
+def test_hrc_run_command_lines_parse_in_the_python_services(svc: service_table.Service) -> None:
     """Every option the table gives (all of them set) is one the service knows."""
     argv = _trial_argv(
         svc.name,
@@ -77,17 +77,17 @@ def test_hrc_run_command_lines_parse_in_the_python_services(svc: services.Servic
     assert args.session == "s1"
     assert args.zenoh_lowlatency == (svc.role is not Role.OBSERVER)  # an observer never asks
     if svc.role is Role.CLOCK_MASTER:
-        assert args.participants.split(",") == list(services.PARTICIPANTS)
-        assert args.observers.split(",") == list(services.OBSERVERS)
+        assert args.participants.split(",") == list(service_table.PARTICIPANTS)
+        assert args.observers.split(",") == list(service_table.OBSERVERS)
         assert args.listen == ["tcp/127.0.0.1:7471", "unixsock-stream//tmp/hrc-s1.sock"]
         assert args.connect == ["tcp/10.0.0.1:7447"]
     else:
-        assert args.clock_master == services.CLOCK_MASTER
+        assert args.clock_master == service_table.CLOCK_MASTER
         assert args.connect == ["unixsock-stream//tmp/hrc-s1.sock", "tcp/10.0.0.1:7447"]
 
 
 @pytest.mark.parametrize("svc", CPP, ids=lambda s: s.name)
-def test_hrc_run_command_lines_parse_in_the_cpp_services(svc: services.Service) -> None:
+def test_hrc_run_command_lines_parse_in_the_cpp_services(svc: service_table.Service) -> None:
     argv = _trial_argv(svc.name, connect=["tcp/10.0.0.1:7447"])
     assert svc.binary is not None and argv[0] == str(build_dir() / svc.binary)
     if not Path(argv[0]).exists():
@@ -101,23 +101,23 @@ def test_hrc_run_command_lines_parse_in_the_cpp_services(svc: services.Service) 
 def test_hrc_run_starts_every_service_of_the_table_with_the_table_arguments() -> None:
     opts = TrialOptions(scenario=THESIS, seed=3)
     settings = trial_options.trial_settings(opts, "s1", 7471, Path("/tmp/trial"), None, False)
-    for svc in services.SERVICES:
+    for svc in service_table.SERVICES:
         argv = trial_options.service_argv(
             svc.name, opts, "s1", 7471, Path("/tmp/trial"), None, False
         )
-        assert argv == trial_options.program(svc) + services.argv(svc, settings)
+        assert argv == trial_options.program(svc) + service_table.argv(svc, settings)
 
 
 def test_options_left_out_when_unset_and_required_ones_enforced() -> None:
-    logger = services.service("logger")
-    assert "--viewer" not in services.argv(logger, Settings(bus="b", out="o"))
-    assert "--viewer" in services.argv(logger, Settings(bus="b", out="o", viewer=True))
+    logger = service_table.service("logger")
+    assert "--viewer" not in service_table.argv(logger, Settings(bus="b", out="o"))
+    assert "--viewer" in service_table.argv(logger, Settings(bus="b", out="o", viewer=True))
     with pytest.raises(ValueError, match="--out"):
-        services.argv(logger, Settings(bus="b"))
+        service_table.argv(logger, Settings(bus="b"))
     with pytest.raises(ValueError, match="no setting"):
-        services.Option("--x", "no_such_setting")
+        service_table.Option("--x", "no_such_setting")
 
 
 def test_unknown_service_is_named() -> None:
     with pytest.raises(KeyError, match="nope"):
-        services.service("nope")
+        service_table.service("nope")

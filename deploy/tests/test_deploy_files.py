@@ -1,7 +1,7 @@
 """Checks of the deployment files: the Zenoh router config, deploy/process-compose.yaml,
 deploy/compose.yaml, scripts.
 
-Both compose files are generated from the service table (hrc.services, `hrc deploy-files`): the
+Both compose files are generated from the service table (hrc.service_table, `hrc deploy-files`): the
 committed files must equal the generated ones, and read back as YAML they must say what the table
 says (services, commands, start dependencies, readiness probes). The process-compose tests also
 run the real process-compose binary (built by scripts/setup.sh into tools/bin/) against fake
@@ -26,9 +26,9 @@ import pytest
 import yaml
 import zenoh
 
-from hrc import services
+from hrc import service_table
 from hrc.cli import deploy_files
-from hrc.services import Role, Settings
+from hrc.service_table import Role, Settings
 
 ROOT = Path(__file__).resolve().parents[2]
 ROUTER_CONFIG = ROOT / "deploy" / "zenoh-router.json5"
@@ -103,16 +103,16 @@ def test_hrc_deploy_files_check_says_up_to_date() -> None:
 def test_process_compose_file_says_what_the_table_says() -> None:
     pc = yaml.safe_load(PC_FILE.read_text())
     procs = pc["processes"]
-    assert list(procs) == ["access", *services.names()]
+    assert list(procs) == ["access", *service_table.names()]
     assert procs["access"]["command"].split()[:2] == [".venv/bin/hrc", "deploy-access"]
-    for svc in services.SERVICES:
+    for svc in service_table.SERVICES:
         p = procs[svc.name]
         program = f".venv/bin/{svc.script}" if svc.module else f"build/{svc.binary}"
-        assert p["command"].split() == [program, *services.argv(svc, deploy_files.PC_SETTINGS)]
+        assert p["command"].split() == [program, *service_table.argv(svc, deploy_files.PC_SETTINGS)]
         if svc.role is Role.CLOCK_MASTER:  # after the credentials are written
             assert p["depends_on"] == {"access": {"condition": "process_completed_successfully"}}
         else:
-            assert p["depends_on"] == {services.CLOCK_MASTER: {"condition": "process_started"}}
+            assert p["depends_on"] == {service_table.CLOCK_MASTER: {"condition": "process_started"}}
         probe = p["readiness_probe"]["exec"]["command"].split()
         assert probe[:4] == [".venv/bin/hrc", "alive", svc.name, "--wait"]
         assert probe[-2:] == ["--zenoh-config", "{{.ACCESS}}/{{.SESSION}}/experimenter.json5"]
@@ -124,16 +124,16 @@ def test_process_compose_file_says_what_the_table_says() -> None:
 def test_compose_file_says_what_the_table_says() -> None:
     compose = yaml.safe_load(COMPOSE_FILE.read_text())
     got = {n: s for n, s in compose["services"].items() if "profiles" not in s}  # not the router
-    assert list(got) == ["access", *services.names()]
+    assert list(got) == ["access", *service_table.names()]
     assert got.pop("access")["command"][:1] == ["deploy-access"]
-    for svc in services.SERVICES:
+    for svc in service_table.SERVICES:
         c = got[svc.name]
         assert c["entrypoint"] == [svc.script]
-        assert c["command"] == services.argv(svc, deploy_files.COMPOSE_SETTINGS)
+        assert c["command"] == service_table.argv(svc, deploy_files.COMPOSE_SETTINGS)
         if svc.role is Role.CLOCK_MASTER:
             assert c["depends_on"] == {"access": {"condition": "service_completed_successfully"}}
         else:
-            assert c["depends_on"] == {services.CLOCK_MASTER: {"condition": "service_started"}}
+            assert c["depends_on"] == {service_table.CLOCK_MASTER: {"condition": "service_started"}}
         assert c["healthcheck"]["test"][:4] == ["CMD", "hrc", "alive", svc.name]
         assert c["healthcheck"]["test"][-1] == "/opt/hrc/access/experimenter.json5"
         assert f"/opt/hrc/access/{svc.name}.json5" in c["command"]
@@ -166,7 +166,7 @@ def _fake_root(tmp: Path) -> Path:
     (root / "build" / "ik_cpp").mkdir(parents=True)
     exes = [
         root / (f".venv/bin/{s.script}" if s.module else f"build/{s.binary}")
-        for s in services.SERVICES
+        for s in service_table.SERVICES
     ]
     for exe in exes:
         exe.write_text(FAKE_SERVICE)
@@ -219,12 +219,13 @@ def test_process_compose_file_validates() -> None:
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert re.search(  # the services and `access`
-        rf"Validated {len(services.SERVICES) + 1} configured processes", proc.stdout + proc.stderr
+        rf"Validated {len(service_table.SERVICES) + 1} configured processes",
+        proc.stdout + proc.stderr,
     )
 
 
 def _expected(settings: Settings) -> dict[str, list[str]]:
-    return {s.script: [s.script, *services.argv(s, settings)] for s in services.SERVICES}
+    return {s.script: [s.script, *service_table.argv(s, settings)] for s in service_table.SERVICES}
 
 
 def test_process_compose_starts_every_service_with_session_settings(tmp_path: Path) -> None:
@@ -285,7 +286,7 @@ def test_process_compose_starts_every_service_with_session_settings(tmp_path: Pa
     ]
     probes = (out / "probes").read_text().splitlines()
     probed = {line.split()[1] for line in probes}
-    assert probed == set(services.names())
+    assert probed == set(service_table.names())
     assert all(f"--session s7 --zenoh-mode client --connect {bus}" in line for line in probes)
     assert all(line.endswith("runs/.access/s7/experimenter.json5") for line in probes)
 

@@ -20,7 +20,7 @@ def build_dir() -> Path:
 
 def ik_binary() -> Path:
     """The C++ IK service, where the service table says it is built."""
-    from hrc.services import service
+    from hrc.service_table import service
 
     binary = service("ik_cpp").binary
     assert binary is not None  # a C++ service

@@ -34,7 +34,7 @@ from collections.abc import Callable
 from types import FrameType
 from typing import ClassVar, NoReturn, Protocol
 
-from hrc import services
+from hrc import service_table
 from hrc.bus import (
     Bus,
     BusConfig,
@@ -49,7 +49,7 @@ from hrc.bus import (
 )
 from hrc.bus.bus import M
 from hrc.logsetup import setup_logging
-from hrc.services import Role
+from hrc.service_table import Role
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
@@ -83,8 +83,8 @@ class Inputs(Protocol):
 class Service:
     """The hooks of a service; :func:`run_service` calls them in order. Override what you need."""
 
-    # Its name in the service table (hrc.services), which gives its role and its command's name;
-    # also its bus name: alive/<name>, clock/ack/<name>, the log prefix.
+    # Its name in the service table (hrc.service_table), which gives its role and its command's
+    # name; also its bus name: alive/<name>, clock/ack/<name>, the log prefix.
     name: ClassVar[str]
     description: ClassVar[str] = ""  # --help text; default: the docstring of the class's module
     # The observer role, for an observer's finish (its lag and sequence counters); set by
@@ -92,9 +92,9 @@ class Service:
     observer: Observer | None = None
 
     @classmethod
-    def entry(cls) -> services.Service:
+    def entry(cls) -> service_table.Service:
         """The service's line in the service table."""
-        return services.service(cls.name)
+        return service_table.service(cls.name)
 
     @classmethod
     def add_arguments(cls, parser: argparse.ArgumentParser) -> None:
@@ -193,12 +193,12 @@ def parse_args(cls: type[Service], argv: list[str] | None = None) -> argparse.Na
 
 def _stop_on_signals(role: ClockFollower) -> None:
     """SIGTERM / SIGINT end a service's run cleanly: it still writes its files, within
-    services.STOP_GRACE_S (it may be far behind the clock); then it exits anyway, so that it never
-    outlives the trial (hrc run sends SIGTERM when it stops, and when it dies)."""
+    service_table.STOP_GRACE_S (it may be far behind the clock); then it exits anyway, so that it
+    never outlives the trial (hrc run sends SIGTERM when it stops, and when it dies)."""
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:
         role.stop(f"terminated by {signal.Signals(signum).name}")
-        timer = threading.Timer(services.STOP_GRACE_S, _exit_now)
+        timer = threading.Timer(service_table.STOP_GRACE_S, _exit_now)
         timer.daemon = True
         timer.start()
 
@@ -207,7 +207,7 @@ def _stop_on_signals(role: ClockFollower) -> None:
 
 
 def _exit_now() -> None:
-    log.error("still writing %.0f s after the stop signal: exiting", services.STOP_GRACE_S)
+    log.error("still writing %.0f s after the stop signal: exiting", service_table.STOP_GRACE_S)
     os._exit(EXIT_FAILED)
 
 

@@ -14,7 +14,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hrc.paths import project_root
-from hrc.services import VR_DEFAULT_HOST, VR_DEFAULT_PORT
+from hrc.service_table import VR_DEFAULT_HOST, VR_DEFAULT_PORT
 
 if TYPE_CHECKING:
     from websockets.http11 import Response

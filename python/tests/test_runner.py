@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from hrc import priority, services
+from hrc import priority, service_table
 from hrc.bus import access
 from hrc.paths import project_root
 from hrc.trial import TrialOptions, processes
@@ -21,7 +21,7 @@ from hrc.trial import options as trial_options
 from hrc.trial.options import fits_lowlatency, service_argv
 
 THESIS = project_root() / "scenarios" / "thesis.toml"
-SERVICES = services.names()  # the clock master first
+SERVICES = service_table.names()  # the clock master first
 
 
 def _argv(name: str, sock: Path | None, lowlatency: bool) -> list[str]:
@@ -55,7 +55,7 @@ def test_every_participant_gets_the_same_transport_and_observers_the_standard_on
 ) -> None:
     for name in SERVICES:
         asked = "--zenoh-lowlatency" in _argv(name, None, lowlatency)
-        assert asked == (lowlatency and name not in services.OBSERVERS), name
+        assert asked == (lowlatency and name not in service_table.OBSERVERS), name
 
 
 def test_a_scenario_too_large_for_the_low_latency_transport_falls_back(monkeypatch) -> None:

@@ -11,12 +11,12 @@ import json
 import subprocess
 import sys
 
-from hrc import services
+from hrc import service_table
 
 
 def bench_argv(args: argparse.Namespace) -> list[str]:
     """The command line of the bench for ``hrc bench physics`` arguments (``json``, ``n``)."""
-    argv = [sys.executable, "-m", f"{services.service('physics').module}.bench"]
+    argv = [sys.executable, "-m", f"{service_table.service('physics').module}.bench"]
     if getattr(args, "n", 0):
         argv += ["--n", str(args.n)]
     if getattr(args, "json", False):

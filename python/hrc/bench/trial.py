@@ -40,7 +40,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from hrc import services
+from hrc import service_table
 from hrc.paths import project_root
 
 THESIS = "scenarios/thesis.toml"
@@ -102,7 +102,7 @@ def hrc_run(scenario: Path, out: Path, options: list[str]) -> tuple[float, float
 
 
 def raw_physics_us(scenario: Path, n: int) -> float:
-    argv = [sys.executable, "-m", f"{services.service('physics').module}.bench", "--json"]
+    argv = [sys.executable, "-m", f"{service_table.service('physics').module}.bench", "--json"]
     argv += ["--scenario", str(scenario), "--n", str(n)]
     out = subprocess.run(argv, stdout=subprocess.PIPE, text=True, check=True).stdout
     return float(json.loads(out)["us_per_tick"])

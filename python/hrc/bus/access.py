@@ -40,7 +40,7 @@ import zenoh
 
 from hrc.bus.config import BusConfig
 from hrc.bus.keys import Keys
-from hrc.services import CLOCK_MASTER, OBSERVERS, PARTICIPANTS
+from hrc.service_table import CLOCK_MASTER, OBSERVERS, PARTICIPANTS
 
 log = logging.getLogger(__name__)
 

@@ -30,7 +30,7 @@ from typing import Literal
 
 from hrc.bus.bus import Bus, M
 from hrc.bus.inbox import Inbox
-from hrc.services import OBSERVERS, PARTICIPANTS
+from hrc.service_table import OBSERVERS, PARTICIPANTS
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)

@@ -10,7 +10,7 @@ from typing import Literal
 
 import zenoh
 
-from hrc.services import CLOCK_MASTER
+from hrc.service_table import CLOCK_MASTER
 
 Mode = Literal["peer", "client", "router"]
 

@@ -21,7 +21,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from hrc import services
+from hrc import service_table
 from hrc.bus.access import make_private, write_credentials
 
 
@@ -29,12 +29,14 @@ def main(args: argparse.Namespace) -> int:
     folder = Path(args.out)
     try:
         make_private(folder, parents=True)
-        write_credentials(folder, args.session, services.names(), router=True, lease_s=args.lease_s)
+        write_credentials(
+            folder, args.session, service_table.names(), router=True, lease_s=args.lease_s
+        )
     except (OSError, ValueError) as exc:
         print(f"hrc deploy-access: no credentials written: {exc}", file=sys.stderr)
         return 2
     print(
-        f"credentials of session {args.session!r} for {', '.join(services.names())} and the "
+        f"credentials of session {args.session!r} for {', '.join(service_table.names())} and the "
         f"experimenter, and a router's configuration, written to {folder}/ (mode 0700)"
     )
     return 0

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from hrc.logsetup import setup_logging
-from hrc.services import VR_DEFAULT_PORT, VR_DEFAULT_WAIT_S
+from hrc.service_table import VR_DEFAULT_PORT, VR_DEFAULT_WAIT_S
 from hrc.webpage import add_address_options
 
 log = logging.getLogger("hrc")
@@ -322,9 +322,9 @@ def _cmd_deploy_access(args: argparse.Namespace) -> int:
 
 
 def _cmd_services(_args: argparse.Namespace) -> int:
-    from hrc import services
+    from hrc import service_table
 
-    for svc in services.SERVICES:
+    for svc in service_table.SERVICES:
         program = f"python -m {svc.module}" if svc.module else f"build/{svc.binary}"
         print(f"{svc.name:<13} {svc.role.value:<13} {program:<26} {svc.description}")
         for need in svc.needs:

@@ -1,6 +1,6 @@
 """What one trial is asked to do (TrialOptions, VrOptions), what it gave (TrialResult), where
 its files go, and the command line of each of its services (built from the service table,
-hrc.services)."""
+hrc.service_table)."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from hrc import services
+from hrc import service_table
 from hrc.bus.access import TrialAccess
 from hrc.paths import build_dir
 from hrc.scenario.resolved import Resolved, slug
@@ -56,9 +56,9 @@ VR_START_MARGIN_S = 30.0  # physics waits this much longer than human_input wait
 class VrOptions:
     """A live trial's bridge (human_input's --vr-* options; the token comes from HRC_VR_TOKEN)."""
 
-    host: str = services.VR_DEFAULT_HOST
-    port: int = services.VR_DEFAULT_PORT
-    wait_s: float = services.VR_DEFAULT_WAIT_S  # for the first client; then the trial fails
+    host: str = service_table.VR_DEFAULT_HOST
+    port: int = service_table.VR_DEFAULT_PORT
+    wait_s: float = service_table.VR_DEFAULT_WAIT_S  # for the first client; then the trial fails
     driver: str | None = None  # the participant's key (HRC_VR_DRIVER, which the services read)
 
     def argv(self) -> list[str]:
@@ -73,7 +73,7 @@ class VrOptions:
 
     def url(self, token: str | None, participant: bool = True) -> str:
         """The participant's link (with the driver key) or a spectator's."""
-        return services.vr_client_url(
+        return service_table.vr_client_url(
             self.host, self.port, token, self.driver if participant else None
         )
 
@@ -150,7 +150,7 @@ def trial_settings(
     sock: Path | None = None,
     lowlatency: bool = False,
     access: TrialAccess | None = None,
-) -> services.Settings:
+) -> service_table.Settings:
     """The values of the services' options in one trial.
 
     Physics listens on tcp/127.0.0.1:``port`` (for tools and other hosts) and on the Unix socket
@@ -162,7 +162,7 @@ def trial_settings(
     if opts.vr is not None and opts.vr.wait_s > 0:
         # physics waits for human_input, which waits for the participant's client
         start_timeout = max(start_timeout, opts.vr.wait_s + VR_START_MARGIN_S)
-    return services.Settings(
+    return service_table.Settings(
         session=session,
         bus=bus,
         listen=(tcp, bus) if sock is not None else (tcp,),
@@ -188,7 +188,7 @@ def trial_settings(
     )
 
 
-def program(svc: services.Service) -> list[str]:
+def program(svc: service_table.Service) -> list[str]:
     """How ``hrc run`` starts ``svc``: its module with this interpreter, or its built binary."""
     if svc.module is not None:
         return [sys.executable, "-m", svc.module]
@@ -207,10 +207,10 @@ def service_argv(
     access: TrialAccess | None = None,
 ) -> list[str]:
     """The command line of service ``name`` in one trial (``opts.extra`` appended)."""
-    svc = services.service(name)
+    svc = service_table.service(name)
     settings = trial_settings(opts, session, port, trial_dir, sock, lowlatency, access)
     own: list[str] = []
     if name == "human_input":
         own += ["--input", opts.input] if opts.input else []
         own += opts.vr.argv() if opts.vr is not None else []
-    return program(svc) + services.argv(svc, settings) + own + opts.extra.get(name, [])
+    return program(svc) + service_table.argv(svc, settings) + own + opts.extra.get(name, [])

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO
 
-from hrc import priority, services
+from hrc import priority, service_table
 from hrc.diskspace import NO_SPACE
 from hrc.trial.prefork import ForkedProcess, can_fork, fork_service
 
@@ -242,7 +242,7 @@ class ServiceGroup:
         """The observers (the logger) back from SCHED_IDLE: at the run's end, when nobody waits
         on their account any more. A logger starved on a busy machine would otherwise read the
         end only after its backlog, and physics may be gone by then (hrc.bus.clock._linger)."""
-        for name in services.OBSERVERS:
+        for name in service_table.OBSERVERS:
             p = self.procs.get(name)
             # (returncode, not poll(): the run thread reaps, with wait4 for the CPU figures;
             # an exited but unreaped process keeps its pid)

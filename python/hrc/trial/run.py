@@ -15,7 +15,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from hrc import metrics as metrics_schema
-from hrc import services
+from hrc import service_table
 from hrc.bus import Bus, BusConfig
 from hrc.bus.access import EXPERIMENTER, TrialAccess, count_refusals
 from hrc.diskspace import NO_SPACE, low_space
@@ -148,8 +148,8 @@ def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
 def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
     session = opts.session or f"t{uuid.uuid4().hex[:10]}"
     lowlatency = opts.lowlatency and fits_lowlatency(opts.scenario)
-    master = services.CLOCK_MASTER
-    for svc in services.SERVICES:
+    master = service_table.CLOCK_MASTER
+    for svc in service_table.SERVICES:
         if svc.binary is not None and not (build_dir() / svc.binary).exists():
             return TrialResult(
                 False,
@@ -170,13 +170,13 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
     t0 = time.monotonic()
     phases = Phases(prepare=process_age_s())
     # (routers of other hosts know none of the trial's credentials)
-    access = TrialAccess.create(session, services.names(), authenticate=not opts.connect)
+    access = TrialAccess.create(session, service_table.names(), authenticate=not opts.connect)
     sock = access.socket if access is not None and opts.unix_socket else None
     try:
         # the table lists the clock master first: it listens where everybody else connects.
-        for name in services.names():
+        for name in service_table.names():
             argv = service_argv(name, opts, session, port, trial_dir, sock, lowlatency, access)
-            group.start(name, argv, services.service(name).module)
+            group.start(name, argv, service_table.service(name).module)
         time.sleep(0.2)
         try:
             watcher = _EndWatcher(session, port, access, on_end=group.lift_observers)
@@ -229,10 +229,10 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
         status = group.poll()
         stopped = group.stopped()
         # SIGTERM: a service still writes its files (metrics.json) within its grace
-        group.stop_all(grace_s=services.STOP_GRACE_S + 0.5)
+        group.stop_all(grace_s=service_table.STOP_GRACE_S + 0.5)
         end = watcher.end if watcher else None
         wall = time.monotonic() - t0
-        killed = [n for n in services.names() if (status.get(n) or 0) < 0]
+        killed = [n for n in service_table.names() if (status.get(n) or 0) < 0]
         if killed and (not failed or (status.get(failed) or 0) >= 0):
             # a service killed by a signal is the root cause; the others' errors follow from it
             failed = killed[0]
@@ -252,7 +252,7 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
             failed = stopped[0]
             failure = not_responding(failed, " at the run's end")
         if not failed:
-            bad = [n for n in services.names() if status.get(n) not in (0, None)]
+            bad = [n for n in service_table.names() if status.get(n) not in (0, None)]
             if end is not None and not end.ok:
                 failed = end.failed_participant or (bad[0] if bad else master)
                 failure = f"run failed: {end.reason}"

@@ -14,7 +14,7 @@ from typing import Any
 import pytest
 import zenoh
 
-from hrc import services
+from hrc import service_table
 from hrc.bus import access
 from hrc.ports import free_port
 
@@ -51,7 +51,7 @@ def test_a_router_refuses_and_counts_each_link_without_the_credentials(
     """Whatever RUST_LOG the researcher has set, the refusals are in the log."""
     folder = tmp_path / "s1"
     access.make_private(folder)
-    access.write_credentials(folder, "s1", services.names(), router=True)
+    access.write_credentials(folder, "s1", service_table.names(), router=True)
     users = dict(ln.split(":") for ln in (folder / access.USERS).read_text().splitlines())
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     cfg = json.loads(access.config_path(folder, access.ROUTER).read_text())
@@ -111,8 +111,8 @@ def denied(acl: dict[str, Any], key: str) -> set[str]:
 
 
 def test_a_separate_router_lets_physics_publish_the_clock_and_nobody_else() -> None:
-    names = [*services.names(), access.EXPERIMENTER]
-    others = set(names) - {services.CLOCK_MASTER}
+    names = [*service_table.names(), access.EXPERIMENTER]
+    others = set(names) - {service_table.CLOCK_MASTER}
     # physics as the router: its own puts never come in, so a client in its name is denied
     assert denied(access.router_acl("s1", names), "hrc/s1/clock") == set(names)
     assert denied(access.router_acl("s1", names, separate=True), "hrc/s1/clock") == others

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from hrc import services
+from hrc import service_table
 from hrc.bus.access import EXPERIMENTER, USERS
 from hrc.cli.main import main
 
@@ -17,7 +17,7 @@ def test_it_writes_one_private_file_per_service_and_the_experimenter(tmp_path: P
     folder = tmp_path / "access" / "s1"
     assert main(["deploy-access", "--session", "s1", "--out", str(folder)]) == 0
     assert stat.S_IMODE(folder.stat().st_mode) == 0o700
-    names = [*services.names(), EXPERIMENTER]
+    names = [*service_table.names(), EXPERIMENTER]
     users = dict(line.split(":") for line in (folder / USERS).read_text().splitlines())
     assert sorted(users) == sorted(names)
     for name in names:
@@ -25,7 +25,7 @@ def test_it_writes_one_private_file_per_service_and_the_experimenter(tmp_path: P
         assert stat.S_IMODE(path.stat().st_mode) == 0o600
         usrpwd = json.loads(path.read_text())["transport"]["auth"]["usrpwd"]
         assert (usrpwd["user"], usrpwd["password"]) == (name, users[name])
-    physics = json.loads((folder / f"{services.CLOCK_MASTER}.json5").read_text())
+    physics = json.loads((folder / f"{service_table.CLOCK_MASTER}.json5").read_text())
     assert physics["access_control"]["enabled"] is True
     assert "hrc/s1/run/end" in json.dumps(physics["access_control"])
     # a separate router (several hosts) checks the same dictionary, with the same rules

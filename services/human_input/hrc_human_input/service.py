@@ -19,7 +19,7 @@ from hrc.participant.recording import Recorder, Recording, ReplayError, load_rec
 from hrc.participant.sample import Sample
 from hrc.scenario import InputSource, ScenarioError
 from hrc.service import EXIT_BAD_INPUT, Inputs, Service, ServiceExit, fetch_scenario
-from hrc.services import VR_DEFAULT_WAIT_S, vr_client_url
+from hrc.service_table import VR_DEFAULT_WAIT_S, vr_client_url
 from hrc.webpage import add_address_options
 from hrc.wire import pb
 

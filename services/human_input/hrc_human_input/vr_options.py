@@ -5,7 +5,7 @@ library's: hrc.webpage."""
 
 from __future__ import annotations
 
-from hrc.services import VR_DEFAULT_HOST, VR_DEFAULT_PORT
+from hrc.service_table import VR_DEFAULT_HOST, VR_DEFAULT_PORT
 from hrc.webpage import bind_problem, client_dist, is_loopback
 
 DEFAULT_HOST = VR_DEFAULT_HOST

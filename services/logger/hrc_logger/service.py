@@ -32,7 +32,7 @@ if TYPE_CHECKING:
 
 # At most this long for the view's set-up (scenario, rerun, URDFs) beyond the scenario timeout.
 VIEW_SETUP_S = 60.0
-STOP_VIEW_WAIT_S = 0.5  # after a stop signal (hrc.services.STOP_GRACE_S is 2 s)
+STOP_VIEW_WAIT_S = 0.5  # after a stop signal (hrc.service_table.STOP_GRACE_S is 2 s)
 
 log = logging.getLogger("hrc_logger")
 

@@ -13,7 +13,7 @@ import logging
 from hrc import scenario as sc
 from hrc.bus import Bus, ClockSettings, Outcome
 from hrc.service import EXIT_BAD_INPUT, ClockMasterService, Inputs, ServiceExit, fetch_scenario
-from hrc.services import OBSERVERS, PARTICIPANTS
+from hrc.service_table import OBSERVERS, PARTICIPANTS
 from hrc.validate import all_finite, check_pose
 from hrc.wire import pb
 
