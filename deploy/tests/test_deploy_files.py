@@ -26,8 +26,7 @@ import pytest
 import yaml
 import zenoh
 
-from hrc import service_table
-from hrc.cli import deploy_files
+from hrc import deploy_files, service_table
 from hrc.service_table import Role, Settings
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -7,7 +7,7 @@ Everything that starts services reads this table:
   observers from it, and the others learn the clock master's name from it (``--clock-master``,
   which every command line built here passes explicitly);
 - ``hrc deploy-files`` writes ``deploy/process-compose.yaml`` and ``deploy/compose.yaml`` from it
-  (``hrc.cli.deploy_files``; a test keeps the committed files equal to the generated ones).
+  (``hrc.deploy_files``; a test keeps the committed files equal to the generated ones).
 
 Why a typed Python table rather than a YAML file like dora-rs's ``dataflow.yml``: the command
 lines are not fixed strings but depend on the deployment (a trial's socket, seed and options for

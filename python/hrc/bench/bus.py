@@ -117,7 +117,7 @@ def run(args: argparse.Namespace) -> int:
         [
             sys.executable,
             "-m",
-            "hrc.cli.echo",
+            "hrc.bench.echo",
             "--session",
             s1,
             "--connect",

@@ -13,7 +13,7 @@ from hrc.bus import Bus, access, add_bus_arguments, bus_config_from_args
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m hrc.cli.echo")
+    p = argparse.ArgumentParser(prog="python -m hrc.bench.echo")
     add_bus_arguments(p)
     p.add_argument("--in", dest="inp", required=True, help="bench key name to listen on")
     p.add_argument("--out", required=True, help="bench key name to answer on")
