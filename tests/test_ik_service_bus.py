@@ -10,6 +10,8 @@ record: targets reached within 5 mm with the command id echoed, the measured TCP
 of max_tcp_speed, no joint jump beyond the URDF velocity limit x dt on a retarget mid-move, an
 unreachable target reported with nothing NaN, malformed commands counted and ignored, and the
 robot/reach queryable.
+
+Why one file of over 600 lines: its tests share the played physics and orchestrator above.
 """
 
 from __future__ import annotations
