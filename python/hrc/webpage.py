@@ -127,14 +127,16 @@ def is_loopback(host: str) -> bool:
         return False  # a host name other than localhost may resolve to anything
 
 
-def bind_problem(host: str, token: str | None, what: str, harm: str) -> str:
+def bind_problem(
+    host: str, token: str | None, what: str, harm: str, give: str = "one in HRC_VR_TOKEN"
+) -> str:
     """Why serving `what` on `host` is refused ("" when it is not): off loopback, anyone on the
-    network could reach it, so a token is needed."""
+    network could reach it, so a token is needed (`give`: where the user gives one)."""
     if is_loopback(host) or token:
         return ""
     return (
         f"refusing to bind {what} to {host!r} without a token: anyone on the network could "
-        f"{harm}. Give --vr-token (or HRC_VR_TOKEN), or bind 127.0.0.1"
+        f"{harm}. Give {give}, or bind 127.0.0.1"
     )
 
 
@@ -147,16 +149,11 @@ def add_address_options(
     *,
     host_flag: str = "--vr-host",
     host_help: str,
-    port_default: int | None = None,
     port_help: str | None = None,
 ) -> None:
-    """`--vr-host` (env HRC_VR_HOST, default loopback) and, unless `port_help` is None,
-    `--vr-port` (env HRC_VR_PORT, default VR_DEFAULT_PORT, or `port_default` when given)."""
+    """`--vr-host` (or `host_flag`; env HRC_VR_HOST, default loopback) and, unless `port_help`
+    is None, `--vr-port` (env HRC_VR_PORT, default VR_DEFAULT_PORT)."""
     parser.add_argument(host_flag, default=default_host(), help=host_help)
     if port_help is not None:
-        port = (
-            int(os.environ.get("HRC_VR_PORT", VR_DEFAULT_PORT))
-            if port_default is None
-            else port_default
-        )
+        port = int(os.environ.get("HRC_VR_PORT", VR_DEFAULT_PORT))
         parser.add_argument("--vr-port", type=int, default=port, help=port_help)

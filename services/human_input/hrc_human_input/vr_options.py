@@ -21,6 +21,12 @@ class BridgeConfigError(ValueError):
 
 def check_bind(host: str, token: str | None) -> None:
     """A bridge reachable from other machines must require a token."""
-    problem = bind_problem(host, token, "the VR bridge", "drive the participant's hands")
+    problem = bind_problem(
+        host,
+        token,
+        "the VR bridge",
+        "drive the participant's hands",
+        "--vr-token (or HRC_VR_TOKEN)",
+    )
     if problem:
         raise BridgeConfigError(problem)
