@@ -12,7 +12,17 @@ DEFAULT_HOST = VR_DEFAULT_HOST
 DEFAULT_PORT = VR_DEFAULT_PORT
 CLIENT_DIST = client_dist()
 DRIVER, SPECTATOR = "driver", "spectator"  # a client's role (docs/client-protocol.md)
-__all__ = ["CLIENT_DIST", "DEFAULT_HOST", "DEFAULT_PORT", "check_bind", "is_loopback"]
+# the bridge's options, with is_loopback re-exported from the library for the bridge's users
+__all__ = [
+    "CLIENT_DIST",
+    "DEFAULT_HOST",
+    "DEFAULT_PORT",
+    "DRIVER",
+    "SPECTATOR",
+    "BridgeConfigError",
+    "check_bind",
+    "is_loopback",
+]
 
 
 class BridgeConfigError(ValueError):
