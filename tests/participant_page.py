@@ -422,6 +422,14 @@ def _what_is_seen(page: Page, view: str, only: tuple[str, ...]) -> dict[str, See
     rendered_frames(page)
     full = page.screenshot(f"{view}.png")
     probes: dict[str, list[list[float]]] = page.page.evaluate("window.hrcTest.probes()")
+    # every probe point's pixel in one page call (the picture is frozen: they stay where they
+    # are; a call a point cost a headset view about 10 s on a page busy rendering)
+    projected: dict[str, list[list[float]]] = page.page.evaluate(
+        """(probes) => Object.fromEntries(Object.entries(probes).map(([name, points]) => [
+            name, points.map((p) => { const q = window.hrcTest.project(p); return [q.x, q.y]; }),
+        ]))""",
+        probes,
+    )
     status_box = page.page.evaluate(
         """() => {
             const r = document.getElementById('status').getBoundingClientRect();
@@ -434,7 +442,7 @@ def _what_is_seen(page: Page, view: str, only: tuple[str, ...]) -> dict[str, See
         if only and not any(name == o or name.startswith(o + ":") for o in only):
             continue
         points = probes.get(name, [])
-        pixels = [page.project(p) for p in points]
+        pixels = [(px[0], px[1]) for px in projected.get(name, [])]
         if name == "panel" and not in_xr:
             pixels = [(status_box[0], status_box[1])]
         page.page.evaluate("(n) => window.hrcTest.hide(n, true)", name)
