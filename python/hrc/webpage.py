@@ -45,11 +45,15 @@ CONTENT_TYPES = {
 TEXT = CONTENT_TYPES[".txt"]
 HTML = CONTENT_TYPES[".html"]
 PAGE_PATHS = ("/", "/index.html")
-NOT_BUILT_NOTE = (
-    b'<p style="background:#fe9;padding:6px">The 3D participant client is not built: run '
-    b"<code>scripts/setup.sh</code> (it bundles services/human_input/client/ into "
-    b"client/dist/).</p>"
+NOT_BUILT = (
+    b"The 3D participant client is not built: run <code>scripts/setup.sh</code> (it bundles "
+    b"services/human_input/client/ into client/dist/)."
 )
+
+
+def note(text: bytes) -> bytes:
+    """A note at the top of a page that stands in for the client."""
+    return b'<p style="background:#fe9;padding:6px">' + text + b"</p>"
 
 
 def client_dist() -> Path:
@@ -71,7 +75,7 @@ def built_page(client_dir: Path | None) -> bytes | None:
 
 def not_built_page() -> bytes:
     """What a server shows instead of the client when its bundle is missing."""
-    return b"<!doctype html><title>hrc-cosim</title><body>" + NOT_BUILT_NOTE + b"</body>"
+    return b"<!doctype html><title>hrc-cosim</title><body>" + note(NOT_BUILT) + b"</body>"
 
 
 def safe_file(root: Path, rel: str) -> Path | None:

@@ -16,7 +16,6 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
-import hmac
 import json
 import logging
 import socket
@@ -37,10 +36,12 @@ from hrc.participant.sample import Sample, parse_sample
 from hrc.scenario.conventions import MAX_HELD_GRIP_CHANGES
 from hrc.webpage import (
     HTML,
-    NOT_BUILT_NOTE,
+    NOT_BUILT,
     TEXT,
     built_page,
     content_type,
+    key_ok,
+    note,
     page_file,
     response,
 )
@@ -62,7 +63,7 @@ log = logging.getLogger(__name__)
 
 MAX_FRAME_BYTES = 64 * 1024
 WS_PATHS = ("/ws", "/")
-FALLBACK_NOTE = NOT_BUILT_NOTE[:-4] + b" This is the minimal fallback page.</p>"
+FALLBACK_NOTE = note(NOT_BUILT + b" This is the minimal fallback page.")
 DEFAULT_RATE_HZ = 90.0
 MAX_RATE_HZ = 240.0
 EVENT_QUEUE = 256  # events waiting for one client; beyond that it is disconnected (1013)
@@ -567,11 +568,8 @@ class VrBridge:
         return page_host is not None and page_host == own_host
 
     def _token_ok(self, given: Any) -> bool:
-        return (
-            isinstance(given, str)
-            and self.token is not None
-            and hmac.compare_digest(given.encode(), self.token.encode())
-        )
+        """A token was asked for and `given` is it."""
+        return isinstance(given, str) and self.token is not None and key_ok(given, self.token)
 
     # ------------------------------------------------------------------ WebSocket
     async def _handler(self, ws: ServerConnection) -> None:
@@ -582,11 +580,7 @@ class VrBridge:
         )
         given_key = query["driver"][0] if query.get("driver") else None
         page = query["page"][0][:64] if query.get("page") else ""
-        participant = (
-            self.driver_key is not None
-            and given_key is not None
-            and hmac.compare_digest(given_key.encode(), self.driver_key.encode())
-        )
+        participant = self.driver_key is not None and key_ok(given_key, self.driver_key)
         self.stats.clients += 1
         _limit_send_buffer(ws)
         log.info("VR client %s connected%s", peer, "" if authed else " (must authenticate)")

@@ -4,6 +4,7 @@ call per row was most of the logger's CPU time."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
@@ -217,7 +218,7 @@ class SeriesBatch:
             series.send(self.rec, entity)
         self._pending = 0
 
-    def _get(self, entity: str, make: Any) -> Series:
+    def _get(self, entity: str, make: Callable[[], Series]) -> Series:
         series = self._series.get(entity)
         if series is None:
             series = self._series[entity] = make()

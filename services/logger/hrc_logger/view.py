@@ -164,15 +164,14 @@ class View:
         self._flash_phase: int | None = None
         self.zones: dict[str, Zone] = {}  # ssm only: the protective zone per robot
         self._log_calls = 0
-        self._now = (0, 0.0)  # the time set by _time
-        self._time_sent = False  # rerun has been told _now (set_time before a log call)
+        self._time_sent = False  # rerun has been told batch.now (set_time before a log call)
         self.batch = SeriesBatch(rec, self.s.series_flush_s)
 
     # ------------------------------------------------------------------ helpers
     def _log(self, entity: str, *archetypes: Any, static: bool = False) -> None:
         if not (static or self._time_sent):
-            self.rec.set_time("tick", sequence=self._now[0])
-            self.rec.set_time("sim_time", duration=self._now[1])
+            self.rec.set_time("tick", sequence=self.batch.now[0])
+            self.rec.set_time("sim_time", duration=self.batch.now[1])
             self._time_sent = True
         self.rec.log(entity, *archetypes, static=static)
         self._log_calls += 1
@@ -186,8 +185,8 @@ class View:
         """The time of what follows; rerun is told only before a log call (rows in columns
         carry their own times), as set_time costs more than most rows."""
         now = (int(tick), float(sim_time))
-        if now != self._now:
-            self._now = self.batch.now = now
+        if now != self.batch.now:
+            self.batch.now = now
             self._time_sent = False
 
     def _distance_row(self, entity: str, rv: RobotView, hand: np.ndarray) -> None:
