@@ -193,11 +193,14 @@ class Bus:
             self.session.close()
 
     # ------------------------------------------------------------------ publish
-    def publisher(self, key: str, *, express: bool = True, block: bool = True) -> Publisher[Any]:
+    def publisher(self, key: str, *, express: bool = False, block: bool = True) -> Publisher[Any]:
         """A publisher for ``key`` (one per key and service; asking twice returns the same one).
 
-        Express (unbatched) by default: every tick waits on these messages, so latency beats
-        throughput; batching would hold a message back until the batch is flushed.
+        Not express by default: Zenoh puts the message into the session's current batch, and the
+        next express put (the exchange's ack, or the clock tick) sends the batch at once, this
+        message first: one write and one wake-up at each receiver for all of an exchange's
+        outputs. Messages that move the protocol on (clock, acks, run control and end) are
+        ``express=True``: sent at once, and the batch before them with them (docs/ARCHITECTURE.md).
         """
         pub = self._publishers.get(key)
         if pub is None:

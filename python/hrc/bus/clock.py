@@ -179,7 +179,7 @@ class ClockMaster:
             float
         )  # physics's own time per phase of the tick
         self._clock_pub = bus.publisher(bus.keys.clock(), express=True)
-        self._end_pub = bus.publisher(bus.keys.run_end())
+        self._end_pub = bus.publisher(bus.keys.run_end(), express=True)
 
     def input(
         self,
@@ -323,8 +323,9 @@ class ClockMaster:
     def _barrier(self, k: int, deadline: float | None) -> None:
         """All participants acked k and their outputs of k are here; RunFailed on loss/timeout."""
         self._await_acks(k, deadline)
-        # Acks are express (unbatched) and may overtake the outputs they vouch for; each ack
-        # lists what its sender published, so wait for those messages too.
+        # An ack may still overtake the outputs it vouches for (they come from other senders'
+        # sessions via the router, or on another priority); each ack lists what its sender
+        # published, so wait for those messages too.
         with self._cond:
             if self._stop is not None and not self._stop[0]:
                 return  # aborting: nothing more to wait for

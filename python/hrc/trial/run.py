@@ -82,7 +82,7 @@ class _EndWatcher:
         if failed_service:
             ctl.command = pb.RunControl.COMMAND_ABORT
             ctl.failed_service = failed_service
-        self.bus.publisher(self.bus.keys.run_control()).put(ctl)
+        self.bus.publisher(self.bus.keys.run_control(), express=True).put(ctl)
 
     def failed_end(self, wait_s: float) -> bool:
         """A run/end with ok = false came (waiting up to ``wait_s`` for one)."""

@@ -77,7 +77,9 @@ struct Reply {
 
 struct PublisherOptions {
   bool congestion_block = true;  // reliable: block rather than drop when queues are full
-  bool express = true;           // no batching: every tick waits on these (latency first)
+  // false: Zenoh batches it with what follows; the next express put (the ack) sends both at
+  // once (docs/ARCHITECTURE.md). Acks and run control are express.
+  bool express = false;
 };
 
 /// True if the key expressions intersect; throws BusError if either is invalid.
