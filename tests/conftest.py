@@ -20,7 +20,7 @@ import pytest
 from hrc.bus import Bus, BusConfig, access
 from hrc.paths import ik_binary, project_root
 from hrc.ports import free_port  # tests import it from here too
-from hrc.service_table import SERVICES
+from hrc.service_table import EXPERIMENTER, SERVICES
 from hrc.wire import pb
 
 from .goldens import THESIS, Finished, run_trial
@@ -132,8 +132,9 @@ class Trial:
         self.stdout = ""
         self.stderr = ""
 
-    def bus(self, name: str = "tester") -> Bus:
-        """The experimenter's side of the trial's bus (with its credentials)."""
+    def bus(self, name: str = EXPERIMENTER) -> Bus:
+        """The experimenter's side of the trial's bus (with its credentials: a stop goes on the
+        experimenter's own key, which only this name may put on)."""
         if self._bus is None:
             self._bus = Bus(self.bus_config(), name)
         return self._bus
@@ -174,7 +175,7 @@ class Trial:
 
     def stop(self, reason: str = "test done") -> None:
         bus = self.bus()
-        bus.publisher(bus.keys.run_control()).put(
+        bus.publisher(bus.keys.run_control(bus.sender)).put(
             pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason)
         )
 

@@ -120,7 +120,7 @@ def rig(*extra: str, tick_hz: float = 60.0) -> Iterator[Rig]:
         try:
             yield r
         finally:
-            bus.publisher(bus.keys.run_control()).put(
+            bus.publisher(bus.keys.run_control(bus.sender)).put(
                 pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="test done")
             )
             th.join(timeout=20)

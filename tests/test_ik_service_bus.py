@@ -102,7 +102,7 @@ class Session:
         self._ids: dict[str, int] = {}
         self._k = 0
         self._t = 0.0
-        self._stop_pub = self.orch.publisher(self.orch.keys.run_control())
+        self._stop_pub = self.orch.publisher(self.orch.keys.run_control(self.orch.sender))
 
         scenario = self.scenario
         self.orch.queryable(self.orch.keys.scenario(), None, lambda _req: scenario)

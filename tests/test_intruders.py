@@ -1,7 +1,9 @@
 """Only the trial's own services (and its experimenter) on its bus: another process's Zenoh
 client, without the credentials hrc run gave the trial, is refused when its link opens, on the
 TCP port and on the Unix socket alike, so the STOP, the robot command and the TASK_FINISHED it
-would forge never reach the trial, which finishes as if it had not been there."""
+would forge never reach the trial, which finishes as if it had not been there. Insiders (a
+service's stolen credentials) reach no key they do not own, with wildcards neither, and cannot
+pass a stop off as another sender's."""
 
 from __future__ import annotations
 
@@ -42,7 +44,7 @@ def intruder(endpoint: str, user: tuple[str, str] | None) -> zenoh.Session | Non
 
 def forge(session: zenoh.Session, keys: Keys) -> None:
     stop = pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=FORGED)
-    session.put(keys.run_control(), stop.SerializeToString())
+    session.put(keys.run_control("orchestrator"), stop.SerializeToString())
     cmd = pb.RobotCommand(robot="r1", command_id=999, kind=pb.RobotCommand.KIND_MOVE)
     cmd.target.x, cmd.target.y, cmd.target.z = 0.5, 0.5, 0.9
     session.put(keys.robot_command("r1"), cmd.SerializeToString())
@@ -92,7 +94,7 @@ def test_a_client_without_the_trials_credentials_is_refused_and_the_trial_finish
     )
     with Bus(insider, "orchestrator") as bus:
         stop = pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=FORGED)
-        bus.publisher(keys.run_control()).put(stop)
+        bus.publisher(keys.run_control("orchestrator")).put(stop)
         cmd = pb.RobotCommand(robot="r1", command_id=999, kind=pb.RobotCommand.KIND_MOVE)
         cmd.target.x, cmd.target.y, cmd.target.z = 0.5, 0.5, 0.9
         bus.publisher(keys.robot_command("r1")).put(cmd)
@@ -100,6 +102,32 @@ def test_a_client_without_the_trials_credentials_is_refused_and_the_trial_finish
         bus.publisher(keys.task_events()).put(event)
         end = pb.RunEnd(ok=True, reason=FORGED)
         bus.publisher(keys.run_end()).put(end)
+        # The same through key expressions with wildcards that mean those keys: access control
+        # grants a put only where a key of the putter's own includes the whole expression.
+        for stem, msg in (
+            (keys.run_control("orchestrator"), stop),
+            (keys.run_end(), end),
+            (keys.task_events(), event),
+            (keys.robot_command("r1"), cmd),
+            (keys.clock(), pb.ClockTick()),
+        ):
+            msg.header.session, msg.header.sender = trial.session, "orchestrator"
+            head, _, last = stem.rpartition("/")
+            for expr in (f"{head}/{last[:4]}$*", f"{head}/*", f"{head}/**"):
+                bus.session.put(expr, msg.SerializeToString(), attachment=b"orchestrator")
+    # Another insider: human_input's credentials, on the key they may put on, with a stop that
+    # claims to come from the orchestrator, and an abort that blames ik_cpp. The key proves the
+    # sender; only the experimenter may blame another service.
+    stolen = json.loads((config.parent / "human_input.json5").read_text())
+    (trial.out.parent / "insider2.json5").write_text(json.dumps(stolen))
+    insider.config_file = str(trial.out.parent / "insider2.json5")
+    with Bus(insider, "orchestrator") as bus:
+        bus.publisher(keys.run_control("human_input")).put(stop)
+    with Bus(insider, "human_input") as bus:
+        abort = pb.RunControl(
+            command=pb.RunControl.COMMAND_ABORT, reason=FORGED, failed_service="ik_cpp"
+        )
+        bus.publisher(keys.run_control("human_input")).put(abort)
     rc, out, err = trial.communicate(timeout=300)
     assert rc == 0, (out[-2000:], err[-3000:])
     metrics = json.loads((trial.out / "metrics.json").read_text())
@@ -107,6 +135,10 @@ def test_a_client_without_the_trials_credentials_is_refused_and_the_trial_finish
     assert metrics["run"]["ok"] is True and "task finished" in metrics["run"]["end_reason"]
     for name in ("log.txt", "events.jsonl"):
         assert FORGED not in (trial.out / name).read_text(), name
+    # the forged senders were seen, refused and logged by physics, naming what they claimed
+    physics_log = (trial.out / "services" / "physics.log").read_text()
+    assert "key claims to come from 'orchestrator'" in physics_log, physics_log[-3000:]
+    assert "'human_input' may not name another service ('ik_cpp')" in physics_log
     # every refused client is counted, by its reason, at least once on each endpoint (a client
     # tries again while it waits); the insider and the tools got in and are not
     refused = metrics["access"]

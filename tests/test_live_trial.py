@@ -245,8 +245,8 @@ def test_the_page_says_why_a_trial_failed(
     page = Page(browser, run.url + "&mode=desktop")
     xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
     grab_part(page, "H1")
-    bus = run.trial.bus("checker")
-    bus.publisher(bus.keys.run_control()).put(
+    bus = run.trial.bus()
+    bus.publisher(bus.keys.run_control(bus.sender)).put(
         pb.RunControl(command=pb.RunControl.COMMAND_ABORT, reason="the robot controller faulted")
     )
     page.wait_text(

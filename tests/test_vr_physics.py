@@ -14,6 +14,7 @@ import time
 from websockets.sync.client import connect
 
 from hrc.bus import Bus, access
+from hrc.service_table import EXPERIMENTER
 from hrc.trial import TrialOptions, run_trial
 from hrc.wire import pb
 
@@ -45,7 +46,7 @@ def test_a_vr_reach_moves_the_hand_in_physics(tmp_path, ik_bin) -> None:
         time.sleep(1.0)
         with Bus(
             access.join(session, port),
-            "tester",
+            EXPERIMENTER,
         ) as bus:
 
             def on_contacts(_k: str, m: pb.WorldContacts) -> None:
@@ -89,7 +90,7 @@ def test_a_vr_reach_moves_the_hand_in_physics(tmp_path, ik_bin) -> None:
                         )
 
                 assert wait_until(entered, 20), [str(c) for c in contacts]
-            bus.publisher(bus.keys.run_control()).put(
+            bus.publisher(bus.keys.run_control(bus.sender)).put(
                 pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="test done")
             )
             runner.join(60)

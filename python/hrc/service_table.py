@@ -216,6 +216,9 @@ def _one_clock_master() -> str:
 CLOCK_MASTER = _one_clock_master()
 PARTICIPANTS = with_role(Role.PARTICIPANT)  # their acks close the barrier
 OBSERVERS = with_role(Role.OBSERVER)
+# Not a service: hrc run's own bus session, and the tools and tests that join a trial with its
+# credentials (hrc.bus.access). It may stop a run, and blame a service whose process ended.
+EXPERIMENTER = "experimenter"
 # After SIGTERM / SIGINT a service has this long to write its files (hrc run waits a little more)
 STOP_GRACE_S = 2.0
 

@@ -80,15 +80,24 @@ def test_a_trials_private_folder_holds_its_socket_and_credentials(tmp_path, monk
         assert (cfg["user"], cfg["password"]) == (name, users[name])
         assert stat.S_IMODE(a.config(name).stat().st_mode) == 0o600
     assert access.tool_config("s1") == a.config("experimenter")
-    # the router's access control: a key's own publishers only
+    # the router's access control: default deny, a key's own publishers only
     acl = json.loads(a.config("physics").read_text())["access_control"]
-    denied = {
-        r["key_exprs"][0]: s["usernames"]
-        for r, s in zip(acl["rules"], acl["subjects"], strict=True)
-        if r["permission"] == "deny"
+    assert acl["default_permission"] == "deny"
+    putters = {
+        u: sorted(
+            k
+            for r in acl["rules"]
+            if r["id"] in p["rules"] and "put" in r["messages"]
+            for k in r["key_exprs"]
+        )
+        for p in acl["policies"]
+        for s in acl["subjects"]
+        if s["id"] in p["subjects"] and len(s["usernames"]) == 1
+        for u in s["usernames"]
     }
-    assert denied["hrc/s1/run/control"] == ["logger", "physics"]  # participants, experimenter
-    assert denied["hrc/s1/run/end"] == ["experimenter", "logger", "physics"]  # physics's own
+    assert putters["experimenter"] == ["hrc/s1/run/control/experimenter"]
+    assert putters["logger"] == ["hrc/s1/clock/ack/logger"]
+    assert "physics" not in putters  # physics's own puts never come in: nobody may make them
     assert "access_control" not in json.loads(a.config("logger").read_text())
     assert access.TrialAccess.create("s1", ["physics"]) is None  # one folder per session
     # a trial that joins other hosts' routers: files without credentials

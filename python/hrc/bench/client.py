@@ -40,6 +40,7 @@ from hrc.bench.page import BenchContext, page_figures
 from hrc.bus import Bus, access
 from hrc.paths import project_root
 from hrc.ports import free_port
+from hrc.service_table import EXPERIMENTER
 from hrc.trial import TrialOptions, TrialResult, VrOptions, run_trial
 from hrc.wire import pb
 
@@ -204,10 +205,10 @@ def live_trial(
     finally:
         with (
             contextlib.suppress(Exception),
-            Bus(access.join(session, port, timeout_s=5.0), "bench") as bus,
+            Bus(access.join(session, port, timeout_s=5.0), EXPERIMENTER) as bus,
         ):
             time.sleep(0.3)
-            bus.publisher(bus.keys.run_control()).put(
+            bus.publisher(bus.keys.run_control(bus.sender)).put(
                 pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="bench done")
             )
             time.sleep(0.3)

@@ -11,10 +11,12 @@
 - ``pid``: the ``hrc run`` that owns it.
 
 A client without these credentials, on the socket or on the TCP port, is refused by Zenoh's
-authentication when its link opens. Among those who have them, physics's access control lets only
-a key's own publisher put on it (:func:`publishers`): only the participants (a stop, an abort) and
-the experimenter end a run, only physics publishes the clock and ``run/end``, only the orchestrator
-commands the robots and writes task events; a put from anyone else is dropped by the router.
+authentication when its link opens. Among those who have them, physics's access control denies
+by default and lets only a key's own publisher put on it (:func:`publishers`), whatever key
+expression the put uses: only the participants (a stop, an abort) and the experimenter end a run,
+each on its own ``run/control/<name>``, only physics publishes the clock and ``run/end``, only the
+orchestrator commands the robots and writes task events; a put from anyone else is dropped by the
+router (:func:`router_acl`).
 
 ``hrc run`` removes the folder when it ends; a run killed with SIGKILL cannot, so every ``hrc run``
 first removes the folders of runs that are gone. A session started from ``deploy/`` gets the same
@@ -40,11 +42,11 @@ import zenoh
 
 from hrc.bus.config import BusConfig
 from hrc.bus.keys import Keys
-from hrc.service_table import CLOCK_MASTER, OBSERVERS, PARTICIPANTS
+from hrc.service_table import CLOCK_MASTER, EXPERIMENTER, OBSERVERS, PARTICIPANTS
+from hrc.service_table import names as service_names
 
 log = logging.getLogger(__name__)
 
-EXPERIMENTER = "experimenter"  # hrc run's own session, and the tools that join a trial
 SOCKET = "bus.sock"
 USERS = "users"
 OWNER = "pid"
@@ -173,8 +175,8 @@ def _write_private(path: Path, text: str) -> None:
 
 
 def publishers(keys: Keys) -> dict[str, frozenset[str]]:
-    """Who may put on the keys that steer, end or record a trial (docs/ARCHITECTURE.md, "Key
-    expressions"); every other key is open to every holder of the trial's credentials."""
+    """Who may put on each key of a trial (docs/ARCHITECTURE.md, "Key expressions"): a put on
+    any other key, or by anyone else, is dropped by the router (:func:`router_acl`)."""
     orchestrator = frozenset({"orchestrator"})
     physics = frozenset({CLOCK_MASTER})
     table = {
@@ -183,9 +185,6 @@ def publishers(keys: Keys) -> dict[str, frozenset[str]]:
         keys.world_objects(): physics,
         keys.world_contacts(): physics,
         keys.world_separation(): physics,
-        # a stop: the orchestrator (task finished, stalled) or the experimenter; an abort: any
-        # participant whose tick failed (docs/ARCHITECTURE.md, "Roles")
-        keys.run_control(): frozenset(PARTICIPANTS) | {EXPERIMENTER},
         keys.robot_commands(): orchestrator,
         keys.world_commands(): orchestrator,
         keys.task_events(): orchestrator,
@@ -197,7 +196,31 @@ def publishers(keys: Keys) -> dict[str, frozenset[str]]:
     }
     for name in (*PARTICIPANTS, *OBSERVERS):
         table[keys.clock_ack(name)] = frozenset({name})
+    # A stop: the orchestrator (task finished, stalled) or the experimenter; an abort: any
+    # participant whose tick failed (docs/ARCHITECTURE.md, "Roles"). Each on a key of its own:
+    # the key proves the sender (hrc.bus.clock.control_problem).
+    for name in (*PARTICIPANTS, EXPERIMENTER):
+        table[keys.run_control(name)] = frozenset({name})
     return table
+
+
+def answerers(keys: Keys) -> dict[str, frozenset[str]]:
+    """Who may answer queries on each queryable key of a trial (a forged scenario or reach
+    answer would steer it as surely as a put)."""
+    table = {
+        keys.scenario(): frozenset({"orchestrator"}),
+        keys.robot_reach(): frozenset({"ik_cpp"}),
+    }
+    for name in service_names():
+        table[keys.stats(name)] = frozenset({name})
+    return table
+
+
+# What a holder of a trial's credentials may always send the router: asking (subscriptions,
+# queries, liveliness queries) never changes a trial. Everything else is denied unless a rule
+# below grants it, whatever key expression (wildcards included) it uses.
+_READ = ["declare_subscriber", "query", "declare_liveliness_subscriber", "liveliness_query"]
+_ALL = [*_READ, "put", "delete", "declare_queryable", "reply", "liveliness_token"]
 
 
 def observer_ids(names: Iterable[str]) -> dict[str, str]:
@@ -231,33 +254,61 @@ def router_qos(observer_zids: Iterable[str]) -> dict[str, object]:
 
 def router_acl(session: str, users: Iterable[str], separate: bool = False) -> dict[str, object]:
     """Zenoh access control for the router (the clock master, or a ``separate`` router that
-    every service is a client of): puts on a key of :func:`publishers` by any other user are
-    denied as they come in. The clock master's own puts are not incoming when it is the router:
-    a client that logs in with its name (stolen credentials) is then denied all of them."""
+    every service is a client of). Default deny: what comes in from a user is dropped unless it
+    only asks (subscriptions, queries, on the session's keys), or is a put on a key of
+    :func:`publishers` that the user owns, an answer on a key of :func:`answerers` it owns, or
+    its own liveliness token ``alive/<user>``. Zenoh applies an allow rule only when the rule's
+    key includes the message's whole key expression, so a put with a wildcard
+    (``run/contr$*``) is denied unless the user owns every key it could mean. What the router
+    sends out is not restricted. The clock master's own messages are not incoming when it is
+    the router: a client that logs in with its name (stolen credentials) may only ask."""
     everyone = sorted(set(users))
+    keys = Keys(session)
     own = frozenset() if separate else frozenset({CLOCK_MASTER})
-    rules, subjects, policies = [], [], []
-    for i, (key, allowed) in enumerate(sorted(publishers(Keys(session)).items())):
-        denied = [u for u in everyone if u not in allowed - own]
-        if not denied:
+    rules: list[dict[str, object]] = [
+        _rule("read", ["ingress"], _READ, [keys.all()]),
+        _rule("out", ["egress"], _ALL, ["**"]),
+    ]
+    policies: list[dict[str, list[str]]] = [{"rules": ["read", "out"], "subjects": ["all"]}]
+    subjects: list[dict[str, object]] = [{"id": "all", "usernames": everyone}]
+    puts = publishers(keys)
+    answers = answerers(keys)
+    for n, user in enumerate(everyone):
+        if user in own:
             continue
-        rules.append(
-            {
-                "id": f"r{i}",
-                "messages": ["put", "delete"],
-                "flows": ["ingress"],
-                "permission": "deny",
-                "key_exprs": [key],
-            }
-        )
-        subjects.append({"id": f"s{i}", "usernames": denied})
-        policies.append({"rules": [f"r{i}"], "subjects": [f"s{i}"]})
+        mine: list[str] = []
+        put_keys = sorted(k for k, who in puts.items() if user in who)
+        if put_keys:
+            rules.append(_rule(f"put{n}", ["ingress"], ["put", "delete"], put_keys))
+            mine.append(f"put{n}")
+        answer_keys = sorted(k for k, who in answers.items() if user in who)
+        if answer_keys:
+            rules.append(_rule(f"ans{n}", ["ingress"], ["declare_queryable", "reply"], answer_keys))
+            mine.append(f"ans{n}")
+        if user in service_names():
+            rules.append(_rule(f"tok{n}", ["ingress"], ["liveliness_token"], [keys.alive(user)]))
+            mine.append(f"tok{n}")
+        if mine:
+            subjects.append({"id": f"u{n}", "usernames": [user]})
+            policies.append({"rules": mine, "subjects": [f"u{n}"]})
     return {
         "enabled": True,
-        "default_permission": "allow",
+        "default_permission": "deny",
         "rules": rules,
         "subjects": subjects,
         "policies": policies,
+    }
+
+
+def _rule(
+    rid: str, flows: list[str], messages: list[str], key_exprs: list[str]
+) -> dict[str, object]:
+    return {
+        "id": rid,
+        "messages": messages,
+        "flows": flows,
+        "permission": "allow",
+        "key_exprs": key_exprs,
     }
 
 

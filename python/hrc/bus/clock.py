@@ -30,7 +30,7 @@ from typing import Literal
 
 from hrc.bus.bus import Bus, M
 from hrc.bus.inbox import Inbox
-from hrc.service_table import OBSERVERS, PARTICIPANTS
+from hrc.service_table import EXPERIMENTER, OBSERVERS, PARTICIPANTS
 from hrc.wire import pb
 
 log = logging.getLogger(__name__)
@@ -40,6 +40,20 @@ MODES: dict[str, pb.ClockMode.ValueType] = {
     "lockstep": pb.CLOCK_MODE_LOCKSTEP,
     "realtime": pb.CLOCK_MODE_REALTIME,
 }
+
+
+def control_problem(key: str, ctl: pb.RunControl) -> str | None:
+    """Why a stop or abort on ``key`` (``run/control/<sender>``) is refused, or None. The key is
+    the proof of who sent it (the router lets only ``<sender>`` put on it: hrc.bus.access), so
+    the header must name the same sender; and only the experimenter (``hrc run``, the judge of
+    processes) may blame another service."""
+    owner = key.rsplit("/", 1)[-1]
+    claimed = ctl.header.sender
+    if claimed != owner:
+        return f"a run control on {owner!r}'s key claims to come from {claimed!r}"
+    if ctl.failed_service and ctl.failed_service != owner and owner != EXPERIMENTER:
+        return f"{owner!r} may not name another service ({ctl.failed_service!r}) as failed"
+    return None
 
 
 @dataclass
@@ -196,8 +210,8 @@ class ClockMaster:
         # A stop takes effect at a tick boundary fixed by the tick it was sent in (through the
         # inbox, like any input), so the run's length is the same on every machine. An abort is
         # also seen at once, so a stuck barrier can be broken.
-        self.inbox.add(keys.run_control(), pb.RunControl, self._on_control)
-        self.bus.subscribe(keys.run_control(), pb.RunControl, self._on_abort)
+        self.inbox.add(keys.run_controls(), pb.RunControl, self._on_control)
+        self.bus.subscribe(keys.run_controls(), pb.RunControl, self._on_abort)
         self.bus.watch_liveliness(self._on_liveliness)
         self.bus.serve_stats()
         self.bus.declare_token()
@@ -239,10 +253,15 @@ class ClockMaster:
             self._transition()
 
     def _on_abort(self, key: str, ctl: pb.RunControl) -> None:
-        if ctl.command == pb.RunControl.COMMAND_ABORT:
+        # (a forged one is counted once, when the inbox hands it over)
+        if ctl.command == pb.RunControl.COMMAND_ABORT and control_problem(key, ctl) is None:
             self._on_control(key, ctl)
 
-    def _on_control(self, _key: str, ctl: pb.RunControl) -> None:
+    def _on_control(self, key: str, ctl: pb.RunControl) -> None:
+        problem = control_problem(key, ctl)
+        if problem is not None:
+            self.bus.reject(key, ctl.header.sender, problem)
+            return
         with self._cond:
             if self._stop is None:
                 ok = ctl.command != pb.RunControl.COMMAND_ABORT

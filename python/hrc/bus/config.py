@@ -54,6 +54,11 @@ class BusConfig:
             cfg.insert_json5("connect/retry", CONNECT_RETRY)
         if self.listen:
             cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
+        if self.mode != "router":
+            # Access control is the router's (hrc.bus.access.router_acl, default deny): in the
+            # configuration file of a service that is the router in one deployment and a client
+            # of another router in the next (physics), it would deny the client everything.
+            cfg.insert_json5("access_control/enabled", "false")
         if self.lowlatency:
             cfg.insert_json5("transport/unicast/lowlatency", "true")
             cfg.insert_json5("transport/unicast/qos/enabled", "false")  # required by lowlatency

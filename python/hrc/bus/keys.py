@@ -43,8 +43,13 @@ class Keys:
     def clock_acks(self) -> str:
         return self._k("clock", "ack", "*")
 
-    def run_control(self) -> str:
-        return self._k("run", "control")
+    def run_control(self, sender: str) -> str:
+        """``run/control/<sender>``: each sender has a key of its own, which the router's access
+        control keeps to that sender alone, so the key proves who sent a stop or an abort."""
+        return self._k("run", "control", check_name("sender", sender))
+
+    def run_controls(self) -> str:
+        return self._k("run", "control", "*")
 
     def run_end(self) -> str:
         return self._k("run", "end")

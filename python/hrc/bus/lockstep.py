@@ -159,7 +159,7 @@ class ClockFollower:
         """Subscribes to the clock and run end, serves stats, then announces readiness."""
         keys = self.bus.keys
         self._declare_publishers()
-        self._control_pub = self.bus.publisher(keys.run_control(), express=True)
+        self._control_pub = self.bus.publisher(keys.run_control(self.bus.sender), express=True)
         self.bus.subscribe(keys.clock(), pb.ClockTick, self._on_clock)
         self.bus.subscribe(keys.run_end(), pb.RunEnd, self._on_run_end)
         watch_clock_master(self.bus, self._on_master_lost, self.master_grace_s)

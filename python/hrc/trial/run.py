@@ -17,10 +17,11 @@ from pathlib import Path
 from hrc import metrics as metrics_schema
 from hrc import service_table
 from hrc.bus import Bus, BusConfig
-from hrc.bus.access import EXPERIMENTER, TrialAccess, count_refusals
+from hrc.bus.access import TrialAccess, count_refusals
 from hrc.diskspace import NO_SPACE, low_space
 from hrc.paths import build_dir
 from hrc.ports import free_port, release_port
+from hrc.service_table import EXPERIMENTER
 from hrc.trial.console import LiveConsole
 from hrc.trial.options import TrialOptions, TrialResult, fits_lowlatency, service_argv
 from hrc.trial.processes import (
@@ -82,7 +83,8 @@ class _EndWatcher:
         if failed_service:
             ctl.command = pb.RunControl.COMMAND_ABORT
             ctl.failed_service = failed_service
-        self.bus.publisher(self.bus.keys.run_control(), express=True).put(ctl)
+        keys = self.bus.keys
+        self.bus.publisher(keys.run_control(self.bus.sender), express=True).put(ctl)
 
     def failed_end(self, wait_s: float) -> bool:
         """A run/end with ok = false came (waiting up to ``wait_s`` for one)."""

@@ -97,23 +97,136 @@ def test_a_log_that_is_not_there_is_not_counted(tmp_path: Path) -> None:
     assert access.count_refusals(tmp_path / "physics.log") is None
 
 
+def may(acl: dict[str, Any], user: str, message: str, key: str) -> bool:
+    """Would access control ``acl`` let ``user``'s ``message`` on ``key`` into the router? As
+    Zenoh 1.10 decides (authorization.rs): default deny; an allow rule of one of the user's
+    policies applies when one of its keys includes the message's whole key expression."""
+    subjects = {s["id"] for s in acl["subjects"] if user in s["usernames"]}
+    rules = {r["id"]: r for r in acl["rules"]}
+    ke = zenoh.KeyExpr(key)
+    for p in acl["policies"]:
+        if not subjects & set(p["subjects"]):
+            continue
+        for rid in p["rules"]:
+            r = rules[rid]
+            applies = "ingress" in r["flows"] and message in r["messages"]
+            if (
+                applies
+                and r["permission"] == "allow"
+                and any(zenoh.KeyExpr(k).includes(ke) for k in r["key_exprs"])
+            ):
+                return True
+    assert acl["default_permission"] == "deny"
+    return False
+
+
 def denied(acl: dict[str, Any], key: str) -> set[str]:
     """The users whose puts on ``key`` access control ``acl`` denies."""
-    rules = {r["id"] for r in acl["rules"] if key in r["key_exprs"]}
-    subjects = {s["id"]: s["usernames"] for s in acl["subjects"]}
-    return {
-        u
-        for p in acl["policies"]
-        if rules & set(p["rules"])
-        for s in p["subjects"]
-        for u in subjects[s]
-    }
+    users = {u for s in acl["subjects"] for u in s["usernames"]}
+    return {u for u in users if not may(acl, u, "put", key)}
 
 
 def test_a_separate_router_lets_physics_publish_the_clock_and_nobody_else() -> None:
-    names = [*service_table.names(), access.EXPERIMENTER]
+    names = [*service_table.names(), service_table.EXPERIMENTER]
     others = set(names) - {service_table.CLOCK_MASTER}
     # physics as the router: its own puts never come in, so a client in its name is denied
     assert denied(access.router_acl("s1", names), "hrc/s1/clock") == set(names)
     assert denied(access.router_acl("s1", names, separate=True), "hrc/s1/clock") == others
     assert denied(access.router_acl("s1", names, separate=True), "hrc/s1/run/end") == others
+
+
+def test_every_key_is_put_on_by_its_owner_alone_whatever_expression_the_put_uses() -> None:
+    names = [*service_table.names(), service_table.EXPERIMENTER]
+    acl = access.router_acl("s1", names, separate=True)
+    owners = access.publishers(access.Keys("s1"))
+    for key, who in owners.items():
+        concrete = key.replace("*", "r1")
+        assert denied(acl, concrete) == set(names) - who, key
+        # a wildcard that means this key (and maybe others) is nobody's but an owner of all
+        head, _, last = concrete.rpartition("/")
+        for wild in (f"{head}/{last[:3]}$*", f"{head}/*", "hrc/s1/**", f"{head}/**"):
+            assert denied(acl, wild) >= set(names) - who, wild
+    # the stop of each sender on its own key: the key proves who sent it
+    for name in (*service_table.PARTICIPANTS, service_table.EXPERIMENTER):
+        assert denied(acl, f"hrc/s1/run/control/{name}") == set(names) - {name}
+    assert denied(acl, "hrc/s1/run/control/*") == set(names)
+    # a key outside the table (made up) is nobody's
+    assert denied(acl, "hrc/s1/robot/r1/brake") == set(names)
+    # answers: only the orchestrator serves the scenario, only a service its own stats
+    for user in names:
+        assert may(acl, user, "declare_queryable", "hrc/s1/scenario") == (user == "orchestrator")
+        assert may(acl, user, "reply", "hrc/s1/stats/logger") == (user == "logger")
+        assert may(acl, user, "liveliness_token", "hrc/s1/alive/ik_cpp") == (user == "ik_cpp")
+        # asking is open to every holder of the credentials, on the session's keys only
+        assert may(acl, user, "declare_subscriber", "hrc/s1/**")
+        assert may(acl, user, "query", "hrc/s1/stats/physics")
+        assert not may(acl, user, "declare_subscriber", "hrc/s2/**")
+
+
+def test_a_real_router_drops_every_put_by_a_non_owner_wildcards_included(tmp_path: Path) -> None:
+    """Each user of a trial puts on every protected key, exactly and with wildcards that mean
+    it; a subscriber on the whole session receives only the owners' puts."""
+    folder = tmp_path / "s1"
+    access.make_private(folder)
+    names = service_table.names()
+    access.write_credentials(folder, "s1", names, router=True)
+    users = dict(ln.split(":") for ln in (folder / access.USERS).read_text().splitlines())
+    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    cfg = json.loads(access.config_path(folder, access.ROUTER).read_text())
+    cfg["listen"]["endpoints"] = [endpoint]
+    (tmp_path / "router.json5").write_text(json.dumps(cfg))
+    router = subprocess.Popen(
+        [sys.executable, "-c", ROUTER, str(tmp_path / "router.json5")],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.STDOUT,
+    )
+    sessions: dict[str, zenoh.Session] = {}
+    try:
+        for user in [*names, service_table.EXPERIMENTER]:
+
+            def joined(user: str = user) -> bool:
+                s = client(endpoint, (user, users[user]))
+                if s is not None:
+                    sessions[user] = s
+                return s is not None
+
+            assert wait_until(joined, 30, 0.2), user
+        got: list[tuple[str, bytes]] = []
+        # a session of its own: a session's own puts reach its subscribers without the router
+        reader = client(endpoint, (service_table.EXPERIMENTER, users[service_table.EXPERIMENTER]))
+        assert reader is not None
+        sessions["reader"] = reader
+        sub = reader.declare_subscriber(
+            "hrc/s1/**", lambda s: got.append((str(s.key_expr), s.payload.to_bytes()))
+        )
+        owners = access.publishers(access.Keys("s1"))
+        sent_ok: set[tuple[str, bytes]] = set()
+        for key, who in sorted(owners.items()):
+            concrete = key.replace("*", "r1")
+            head, _, last = concrete.rpartition("/")
+            for user, s in sessions.items():
+                if user == "reader":
+                    continue
+                mark = f"{user}".encode()
+                if user in who:
+                    continue
+                for expr in (concrete, f"{head}/{last[:3]}$*", f"{head}/*", f"{head}/**"):
+                    s.put(expr, b"forged by " + mark)
+            owner = sorted(who)[0]
+            sessions[owner].put(concrete, b"owner " + owner.encode())
+            sent_ok.add((concrete, b"owner " + owner.encode()))
+        # the owners' puts arrive (each after every forgery on its key: the order of one
+        # session's puts is kept, the forgers' came first)
+        assert wait_until(lambda: {g for g in got if g[1].startswith(b"owner")} >= sent_ok, 20), (
+            sorted(sent_ok - set(got))
+        )
+        forged = [g for g in got if g[1].startswith(b"forged")]
+        assert not forged, forged[:10]
+        sub.undeclare()
+    finally:
+        for s in sessions.values():
+            s.close()
+        assert router.stdin is not None
+        router.stdin.close()
+        router.wait(20)

@@ -159,7 +159,9 @@ def test_a_stop_request_ends_the_run_cleanly(session_id: str) -> None:
     try:
         steps: dict[str, list[int]] = {}
         _run_participants(s, steps)
-        stop = s.buses["orchestrator"].publisher(s.buses["orchestrator"].keys.run_control())
+        stop = s.buses["orchestrator"].publisher(
+            s.buses["orchestrator"].keys.run_control(s.buses["orchestrator"].sender)
+        )
         s.clock.start()
 
         def world(k: int, t: float) -> None:

@@ -9,8 +9,9 @@ from pathlib import Path
 import pytest
 
 from hrc import service_table
-from hrc.bus.access import EXPERIMENTER, USERS
+from hrc.bus.access import USERS
 from hrc.cli.main import main
+from hrc.service_table import EXPERIMENTER
 
 
 def test_it_writes_one_private_file_per_service_and_the_experimenter(tmp_path: Path) -> None:
@@ -27,13 +28,17 @@ def test_it_writes_one_private_file_per_service_and_the_experimenter(tmp_path: P
         assert (usrpwd["user"], usrpwd["password"]) == (name, users[name])
     physics = json.loads((folder / f"{service_table.CLOCK_MASTER}.json5").read_text())
     assert physics["access_control"]["enabled"] is True
-    assert "hrc/s1/run/end" in json.dumps(physics["access_control"])
+    assert physics["access_control"]["default_permission"] == "deny"
+    # physics as the router: its own puts never come in, so no client may make them
+    assert "hrc/s1/run/end" not in json.dumps(physics["access_control"])
+    assert "hrc/s1/run/control/experimenter" in json.dumps(physics["access_control"])
     # a separate router (several hosts) checks the same dictionary, with the same rules
     router = folder / "router.json5"
     assert stat.S_IMODE(router.stat().st_mode) == 0o600
     cfg = json.loads(router.read_text())
     assert cfg["mode"] == "router"
     assert cfg["transport"]["auth"]["usrpwd"] == {"dictionary_file": str(folder / USERS)}
+    # physics is one of its clients there: its keys are its own
     assert "hrc/s1/run/end" in json.dumps(cfg["access_control"])
 
 

@@ -8,7 +8,8 @@ def test_every_key_lives_under_the_session_prefix() -> None:
     built = [
         k.clock(),
         k.clock_ack("ik_cpp"),
-        k.run_control(),
+        k.run_control("orchestrator"),
+        k.run_controls(),
         k.run_end(),
         k.alive("physics"),
         k.stats("logger"),

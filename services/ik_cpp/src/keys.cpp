@@ -49,7 +49,10 @@ std::string Keys::clock_ack(const std::string& p) const {
   return k("clock", "ack", check_name("participant", p));
 }
 std::string Keys::clock_acks() const { return k("clock", "ack", "*"); }
-std::string Keys::run_control() const { return k("run", "control"); }
+std::string Keys::run_control(const std::string& s) const {
+  return k("run", "control", check_name("sender", s));
+}
+std::string Keys::run_controls() const { return k("run", "control", "*"); }
 std::string Keys::run_end() const { return k("run", "end"); }
 std::string Keys::alive(const std::string& s) const { return k("alive", check_name("service", s)); }
 std::string Keys::alive_all() const { return k("alive", "*"); }

@@ -33,7 +33,7 @@ void LockstepParticipant::start() {
     // Acks close the barrier: no batching delay, never dropped.
     ack_pub_ = &bus_.publisher(keys.clock_ack(name()), PublisherOptions{true, true});
   }
-  control_pub_ = &bus_.publisher(keys.run_control(), PublisherOptions{true, true});
+  control_pub_ = &bus_.publisher(keys.run_control(name()), PublisherOptions{true, true});
   bus_.subscribe<v2::ClockTick>(
       keys.clock(), [this](const std::string&, const v2::ClockTick& t) { on_clock(t); });
   bus_.subscribe<v2::RunEnd>(keys.run_end(),

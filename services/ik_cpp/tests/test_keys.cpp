@@ -12,7 +12,8 @@ TEST(Keys, EveryKeyOfTheArchitectureTable) {
   EXPECT_EQ(k.clock(), "hrc/s1/clock");
   EXPECT_EQ(k.clock_ack("ik_cpp"), "hrc/s1/clock/ack/ik_cpp");
   EXPECT_EQ(k.clock_acks(), "hrc/s1/clock/ack/*");
-  EXPECT_EQ(k.run_control(), "hrc/s1/run/control");
+  EXPECT_EQ(k.run_control("ik_cpp"), "hrc/s1/run/control/ik_cpp");
+  EXPECT_EQ(k.run_controls(), "hrc/s1/run/control/*");
   EXPECT_EQ(k.run_end(), "hrc/s1/run/end");
   EXPECT_EQ(k.alive("physics"), "hrc/s1/alive/physics");
   EXPECT_EQ(k.alive_all(), "hrc/s1/alive/*");

@@ -29,7 +29,7 @@ class FakePhysics {
                                     });
     // Like the clock master: an abort ends the run at once, naming its sender.
     bus.subscribe<hrc::v2::RunControl>(
-        bus.keys().run_control(), [this](const std::string&, const hrc::v2::RunControl& c) {
+        bus.keys().run_controls(), [this](const std::string&, const hrc::v2::RunControl& c) {
           if (c.command() != hrc::v2::RunControl::COMMAND_ABORT) return;
           {
             const std::lock_guard<std::mutex> lock(mutex);

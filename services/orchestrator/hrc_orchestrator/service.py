@@ -134,7 +134,7 @@ class OrchestratorService(Service):
         self.events_pub = bus.publisher(keys.task_events())
         self.cues_pub = bus.publisher(keys.task_indicators())
         self.metrics_pub = bus.publisher(keys.task_metrics())
-        self.control_pub = bus.publisher(keys.run_control(), express=True)
+        self.control_pub = bus.publisher(keys.run_control(self.name), express=True)
         log.info(
             "serving scenario %r (seed %d, policy %s, anticipation %s)",
             spb.info.name,

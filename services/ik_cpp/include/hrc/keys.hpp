@@ -24,8 +24,9 @@ class Keys {
   std::string all() const;  // hrc/<s>/**
   std::string clock() const;
   std::string clock_ack(const std::string& participant) const;
-  std::string clock_acks() const;  // clock/ack/*
-  std::string run_control() const;
+  std::string clock_acks() const;                            // clock/ack/*
+  std::string run_control(const std::string& sender) const;  // run/control/<sender>
+  std::string run_controls() const;                          // run/control/*
   std::string run_end() const;
   std::string alive(const std::string& service) const;
   std::string alive_all() const;  // alive/*
