@@ -34,7 +34,7 @@ from collections.abc import Callable
 from types import FrameType
 from typing import ClassVar, NoReturn, Protocol
 
-from hrc import service_table
+from hrc import privacy, service_table
 from hrc.bus import (
     Bus,
     BusConfig,
@@ -280,6 +280,12 @@ def run_service(cls: type[Service], argv: list[str] | None = None) -> int:
     """Runs the service ``cls`` as a process would; returns its exit code."""
     args = parse_args(cls, argv)
     setup_logging(cls.name, args.log_level)
+    try:
+        privacy.apply()  # what it writes is private by default (hrc.privacy)
+    except ValueError as exc:
+        log.error("%s", exc)
+        print(f"{cls.entry().script}: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         service = cls(args)
         with Bus(bus_config(cls, args), cls.name) as bus, contextlib.ExitStack() as stack:

@@ -17,6 +17,7 @@ import sys
 import time
 from pathlib import Path
 
+from hrc import privacy
 from hrc.logsetup import setup_logging
 from hrc.service_table import VR_DEFAULT_PORT, VR_DEFAULT_WAIT_S
 from hrc.webpage import add_address_options
@@ -25,6 +26,11 @@ log = logging.getLogger("hrc")
 
 # hrc deploy-access's link lease: a host cut off is gone for the others within it (several hosts)
 DEPLOY_LEASE_S = 0.5
+
+
+def _warn_if_exposed(folder: Path) -> None:
+    if (why := privacy.exposed(folder)) is not None:
+        print(f"warning: {why}", file=sys.stderr)
 
 
 def _cmd_validate(args: argparse.Namespace) -> int:
@@ -128,6 +134,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
             Path("runs"), resolved.scenario.participant.name, resolved.folder_name()
         )
     )
+    _warn_if_exposed(trial_dir)
     try:
         # the services load this copy: the trial folder holds exactly what ran
         scenario_copy = write_scenario_copy(trial_dir, resolved)
@@ -197,6 +204,7 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
         print("--workers must be >= 0 and --trial-timeout > 0", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path("runs") / "studies" / study.name
+    _warn_if_exposed(out)
     where = f"cluster {args.cluster}" if args.cluster else f"{args.workers or 'all'} workers"
     print(f"study {study.name!r}: {len(study.trials)} trials ({where}) -> {out}", flush=True)
     try:
@@ -241,6 +249,7 @@ def _cmd_session(args: argparse.Namespace) -> int:
         print(f"session: {problem}", file=sys.stderr)
         return 2
     out = Path(args.out) if args.out else Path("runs") / "studies" / study.name
+    _warn_if_exposed(out)
     opts = Options(out, args.host, args.port, args.vr_port, token, args.page_mode or "")
     try:
         session = Session(study, args.participant, opts)
@@ -614,6 +623,11 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     setup_logging("hrc", args.log_level or "WARNING")
+    try:
+        privacy.apply()  # participant data private by default (docs/access.md)
+    except ValueError as exc:
+        print(f"hrc: {exc}", file=sys.stderr)
+        return 2
     code = int(args.func(args))
     if argv is None and args.func is _cmd_run:
         # The trial is over and its files are written: leave without the interpreter's teardown

@@ -20,6 +20,8 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from hrc import privacy
+
 if TYPE_CHECKING:
     from hrc.study.spec import Trial
 
@@ -105,6 +107,7 @@ def stop_process(proc: subprocess.Popen[Any], grace_s: float = 10.0) -> None:
 
 def run_job(job: Job) -> Record:
     """Run one trial to its end (bounded by ``job.timeout_s`` of wall time)."""
+    privacy.apply()  # a Dask worker's process too: what it writes here is participant data
     out = Path(job.out)
     scen = out / "resolved" / f"{job.trial}.toml"
     trial_dir = out / "trials" / job.trial
