@@ -301,9 +301,35 @@ class Bus:
         self.reject(key, raw.decode(errors="replace"), problem)
 
     def reject(self, key: str, sender: str, problem: str) -> None:
-        """Counts and logs a malformed message (also for checks done after decoding)."""
+        """Counts and logs a malformed message (also for checks done after decoding). The
+        sender is what the message claims; the log adds who the router admits on the key
+        (hrc.bus.access), which is who sent it on a trial with access control."""
         n = self.stats.count_error(key)
-        log.warning("malformed message #%d on %s from sender %r: %s", n, key, sender, problem)
+        owners = self._owners(key)
+        said = f" (as it claims; the router admits only {', '.join(owners)} on this key)"
+        log.warning(
+            "malformed message #%d on %s from sender %r%s: %s",
+            n,
+            key,
+            sender,
+            said if owners else " (as it claims)",
+            problem,
+        )
+
+    def _owners(self, key: str) -> list[str]:
+        """Who may put on ``key`` under a trial's access control (empty: unknown)."""
+        try:
+            ke = zenoh.KeyExpr(key)
+        except zenoh.ZError:
+            return []
+        return sorted(
+            {
+                who
+                for expr, owners in access.publishers(self.keys).items()
+                if zenoh.KeyExpr(expr).intersects(ke)
+                for who in owners
+            }
+        )
 
     # ------------------------------------------------------------------ liveliness
     def declare_token(self, service: str | None = None) -> None:
