@@ -13,6 +13,8 @@ import json
 import os
 import signal
 import time
+import uuid
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -145,3 +147,64 @@ def test_a_realtime_trial_outlives_a_stopped_logger_which_records_what_it_lost(
     assert span["from_s"] < before / 240 + 3 and span["to_s"] > (before + 0.8 * during) / 240
     lines = (trial.out / "log.txt").read_text().splitlines()
     assert any("RECORDING INCOMPLETE" in line for line in lines), lines[-5:]
+
+
+FREEZER_V1 = Path("/sys/fs/cgroup/freezer")
+
+
+@contextlib.contextmanager
+def _freezer() -> Iterator[Callable[[int], None]]:
+    """A cgroup of its own (v1 freezer, or v2) and a function that moves a process into it and
+    freezes it; thawed and removed at the end, whatever happened. Skips where neither is
+    writable (no root, no freezer)."""
+    name = f"hrc-test-{uuid.uuid4().hex[:8]}"
+    if (FREEZER_V1 / "cgroup.procs").exists() and os.access(FREEZER_V1, os.W_OK):
+        group, state, on, off = FREEZER_V1 / name, "freezer.state", "FROZEN", "THAWED"
+        parent = FREEZER_V1
+    else:
+        v2 = Path("/sys/fs/cgroup")
+        if not (v2 / "cgroup.controllers").exists() or not os.access(v2, os.W_OK):
+            pytest.skip("no cgroup freezer this test may use (needs root)")
+        group, state, on, off, parent = v2 / name, "cgroup.freeze", "1", "0", v2
+    group.mkdir()
+
+    def freeze(pid: int) -> None:
+        (group / "cgroup.procs").write_text(str(pid))
+        (group / state).write_text(on)
+
+    try:
+        yield freeze
+    finally:
+        (group / state).write_text(off)
+        for pid in (group / "cgroup.procs").read_text().split():
+            with contextlib.suppress(OSError):
+                (parent / "cgroup.procs").write_text(pid)
+        wait_until(lambda: not (group / "cgroup.procs").read_text().split(), 10, 0.1)
+        group.rmdir()
+
+
+@pytest.mark.parametrize(
+    ("victim", "words"),
+    [("physics", "its process is frozen (cgroup freezer)"), ("ik_cpp", "not responding")],
+)
+def test_a_frozen_service_is_named_and_hrc_run_returns_while_it_is_frozen(
+    trial_factory, victim: str, words: str
+) -> None:
+    """The cgroup freezer (the process's state says D or S, not T; cgroup v1 lets not even
+    SIGKILL through until it thaws): the frozen service is the one named, and hrc run returns
+    within 15 s of the freeze without waiting for the thaw."""
+    trial = trial_factory()
+    trial.wait_ticking()
+    pids = trial.service_pids()
+    with _freezer() as freeze:
+        t0 = time.monotonic()
+        freeze(pids[victim])
+        code, _out, err = trial.communicate(timeout=FREEZE_S + 30)
+        elapsed = time.monotonic() - t0
+        print(f"{victim} frozen: hrc run returned {elapsed:.1f} s after, code {code}")
+    assert code != 0, err[-3000:]
+    _named_everywhere(trial.out, victim, err, words)
+    assert elapsed < RETURN_S, f"hrc run took {elapsed:.1f} s"
+    assert wait_until(lambda: all(_gone(p) for p in pids.values()), 10, 0.1), (
+        f"processes left after the thaw: {[n for n, p in pids.items() if not _gone(p)]}"
+    )

@@ -102,13 +102,55 @@ def _stat(pid: int | str) -> list[str]:
         return f.read().rsplit(")", 1)[1].split()
 
 
-def process_stopped(pid: int) -> bool:
-    """The process is stopped (SIGSTOP, SIGTSTP, a debugger): Linux /proc state T or t. A
-    stopped service answers nothing and acts on no signal but SIGKILL."""
+STOPPED = "stopped (SIGSTOP or a debugger)"
+FROZEN = "frozen (cgroup freezer)"
+
+
+def halt(pid: int) -> str | None:
+    """How the process is halted, if it is: stopped (SIGSTOP, SIGTSTP, a debugger: Linux /proc
+    state T or t) or frozen by the cgroup freezer (its state then says D or S, like a process
+    that waits). Either way it answers nothing; a stopped one acts on no signal but SIGKILL,
+    and a frozen one (cgroup v1) not even on that until it is thawed."""
     try:
-        return _stat(pid)[0] in ("T", "t")
+        if _stat(pid)[0] in ("T", "t"):
+            return STOPPED
     except (OSError, IndexError):
+        return None
+    return FROZEN if frozen(pid) else None
+
+
+def process_stopped(pid: int) -> bool:
+    """The process is halted (:func:`halt`): stopped or frozen."""
+    return halt(pid) is not None
+
+
+def frozen(pid: int) -> bool:
+    """The process's cgroup is frozen or freezing: cgroup v1's ``freezer.state``, or v2's
+    ``cgroup.events`` (``frozen 1``), found through ``/proc/<pid>/cgroup``."""
+    try:
+        with open(f"/proc/{pid}/cgroup") as f:
+            lines = f.read().splitlines()
+    except OSError:
         return False
+    for line in lines:
+        _hier, controllers, path = [*line.split(":", 2), "", ""][:3]
+        if "freezer" in controllers.split(","):
+            state = _read(f"/sys/fs/cgroup/freezer{path}/freezer.state")
+            if state.strip() in ("FROZEN", "FREEZING"):
+                return True
+        elif controllers == "" and path not in ("", "/"):
+            for root in ("/sys/fs/cgroup", "/sys/fs/cgroup/unified"):
+                if "frozen 1" in _read(f"{root}{path}/cgroup.events").splitlines():
+                    return True
+    return False
+
+
+def _read(path: str) -> str:
+    try:
+        with open(path) as f:
+            return f.read()
+    except OSError:
+        return ""
 
 
 def cpu_ticks(pid: int) -> int | None:
@@ -120,12 +162,10 @@ def cpu_ticks(pid: int) -> int | None:
         return None
 
 
-def not_responding(name: str, when: str = "") -> str:
-    """hrc run's words for a stopped service (one wording wherever it is judged)."""
-    return (
-        f"service '{name}' not responding{when}: its process is stopped (SIGSTOP or a "
-        "debugger); hrc run ended it"
-    )
+def not_responding(name: str, when: str = "", how: str = STOPPED) -> str:
+    """hrc run's words for a halted service (one wording wherever it is judged); ``how``: as
+    :func:`halt` says."""
+    return f"service '{name}' not responding{when}: its process is {how}; hrc run ended it"
 
 
 def describe_exit(code: int) -> str:
@@ -235,8 +275,13 @@ class ServiceGroup:
         return {n: self._reap(n, p) for n, p in self.procs.items()}
 
     def stopped(self) -> list[str]:
-        """The services whose process is stopped (not running, not gone), in table order."""
+        """The services whose process is halted, stopped or frozen (not running, not gone), in
+        table order."""
         return [n for n, p in self.procs.items() if p.returncode is None and process_stopped(p.pid)]
+
+    def halt_of(self, name: str) -> str:
+        """How service ``name`` is halted (:func:`halt`; stopped if it no longer is)."""
+        return halt(self.procs[name].pid) or STOPPED
 
     def lift_observers(self) -> None:
         """The observers (the logger) back from SCHED_IDLE: at the run's end, when nobody waits
@@ -262,9 +307,14 @@ class ServiceGroup:
         deadline = time.monotonic() + grace_s
         while any(r is None for r in self.poll().values()) and time.monotonic() < deadline:
             time.sleep(0.01)
-        for p in self.procs.values():
+        for name, p in self.procs.items():
             if p.poll() is None:
                 p.kill()
+                if frozen(p.pid):
+                    # a frozen process dies of SIGKILL only once thawed (cgroup v1): not waited
+                    # for, it leaves then (and is reaped by init)
+                    log.warning("service '%s' is frozen: killed, it leaves when thawed", name)
+                    continue
                 p.wait()
 
     def write_cpu(self) -> None:

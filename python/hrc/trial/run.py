@@ -215,7 +215,8 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
                 failed = dead[0]
                 failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
                 if stopped:
-                    failed, failure = stopped[0], not_responding(stopped[0])
+                    failed = stopped[0]
+                    failure = not_responding(failed, how=group.halt_of(failed))
                 # the run's end names the cause, and every service writes its files with it
                 _end_run(group, watcher, failure, failed)
                 break
@@ -252,7 +253,7 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
         ):
             # stopped at the end of a run that did not name it (it wrote none of its last files)
             failed = stopped[0]
-            failure = not_responding(failed, " at the run's end")
+            failure = not_responding(failed, " at the run's end", group.halt_of(failed))
         if not failed:
             bad = [n for n in service_table.names() if status.get(n) not in (0, None)]
             if end is not None and not end.ok:
