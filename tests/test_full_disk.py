@@ -1,7 +1,13 @@
-"""A trial whose output folder fills up: hrc run says "no space left on <folder>" (exit 3, no
-traceback of its own), and everything written so far stays readable (whole JSON lines, the
-recording up to its last complete message), with no temporary file left. The folder is a 1 MiB
-tmpfs in a mount namespace of the test's own (needs root, or user namespaces)."""
+"""A trial's disk, small or filling up (hrc.diskspace.SpaceGuard):
+
+- a folder with too little room is refused before the start, naming the figures;
+- a disk that fills during a trial (the trial's own writing, lockstep; another process's,
+  realtime) stops it within a second of reaching the margin, naming the disk (exit 3), and
+  every record is whole: metrics.json written (room was kept aside for it), every line of
+  events.jsonl a JSON object, log.txt's last line the end, the recording read by rerun.
+
+The folder is a small tmpfs in a mount namespace of the test's own (needs root, or user
+namespaces)."""
 
 from __future__ import annotations
 
@@ -10,13 +16,18 @@ import os
 import shutil
 import subprocess
 import sys
+from datetime import datetime
 from pathlib import Path
 
 import pytest
 
+from hrc import diskspace
+
 from .conftest import HRC, ROOT
 
+pytestmark = [pytest.mark.e2e]
 THESIS = ROOT / "scenarios" / "thesis.toml"
+MIB = 1024 * 1024
 
 
 def _unshare() -> list[str]:
@@ -27,13 +38,13 @@ def _unshare() -> list[str]:
     )
 
 
-def test_a_full_disk_ends_the_trial_saying_so_and_keeps_what_was_written(tmp_path) -> None:
-    small, copy = tmp_path / "small", tmp_path / "copy"
+def _in_tmpfs(small: Path, copy: Path, size_mib: float, body: str) -> subprocess.CompletedProcess:
+    """Runs the shell ``body`` with a tmpfs of ``size_mib`` mounted on ``small``; what it holds
+    is copied to ``copy`` before the namespace (and the tmpfs) goes."""
     small.mkdir()
-    # the tmpfs goes with the namespace: what the trial wrote is copied out before
     script = (
-        f"mount -t tmpfs -o size=1m none {small} || exit 97; "
-        f"{HRC} run {THESIS} --out {small}/t; rc=$?; cp -a {small}/t {copy}; exit $rc"
+        f"mount -t tmpfs -o size={int(size_mib * 1024)}k none {small} || exit 97; "
+        f"{body}; rc=$?; cp -a {small}/t {copy} 2>/dev/null; exit $rc"
     )
     proc = subprocess.run(
         [*_unshare(), "sh", "-c", script],
@@ -45,25 +56,92 @@ def test_a_full_disk_ends_the_trial_saying_so_and_keeps_what_was_written(tmp_pat
     if proc.returncode == 97:
         pytest.skip(f"cannot mount a tmpfs here: {proc.stderr.strip()}")
     sys.stderr.write(proc.stderr[-2000:])
-    assert proc.returncode == 3, proc.stderr[-3000:]
-    failed = [ln for ln in proc.stderr.splitlines() if ln.startswith("trial FAILED")]
-    assert failed and f"no space left on {small}/t" in failed[0], proc.stderr[-3000:]
-    assert "Traceback" not in proc.stderr, proc.stderr[-3000:]
-    assert not list(copy.rglob("*.tmp")), sorted(copy.rglob("*"))
-    for jsonl in copy.rglob("*.jsonl"):  # every complete line parses
-        lines = jsonl.read_text().splitlines()
-        for line in lines[:-1]:
+    return proc
+
+
+def _whole_records(copy: Path, small: Path) -> dict:
+    """Every record of a trial stopped for want of space is whole; returns its metrics."""
+    assert not (copy / diskspace.RESERVE_FILE).exists()  # the room kept aside is given back
+    metrics = json.loads((copy / "metrics.json").read_text())
+    run = metrics["run"]
+    assert run["ok"] is False and f"no space left on {small}/t" in run["end_reason"], run
+    for jsonl in copy.rglob("*.jsonl"):  # every line, the last one too
+        for line in jsonl.read_text().splitlines():
             json.loads(line)
-    assert (copy / "log.txt").read_text().startswith("SETTINGS")  # what it holds is readable
-    for js in ("metrics.json", "logger_stats.json"):
-        if (copy / js).exists():
-            json.loads((copy / js).read_text())
-    # the recording reads up to its last complete message (it has no footer: never closed)
-    rrd = copy / "recording.rrd"
-    assert rrd.stat().st_size > 0
+    ends = [
+        json.loads(line)
+        for line in (copy / "events.jsonl").read_text().splitlines()
+        if '"run_end"' in line
+    ]
+    assert ends and "no space left" in ends[-1]["reason"], ends
+    lines = (copy / "log.txt").read_text().splitlines()
+    assert lines[0].startswith("SETTINGS") and "no space left" in lines[-1], lines[-2:]
     rerun = str(Path(sys.executable).with_name("rerun"))
     shown = subprocess.run(
-        [rerun, "rrd", "print", str(rrd)], capture_output=True, text=True, timeout=120
+        [rerun, "rrd", "print", str(copy / "recording.rrd")],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert shown.returncode == 0, shown.stderr[-2000:]
     assert shown.stdout.count("Chunk(") > 10, shown.stdout[-2000:]
+    return metrics
+
+
+def _failed_line(stderr: str) -> str:
+    failed = [ln for ln in stderr.splitlines() if ln.startswith("trial FAILED")]
+    assert failed, stderr[-3000:]
+    assert "Traceback" not in stderr, stderr[-3000:]
+    return failed[0]
+
+
+def test_a_folder_with_too_little_room_is_refused_before_the_start(tmp_path: Path) -> None:
+    small, copy = tmp_path / "small", tmp_path / "copy"
+    proc = _in_tmpfs(small, copy, 2, f"{HRC} run {THESIS} --out {small}/t")
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    need = diskspace.START_BYTES / MIB
+    said = f"free on {small}/t: a trial needs at least {need:.1f} MiB to start"
+    assert said in _failed_line(proc.stderr), proc.stderr[-2000:]
+
+
+def test_a_trial_that_fills_its_disk_is_stopped_with_whole_records(tmp_path: Path) -> None:
+    """Lockstep: the thesis trial writes about 2.2 MB; on 2.6 MiB (0.5 kept aside, a 1 MiB
+    margin) it reaches the margin about half way through."""
+    small, copy = tmp_path / "small", tmp_path / "copy"
+    proc = _in_tmpfs(small, copy, 2.6, f"{HRC} run {THESIS} --out {small}/t")
+    assert proc.returncode == 3, proc.stderr[-3000:]
+    assert f"no space left on {small}/t" in _failed_line(proc.stderr)
+    metrics = _whole_records(copy, small)
+    assert metrics["task"]["finished"] is False, metrics["task"]
+
+
+def test_a_disk_filled_by_another_process_stops_a_realtime_trial_within_a_second(
+    tmp_path: Path,
+) -> None:
+    """Realtime: once the trial runs, another process fills the disk to the margin; the
+    trial's simulated time (which follows the wall clock) ends within a second of it."""
+    small, copy = tmp_path / "small", tmp_path / "copy"
+    log = f"{small}/t/log.txt"
+    body = (
+        f"{HRC} run {THESIS} --out {small}/t --mode realtime & pid=$!; "
+        # the run is on once the logger has written the settings line (at most 60 s)
+        f"n=0; while [ ! -s {log} ] && [ $n -lt 600 ]; do sleep 0.1; n=$((n+1)); done; "
+        "sleep 1; "
+        # fill to 0.5 MiB below the margin, and note the wall clock of it
+        f"free=$(df --output=avail -B1 {small} | tail -1); "
+        f"fill=$(( free - {diskspace.LOW_BYTES} + 512 * 1024 )); "
+        f"head -c $fill /dev/zero > {small}/filler; date +%s.%N > {small}/t/filled_at; "
+        "wait $pid"
+    )
+    proc = _in_tmpfs(small, copy, 6, body)
+    assert proc.returncode == 3, proc.stderr[-3000:]
+    assert f"no space left on {small}/t" in _failed_line(proc.stderr)
+    metrics = _whole_records(copy, small)
+    # hrc run saw the disk at its margin, and asked for the stop, within a second of the fill
+    filled_at = float((copy / "filled_at").read_text())
+    said = [ln for ln in proc.stderr.splitlines() if " hrc ERROR " in ln and "no space" in ln]
+    assert said, proc.stderr[-3000:]
+    stamp = datetime.strptime(said[0][:23], "%Y-%m-%d %H:%M:%S,%f").timestamp()
+    print(f"stop asked {stamp - filled_at:.2f} s after the fill")
+    assert stamp - filled_at < 1.0, (said[0], filled_at)
+    assert metrics["run"]["ticks"] > 0, metrics["run"]  # it was running

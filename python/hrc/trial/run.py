@@ -18,7 +18,7 @@ from hrc import metrics as metrics_schema
 from hrc import service_table
 from hrc.bus import Bus, BusConfig
 from hrc.bus.access import TrialAccess, count_refusals
-from hrc.diskspace import NO_SPACE, low_space
+from hrc.diskspace import NO_SPACE, SpaceGuard, low_space
 from hrc.paths import build_dir
 from hrc.ports import free_port, release_port
 from hrc.service_table import EXPERIMENTER
@@ -75,12 +75,13 @@ class _EndWatcher:
         except Exception as exc:  # a nicety: never the watcher's end
             log.debug("after run/end: %s", exc)
 
-    def stop_run(self, reason: str, failed_service: str = "") -> None:
+    def stop_run(self, reason: str, failed_service: str = "", abort: bool = False) -> None:
         """Asks the clock master to end the run, with ``reason``: as a normal stop, or (with
-        ``failed_service``) as a failure of that service, which hrc run saw end or stop. Every
-        service then writes its files as at any end (metrics.json among them)."""
+        ``failed_service``) as a failure of that service, which hrc run saw end or stop, or
+        (``abort``) as a failure of no service (the disk). Every service then writes its files
+        as at any end (metrics.json among them)."""
         ctl = pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason=reason)
-        if failed_service:
+        if failed_service or abort:
             ctl.command = pb.RunControl.COMMAND_ABORT
             ctl.failed_service = failed_service
         keys = self.bus.keys
@@ -106,12 +107,16 @@ def _phases(phases: Phases, t0: float, group: ServiceGroup, watcher: _EndWatcher
     return phases
 
 
-def _watch(group: ServiceGroup, console: LiveConsole | None) -> None:
-    """Until a service exits: refreshes the live console (the loop below judges the exit)."""
+def _watch(group: ServiceGroup, console: LiveConsole | None, guard: SpaceGuard) -> str | None:
+    """Until a service exits (the loop below judges the exit), or the trial's disk is all but
+    full (returns why): refreshes the live console, watches the disk."""
     while all(rc is None for rc in group.poll().values()):
         if console is not None:
             console.update()
+        if guard.full is not None:
+            return guard.full
         time.sleep(0.05)
+    return None
 
 
 def _interrupted(group: ServiceGroup, watcher: _EndWatcher | None, exc: BaseException) -> None:
@@ -122,7 +127,11 @@ def _interrupted(group: ServiceGroup, watcher: _EndWatcher | None, exc: BaseExce
 
 
 def _end_run(
-    group: ServiceGroup, watcher: _EndWatcher | None, reason: str, failed_service: str = ""
+    group: ServiceGroup,
+    watcher: _EndWatcher | None,
+    reason: str,
+    failed_service: str = "",
+    abort: bool = False,
 ) -> None:
     """Ends the run over the bus (see :meth:`_EndWatcher.stop_run`) and gives the services
     INTERRUPT_LEAVE_S to write their files and leave (a stopped one is not waited for); the
@@ -130,7 +139,7 @@ def _end_run(
     if watcher is None or watcher.end is not None:
         return
     try:
-        watcher.stop_run(reason, failed_service)
+        watcher.stop_run(reason, failed_service, abort)
     except Exception as err:  # the bus is gone: the services are stopped as before
         log.debug("could not ask for the run's end: %s", err)
         return
@@ -162,10 +171,14 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
             )
     if (warning := low_space(trial_dir)) is not None:
         log.warning("%s", warning)
+    guard = SpaceGuard(trial_dir)
     try:
         trial_dir.mkdir(parents=True, exist_ok=True)
+        if (no_room := guard.start()) is not None:
+            return TrialResult(False, 2, trial_dir, no_room)
         group = ServiceGroup(trial_dir)
     except OSError as exc:
+        guard.release()
         return TrialResult(False, 2, trial_dir, f"cannot write to {trial_dir}: {exc.strerror}")
     watcher: _EndWatcher | None = None
     console: LiveConsole | None = None
@@ -179,6 +192,7 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
         for name in service_table.names():
             argv = service_argv(name, opts, session, port, trial_dir, sock, lowlatency, access)
             group.start(name, argv, service_table.service(name).module)
+        guard.watch()  # (a thread: after the forks)
         time.sleep(0.2)
         try:
             watcher = _EndWatcher(session, port, access, on_end=group.lift_observers)
@@ -189,10 +203,14 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
         failed = ""
         failure = ""
         try:
-            _watch(group, console)
+            disk = _watch(group, console, guard)
         except (KeyboardInterrupt, Terminated) as exc:
             _interrupted(group, watcher, exc)
             raise
+        if disk is not None:
+            # the room kept aside is given back; every service writes its last files
+            log.error("%s", disk)
+            _end_run(group, watcher, disk, abort=True)
         while True:
             status = group.poll()
             dead = [n for n, rc in status.items() if rc is not None and rc != 0 and n != master]
@@ -266,6 +284,8 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
         if full is not None:
             failed = full
             failure = f"no space left on {trial_dir} (service '{full}' could not write its files)"
+        if disk is not None:  # the cause of whatever the services said after it
+            return TrialResult(False, 3, trial_dir, disk, "", end, wall)
         if failed:
             detail = group.tail(failed)
             if full is not None:  # the one line that says it, not a traceback
@@ -277,6 +297,8 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
             return TrialResult(False, 3, trial_dir, msg, failed, end, wall)
         return TrialResult(True, 0, trial_dir, "trial completed", "", end, wall)
     finally:
+        guard.stop()
+        guard.release()
         if console is not None:
             end = watcher.end if watcher is not None else None
             console.close(end.reason if end is not None else "")
