@@ -204,7 +204,12 @@ def test_a_frozen_service_is_named_and_hrc_run_returns_while_it_is_frozen(
         print(f"{victim} frozen: hrc run returned {elapsed:.1f} s after, code {code}")
     assert code != 0, err[-3000:]
     _named_everywhere(trial.out, victim, err, words)
-    assert elapsed < RETURN_S, f"hrc run took {elapsed:.1f} s"
+    # physics: the others leave after its link's lease (10 s) and hrc run judges then, as for a
+    # stopped physics (12-13 s); freezing every thread of a process, and then judging and
+    # ending a trial whose router is frozen, takes the kernel and hrc run 1-3 s more on a
+    # loaded machine (13.5-16.8 s measured beside a full test run)
+    limit = RETURN_S + 3.0 if victim == "physics" else RETURN_S
+    assert elapsed < limit, f"hrc run took {elapsed:.1f} s"
     assert wait_until(lambda: all(_gone(p) for p in pids.values()), 10, 0.1), (
         f"processes left after the thaw: {[n for n, p in pids.items() if not _gone(p)]}"
     )

@@ -305,7 +305,11 @@ class ServiceGroup:
                 priority.leave_idle(p.pid)  # the logger: else it may get no CPU to stop
                 p.send_signal(signal.SIGTERM)
         deadline = time.monotonic() + grace_s
-        while any(r is None for r in self.poll().values()) and time.monotonic() < deadline:
+        # a frozen process (killed above) leaves only when thawed: not waited for
+        held = {n for n, p in self.procs.items() if p.returncode is None and frozen(p.pid)}
+        while time.monotonic() < deadline and any(
+            r is None for n, r in self.poll().items() if n not in held
+        ):
             time.sleep(0.01)
         for name, p in self.procs.items():
             if p.poll() is None:
