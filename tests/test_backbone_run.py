@@ -48,7 +48,7 @@ def test_the_five_services_are_separate_processes_that_all_take_part(trial_facto
     code, _out, err = trial.communicate()
     assert code == 0, err
     m = json.loads((trial.out / "metrics.json").read_text())
-    assert m["run"]["ticks"] > 0 and "stopped by tester" in m["run"]["end_reason"]
+    assert m["run"]["ticks"] > 0 and "stopped by experimenter" in m["run"]["end_reason"]
 
 
 def test_an_idle_trial_sends_states_only_as_one_keyframe_per_simulated_second(

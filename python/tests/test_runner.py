@@ -95,7 +95,8 @@ def test_a_trials_private_folder_holds_its_socket_and_credentials(tmp_path, monk
         if s["id"] in p["subjects"] and len(s["usernames"]) == 1
         for u in s["usernames"]
     }
-    assert putters["experimenter"] == ["hrc/s1/run/control/experimenter"]
+    # (and acks: a tool joining as an extra observer)
+    assert putters["experimenter"] == ["hrc/s1/clock/ack/*", "hrc/s1/run/control/experimenter"]
     assert putters["logger"] == ["hrc/s1/clock/ack/logger"]
     assert "physics" not in putters  # physics's own puts never come in: nobody may make them
     assert "access_control" not in json.loads(a.config("logger").read_text())

@@ -288,6 +288,13 @@ def router_acl(session: str, users: Iterable[str], separate: bool = False) -> di
         if user in service_names():
             rules.append(_rule(f"tok{n}", ["ingress"], ["liveliness_token"], [keys.alive(user)]))
             mine.append(f"tok{n}")
+        elif user == EXPERIMENTER:
+            # A tool may join as an extra observer (a token, acks in the clock's window). The
+            # experimenter is the user who ran the trial and holds every service's credentials
+            # anyway: its rights are for tools, the boundary is around the services'.
+            rules.append(_rule(f"tok{n}", ["ingress"], ["liveliness_token"], [keys.alive_all()]))
+            rules.append(_rule(f"ack{n}", ["ingress"], ["put"], [keys.clock_acks()]))
+            mine += [f"tok{n}", f"ack{n}"]
         if mine:
             subjects.append({"id": f"u{n}", "usernames": [user]})
             policies.append({"rules": mine, "subjects": [f"u{n}"]})
