@@ -47,10 +47,11 @@ def exposed(folder: Path) -> str | None:
     """Why participant data written into ``folder`` would be open to other users, or None:
     the folder exists and others may list or enter it (a folder hrc makes is private)."""
     try:
-        mode = stat.S_IMODE(folder.stat().st_mode)
+        st = folder.stat()
     except OSError:
         return None  # made by hrc with the mask: private
-    if not stat.S_ISDIR(folder.stat().st_mode) or not mode & 0o007:
+    mode = stat.S_IMODE(st.st_mode)
+    if not stat.S_ISDIR(st.st_mode) or not mode & 0o007:
         return None
     return (
         f"{folder} is open to other users (mode {mode:04o}): participant data in it may be "

@@ -42,12 +42,11 @@ MODES: dict[str, pb.ClockMode.ValueType] = {
 }
 
 
-def control_problem(key: str, ctl: pb.RunControl) -> str | None:
-    """Why a stop or abort on ``key`` (``run/control/<sender>``) is refused, or None. The key is
-    the proof of who sent it (the router lets only ``<sender>`` put on it: hrc.bus.access), so
-    the header must name the same sender; and only the experimenter (``hrc run``, the judge of
-    processes) may blame another service."""
-    owner = key.rsplit("/", 1)[-1]
+def control_problem(owner: str, ctl: pb.RunControl) -> str | None:
+    """Why a stop or abort on ``owner``'s key (``run/control/<owner>``) is refused, or None. The
+    key is the proof of who sent it (the router lets only ``<owner>`` put on it:
+    hrc.bus.access), so the header must name the same sender; and only the experimenter (``hrc
+    run``, the judge of processes) may blame another service."""
     claimed = ctl.header.sender
     if claimed != owner:
         return f"a run control on {owner!r}'s key claims to come from {claimed!r}"
@@ -254,11 +253,12 @@ class ClockMaster:
 
     def _on_abort(self, key: str, ctl: pb.RunControl) -> None:
         # (a forged one is counted once, when the inbox hands it over)
-        if ctl.command == pb.RunControl.COMMAND_ABORT and control_problem(key, ctl) is None:
+        owner = self.bus.keys.last_segment(key)
+        if ctl.command == pb.RunControl.COMMAND_ABORT and control_problem(owner, ctl) is None:
             self._on_control(key, ctl)
 
     def _on_control(self, key: str, ctl: pb.RunControl) -> None:
-        problem = control_problem(key, ctl)
+        problem = control_problem(self.bus.keys.last_segment(key), ctl)
         if problem is not None:
             self.bus.reject(key, ctl.header.sender, problem)
             return
