@@ -6,9 +6,12 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import signal
 import stat
+import tempfile
 import time
+from pathlib import Path
 
 import pytest
 
@@ -33,12 +36,16 @@ def test_killing_a_service_ends_the_run_naming_it(trial_factory, victim: str) ->
 
 
 def test_killing_hrc_run_itself_ends_every_service_keeping_metrics_and_its_folder_goes(
-    trial_factory,
+    trial_factory, monkeypatch
 ) -> None:
     """SIGKILL of ``hrc run`` (nothing of it can clean up): its services end, the orchestrator
     still writes metrics.json, and the trial's private folder (socket, credentials) is removed
-    by the next run."""
-    trial = trial_factory()
+    by the next run. The trial keeps its folders in a temporary folder of its own (TMPDIR): any
+    other ``hrc run`` on the machine (another test worker's) would be that next run, at any
+    moment."""
+    private = Path(tempfile.mkdtemp(prefix="hrc-kill-"))  # short: the socket's path must fit
+    monkeypatch.setattr(tempfile, "tempdir", str(private))
+    trial = trial_factory(env={"TMPDIR": str(private)})
     trial.wait_ticking()
     pids = trial.service_pids()
     config = access.tool_config(trial.session)
@@ -64,3 +71,4 @@ def test_killing_hrc_run_itself_ends_every_service_keeping_metrics_and_its_folde
     assert nxt is not None
     nxt.remove()
     assert not folder.exists()
+    shutil.rmtree(private, ignore_errors=True)
