@@ -40,11 +40,6 @@ ALONE = (
     "tests/test_real_robot_page.py",
     "tests/test_vr_physics.py",
     "tests/test_human_input_vr.py",
-    # a deployed session (process-compose, its readiness probes a new Python process every few
-    # seconds) with an intruder, lockstep: beside another worker's trials its logger, at
-    # SCHED_IDLE, was starved of the CPU for 10 s and the run failed naming it (see
-    # docs/ARCHITECTURE.md, "Observers never hold the clock")
-    "tests/test_deploy_session.py",
 )
 PHASES = ("alone", "parallel")
 

@@ -24,19 +24,27 @@ tick to every service and their acks, nothing computed); per board ``floor_cpu_r
 ratio the trial would have if every service's own work cost nothing: (start-up + exchanges x
 bare exchange + raw physics) / raw physics.
 
+And ``busy``: the thesis trial again beside one busy process per core (a build, another trial):
+its run phase (``run_wall_s``, ``realtime_factor``) and ``slowdown``, its run-phase wall over the
+quiet run's. An observer that got no CPU at all there (the logger under SCHED_IDLE in lockstep)
+held the clock to its window: 20x slower, 2026-11-29.
+
 Figures only, never asserted (the machine's load moves them; CPU seconds move least).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import os
 import re
 import resource
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -156,6 +164,32 @@ def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> di
 FLOOR_TICKS = 2000
 
 
+@contextlib.contextmanager
+def busy_cores() -> Iterator[int]:
+    """One process per core that only spins (at the normal priority) for the block."""
+    n = len(os.sched_getaffinity(0))
+    hogs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    try:
+        yield n
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+
+
+def measure_busy(scenario: Path, out: Path, quiet: dict[str, Any]) -> dict[str, Any]:
+    """The trial again beside a busy process per core: its run phase, and how much slower."""
+    with busy_cores() as n:
+        hrc_run(scenario, out, [])
+    run = json.loads((out / "metrics.json").read_text())["run"]
+    return {
+        "busy_processes": n,
+        "run_wall_s": round(run["wall_s"], 3),
+        "realtime_factor": round(run["realtime_factor"], 2),
+        "slowdown": round(run["wall_s"] / quiet["run_wall_s"], 2),
+    }
+
+
 def measure_floor(empty: Path, tmpdir: Path) -> dict[str, float]:
     """Start-up and one bare exchange, from two runs of the one-tick empty scenario."""
     _wall, startup = hrc_run(empty, tmpdir / "floor-start", ["--ticks", "10"])
@@ -191,6 +225,7 @@ def run(args: argparse.Namespace) -> int:
         for f in figures.values():
             f["floor_cpu_ratio"] = floor_ratio(f, floor)
         figures["floor"] = floor
+        figures["busy"] = measure_busy(root / THESIS, tmpdir / "thesis-busy", thesis)
     if getattr(args, "json", False):
         print(json.dumps(figures))
         return 0
@@ -198,8 +233,13 @@ def run(args: argparse.Namespace) -> int:
         f"floor: start-up {floor['startup_cpu_s']} CPU-s, a bare exchange "
         f"{floor['bare_exchange_cpu_us']} CPU-us (every service, nothing computed)"
     )
+    busy = figures["busy"]
+    print(
+        f"thesis beside {busy['busy_processes']} busy processes: run phase {busy['run_wall_s']} s "
+        f"= {busy['realtime_factor']}x real time, {busy['slowdown']}x the quiet run's"
+    )
     for name, f in figures.items():
-        if name == "floor":
+        if name in ("floor", "busy"):
             continue
         print(
             f"{name}: {f['ticks']} ticks ({f['sim_s']} s simulated) in {f['exchanges']} exchanges"

@@ -89,6 +89,7 @@ class Observer(ClockFollower):
         self._ack_pub: Publisher[pb.TickAck] | None = None
         self._acked = -OBSERVER_ACK_TICKS  # the newest tick acknowledged
         self._tail_deadline: float | None = None  # when to stop waiting for the last ticks
+        self.mode: int | None = None  # the clock's mode (pb.ClockMode), from the first tick handled
 
     def input(
         self,
@@ -173,6 +174,7 @@ class Observer(ClockFollower):
         return True
 
     def _tick_ready(self, tick: pb.ClockTick, arrived: float) -> None:
+        self.mode = tick.mode
         with self._cond:
             latest = self._latest_seen
         self.lag.add(latest - tick.header.tick, time.perf_counter() - arrived)

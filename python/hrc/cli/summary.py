@@ -64,7 +64,7 @@ def format_summary(m: pb.Metrics, logger: dict[str, Any] | None = None) -> list[
         f"{_f(_opt(run, 'realtime_factor'), 'x realtime', 1)}"
     )
     if logger:
-        # The logger only gets CPU time nobody else wants (SCHED_IDLE) and catches up at the end.
+        # The logger runs at a lower priority during the run and catches up at the end.
         lines.append(
             f"logger lag          mean {_f(logger.get('lag_mean_ticks'), ' ticks', 1)}, "
             f"max {logger.get('lag_max_ticks', '-')} ticks (it yields the CPU, then "

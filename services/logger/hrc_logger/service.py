@@ -120,8 +120,9 @@ class LoggerService(Service):
             "--sched",
             choices=["idle", "nice", "normal"],
             default="idle",
-            help="CPU priority of this observer: idle (Linux SCHED_IDLE: only CPU time "
-            "nobody else wants; the default), nice (--nice added), normal",
+            help="CPU priority of this observer during the run: idle (Linux SCHED_IDLE: only "
+            "CPU time nobody else wants; in lockstep, where the clock waits for the observer, "
+            "--nice instead; the default), nice (--nice added), normal",
         )
         p.add_argument(
             "--nice", type=int, default=10, help="niceness added with --sched nice (default 10)"
@@ -229,10 +230,14 @@ class LoggerService(Service):
             self._view_ready.set()
 
     def _priority(self) -> None:
-        """An observer must never slow the co-simulation down: once the run is on (our first
-        message or tick comes after the token), every thread but the view's set-up gets
-        ``--sched``'s priority (the barrier's participants get the CPU first; the lag behind
-        the clock is measured and reported instead). Not before: at SCHED_IDLE the start-up
+        """An observer must never slow the co-simulation down: once the run is on (the first
+        tick we handle, whose mode we then know), every thread but the view's set-up gets a
+        lower priority. In realtime ``--sched``'s (the barrier's participants get the CPU
+        first; the lag behind the clock is measured and reported instead). In lockstep
+        ``idle`` means niceness ``--nice`` instead: the clock waits for our acks (a window of
+        ticks), so under SCHED_IDLE beside busy processes (another trial, a build) no thread
+        of ours, Zenoh's included, got the CPU for 10 s and the run failed naming us; a nice
+        thread still gets a share. Not before the run: at a lower priority the start-up
         (imports, zenoh's session, the token) waited for CPU the other services were using
         while they waited for our token (seconds on a busy machine). Once the run is over
         nobody waits on our account: catch up at the normal priority (hrc run waits for our
@@ -240,12 +245,16 @@ class LoggerService(Service):
         obs = self.observer
         ended = obs is not None and obs.ended
         if not self._priority_set:
+            mode = obs.mode if obs is not None else None
+            if mode is None and not ended:
+                return  # no tick handled yet: decide with the first one
             self._priority_set = True
             if not ended:
+                sched = self.args.sched
+                if sched == "idle" and mode == pb.CLOCK_MODE_LOCKSTEP:
+                    sched = "nice"
                 view = self._view_thread.native_id if self._view_thread.is_alive() else None
-                self._lowered = lower_priority(
-                    self.args.sched, self.args.nice, {view} if view else set()
-                )
+                self._lowered = lower_priority(sched, self.args.nice, {view} if view else set())
         elif self._lowered and ended:
             self._lowered = False
             leave_idle()
