@@ -44,6 +44,9 @@ CPP_TARGETS=()  # empty: all
 # --- pins -------------------------------------------------------------------
 PIP_VERSION="25.1.1"
 SETUPTOOLS_VERSION="80.9.0"
+# uv installs requirements.lock into the venv: seconds from its cache outside the clone (pip
+# took ~45 s on a fresh clone, most of it resolving and unpacking what it had cached).
+UV_VERSION="0.13.8"
 MIN_PYTHON="3.11"
 # The Rust crate pins zenoh =1.10.2 (rust-version 1.75); its Cargo.lock pulls
 # crates (uuid 1.29, time 0.3.55, darling 0.24, ...) that need rustc >= 1.89.
@@ -297,7 +300,7 @@ done
 # and the entry points exist, nothing is installed.
 venv_stamp() {
   {
-    echo "pip=$PIP_VERSION setuptools=$SETUPTOOLS_VERSION"
+    echo "pip=$PIP_VERSION setuptools=$SETUPTOOLS_VERSION uv=$UV_VERSION"
     "$VPY" -c 'import sys; print(sys.version)'
     sha256sum requirements.lock
     local e
@@ -320,9 +323,13 @@ if [ "$created" = 0 ] && [ -f "$STAMP_FILE" ] && [ "$(cat "$STAMP_FILE")" = "$wa
   done_step "up to date (${#EDITABLES[@]} project packages)"
 else
   rm -f "$STAMP_FILE"
-  export PIP_DISABLE_PIP_VERSION_CHECK=1
-  run_logged pip-bootstrap "$VPY" -m pip install -q "pip==$PIP_VERSION" "setuptools==$SETUPTOOLS_VERSION"
-  run_logged pip-requirements "$VPY" -m pip install -q -r requirements.lock
+  export PIP_DISABLE_PIP_VERSION_CHECK=1 PIP_CACHE_DIR="$HRC_CACHE/pip"
+  run_logged pip-bootstrap "$VPY" -m pip install -q "pip==$PIP_VERSION" \
+    "setuptools==$SETUPTOOLS_VERSION" "uv==$UV_VERSION"
+  # uv: the system's CA bundle (as pip), never a Python of its own, its cache outside the clone.
+  export UV_CACHE_DIR="$HRC_CACHE/uv" UV_NATIVE_TLS=1 UV_PYTHON_DOWNLOADS=never UV_NO_PROGRESS=1
+  UV=("$VENV/bin/uv" pip install --python "$VPY")
+  run_logged pip-requirements "${UV[@]}" -r requirements.lock
   # setuptools-backed packages build without isolation (fast, offline, uses the
   # pinned setuptools); any other backend gets pip's isolated build.
   backends_txt="$("$VPY" - "${EDITABLES[@]}" <<'PYEOF'
@@ -340,10 +347,10 @@ PYEOF
     if [ "$kind" = st ]; then st_args+=(-e "$dir"); else other+=("$dir"); fi
   done
   if [ "${#st_args[@]}" -gt 0 ]; then
-    run_logged pip-editable "$VPY" -m pip install -q --no-build-isolation "${st_args[@]}"
+    run_logged pip-editable "${UV[@]}" --no-build-isolation "${st_args[@]}"
   fi
   for dir in "${other[@]}"; do
-    run_logged "pip-editable-$(basename "$dir")" "$VPY" -m pip install -q -e "$dir"
+    run_logged "pip-editable-$(basename "$dir")" "${UV[@]}" -e "$dir"
   done
   [ -x "$VENV/bin/hrc" ] || die "the hrc entry point is missing after installing python/ (check python/pyproject.toml)"
   if ! "$VPY" -m pip check >"$LOG_DIR/pip-check.log" 2>&1; then

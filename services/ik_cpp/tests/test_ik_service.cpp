@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "hrc/ik_service.hpp"
+#include "robots_dir.hpp"
 #include "test_util.hpp"
 
 namespace {
@@ -16,7 +17,7 @@ namespace {
 using hrc::v2::RobotCommand;
 using hrc::v2::RobotState;
 
-const std::string kArm5 = std::string(HRC_ROBOTS_DIR) + "/arm5.urdf";
+const std::string kArm5 = hrc::testing::robots_dir() + "/arm5.urdf";
 constexpr double kDt = 1.0 / 240.0;
 
 // The two robots of scenarios/minimal.toml.

@@ -2,6 +2,7 @@
 #include "hrc/kin/baselines.hpp"
 #include "hrc/kin/ik.hpp"
 #include "hrc/kin/kinematics.hpp"
+#include "robots_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +12,7 @@
 using namespace hrc::kin;
 
 namespace {
-const std::string kDir = HRC_KIN_ROBOTS_DIR;
+const std::string kDir = hrc::testing::robots_dir();
 constexpr double kPos = 1e-4;              // 0.1 mm
 constexpr double kAng = 0.1 * M_PI / 180;  // 0.1 deg
 

@@ -3,6 +3,7 @@
 // it ends in exactly the configuration the undisturbed move ends in (docs/task-semantics.md,
 // "Interruptions"). Also when interruptions nest.
 #include "hrc/kin/motion.hpp"
+#include "robots_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +12,7 @@
 using namespace hrc::kin;
 
 namespace {
-const std::string kDir = HRC_KIN_ROBOTS_DIR;
+const std::string kDir = hrc::testing::robots_dir();
 constexpr double kDt = 1.0 / 240.0;
 
 Eigen::Isometry3d base_r1() {

@@ -1,6 +1,7 @@
 // URDF loading and forward kinematics against hand-computed values.
 #include "hrc/kin/kinematics.hpp"
 #include "hrc/kin/robot_model.hpp"
+#include "robots_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +12,7 @@
 using namespace hrc::kin;
 
 namespace {
-const std::string kDir = HRC_KIN_ROBOTS_DIR;
+const std::string kDir = hrc::testing::robots_dir();
 
 // Independent standard-DH product for the UR5: T = prod Rz(q) Tz(d) Tx(a) Rx(alpha).
 Eigen::Isometry3d ur5_dh(const Eigen::VectorXd& q) {

@@ -1,6 +1,7 @@
 // Motion generator: straight lines, speed cap, approach/depart, retarget blending, hold,
 // unreachable targets, joint velocity limits.
 #include "hrc/kin/motion.hpp"
+#include "robots_dir.hpp"
 
 #include <gtest/gtest.h>
 
@@ -9,7 +10,7 @@
 using namespace hrc::kin;
 
 namespace {
-const std::string kDir = HRC_KIN_ROBOTS_DIR;
+const std::string kDir = hrc::testing::robots_dir();
 
 Eigen::Isometry3d base_r1() {
   Eigen::Isometry3d T = Eigen::Isometry3d::Identity();

@@ -7,11 +7,12 @@
 #include <vector>
 
 #include "hrc/kin/motion.hpp"
+#include "robots_dir.hpp"
 
 using namespace hrc::kin;
 
 namespace {
-const std::string kDir = HRC_KIN_ROBOTS_DIR;
+const std::string kDir = hrc::testing::robots_dir();
 constexpr double kDt = 1.0 / 240.0;
 
 Eigen::Isometry3d base_r1() {
