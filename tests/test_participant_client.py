@@ -27,6 +27,7 @@ import pytest
 from .conftest import wait_until
 from .participant_page import (
     MINIMAL,
+    PAGE_FPS,
     VIEWPORT,
     Live,
     Page,
@@ -65,6 +66,11 @@ def test_desktop_page_completes_the_minimal_task(
     assert "part_placed:H1" in page.state()["events"]
     sounds = page.page.evaluate("window.hrcAudioLog")
     assert [a["sound"] for a in sounds if a["cause"] == "part_placed:H1"] == ["chime"], sounds
+    # the page drew at most `fps` frames a second (tests/participant_page.py: PAGE_FPS)
+    if PAGE_FPS:
+        gaps = page.page.evaluate("window.hrcTest.frameTimes().intervals")
+        assert len(gaps) >= 5, gaps
+        assert min(gaps) >= 1000 / PAGE_FPS - 3, f"frames closer than fps={PAGE_FPS} allows: {gaps}"
     assert not page.errors, page.errors
 
 

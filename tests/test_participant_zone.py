@@ -35,6 +35,7 @@ from .participant_page import (
     live,
     metrics,
     place_part,
+    rendered_frames,
 )
 from .test_participant_client import hex_rgb, looks_like
 from hrc_human_input.stream import ClientView, WorldMirror, frame_json
@@ -172,8 +173,10 @@ def test_the_page_draws_r1s_zone_red_when_the_hand_stops_it(
     s = page.state()
     zone = s["robots"]["r1"]["zone"]
     tcp = s["robots"]["r1"]["tcp"]
+    rendered_frames(page)  # the state on screen (the page draws a few frames a second)
     with_zone = page.screenshot("ssm-zone.png")
     page.page.evaluate("window.hrcTest.showZones(false)")
+    rendered_frames(page)
     without = page.screenshot("ssm-zone-hidden.png")
     page.page.evaluate("window.hrcTest.showZones(true)")
 

@@ -41,6 +41,10 @@ function standParam() {
   return xy;
 }
 
+// Frames drawn per second at most outside a headset (0: every frame the browser offers). A page
+// beside the trial on one machine (the experimenter's spectator view, software WebGL) then
+// leaves the CPU to the trial. In a headset every frame is drawn: the headset shows what it gets.
+const MAX_FPS = numberParam('fps', 0, 1, 240);
 const KEEPALIVE_MS = 500; // an unchanged sample is still sent this often
 const OVER = new Set(['finished', 'stopped', 'failed']); // the trial is over
 const END_TEXT = {
@@ -453,6 +457,9 @@ class App {
 
   onFrame(t, frame) {
     const now = performance.now();
+    // (2 ms early: the browser's frames come a little before or after their period)
+    if (MAX_FPS && this.lastFrameAt !== undefined && !this.renderer.xr.isPresenting
+        && now - this.lastFrameAt < 1000 / MAX_FPS - 2) return;
     if (this.lastFrameAt !== undefined) {
       this.frameMs.push(now - this.lastFrameAt);
       if (this.frameMs.length > 2000) this.frameMs.shift();
