@@ -326,6 +326,9 @@ def test_reopening_the_participants_tab_gives_it_the_driver_role_back(
     page.height_to(0.15)
     page.move_over(-0.05, -0.25)  # carried half-way, then the tab is closed
     held = page.state()["hands"][page.state()["active_hand"]]["p"]
+    # the page sends its hands with its frames: two more samples, and the bridge has this one
+    sent = page.state()["sent"]
+    page.wait("the hand's place sent", lambda s: s["sent"] >= sent + 2, 20)
     page.close()
     # the part is let go where the hand held it, never carried off to a rest point
     watcher.wait("H1 let go", lambda s: s["objects"]["H1"]["holder"] == "", 20)
