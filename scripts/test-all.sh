@@ -14,15 +14,13 @@
 # time (they must have the machine to themselves), then every other test in HRC_TEST_WORKERS
 # parallel workers (pytest-xdist; default 2, one per core of the CI machine), handed one test at
 # a time, the longest first. HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the
-# same order. Each phase prints its 30 slowest tests. HRC_TEST_OVERLAP=1 runs the two phases at
-# the same time (the live tests' output is shown when they are done).
+# same order. Each phase prints its 30 slowest tests.
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 JOBS="${HRC_JOBS:-2}"
 WORKERS="${HRC_TEST_WORKERS:-2}"
-OVERLAP="${HRC_TEST_OVERLAP:-0}"
 LOG_DIR="$ROOT/build/test-logs"
 
 echo "[test-all] setup"
@@ -66,28 +64,7 @@ run_pytest() {
   return 0
 }
 ran_tests=0
-if [ "$WORKERS" -gt 0 ] && [ "$OVERLAP" = 1 ]; then
-  # Both phases at once: the live tests' log is shown when they are done (not interleaved).
-  alone_log="$LOG_DIR/pytest-alone.log"
-  echo "[test-all] pytest (live trials with a browser, one at a time, beside the rest;" \
-    "output when done: $alone_log)"
-  # (a session of its own: stopped with all its trials and browsers if we end first)
-  HRC_TEST_PHASE=alone setsid "$ROOT/.venv/bin/python" -m pytest --durations=30 "$@" \
-    >"$alone_log" 2>&1 &
-  alone_pid=$!
-  trap 'kill -TERM -- "-$alone_pid" 2>/dev/null || true' EXIT
-  HRC_TEST_PHASE=parallel run_pytest "the rest, $WORKERS workers" \
-    -n "$WORKERS" --dist load --maxschedchunk 1 "$@"
-  alone_rc=0
-  wait "$alone_pid" || alone_rc=$?
-  echo "[test-all] pytest (live trials with a browser): its output"
-  tee -a "$LOG_DIR/pytest.log" <"$alone_log"
-  case "$alone_rc" in
-    0) ran_tests=1 ;;
-    5) ;;
-    *) failed+=("pytest, live trials with a browser (exit $alone_rc)") ;;
-  esac
-elif [ "$WORKERS" -gt 0 ]; then
+if [ "$WORKERS" -gt 0 ]; then
   HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" "$@"
   HRC_TEST_PHASE=parallel run_pytest "the rest, $WORKERS workers" \
     -n "$WORKERS" --dist load --maxschedchunk 1 "$@"
