@@ -200,6 +200,15 @@ def test_a_real_router_drops_every_put_by_a_non_owner_wildcards_included(tmp_pat
         sub = reader.declare_subscriber(
             "hrc/s1/**", lambda s: got.append((str(s.key_expr), s.payload.to_bytes()))
         )
+        # the router learns of the subscription a moment later (seconds on a loaded machine):
+        # an owner's probe arrives once it has, and only then do the forgers begin
+        clock_owner = sessions[service_table.CLOCK_MASTER]
+
+        def probed() -> bool:
+            clock_owner.put("hrc/s1/clock", b"probe")
+            return any(g[1] == b"probe" for g in got)
+
+        assert wait_until(probed, 30, 0.2), "the reader's subscription never reached the router"
         owners = access.publishers(access.Keys("s1"))
         sent_ok: set[tuple[str, bytes]] = set()
         for key, who in sorted(owners.items()):
