@@ -331,7 +331,7 @@ else
   UV=("$VENV/bin/uv" pip install --python "$VPY")
   run_logged pip-requirements "${UV[@]}" -r requirements.lock
   # setuptools-backed packages build without isolation (fast, offline, uses the
-  # pinned setuptools); any other backend gets pip's isolated build.
+  # pinned setuptools); any other backend gets uv's isolated build.
   backends_txt="$("$VPY" - "${EDITABLES[@]}" <<'PYEOF'
 import sys, tomllib
 for d in sys.argv[1:]:

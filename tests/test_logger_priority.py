@@ -15,16 +15,11 @@ from pathlib import Path
 
 import pytest
 
+from hrc.priority import thread_ids
+
 from .conftest import HRC, ROOT, SERVICE_MARKERS, _children, _cmdline
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "SCHED_IDLE"), reason="Linux scheduling")
-
-
-def _threads(pid: int) -> list[int]:
-    try:
-        return [int(t) for t in os.listdir(f"/proc/{pid}/task")]
-    except OSError:
-        return []
 
 
 def test_a_lockstep_runs_logger_is_lowered_by_niceness_never_to_sched_idle(tmp_path: Path) -> None:
@@ -43,7 +38,7 @@ def test_a_lockstep_runs_logger_is_lowered_by_niceness_never_to_sched_idle(tmp_p
         for pid in _children(proc.pid):
             if marker not in _cmdline(pid):
                 continue
-            for tid in _threads(pid):
+            for tid in thread_ids(pid):
                 try:
                     if os.sched_getscheduler(tid) == os.SCHED_IDLE:
                         seen_idle.add(tid)
