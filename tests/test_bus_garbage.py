@@ -12,7 +12,9 @@ from pathlib import Path
 import zenoh
 
 from hrc.bus import Bus, Keys, access
+from hrc.bus.bus import MAX_STANDARD_BYTES
 from hrc.service_table import CLOCK_MASTER, names
+from hrc.wire import pb
 
 from .conftest import wait_until
 
@@ -95,3 +97,42 @@ def test_garbage_everywhere_is_counted_and_the_run_keeps_ticking(trial_factory) 
     for name in SERVICES:
         log = (trial.out / "services" / f"{name}.log").read_text(errors="replace")
         assert "garbler" in log, f"{name} did not log the sender of the garbage"
+
+
+def test_a_message_above_the_size_limit_is_refused_counted_and_named(trial_factory) -> None:
+    """Well-formed 20 MiB messages from their keys' owners' credentials (no service sends one:
+    a put refuses above MAX_STANDARD_BYTES), to physics (Python) and ik_cpp (C++): each is
+    refused unread, counted in the receiver's stats and logged with its size; the run goes on
+    (such a message was taken, counted nowhere)."""
+    trial = trial_factory()
+    trial.wait_ticking()
+    keys = Keys(trial.session)
+    human, command = pb.HumanState(), pb.RobotCommand(robot="r1")
+    folder = trial.bus_config().config_file
+    assert folder is not None
+    before = trial.stats("orchestrator").last_tick
+    sent: dict[str, int] = {}  # receiver -> size
+    for receiver, owner, key, msg in (
+        ("physics", "human_input", keys.human_state(), human),
+        ("ik_cpp", "orchestrator", keys.robot_command("r1"), command),
+    ):
+        msg.header.session, msg.header.sender = trial.session, "x" * (20 * 1024 * 1024)
+        payload = msg.SerializeToString()
+        assert len(payload) > MAX_STANDARD_BYTES
+        cfg = trial.bus_config()
+        cfg.config_file = str(Path(folder).with_name(f"{owner}.json5"))
+        with Bus(cfg, "oversize") as bus:
+            bus.session.put(key, payload, attachment=b"oversize")
+            sent[receiver] = len(payload)
+            counted = wait_until(
+                lambda r=receiver, k=key: trial.stats(r).decode_errors.get(k, 0) >= 1, 30
+            )
+        assert counted, trial.stats(receiver)
+    assert wait_until(lambda: trial.stats("orchestrator").last_tick > before, 10)  # ticking
+    trial.stop()
+    code, _, err = trial.communicate()
+    assert code == 0, err[-3000:]
+    for receiver, size in sent.items():
+        log = (trial.out / "services" / f"{receiver}.log").read_text(errors="replace")
+        said = [line for line in log.splitlines() if "oversize" in line]
+        assert said and f"{size} bytes, above the" in said[0], (receiver, said)

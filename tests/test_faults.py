@@ -12,6 +12,9 @@ import contextlib
 import json
 import os
 import signal
+import socket
+import subprocess
+import sys
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -19,12 +22,15 @@ from pathlib import Path
 
 import pytest
 
+from hrc.ports import free_port
 from hrc.service_table import OBSERVERS, PARTICIPANTS
 
 from .conftest import Trial, wait_until
 
 FREEZE_S = 20.0  # how long a service stays stopped (the issue's figure)
 RETURN_S = 15.0  # hrc run returns within this of the fault
+# ... of a failure before the first tick (it took 8-13 s; 1.5 s on a quiet machine now)
+START_FAILURE_S = 5.0
 SERVICES = ["physics", *PARTICIPANTS, *OBSERVERS]
 
 
@@ -213,3 +219,43 @@ def test_a_frozen_service_is_named_and_hrc_run_returns_while_it_is_frozen(
     assert wait_until(lambda: all(_gone(p) for p in pids.values()), 10, 0.1), (
         f"processes left after the thaw: {[n for n, p in pids.items() if not _gone(p)]}"
     )
+
+
+def test_a_service_that_fails_before_the_first_tick_ends_the_trial_at_once(
+    trial_factory,
+) -> None:
+    """human_input cannot serve the participant's page (its port is taken): the trial ends
+    within a few seconds of that, naming the service and its own words, in hrc run's message
+    and in metrics.json -- not after the others waited out the start (it took 11-13 s: the
+    clock master ignored the abort until every service had come up)."""
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        minimal = Path(__file__).parents[1] / "scenarios" / "minimal.toml"
+        trial = trial_factory(minimal, extra=["--input", "vr", "--vr-port", str(port)])
+        code, _out, err = trial.communicate(timeout=60)
+        returned = time.time()
+    assert code != 0, err[-3000:]
+    failed = [line for line in err.splitlines() if "trial FAILED" in line]
+    assert failed and "'human_input'" in failed[0], err[-3000:]
+    assert "address already in use" in err, err[-3000:]  # its own words, from its log
+    log_lines = (trial.out / "services" / "human_input.log").read_text().splitlines()
+    said = next(line for line in log_lines if "address already in use" in line)
+    at = time.mktime(time.strptime(said[:19], "%Y-%m-%d %H:%M:%S")) + float(said[20:23]) / 1e3
+    print(f"hrc run returned {returned - at:.1f} s after human_input's failure")
+    assert returned - at < START_FAILURE_S, f"hrc run took {returned - at:.1f} s"
+    metrics = json.loads((trial.out / "metrics.json").read_text())
+    assert metrics["run"]["ok"] is False and "human_input" in metrics["run"]["end_reason"]
+
+
+def test_a_service_that_cannot_reach_its_router_says_where_and_why_and_exits() -> None:
+    """No router where it connects: after --connect-timeout the service exits 1, naming the
+    endpoint and Zenoh's reason (it was a traceback)."""
+    endpoint = f"tcp/127.0.0.1:{free_port()}"  # nobody listens there
+    argv = [sys.executable, "-m", "hrc_human_input", "--session", "s-nowhere"]
+    argv += ["--zenoh-mode", "client", "--connect", endpoint, "--connect-timeout", "0.5"]
+    done = subprocess.run(argv, capture_output=True, text=True, timeout=120)
+    assert done.returncode == 1, done.stderr[-2000:]
+    said = f"cannot join the trial's bus at {endpoint}: Unable to connect"
+    assert said in done.stderr and "Traceback" not in done.stderr, done.stderr[-2000:]

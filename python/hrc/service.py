@@ -34,6 +34,8 @@ from collections.abc import Callable
 from types import FrameType
 from typing import ClassVar, NoReturn, Protocol
 
+import zenoh
+
 from hrc import privacy, service_table
 from hrc.bus import (
     Bus,
@@ -276,6 +278,18 @@ def bus_config(cls: type[Service], args: argparse.Namespace) -> BusConfig:
     return config
 
 
+def _join(cls: type[Service], args: argparse.Namespace) -> Bus:
+    """The service's session on the trial's bus; ServiceExit naming where, if Zenoh gives up
+    (a client retries until its connect timeout: the router never listened, or refused it)."""
+    config = bus_config(cls, args)
+    try:
+        return Bus(config, cls.name)
+    except zenoh.ZError as exc:
+        where = ", ".join(config.connect or config.listen) or "the default endpoints"
+        said = str(exc).split(" at /", 1)[0]  # (not where in Zenoh's source it gave up)
+        raise ServiceExit(f"cannot join the trial's bus at {where}: {said}") from exc
+
+
 def run_service(cls: type[Service], argv: list[str] | None = None) -> int:
     """Runs the service ``cls`` as a process would; returns its exit code."""
     args = parse_args(cls, argv)
@@ -288,7 +302,7 @@ def run_service(cls: type[Service], argv: list[str] | None = None) -> int:
         return EXIT_BAD_INPUT
     try:
         service = cls(args)
-        with Bus(bus_config(cls, args), cls.name) as bus, contextlib.ExitStack() as stack:
+        with _join(cls, args) as bus, contextlib.ExitStack() as stack:
             service.open(bus, stack)
             outcome = _run_role(service, bus)
             code = service.finish(outcome)
@@ -298,5 +312,5 @@ def run_service(cls: type[Service], argv: list[str] | None = None) -> int:
             print(f"{cls.entry().script}: {exc}", file=sys.stderr)
         return exc.code
     if not outcome.ok:
-        log.error("run ended with an error: %s", outcome.reason)
+        log.error("%s: %s", service_table.RUN_ENDED_WITH_ERROR, outcome.reason)
     return outcome.exit_code if code is None else code

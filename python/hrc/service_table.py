@@ -221,6 +221,9 @@ OBSERVERS = with_role(Role.OBSERVER)
 EXPERIMENTER = "experimenter"
 # After SIGTERM / SIGINT a service has this long to write its files (hrc run waits a little more)
 STOP_GRACE_S = 2.0
+# How a service's log says that the run it followed failed (hrc run tells that echo from the
+# service's own errors)
+RUN_ENDED_WITH_ERROR = "run ended with an error"
 
 
 def _role_options(role: Role) -> tuple[Option, ...]:

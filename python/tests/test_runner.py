@@ -203,3 +203,25 @@ def test_hrc_run_waits_neither_for_a_hung_nor_for_a_stopped_service(tmp_path) ->
     finally:
         group.stop_all(grace_s=0.5)
         group.close()
+
+
+def test_a_services_own_error_is_told_from_its_echo_of_the_runs_end(tmp_path) -> None:
+    """hrc run adds a service's own last error to a failed run's reason ("never came up" while
+    the service had given up joining the bus): never the service's echo of that end."""
+    group = processes.ServiceGroup(tmp_path)
+    log = group.log_path("human_input")
+    log.write_text(
+        "2026-11-29 04:41:19,174 human_input INFO hrc.service: starting\n"
+        "2026-11-29 04:42:19,174 human_input ERROR hrc.service: cannot join the trial's bus at "
+        "unixsock-stream//tmp/x.sock: Unable to connect to any of [...]. Timeout!\n"
+        "2026-11-29 04:42:19,175 human_input ERROR hrc.service: run ended with an error: "
+        "services never came up within 60 s: human_input\n"
+    )
+    assert group.own_error("human_input") == (
+        "cannot join the trial's bus at unixsock-stream//tmp/x.sock: "
+        "Unable to connect to any of [...]. Timeout!"
+    )
+    log.write_text("a line\n2026-11-29 04:42:19,175 human_input ERROR x: run ended with an error\n")
+    assert group.own_error("human_input") == ""
+    assert group.own_error("logger") == ""  # no log at all
+    group.close()

@@ -280,13 +280,20 @@ class Bus:
 
         def on_sample(sample: zenoh.Sample) -> None:
             k = str(sample.key_expr)
+            payload = sample.payload.to_bytes()
+            if len(payload) > MAX_STANDARD_BYTES:
+                # no service sends this (Publisher refuses it): refused unread, and counted
+                self._malformed(
+                    k, sample, f"{len(payload)} bytes, above the {MAX_STANDARD_BYTES}-byte limit"
+                )
+                return
             att = sample.attachment
             if att is None or not att.to_bytes().endswith(BATCH_SUFFIX):
-                one(k, sample, sample.payload.to_bytes())
+                one(k, sample, payload)
                 return
             batch = pb.ExchangeBatch()
             try:
-                batch.ParseFromString(sample.payload.to_bytes())
+                batch.ParseFromString(payload)
             except DecodeError as exc:
                 self._malformed(k, sample, f"does not decode as ExchangeBatch: {exc}")
                 return

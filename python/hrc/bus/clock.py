@@ -328,6 +328,11 @@ class ClockMaster:
         deadline = time.monotonic() + self.settings.start_timeout_s
         with self._cond:
             while not expected <= self._alive:
+                # hrc run saw a service end before it came up (a busy port, a failed connect):
+                # its abort ends the start at once, naming that service, instead of the wait
+                # running on to the start timeout with the others waiting for tick 0
+                if self._stop is not None and not self._stop[0]:
+                    raise RunFailed(self._stop[1], self._aborted_by)
                 self._check_lost()
                 left = deadline - time.monotonic()
                 if left <= 0:

@@ -14,7 +14,7 @@ from hrc.service_table import CLOCK_MASTER
 
 Mode = Literal["peer", "client", "router"]
 
-CONNECT_TIMEOUT_MS = 60000
+CONNECT_TIMEOUT_S = 60.0  # as long as the clock master waits for every service (--start-timeout)
 # A client that starts before the router listens (they start together) tries again after 10,
 # 20, 40, then every 50 ms: a failed local connect costs microseconds, a late retry costs the
 # start-up up to the whole period (it was 100 ms doubling to 1 s). Same in ik_cpp's bus.cpp.
@@ -42,6 +42,8 @@ class BusConfig:
     config_file: str | None = None
     # The service whose clock participants and observers follow (``hrc run`` passes it).
     clock_master: str = CLOCK_MASTER
+    # How long a service with ``connect`` endpoints keeps trying to reach one before it gives up
+    connect_timeout_s: float = CONNECT_TIMEOUT_S
 
     def to_zenoh(self) -> zenoh.Config:
         cfg = zenoh.Config.from_file(self.config_file) if self.config_file else zenoh.Config()
@@ -50,7 +52,7 @@ class BusConfig:
         if self.connect:
             cfg.insert_json5("connect/endpoints", json.dumps(self.connect))
             # Keep trying while the other end starts (a client otherwise fails at once).
-            cfg.insert_json5("connect/timeout_ms", str(CONNECT_TIMEOUT_MS))
+            cfg.insert_json5("connect/timeout_ms", str(round(self.connect_timeout_s * 1000)))
             cfg.insert_json5("connect/retry", CONNECT_RETRY)
         if self.listen:
             cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
@@ -80,6 +82,14 @@ def add_bus_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="ENDPOINT",
         help="Zenoh endpoint to connect to, e.g. tcp/127.0.0.1:7447 (repeatable; "
         "env HRC_CONNECT, comma-separated)",
+    )
+    g.add_argument(
+        "--connect-timeout",
+        type=float,
+        default=os.environ.get("HRC_CONNECT_TIMEOUT_S", str(CONNECT_TIMEOUT_S)),
+        metavar="S",
+        help="how long to keep trying to reach a --connect endpoint before giving up "
+        f"(default {CONNECT_TIMEOUT_S:g}; env HRC_CONNECT_TIMEOUT_S)",
     )
     g.add_argument(
         "--listen",
@@ -133,4 +143,5 @@ def bus_config_from_args(args: argparse.Namespace) -> BusConfig:
         lowlatency=args.zenoh_lowlatency,
         config_file=args.zenoh_config,
         clock_master=args.clock_master,
+        connect_timeout_s=args.connect_timeout,
     )

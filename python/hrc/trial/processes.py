@@ -356,6 +356,20 @@ class ServiceGroup:
         """Where service ``name``'s output goes."""
         return self.logs_dir / f"{name}.log"
 
+    def own_error(self, name: str) -> str:
+        """The last error service ``name`` logged of its own (not its echo of a failed run's
+        end), without time stamp and logger; "" if none."""
+        try:
+            text = self.log_path(name).read_text(errors="replace").splitlines()
+        except OSError:
+            return ""
+        for line in reversed(text):
+            _, sep, said = line.partition(" ERROR ")
+            said = said.split(": ", 1)[-1]
+            if sep and not said.startswith(service_table.RUN_ENDED_WITH_ERROR):
+                return said
+        return ""
+
     def tail(self, name: str, lines: int = 15) -> str:
         try:
             text = self.log_path(name).read_text(errors="replace").splitlines()

@@ -277,6 +277,11 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
             if end is not None and not end.ok:
                 failed = end.failed_participant or (bad[0] if bad else master)
                 failure = f"run failed: {end.reason}"
+                rc = status.get(failed) or 0
+                own = group.own_error(failed) if rc > 0 else ""
+                if own and own not in end.reason:
+                    # e.g. "never came up" while the service had given up joining the bus
+                    failure += f" ('{failed}' {describe_exit(rc)}: {own})"
             elif bad:
                 failed = bad[0]
                 failure = f"service '{failed}' {describe_exit(status[failed] or 0)}"

@@ -152,6 +152,38 @@ def test_a_vanished_participant_ends_the_run_naming_it(session_id: str) -> None:
         s.close()
 
 
+def test_an_abort_before_every_service_came_up_ends_the_start_naming_the_service(
+    session_id: str,
+) -> None:
+    """hrc run saw human_input's process end before it came up: its abort ends the start at
+    once (the clock master waited for every token first, up to the start timeout)."""
+    s = Session(
+        session_id,
+        ClockSettings(ticks=0, observers=[], start_timeout_s=30.0),
+        ["ik_cpp", "orchestrator", "experimenter"],
+    )
+    try:
+        steps: dict[str, list[int]] = {}
+        _run_participants(s, steps, only=["ik_cpp", "orchestrator"])  # human_input never comes
+        hrc_run = s.buses["experimenter"]
+        abort = pb.RunControl(
+            command=pb.RunControl.COMMAND_ABORT,
+            reason="service 'human_input' exited with code 2",
+            failed_service="human_input",
+        )
+        s.clock.start()
+        threading.Timer(
+            0.5, lambda: hrc_run.publisher(hrc_run.keys.run_control(hrc_run.sender)).put(abort)
+        ).start()
+        t0 = time.monotonic()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)
+        assert not end.ok and end.failed_participant == "human_input", end
+        assert end.reason == "service 'human_input' exited with code 2" and end.ticks == 0
+        assert time.monotonic() - t0 < 20, "the start went on to its timeout"
+    finally:
+        s.close()
+
+
 def test_a_stop_request_ends_the_run_cleanly(session_id: str) -> None:
     s = Session(
         session_id, ClockSettings(ticks=0, observers=[]), ["ik_cpp", "orchestrator", "human_input"]

@@ -161,6 +161,12 @@ class Bus {
         }
         handler(std::string(s.key), msg);
       };
+      if (s.payload.size() > kMaxStandardBytes) {
+        // no service sends this (a put refuses it): refused unread, and counted
+        malformed(s, std::to_string(s.payload.size()) + " bytes, above the " +
+                         std::to_string(kMaxStandardBytes) + "-byte limit");
+        return;
+      }
       if (!is_batch(s.attachment)) {
         one(s.payload);
         return;
