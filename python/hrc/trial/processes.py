@@ -33,6 +33,10 @@ SERVICES_ABANDONED_S = 5.0
 LEAVE_IDLE_S = 5.0
 # Ctrl-C or SIGTERM: how long the services may take to end the run and write their files.
 INTERRUPT_LEAVE_S = 10.0
+# ... the same before every service came up: only those already following the clock act on the
+# end (physics in its wait for the others, the orchestrator with metrics.json); the others wait
+# for a scenario or a router that will never come, so waiting longer only delays the report.
+START_LEAVE_S = 2.0
 
 
 class Terminated(BaseException):

@@ -28,6 +28,7 @@ from hrc.trial.processes import (
     INTERRUPT_LEAVE_S,
     SERVICES_ABANDONED_S,
     SERVICES_LEAVE_S,
+    START_LEAVE_S,
     Phases,
     ServiceGroup,
     Terminated,
@@ -65,6 +66,12 @@ class _EndWatcher:
         # experimenter: ...")
         self.bus = Bus(cfg, EXPERIMENTER)
         self.bus.subscribe(self.bus.keys.run_end(), pb.RunEnd, self._on_end)
+        self._up: set[str] = set()  # the services whose tokens came (the run follows them all)
+        self.bus.watch_liveliness(lambda name, alive: alive and self._up.add(name))
+
+    def all_up(self) -> bool:
+        """Every service of the trial declared its token (so the run is on, or about to be)."""
+        return set(service_table.names()) <= self._up
 
     def _on_end(self, _key: str, end: pb.RunEnd) -> None:
         self.end_at = time.monotonic()
@@ -134,8 +141,8 @@ def _end_run(
     abort: bool = False,
 ) -> None:
     """Ends the run over the bus (see :meth:`_EndWatcher.stop_run`) and gives the services
-    INTERRUPT_LEAVE_S to write their files and leave (a stopped one is not waited for); the
-    caller then stops what is left."""
+    INTERRUPT_LEAVE_S to write their files and leave (START_LEAVE_S before all of them came up;
+    a stopped one is not waited for); the caller then stops what is left."""
     if watcher is None or watcher.end is not None:
         return
     try:
@@ -143,7 +150,7 @@ def _end_run(
     except Exception as err:  # the bus is gone: the services are stopped as before
         log.debug("could not ask for the run's end: %s", err)
         return
-    await_leaving(group, INTERRUPT_LEAVE_S)
+    await_leaving(group, INTERRUPT_LEAVE_S if watcher.all_up() else START_LEAVE_S)
 
 
 def run_trial(opts: TrialOptions, trial_dir: Path) -> TrialResult:
@@ -245,6 +252,8 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
             ended = watcher is not None and watcher.end is not None
             master_rc = status[master]
             leave_s = SERVICES_LEAVE_S if ended or master_rc == 0 else SERVICES_ABANDONED_S
+            if not ended and watcher is not None and not watcher.all_up():
+                leave_s = START_LEAVE_S  # the clock master gone before the run began
             await_leaving(group, leave_s)  # hrc run returns as soon as the last one has left
         # judge by how each ended on its own, before we stop the stragglers
         status = group.poll()
