@@ -67,7 +67,11 @@ class _EndWatcher:
         self.bus = Bus(cfg, EXPERIMENTER)
         self.bus.subscribe(self.bus.keys.run_end(), pb.RunEnd, self._on_end)
         self._up: set[str] = set()  # the services whose tokens came (the run follows them all)
-        self.bus.watch_liveliness(lambda name, alive: alive and self._up.add(name))
+        self.bus.watch_liveliness(self._on_token)
+
+    def _on_token(self, name: str, alive: bool) -> None:
+        if alive:
+            self._up.add(name)
 
     def all_up(self) -> bool:
         """Every service of the trial declared its token (so the run is on, or about to be)."""
