@@ -54,8 +54,9 @@ class Session:
         out: Path,
         mode: str = "desktop",
         sigint_ignored: bool = False,
+        port: int | None = None,
     ) -> None:
-        self.port = free_port()
+        self.port = port or free_port()
         self.argv = [
             HRC, "session", str(study), "--participant", participant, "--out", str(out),
             "--port", str(self.port), "--page-mode", mode,

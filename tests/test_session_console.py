@@ -5,6 +5,9 @@ session's real endpoint (the browser tests in test_session.py do the whole sessi
 from __future__ import annotations
 
 import json
+import os
+import signal
+import socket
 import subprocess
 import urllib.request
 from collections.abc import Iterator
@@ -115,8 +118,11 @@ def test_one_session_per_participant_paused_and_ended_by_the_experimenter_then_r
         s.command("p")
         assert screen(ws, "text")["id"] == text["id"]
         s.command("e")
+        # the page is told, in words (it was left on its screen)
+        assert "experimenter has ended the session for now" in screen(ws, "paused")["text"]
         assert s.wait(60) == 0, s.console()
     assert "resume with the same command" in s.console()
+    assert json.loads((out / "sessions" / "L02" / "session.json").read_text())["status"] == "ended"
 
     s2 = Session(study, "L02", out)  # the same command: consent is not asked again
     sessions.append(s2)
@@ -150,3 +156,51 @@ def test_a_bad_study_or_participant_is_named_and_nothing_runs(tmp_path: Path) ->
     )  # fmt: skip
     assert who.returncode == 2 and "not a live participant of the study (L01, L02" in who.stderr
     assert not out.exists()
+
+
+def test_a_session_killed_mid_trial_goes_on_with_the_same_link_and_names_the_cut_attempt(
+    sessions: list[Session], tmp_path: Path
+) -> None:
+    """kill -9 of `hrc session` during a trial, then the same command: the participant's link
+    (its key) is the same, so the page that was open redials and gets the trial's screen again;
+    the attempt the kill cut short is recorded as failed, with why. The same command while the
+    session's port is taken says so, and leaves session.json as stopped, not running."""
+    study = write_study(tmp_path / "study", LIVE, simulated=0)
+    out = tmp_path / "out"
+    path = out / "sessions" / "L01" / "session.json"
+    s = Session(study, "L01", out)
+    sessions.append(s)
+    ws_url, key = page_link(s)
+    with connect(ws_url, open_timeout=10) as ws:
+        consent = screen(ws, "consent")
+        ws.send(json.dumps({"type": "consent", "accepted": True, "screen": consent["id"]}))
+        text = screen(ws, "text")
+        ws.send(json.dumps({"type": "continue", "screen": text["id"]}))
+        ready = screen(ws, "ready")
+        ws.send(json.dumps({"type": "start", "screen": ready["id"]}))
+        screen(ws, "starting")  # the trial runs (nobody drives it)
+        running = json.loads(path.read_text())
+        assert running["trials"][0]["attempts"][0]["outcome"] == "", running["trials"][0]
+        os.kill(s.proc.pid, signal.SIGKILL)
+        assert s.wait(30) == -signal.SIGKILL
+
+    with socket.socket() as busy:  # the same command, its port taken: refused, in words
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        taken = [*s.argv[:-4], "--port", str(busy.getsockname()[1]), *s.argv[-2:]]
+        refused = subprocess.run(taken, capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert refused.returncode == 2 and "cannot serve the session page" in refused.stderr, refused
+    assert json.loads(path.read_text())["status"] == "stopped"
+
+    again = Session(study, "L01", out, port=s.port)
+    sessions.append(again)
+    assert page_link(again) == (ws_url, key)  # the same link
+    with connect(ws_url, open_timeout=10) as ws:  # the page that was open, redialling
+        assert screen(ws, "ready")["title"] == ready["title"]
+    state = json.loads(path.read_text())
+    cut = state["trials"][0]["attempts"][0]
+    assert cut["outcome"] == "failed" and "session process ended during this trial" in cut["reason"]
+    assert state["status"] == "running" and state["trials"][0]["status"] == "pending"
+    assert "the last session process ended without a word (killed or crashed)" in [
+        e["what"] for e in state["log"]
+    ]

@@ -43,6 +43,8 @@ log = logging.getLogger(__name__)
 
 STATUS_EVERY_S = 30.0  # the console's status line while a trial runs
 STOP_GRACE_S = 15.0  # a stopped trial's SIGTERM, then SIGKILL to its process group
+# an attempt's reason when its `hrc session` ended during it (found so on resume)
+CUT_SHORT = "the session process ended during this trial (killed or crashed); it runs again"
 PAGE_GRACE_S = 10.0  # the page gone this long during a trial: the trial is stopped, failed
 BRIDGE_START_S = 90.0  # hrc run's services up and its bridge serving, at most
 VR_WAIT_S = 300.0  # the trial waits this long for the page to connect to its bridge
@@ -94,9 +96,6 @@ class Session:
         self.path = self.dir / "session.json"
         self.console = console or sys.stderr
         self.trials = {t.id: t for t in study.live_trials(participant)}
-        self.key = secrets.token_urlsafe(9)
-        self.server = SessionServer(opts.host, opts.port, self.key, opts.token)
-        self.inbox = self.server.inbox
         self.paused = False
         self.screen_id = 0
         self.screen: dict[str, Any] = {}
@@ -104,6 +103,14 @@ class Session:
         self.t0 = time.monotonic()
         self._lock = self._take_lock()
         self.state = self._load_or_create()
+        # one link for the whole session: after a crash the same command serves the same key,
+        # and the page that was open redials and goes on by itself
+        if not self.state.key:
+            self.state.key = secrets.token_urlsafe(9)
+            st.save(self.state, self.path)
+        self.key = self.state.key
+        self.server = SessionServer(opts.host, opts.port, self.key, opts.token)
+        self.inbox = self.server.inbox
 
     # ------------------------------------------------------------------ state
     def _take_lock(self) -> IO[str]:
@@ -172,6 +179,12 @@ class Session:
         for ts in saved.trials:  # an edited scenario: trials still to run take the new inputs
             if not ts.done and ts.input_hash != self.trials[ts.id].input_hash:
                 ts.input_hash = self.trials[ts.id].input_hash
+            for attempt in ts.attempts:  # cut short by the end of the last `hrc session`
+                if not attempt.outcome:
+                    attempt.outcome = "failed"
+                    attempt.reason = CUT_SHORT
+        if saved.status == "running":  # nobody said it stopped: killed, or the machine went
+            saved.note("the last session process ended without a word (killed or crashed)")
         saved.status = "running"
         saved.note("session resumed")
         st.save(saved, self.path)
@@ -215,10 +228,10 @@ class Session:
     def run(self) -> int:
         from hrc.study.sweep import write_study_files
 
-        write_study_files(self.study, self.out)
-        self.server.start()
-        threading.Thread(target=self._read_commands, name="console", daemon=True).start()
         try:
+            write_study_files(self.study, self.out)
+            self.server.start()
+            threading.Thread(target=self._read_commands, name="console", daemon=True).start()
             n = len(self.state.trials)
             left = sum(not t.done for t in self.state.trials)
             self.say(
@@ -243,7 +256,35 @@ class Session:
             self.say(str(end))
             return end.code
         finally:
+            self._stopping()
             self.server.stop()
+
+    def _stopping(self) -> None:
+        """The process leaves with the session not over (the experimenter's `e`, Ctrl-C, a
+        signal, an error, a port it could not serve): session.json says so, and the page, if
+        there is one, says in words that the session goes on later, on that same page."""
+        if self.state.status not in ("running", "ended"):
+            return  # done or declined: the page has its last screen
+        if self.state.status == "running":
+            self.state.status = "stopped"
+            self.state.note("session stopped")
+            try:
+                st.save(self.state, self.path)
+            except OSError as exc:
+                log.warning("session.json not rewritten: %s", exc)
+        if self.server.connected():
+            why = (
+                "The experimenter has ended the session for now."
+                if self.state.status == "ended"
+                else "The session has stopped for now."
+            )
+            self.show(
+                "paused",
+                title="Paused",
+                text=f"{why} Please wait: it goes on from here, on this page, when the "
+                "experimenter continues it.",
+            )
+            self._linger(1.0)
 
     def _linger(self, seconds: float = 3.0) -> None:
         """The page gets the last screen before the server goes."""

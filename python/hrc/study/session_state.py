@@ -72,8 +72,13 @@ class SessionState:
     )  # texts shown: "instructions", "instruction:<trial>"
     end_answers: dict[str, dict[str, Any]] = field(default_factory=dict)
     end_scores: dict[str, dict[str, Any]] = field(default_factory=dict)
-    status: str = "running"  # running | done | ended | declined
+    # running (an `hrc session` serves it now) | done | ended (by the experimenter's `e`) |
+    # stopped (the process stopped: Ctrl-C, a signal, an error, or it could not start) | declined
+    status: str = "running"
     log: list[dict[str, Any]] = field(default_factory=list)
+    # the participant's link key: the same link for the whole session, across restarts (the
+    # file is private: hrc.privacy); "" in files written before it was kept
+    key: str = ""
 
     def trial(self, tid: str) -> TrialState:
         return next(t for t in self.trials if t.id == tid)
