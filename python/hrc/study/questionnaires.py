@@ -91,7 +91,7 @@ class Questionnaire:
         if self.scoring == "tlx":
             return ["raw", "weighted"] if self.weighted else ["raw"]
         if self.scoring == "ssq":
-            return ["nausea", "oculomotor", "disorientation", "total"]
+            return list(SSQ_SCORES)
         return [] if self.scoring == "none" else [self.scoring]
 
     def score(self, answers: dict[str, Any]) -> dict[str, float | None]:
@@ -236,6 +236,9 @@ SSQ = (
 )
 SSQ_WEIGHTS = {"N": 9.54, "O": 7.58, "D": 13.92}
 SSQ_TOTAL_WEIGHT = 3.74
+# its scores' names, apart from its items' ("nausea" is a symptom and a subscale: the table
+# has a column for each)
+SSQ_SCORES = ("nausea_score", "oculomotor_score", "disorientation_score", "total_score")
 
 
 def _ssq_questionnaire(qid: str) -> Questionnaire:
@@ -258,14 +261,15 @@ def _ssq(answers: dict[str, Any]) -> dict[str, float | None]:
     for key, _, loads in SSQ:
         v = answers.get(key)
         if not isinstance(v, (int, float)):
-            return dict.fromkeys(("nausea", "oculomotor", "disorientation", "total"))
+            return dict.fromkeys(SSQ_SCORES)
         for c in loads:
             sums[c] += float(v)
+    n, o, d, total = SSQ_SCORES
     return {
-        "nausea": round(sums["N"] * SSQ_WEIGHTS["N"], 4),
-        "oculomotor": round(sums["O"] * SSQ_WEIGHTS["O"], 4),
-        "disorientation": round(sums["D"] * SSQ_WEIGHTS["D"], 4),
-        "total": round((sums["N"] + sums["O"] + sums["D"]) * SSQ_TOTAL_WEIGHT, 4),
+        n: round(sums["N"] * SSQ_WEIGHTS["N"], 4),
+        o: round(sums["O"] * SSQ_WEIGHTS["O"], 4),
+        d: round(sums["D"] * SSQ_WEIGHTS["D"], 4),
+        total: round((sums["N"] + sums["O"] + sums["D"]) * SSQ_TOTAL_WEIGHT, 4),
     }
 
 
@@ -328,6 +332,10 @@ def parse(qid: str, spec: Any, problems: list[str]) -> Questionnaire | None:
     if score not in SCORES:
         problems.append(f"{where}.score: one of {', '.join(SCORES)} (got {score!r})")
         score = "none"
+    elif score in seen:  # its column would be the item's (q.<questionnaire>.<name>)
+        problems.append(
+            f"{where}: an item is named {score!r}, as the questionnaire's score: rename the item"
+        )
     title = spec.get("title", qid)
     text = spec.get("text", "")
     if not isinstance(title, str) or not isinstance(text, str):

@@ -98,7 +98,7 @@ def live_rows(study: Study, out: Path) -> list[dict[str, Any]]:
 
     result: list[dict[str, Any]] = []
     for s in all_sessions(out):
-        session_q = _answers(s.end_answers, s.end_scores)
+        session_q = answer_columns(s.end_answers, s.end_scores)
         for t in s.trials:
             if not t.attempts and t.status == "pending":
                 continue
@@ -125,15 +125,17 @@ def live_rows(study: Study, out: Path) -> list[dict[str, Any]]:
                     read_metrics(out / "trials" / t.id / "metrics.json") or {}
                 ).items():
                     row.setdefault(key, value)
-            row.update(_answers(t.answers, t.scores))
+            row.update(answer_columns(t.answers, t.scores))
             row.update(session_q)
             result.append(row)
     return result
 
 
-def _answers(
+def answer_columns(
     answers: dict[str, dict[str, Any]], scores: dict[str, dict[str, Any]]
 ) -> dict[str, Any]:
+    """A trial's (or a session's) answers and scores as table columns: `q.<questionnaire>.<item>`
+    and `q.<questionnaire>.<score>` (a questionnaire's items and scores never share a name)."""
     out: dict[str, Any] = {}
     for qid, items in answers.items():
         for item, value in items.items():

@@ -5,6 +5,7 @@ from __future__ import annotations
 import pytest
 
 from hrc.study.questionnaires import SSQ, builtin, parse, tlx_pairs
+from hrc.study.table import answer_columns
 
 TLX = {
     "mental": 55,
@@ -42,12 +43,23 @@ def test_ssq_scores_use_the_published_weights() -> None:
     q = builtin("ssq")
     assert len(q.items) == 16
     none = {k: 0 for k, _, _ in SSQ}
-    assert q.score(none) == {"nausea": 0.0, "oculomotor": 0.0, "disorientation": 0.0, "total": 0.0}
+    assert q.score(none) == {
+        "nausea_score": 0.0,
+        "oculomotor_score": 0.0,
+        "disorientation_score": 0.0,
+        "total_score": 0.0,
+    }
     # nausea (N, D) rated 2: N sum 2, D sum 2
     one = {**none, "nausea": 2}
     s = q.score(one)
-    assert s["nausea"] == round(2 * 9.54, 4) and s["disorientation"] == round(2 * 13.92, 4)
-    assert s["oculomotor"] == 0 and s["total"] == round(4 * 3.74, 4)
+    assert s["nausea_score"] == round(2 * 9.54, 4)
+    assert s["disorientation_score"] == round(2 * 13.92, 4)
+    assert s["oculomotor_score"] == 0 and s["total_score"] == round(4 * 3.74, 4)
+    # the table's columns: the symptom's answer and the subscale, each in its own (the
+    # subscale took the item's column, and the answer was lost)
+    columns = answer_columns({"ssq": one}, {"ssq": s})
+    assert columns["q.ssq.nausea"] == 2 and columns["q.ssq.nausea_score"] == s["nausea_score"]
+    assert len(columns) == len(q.items) + len(q.score_names())
     # every cluster has seven symptoms
     for c in "NOD":
         assert sum(c in loads for _, _, loads in SSQ) == 7
@@ -108,6 +120,10 @@ def test_a_likert_questionnaire_scores_its_mean_with_reversed_items() -> None:
         ),
         ({"items": [{"id": "a", "text": "A?"}, {"id": "a", "text": "B?"}]}, "'a' is used twice"),
         ({"kind": "ssq", "weighted": True}, "questionnaires.q.weighted"),
+        (
+            {"items": [{"id": "mean", "text": "A?"}, {"id": "b", "text": "B?"}]},
+            "an item is named 'mean', as the questionnaire's score: rename the item",
+        ),
     ],
 )
 def test_a_bad_questionnaire_is_named(spec: dict, problem: str) -> None:
