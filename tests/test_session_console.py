@@ -204,3 +204,25 @@ def test_a_session_killed_mid_trial_goes_on_with_the_same_link_and_names_the_cut
     assert "the last session process ended without a word (killed or crashed)" in [
         e["what"] for e in state["log"]
     ]
+
+
+def test_a_skipped_trial_is_not_counted_as_done(sessions: list[Session], tmp_path: Path) -> None:
+    """The page's "trials done" and the console's status count what the participant did: a
+    trial the experimenter skipped is shown as skipped (it was counted as done)."""
+    study = write_study(tmp_path / "study", LIVE, simulated=0)
+    s = Session(study, "L01", tmp_path / "out")
+    sessions.append(s)
+    ws_url, _ = page_link(s)
+    with connect(ws_url, open_timeout=10) as ws:
+        consent = screen(ws, "consent")
+        ws.send(json.dumps({"type": "consent", "accepted": True, "screen": consent["id"]}))
+        text = screen(ws, "text")
+        ws.send(json.dumps({"type": "continue", "screen": text["id"]}))
+        first = screen(ws, "ready")
+        assert first["progress"] == {"done": 0, "skipped": 0, "total": 2}, first
+        s.command("s")  # skip the next trial
+        second = screen(ws, "ready")
+        assert second["title"] != first["title"]
+        assert second["progress"] == {"done": 0, "skipped": 1, "total": 2}, second
+        s.command("?")
+        s.said(r"L01: 0/2 trials done \(1 skipped\)", 30)

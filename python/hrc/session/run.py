@@ -209,11 +209,19 @@ class Session:
             self.console.write(f"[{elapsed // 60:02d}:{elapsed % 60:02d}] {line}\n")
             self.console.flush()
 
+    def progress(self) -> dict[str, int]:
+        """Trials done (ok or stalled: the participant did them), skipped, and in all."""
+        trials = self.state.trials
+        skipped = sum(t.status == "skipped" for t in trials)
+        done = sum(t.done for t in trials) - skipped
+        return {"done": done, "skipped": skipped, "total": len(trials)}
+
     def status(self) -> str:
-        done = sum(t.done for t in self.state.trials)
+        p = self.progress()
         page = "page connected" if self.server.connected() else "page not connected"
         paused = ", PAUSED" if self.paused else ""
-        return f"{self.pid}: {done}/{len(self.state.trials)} trials done, {page}{paused}"
+        skipped = f" ({p['skipped']} skipped)" if p["skipped"] else ""
+        return f"{self.pid}: {p['done']}/{p['total']} trials done{skipped}, {page}{paused}"
 
     # ------------------------------------------------------------------ the run
     def url(self) -> str:
@@ -327,12 +335,11 @@ class Session:
     # ------------------------------------------------------------------ screens
     def show(self, kind: str, **fields: Any) -> int:
         self.screen_id += 1
-        done = sum(t.done for t in self.state.trials)
         self.screen = {
             "id": self.screen_id,
             "kind": kind,
             "participant": self.pid,
-            "progress": {"done": done, "total": len(self.state.trials)},
+            "progress": self.progress(),
             **fields,
         }
         self.server.show(self.screen)

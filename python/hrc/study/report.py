@@ -390,6 +390,18 @@ img { max-width: 100%; }
 """
 
 
+def _participants_line(df: pd.DataFrame, data: pd.DataFrame) -> str:
+    """How many participants, and who has no trial in the statistics (all skipped, say): they
+    are not counted as if they had taken part."""
+    everyone = set(df["participant"].astype(str))
+    analysed = set(data["participant"].astype(str))
+    line = f"{len(analysed)} participants with trials in the statistics"
+    none = sorted(everyone - analysed)
+    if none:
+        line += f" ({len(none)} more with none: {html.escape(', '.join(none))})"
+    return line
+
+
 def _table(head: list[str], body: list[list[str]], cls: str = "") -> str:
     th = "".join(f"<th>{html.escape(h)}</th>" for h in head)
     trs = "".join("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>" for row in body)
@@ -423,7 +435,7 @@ def write_report(sweep_dir: Path) -> Path:
     parts.append(
         f"<p class='muted'>{len(df)} trials: "
         + ", ".join(f"{v} {html.escape(str(k))}" for k, v in counts.items())
-        + f"; {df['participant'].nunique()} participants; base scenario "
+        + f"; {_participants_line(df, data)}; base scenario "
         f"<code>{html.escape(Path(str(meta.get('scenario', '?'))).name)}</code>. "
         f"Statistics use the {len(data)} trials that ended ok"
         + (f" ({n_ok - len(data)} practice trials left out)" if n_ok > len(data) else "")

@@ -106,3 +106,18 @@ def test_live_and_simulated_side_by_side_with_the_order_position_in_the_model(
     assert m, q[:1500]
     assert float(m.group(1)) < 45 < float(m.group(2)) < 56  # anticipation on, off
     assert "q.tlx.raw ~ factors + order position" in q
+
+
+def test_a_participant_whose_trials_were_all_skipped_is_not_counted_as_taking_part(
+    tmp_path: Path,
+) -> None:
+    table(tmp_path)
+    df = pd.read_parquet(tmp_path / "trials.parquet")
+    skipped = df[df["participant"] == "P01"].assign(
+        participant="L07", participant_kind="live", outcome="skipped", reason="skipped"
+    )
+    pd.concat([df, skipped]).to_parquet(tmp_path / "trials.parquet", index=False)
+    plain = text(write_report(tmp_path).read_text())
+    assert "12 participants with trials in the statistics (1 more with none: L07)" in plain, plain[
+        :800
+    ]

@@ -123,7 +123,9 @@ export class FormView {
     if (!s) return;
     ctx.fillStyle = '#9fb3c8';
     ctx.font = `18px ${FONT}`;
-    const prog = s.progress ? `trials done: ${s.progress.done} of ${s.progress.total}` : '';
+    // skipped trials are not done: the participant did not do them
+    const skipped = s.progress?.skipped ? ` (${s.progress.skipped} skipped)` : '';
+    const prog = s.progress ? `trials done: ${s.progress.done} of ${s.progress.total}${skipped}` : '';
     ctx.fillText(prog, PAD, 34);
     ctx.fillStyle = '#ffffff';
     ctx.font = `bold 34px ${FONT}`;
