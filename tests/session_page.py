@@ -228,10 +228,13 @@ class Pointer:
         self.click_at(w["x"] + w["w"] / 2, w["y"] + w["h"] / 2)
 
 
-def answer_questionnaire(page: Page, pointer: Pointer, answers: dict[str, Any]) -> dict[str, Any]:
+def answer_questionnaire(
+    page: Page, pointer: Pointer, answers: dict[str, Any], submit: bool = True
+) -> dict[str, Any]:
     """Answers the questionnaire on screen, page by page, as `answers` says (a scale: its
     value, clicked where it lies on the scale; a Likert item or choice: its box; text: typed
-    on the keyboard, or on the panel's keyboard in the headset); returns the form as sent."""
+    on the keyboard, or on the panel's keyboard in the headset); returns the form as sent
+    (`submit` false: as it is once the items of its first page are answered, not sent)."""
     f = form(page)
     assert f["kind"] == "questionnaire", f
     sid = f["id"]
@@ -262,6 +265,8 @@ def answer_questionnaire(page: Page, pointer: Pointer, answers: dict[str, Any]) 
                 pointer.press(f, f"{item}={value}")
             f = form(page)
             assert f["answers"].get(item) == value, (item, value, f["answers"])
+        if not submit:
+            return f
         buttons = {w["id"] for w in f["widgets"]}
         if "submit" in buttons:
             pointer.press(f, "submit")

@@ -143,6 +143,7 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     # the same command resumes: the failed trial again, its questionnaire, the end
     s2 = Session(study, "L02", out)
     sessions.append(s2)
+    path = out / "sessions" / "L02" / "session.json"
     page = Page(browser, s2.url(), ready=False)
     mouse = Pointer(page)
     f = wait_screen(page, ("ready", "consent", "text", "questionnaire"))
@@ -151,6 +152,17 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     mouse.press(f, "start")
     do_trial(page)
     f = wait_screen(page, ("questionnaire",), f["id"])
+    # the tab closes mid-questionnaire: reopened, it has the answers already given
+    given = {"mental": 70, "physical": 20}
+    answer_questionnaire(page, mouse, given, submit=False)
+    drafts = lambda: json.loads(path.read_text())["drafts"]  # noqa: E731
+    assert wait_until(lambda: drafts().get("antTrue_L02_r1:tlx") == given, 30), drafts()
+    page.close()
+    page = Page(browser, s2.url(), ready=False)
+    mouse = Pointer(page)
+    f = wait_screen(page, ("questionnaire",))
+    assert form(page)["answers"] == given, form(page)
+    shot(page, "session-questionnaire-reopened.png")
     answer_questionnaire(page, mouse, {**TLX_ANSWERS, "mental": 70})
     f = wait_screen(page, ("questionnaire",), f["id"])
     assert f["title"] == "After the session", f

@@ -346,10 +346,15 @@ class Session:
         return self.screen_id
 
     def _wait(
-        self, sid: int, types: tuple[str, ...], timeout: float | None = None
+        self,
+        sid: int,
+        types: tuple[str, ...],
+        timeout: float | None = None,
+        draft: tuple[str, Questionnaire] | None = None,
     ) -> dict[str, Any] | None:
         """The page's next answer to screen `sid` (of one of `types`); commands are handled on
-        the way. None after `timeout` seconds."""
+        the way, and (`draft`: its key and questionnaire) the answers given so far are kept.
+        None after `timeout` seconds."""
         end = None if timeout is None else time.monotonic() + timeout
         while True:
             left = None if end is None else end - time.monotonic()
@@ -361,6 +366,10 @@ class Session:
                 continue
             if kind == "page" and msg.get("type") in types and msg.get("screen") == sid:
                 return msg
+            if kind == "page" and msg.get("type") == "draft" and msg.get("screen") == sid:
+                if draft is not None:
+                    self._keep_draft(draft[0], draft[1], msg.get("answers"))
+                continue
             if kind == "cmd":
                 self._command(msg["c"], running=None)
                 if self.paused and types:  # held now, the screen waited on comes back after
@@ -403,13 +412,33 @@ class Session:
         self.state.note(f"shown {key}")
         self._save()
 
+    def _keep_draft(self, key: str, q: Questionnaire, answers: object) -> None:
+        """The answers given so far (the page sends them as they are given): kept in
+        session.json and in the screen a reopened page gets."""
+        if not isinstance(answers, dict):
+            return
+        items = set(q.item_ids())
+        kept = {k: v for k, v in answers.items() if k in items and _answer_like(v)}
+        if kept == self.state.drafts.get(key):
+            return
+        self.state.drafts[key] = kept
+        self.screen = {**self.screen, "draft": kept}
+        self.server.keep(self.screen)
+        st.save(self.state, self.path)
+
     def _questionnaire(self, q: Questionnaire, ts: st.TrialState | None) -> None:
         where = f"after {ts.id}" if ts else "at the end"
         self.say(f"questionnaire {q.id} ({where})")
+        key = f"{ts.id if ts else 'end'}:{q.id}"
         problems: list[str] = []
         while True:
-            sid = self.show("questionnaire", questionnaire=q.to_wire(), problems=problems)
-            msg = self._wait(sid, ("answers",))
+            sid = self.show(
+                "questionnaire",
+                questionnaire=q.to_wire(),
+                problems=problems,
+                draft=self.state.drafts.get(key, {}),
+            )
+            msg = self._wait(sid, ("answers",), draft=(key, q))
             assert msg is not None
             answers = msg.get("answers")
             if not isinstance(answers, dict):
@@ -419,7 +448,9 @@ class Session:
             problems = q.check(answers)
             if not problems:
                 break
+            self._keep_draft(key, q, answers)  # asked again: with what was given
             self.say(f"questionnaire {q.id}: incomplete ({problems[0]}); asked again")
+        self.state.drafts.pop(key, None)
         scores = q.score(answers)
         if ts is None:
             self.state.end_answers[q.id] = answers
@@ -674,6 +705,13 @@ class Session:
         else:
             self.say(HELP)
         return ""
+
+
+def _answer_like(v: object) -> bool:
+    """A value an item's answer can be: a number or a text (of at most 2000 characters)."""
+    if isinstance(v, str):
+        return len(v) <= 2000
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 def _serving(host: str, port: int) -> bool:

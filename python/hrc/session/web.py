@@ -101,6 +101,11 @@ class SessionServer:
             with contextlib.suppress(RuntimeError):
                 loop.call_soon_threadsafe(self._send_current, text)
 
+    def keep(self, screen: dict[str, Any]) -> None:
+        """What a page that (re)connects gets, without sending it to the page showing it now
+        (a questionnaire's answers so far, which that page holds already)."""
+        self._screen = json.loads(json.dumps({"type": "screen", **screen}))
+
     def connected(self) -> bool:
         return self._page is not None
 

@@ -72,6 +72,9 @@ class SessionState:
     )  # texts shown: "instructions", "instruction:<trial>"
     end_answers: dict[str, dict[str, Any]] = field(default_factory=dict)
     end_scores: dict[str, dict[str, Any]] = field(default_factory=dict)
+    # a questionnaire's answers as they are given, before it is sent whole
+    # ("<trial id or end>:<questionnaire>" -> answers): a closed tab or a crash keeps them
+    drafts: dict[str, dict[str, Any]] = field(default_factory=dict)
     # running (an `hrc session` serves it now) | done | ended (by the experimenter's `e`) |
     # stopped (the process stopped: Ctrl-C, a signal, an error, or it could not start) | declined
     status: str = "running"

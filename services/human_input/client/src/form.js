@@ -63,7 +63,8 @@ export class FormView {
     const same = this.screen && screen && this.screen.id === screen.id;
     this.screen = screen;
     if (!same) {
-      this.answers = {};
+      // a questionnaire comes back with the answers already given (a closed tab, a crash)
+      this.answers = { ...(screen?.draft || {}) };
       this.page = 0;
       this.textPage = 0;
       this.focus = null; // a text item taking the keys
@@ -86,7 +87,19 @@ export class FormView {
     if (!w || w.disabled) return false;
     w.act(x, y);
     this.layout();
+    this.queueDraft();
     return true;
+  }
+
+  /** Each answer is kept by the session as it is given (sent a moment after the last change). */
+  queueDraft() {
+    const s = this.screen;
+    if (s?.kind !== 'questionnaire' || this.sent || this.draftTimer) return;
+    this.draftTimer = setTimeout(() => {
+      this.draftTimer = null;
+      if (this.screen !== s || this.sent) return;
+      this.onSend({ type: 'draft', screen: s.id, questionnaire: s.questionnaire.id, answers: { ...this.answers } });
+    }, 300);
   }
 
   pointer(xy) {
@@ -104,6 +117,7 @@ export class FormView {
     else if (e.key.length === 1 && cur.length < 2000) this.answers[this.focus] = cur + e.key;
     else return false;
     this.layout();
+    this.queueDraft();
     return true;
   }
 
