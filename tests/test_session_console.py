@@ -226,3 +226,30 @@ def test_a_skipped_trial_is_not_counted_as_done(sessions: list[Session], tmp_pat
         assert second["progress"] == {"done": 0, "skipped": 1, "total": 2}, second
         s.command("?")
         s.said(r"L01: 0/2 trials done \(1 skipped\)", 30)
+
+
+def test_the_console_shows_what_the_trial_waits_for(
+    sessions: list[Session], tmp_path: Path
+) -> None:
+    """While a trial runs the experimenter sees its state on the session's console (it said only
+    `running 7:31, page connected`): the trial's task events as they come and its status line,
+    which `?` shows too. Here nobody drives the trial: it waits for the first grab."""
+    study = write_study(tmp_path / "study", LIVE, simulated=0)
+    s = Session(study, "L01", tmp_path / "out")
+    sessions.append(s)
+    ws_url, _ = page_link(s)
+    with connect(ws_url, open_timeout=10) as ws:
+        consent = screen(ws, "consent")
+        ws.send(json.dumps({"type": "consent", "accepted": True, "screen": consent["id"]}))
+        text = screen(ws, "text")
+        ws.send(json.dumps({"type": "continue", "screen": text["id"]}))
+        ready = screen(ws, "ready")
+        ws.send(json.dumps({"type": "start", "screen": ready["id"]}))
+        screen(ws, "trial")  # its bridge serves: the trial runs
+        s.command("?")
+        s.said(r"L01: 0/2 trials done, page connected; trial: L01: no driver, 0 spectator\(s\) "
+               r"\| waiting for the first grab \| task 0.0 s \| placed 0/3", 30)  # fmt: skip
+        s.command("s")  # skipped: stopped, its end on the console
+        s.said(r"trial \S+: skipped", 60)
+        s.command("?")
+        s.said(r"L01: 0/2 trials done \(1 skipped\), page connected$", 30)

@@ -97,6 +97,7 @@ class Session:
         self.console = console or sys.stderr
         self.trials = {t.id: t for t in study.live_trials(participant)}
         self.paused = False
+        self.trial_status = ""  # the running trial's last status line (its hrc run's console)
         self.screen_id = 0
         self.screen: dict[str, Any] = {}
         self.break_until = 0.0
@@ -221,7 +222,8 @@ class Session:
         page = "page connected" if self.server.connected() else "page not connected"
         paused = ", PAUSED" if self.paused else ""
         skipped = f" ({p['skipped']} skipped)" if p["skipped"] else ""
-        return f"{self.pid}: {p['done']}/{p['total']} trials done{skipped}, {page}{paused}"
+        trial = f"; trial: {self.trial_status}" if self.trial_status else ""
+        return f"{self.pid}: {p['done']}/{p['total']} trials done{skipped}, {page}{paused}{trial}"
 
     # ------------------------------------------------------------------ the run
     def url(self) -> str:
@@ -540,7 +542,7 @@ class Session:
             ).start()
             stopped = ""
             try:
-                stopped = self._watch(ts, proc, port, t0)
+                stopped = self._watch(ts, proc, port, t0, TrialLog(log_path))
             except BaseException:
                 stop_process(proc, STOP_GRACE_S)
                 attempt.outcome, attempt.reason = (
@@ -552,6 +554,7 @@ class Session:
                 self.state.note(f"trial {ts.id} failed: {attempt.reason}")
                 self._save()
                 raise
+        self.trial_status = ""
         attempt.wall_s = round(time.monotonic() - t0, 3)
         attempt.exit_code = proc.returncode
         metrics = read_metrics(trial_dir / "metrics.json")
@@ -585,8 +588,13 @@ class Session:
                 0,
             )
 
-    def _watch(self, ts: st.TrialState, proc: subprocess.Popen[Any], port: int, t0: float) -> str:
-        """Waits for the trial's end; returns why it was stopped ("" if it ended by itself)."""
+    def _watch(
+        self, ts: st.TrialState, proc: subprocess.Popen[Any], port: int, t0: float, tl: TrialLog
+    ) -> str:
+        """Waits for the trial's end; returns why it was stopped ("" if it ended by itself).
+        What the trial's console says (hrc run's: task events as they come, "waiting for the
+        participant: H3", a status line every 15 s) is shown on the session's console too."""
+        self.trial_status = ""
         served = False
         gone_at: float | None = None if self.server.connected() else time.monotonic()
         deadline = t0 + self.live.trial_timeout_s
@@ -602,7 +610,13 @@ class Session:
                 self.say(
                     f"trial {ts.index}/{len(self.state.trials)} {ts.id} ({cond}): {state} "
                     f"{el // 60}:{el % 60:02d}, {page}"
+                    + (f" | {self.trial_status}" if self.trial_status else "")
                 )
+            for line in tl.new_lines():
+                if line.startswith("status: "):
+                    self.trial_status = line.removeprefix("status: ")
+                elif line.startswith(("[task", "run ended:", "trial FAILED")):
+                    self.say(f"{ts.id}: {line}")
             if not served and _serving(self.opts.host, port):
                 served = True
                 self.show("trial", port=port, trial=ts.id)
@@ -705,6 +719,27 @@ class Session:
         else:
             self.say(HELP)
         return ""
+
+
+class TrialLog:
+    """The lines a trial's `hrc run` adds to its log (its console: stdout and stderr), as they
+    come; a line still being written waits for its end."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self._offset = 0
+        self._partial = b""
+
+    def new_lines(self) -> list[str]:
+        try:
+            with open(self.path, "rb") as f:
+                f.seek(self._offset)
+                data = f.read(1 << 20)
+        except OSError:
+            return []
+        self._offset += len(data)
+        *lines, self._partial = (self._partial + data).split(b"\n")
+        return [ln.decode("utf-8", "replace").rstrip("\r") for ln in lines]
 
 
 def _answer_like(v: object) -> bool:
