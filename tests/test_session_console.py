@@ -253,3 +253,36 @@ def test_the_console_shows_what_the_trial_waits_for(
         s.said(r"trial \S+: skipped", 60)
         s.command("?")
         s.said(r"L01: 0/2 trials done \(1 skipped\), page connected$", 30)
+
+
+def test_questionnaires_before_the_session_and_before_a_trial(
+    sessions: list[Session], tmp_path: Path
+) -> None:
+    """before_session: after the consent, once (demographics, a baseline SSQ); before_trial:
+    before each analysed trial's ready screen. Every answer kept in session.json."""
+    live = LIVE + (
+        'before_session = ["demographics"]\nbefore_trial = ["ready"]\n'
+        '[questionnaires.ready]\npoints = 5\nitems = [{ id = "rested", text = "I feel rested." }]\n'
+    )
+    study = write_study(tmp_path / "study", live, simulated=0)
+    out = tmp_path / "out"
+    s = Session(study, "L01", out)
+    sessions.append(s)
+    ws_url, _ = page_link(s)
+    with connect(ws_url, open_timeout=10) as ws:
+        consent = screen(ws, "consent")
+        ws.send(json.dumps({"type": "consent", "accepted": True, "screen": consent["id"]}))
+        about = screen(ws, "questionnaire")
+        assert about["questionnaire"]["title"] == "About you", about
+        answers = {"handedness": "left", "age": "25-34"}
+        ws.send(json.dumps({"type": "answers", "answers": answers, "screen": about["id"]}))
+        text = screen(ws, "text")  # then the instructions
+        ws.send(json.dumps({"type": "continue", "screen": text["id"]}))
+        ready_q = screen(ws, "questionnaire")
+        assert ready_q["questionnaire"]["id"] == "ready", ready_q
+        ws.send(json.dumps({"type": "answers", "answers": {"rested": 4}, "screen": ready_q["id"]}))
+        screen(ws, "ready")
+    state = json.loads((out / "sessions" / "L01" / "session.json").read_text())
+    assert state["start_answers"] == {"demographics": answers}
+    assert state["trials"][0]["answers"] == {"ready": {"rested": 4}}
+    assert state["trials"][0]["scores"] == {"ready": {"mean": 4.0}}

@@ -309,6 +309,10 @@ class Session:
             self._paused()
         if live.consent and s.consent is None:
             return self._consent()
+        for q in live.before_session:  # demographics, a baseline SSQ
+            if q.id not in s.start_answers:
+                self._questionnaire(q, None, at="start")
+                return True
         if live.instructions and "instructions" not in s.seen:
             self._text("instructions", "Instructions", live.instructions)
             return True
@@ -325,6 +329,10 @@ class Session:
                 key = f"instruction:{nxt.id}:{i}"
                 if key not in s.seen:
                     self._text(key, "Before the next trial", ins.text)
+                    return True
+            for q in [] if nxt.practice else live.before_trial:
+                if q.id not in nxt.answers:
+                    self._questionnaire(q, nxt)
                     return True
             self._trial(nxt, trial)
             return True
@@ -428,10 +436,12 @@ class Session:
         self.server.keep(self.screen)
         st.save(self.state, self.path)
 
-    def _questionnaire(self, q: Questionnaire, ts: st.TrialState | None) -> None:
-        where = f"after {ts.id}" if ts else "at the end"
+    def _questionnaire(self, q: Questionnaire, ts: st.TrialState | None, at: str = "end") -> None:
+        """Asks `q` about trial `ts` (before or after it), or, without one, `at` the session's
+        start or end; the answers are kept (session.json, and the trial's answers.json)."""
+        where = f"for {ts.id}" if ts else f"at the session's {at}"
         self.say(f"questionnaire {q.id} ({where})")
-        key = f"{ts.id if ts else 'end'}:{q.id}"
+        key = f"{ts.id if ts else at}:{q.id}"
         problems: list[str] = []
         while True:
             sid = self.show(
@@ -454,7 +464,10 @@ class Session:
             self.say(f"questionnaire {q.id}: incomplete ({problems[0]}); asked again")
         self.state.drafts.pop(key, None)
         scores = q.score(answers)
-        if ts is None:
+        if ts is None and at == "start":
+            self.state.start_answers[q.id] = answers
+            self.state.start_scores[q.id] = scores
+        elif ts is None:
             self.state.end_answers[q.id] = answers
             self.state.end_scores[q.id] = scores
         else:

@@ -28,11 +28,15 @@ LIVE_KEYS = {
     "consent",
     "instructions",
     "instruction",
+    "before_session",
+    "before_trial",
     "after_trial",
     "end",
     "questionnaire_file",
     "trial_timeout_s",
 }
+# where a session asks questionnaires, in its order (docs/studies.md)
+SLOTS = ("before_session", "before_trial", "after_trial", "end")
 _PID = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 DEFAULT_TRIAL_TIMEOUT_S = 1800.0  # a live trial's wall time at most (then stopped, failed)
 LIVE_SEED_BASE = 7_000_000  # live trial seeds: base + 1000 * participant index + trial index
@@ -76,6 +80,8 @@ class LiveSpec:
     instructions: str = ""  # Markdown shown once before the first trial
     instructions_file: str = ""
     instruction: list[Instruction] = field(default_factory=list)
+    before_session: list[Questionnaire] = field(default_factory=list)  # once, after consent
+    before_trial: list[Questionnaire] = field(default_factory=list)  # before each analysed trial
     after_trial: list[Questionnaire] = field(default_factory=list)
     end: list[Questionnaire] = field(default_factory=list)
     trial_timeout_s: float = DEFAULT_TRIAL_TIMEOUT_S
@@ -188,16 +194,18 @@ def parse(
         )
     spec.instruction = _instructions(section.get("instruction", []), folder, conditions, problems)
     catalogue = _catalogue(questionnaires, section.get("questionnaire_file"), folder, problems)
-    spec.after_trial = _asked(
-        "live.after_trial", section.get("after_trial", []), catalogue, problems
-    )
-    spec.end = _asked("live.end", section.get("end", []), catalogue, problems)
-    both = {q.id for q in spec.after_trial} & {q.id for q in spec.end}
-    if both:
-        problems.append(
-            f"live.end: {sorted(both)[0]!r} is also asked after each trial: its columns would "
-            "clash; define a second questionnaire of the same kind for the end"
-        )
+    seen: dict[str, str] = {}  # questionnaire -> the slot that asks it
+    for slot in SLOTS:
+        asked = _asked(f"live.{slot}", section.get(slot, []), catalogue, problems)
+        setattr(spec, slot, asked)
+        for q in asked:
+            if q.id in seen:
+                problems.append(
+                    f"live.{slot}: {q.id!r} is also asked in live.{seen[q.id]}: its columns "
+                    "would clash; define a second questionnaire of the same kind (e.g. "
+                    '[questionnaires.ssq_before] kind = "ssq")'
+                )
+            seen.setdefault(q.id, slot)
     return spec
 
 

@@ -273,11 +273,35 @@ def _ssq(answers: dict[str, Any]) -> dict[str, float | None]:
     }
 
 
-BUILTIN = {"tlx": "nasa_tlx", "ssq": "ssq"}
+# ---------------------------------------------------------------- demographics
+
+FREQUENCY = ("never", "once or twice", "a few times a year", "monthly", "weekly or more")
+
+
+def _demographics_questionnaire(qid: str) -> Questionnaire:
+    """Who took part: asked once (live.before_session); ranges rather than exact figures, and
+    every item may be left out but handedness (it decides the hand the task is set up for)."""
+
+    def choice(iid: str, text: str, options: tuple[str, ...], required: bool = False) -> Item:
+        return Item(iid, text, "choice", options=options, required=required)
+
+    items = (
+        choice("age", "Your age", ("18-24", "25-34", "35-44", "45-54", "55-64", "65 or older")),
+        choice("gender", "Your gender", ("woman", "man", "non-binary", "prefer not to say")),
+        choice("handedness", "Your writing hand", ("right", "left", "either"), required=True),
+        choice("vr_experience", "How often have you used a VR headset?", FREQUENCY),
+        choice("robot_experience", "How often have you worked beside a robot arm?", FREQUENCY),
+    )
+    return Questionnaire(qid, "About you", "A few questions about you.", items, "none")
+
+
+BUILTIN = {"tlx": "nasa_tlx", "ssq": "ssq", "demographics": "demographics"}
 
 
 def builtin(qid: str, kind: str | None = None, weighted: bool = False) -> Questionnaire:
     kind = kind or BUILTIN[qid]
+    if kind == "demographics":
+        return _demographics_questionnaire(qid)
     return _tlx_questionnaire(qid, weighted) if kind == "nasa_tlx" else _ssq_questionnaire(qid)
 
 
@@ -294,7 +318,7 @@ def parse(qid: str, spec: Any, problems: list[str]) -> Questionnaire | None:
         problems.append(f"{where}: should be a table")
         return None
     kind = spec.get("kind", "likert")
-    if kind in ("nasa_tlx", "ssq"):
+    if kind in ("nasa_tlx", "ssq", "demographics"):
         for extra in sorted(set(spec) - {"kind", "weighted"}):
             problems.append(f"{where}.{extra}: unknown key for a {kind} questionnaire")
         weighted = spec.get("weighted", False)
@@ -307,8 +331,8 @@ def parse(qid: str, spec: Any, problems: list[str]) -> Questionnaire | None:
         problems.append(f"{where}.{extra}: unknown key")
     if kind not in KINDS:
         problems.append(
-            f"{where}.kind: one of nasa_tlx, ssq, {', '.join(KINDS)} (the items' kind; "
-            f"got {kind!r})"
+            f"{where}.kind: one of nasa_tlx, ssq, demographics, {', '.join(KINDS)} (the "
+            f"items' kind; got {kind!r})"
         )
         return None
     defaults = {k: spec[k] for k in ("points", "start", "anchors", "labels") if k in spec}

@@ -720,7 +720,8 @@ def _questionnaire_section(
         if not cols:
             out.append(f"<h3>{title}</h3><p class='note'>No answers yet.</p>")
             continue
-        if q.get("when") == "end":
+        when = q.get("when")
+        if when in ("end", "before_session"):
             people = df[df["participant_kind"] == "live"].drop_duplicates("participant")
             body = []
             for c in cols:
@@ -735,8 +736,10 @@ def _questionnaire_section(
                     ]
                 )
             out.append(
-                f"<h3>{title} <span class='muted'>(end of the session, one answer per "
-                "participant)</span></h3>" + _table(["column", "n", "mean", "95 % CI"], body)
+                f"<h3>{title} <span class='muted'>("
+                + ("before the session" if when == "before_session" else "end of the session")
+                + ", one answer per participant)</span></h3>"
+                + _table(["column", "n", "mean", "95 % CI"], body)
             )
             continue
         head = ["column", *order]
@@ -751,7 +754,9 @@ def _questionnaire_section(
                 row.append(f"{_fmt(m)} [{_fmt(lo)}, {_fmt(hi)}] ({n})" if n else DASH)
             body.append(row)
         out.append(
-            f"<h3>{title} <span class='muted'>(after each trial; practice left out)</span></h3>"
+            f"<h3>{title} <span class='muted'>("
+            + ("before" if when == "before_trial" else "after")
+            + " each trial; practice left out)</span></h3>"
             "<p class='muted'>Mean [95 % bootstrap CI] (n) by condition.</p>" + _table(head, body)
         )
         scores = [c for c in cols if c.rsplit(".", 1)[1] in q.get("scores", [])]

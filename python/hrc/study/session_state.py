@@ -72,6 +72,8 @@ class SessionState:
     )  # texts shown: "instructions", "instruction:<trial>"
     end_answers: dict[str, dict[str, Any]] = field(default_factory=dict)
     end_scores: dict[str, dict[str, Any]] = field(default_factory=dict)
+    start_answers: dict[str, dict[str, Any]] = field(default_factory=dict)  # before_session
+    start_scores: dict[str, dict[str, Any]] = field(default_factory=dict)
     # a questionnaire's answers as they are given, before it is sent whole
     # ("<trial id or end>:<questionnaire>" -> answers): a closed tab or a crash keeps them
     drafts: dict[str, dict[str, Any]] = field(default_factory=dict)

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from hrc.diskspace import SIMULATED_TRIAL_MB, low_space
+from hrc.study.live import SLOTS
 from hrc.study.spec import Study
 from hrc.study.table import write_table
 from hrc.study.trial import (
@@ -183,7 +184,7 @@ def write_study_files(study: Study, out: Path) -> None:
 def describe(study: Study) -> dict[str, Any]:
     """What `hrc report` needs to know about the study (beside the table)."""
     live = study.live
-    asked = {"after_trial": live.after_trial, "end": live.end} if live else {}
+    asked = {slot: getattr(live, slot) for slot in SLOTS} if live else {}
     return {
         "name": study.name,
         "scenario": str(study.scenario),

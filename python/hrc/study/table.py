@@ -98,7 +98,9 @@ def live_rows(study: Study, out: Path) -> list[dict[str, Any]]:
 
     result: list[dict[str, Any]] = []
     for s in all_sessions(out):
-        session_q = answer_columns(s.end_answers, s.end_scores)
+        session_q = answer_columns(  # (a questionnaire is asked in one slot only)
+            {**s.start_answers, **s.end_answers}, {**s.start_scores, **s.end_scores}
+        )
         for t in s.trials:
             if not t.attempts and t.status == "pending":
                 continue

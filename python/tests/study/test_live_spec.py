@@ -85,7 +85,7 @@ def test_every_problem_of_a_live_table_is_listed(tmp_path: Path) -> None:
         "live.min_break_s: seconds, 0..3600 (got '5')",
         "live.consent: cannot read 'missing.md'",
         "live.after_trial: no questionnaire 'nasa'",
-        "live.end: 'tlx' is also asked after each trial",
+        "live.end: 'tlx' is also asked in live.after_trial",
         "live.practice_condition: no condition has these values",
     ):
         assert want in text, f"{want!r} not in:\n{text}"
@@ -104,3 +104,26 @@ def test_questionnaires_need_a_live_table_and_ids_must_not_clash(tmp_path: Path)
             study(tmp_path, 'participants = ["P01"]', extra="[participants]\nn = 1\n"),
             motion_check=False,
         )
+
+
+def test_questionnaires_before_the_session_and_before_each_trial(tmp_path: Path) -> None:
+    """Four slots: before_session (demographics, a baseline SSQ), before_trial, after_trial,
+    end; a questionnaire in one slot only (its columns would clash), so the SSQ before and
+    after exposure are two questionnaires of one kind."""
+    live = (
+        'n = 2\nbefore_session = ["demographics", "ssq_before"]\nbefore_trial = ["ready"]\n'
+        'after_trial = ["tlx"]\nend = ["ssq"]\n'
+        '[questionnaires.ssq_before]\nkind = "ssq"\n'
+        '[questionnaires.ready]\nitems = [{ id = "rested", text = "I feel rested." }]\n'
+    )
+    s = load_study(study(tmp_path, live), motion_check=False)
+    assert s.live is not None
+    assert [q.id for q in s.live.before_session] == ["demographics", "ssq_before"]
+    demographics = s.live.before_session[0]
+    assert demographics.title == "About you" and demographics.score_names() == []
+    assert [i.id for i in demographics.items if i.required] == ["handedness"]
+    assert [q.id for q in s.live.before_trial] == ["ready"]
+    assert s.live.before_session[1].score_names()[-1] == "total_score"
+    clash = 'n = 2\nbefore_session = ["ssq"]\nend = ["ssq"]\n'
+    with pytest.raises(StudyError, match=r"live\.end: 'ssq' is also asked in live\.before_session"):
+        load_study(study(tmp_path, clash), motion_check=False)
