@@ -27,11 +27,13 @@ INSTRUCTIONS = (
 CUES = "In this block the robots **show their targets** before they move.\n"
 
 
-def write_study(folder: Path, live: str, simulated: int = 2, factors: str = "") -> Path:
+def write_study(
+    folder: Path, live: str, simulated: int = 2, factors: str = "", consent: str = CONSENT
+) -> Path:
     """A study of minimal.toml with two conditions (anticipation on, off), `simulated`
     scripted participants and the `[live]` table given, the texts beside it."""
     folder.mkdir(parents=True, exist_ok=True)
-    (folder / "consent.md").write_text(CONSENT)
+    (folder / "consent.md").write_text(consent)
     (folder / "instructions.md").write_text(INSTRUCTIONS)
     (folder / "cues.md").write_text(CUES)
     factors = factors or '"conditions.anticipation" = [true, false]'

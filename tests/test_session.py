@@ -41,6 +41,14 @@ from .session_page import (
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
+# two pages: a paragraph over three lines of the file, then enough to fill the first page
+LONG_CONSENT = (
+    "# Consent\n\nYou take part in a study of **working with robots**: the robots work\n"
+    "beside you while you place parts\non a board.\n\n"
+    + "".join(f"- Point {i}: what you should know about the study, item {i}.\n" for i in range(9))
+    + "\nSome people feel unwell in VR. Tell the experimenter at once if you feel dizzy or "
+    "sick:\nthe session stops whenever you want.\n"
+)
 LIVE = """[live]
 participants = ["L01", "L02", "L03"]
 order = "williams"
@@ -84,7 +92,7 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     sessions: list[Session],
     tmp_path: Path,
 ) -> None:
-    study = write_study(tmp_path / "study", LIVE)
+    study = write_study(tmp_path / "study", LIVE, consent=LONG_CONSENT)
     out = tmp_path / "out"
     # the simulated participants first: the same study folder, the same table
     sweep = subprocess.run(
@@ -100,7 +108,17 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
 
     f = wait_screen(page, ("consent",))
     assert "working with robots" in page.page.evaluate("window.hrcApp.form.screen.text")
+    # a paragraph is one text, whatever the file's line breaks (they were kept); the first of
+    # its two pages ends above "page 1 of 2" (which overlapped its last line)
+    text = f["text"]
+    assert "study of working with robots: the robots work beside you while you" in " ".join(
+        text["lines"]
+    ), text
+    assert text["pages"] == 2 and text["bottom"] + 8 < text["pageLine"], text
     shot(page, "session-consent.png")
+    mouse.press(f, "more")
+    f = form(page)
+    assert f["text"]["lines"][-1].endswith("the session stops whenever you want."), f["text"]
     mouse.press(f, "yes")
     f = wait_screen(page, ("text",), f["id"])
     assert f["title"] == "Instructions"

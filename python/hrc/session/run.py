@@ -140,7 +140,7 @@ class Session:
         saved = st.load(self.path)
         plan = list(self.trials.values())
         if saved is None:
-            order = self.live.orders(len(self.study.conditions))[self.pid]
+            order = self.live.orders(self.study.conditions)[self.pid]
             state = st.SessionState(
                 self.study.name,
                 self.pid,

@@ -28,6 +28,7 @@ LIVE_KEYS = {
     "consent",
     "instructions",
     "instruction",
+    "between",
     "before_session",
     "before_trial",
     "after_trial",
@@ -85,10 +86,36 @@ class LiveSpec:
     after_trial: list[Questionnaire] = field(default_factory=list)
     end: list[Questionnaire] = field(default_factory=list)
     trial_timeout_s: float = DEFAULT_TRIAL_TIMEOUT_S
+    # between-subject factors: each participant does one level (of their combination) only
+    between: list[str] = field(default_factory=list)
 
-    def orders(self, n_conditions: int) -> dict[str, list[int]]:
-        rows = orders(self.order, n_conditions, len(self.participants), self.seed)
-        return dict(zip(self.participants, rows, strict=True))
+    def groups(self, conditions: list[dict[str, Any]]) -> list[list[int]]:
+        """The study's conditions by between-subject group (one group: every condition); a
+        group's conditions in the study's order. Groups in the order they first appear."""
+        keyed: dict[str, list[int]] = {}
+        for i, c in enumerate(conditions):
+            keyed.setdefault(repr([c.get(f) for f in self.between]), []).append(i)
+        return list(keyed.values())
+
+    def orders(self, conditions: list[dict[str, Any]]) -> dict[str, list[int]]:
+        """Each participant's conditions (indices into `conditions`) in their order. With
+        between-subject factors the roster is dealt over the groups in turn (participant k to
+        group k mod G: balanced), and each group's members take the rows of the order (a
+        Williams square, say) over its own conditions in turn."""
+        groups = self.groups(conditions)
+        g = len(groups)
+        out: dict[str, list[int]] = {}
+        for gi, members in enumerate(groups):
+            people = self.participants[gi::g]
+            rows = orders(self.order, len(members), len(people), self.seed)
+            for pid, row in zip(people, rows, strict=True):
+                out[pid] = [members[i] for i in row]
+        return out
+
+    def group_of(self, participant: str, conditions: list[dict[str, Any]]) -> list[int]:
+        """The conditions of the participant's between-subject group (all without one)."""
+        groups = self.groups(conditions)
+        return groups[self.participants.index(participant) % len(groups)]
 
     def plan(
         self, participant: str, conditions: list[dict[str, Any]], repetitions: int, trial_id: Any
@@ -96,12 +123,15 @@ class LiveSpec:
         """The participant's trials: practice, then every condition in their order (the whole
         order again for each repetition). `trial_id(condition, person, repetition)` names them."""
         k = self.participants.index(participant)
-        order = self.orders(len(conditions))[participant]
+        order = self.orders(conditions)[participant]
         out: list[LiveTrialPlan] = []
+        # with between-subject factors each practises in their own group's first condition
+        practice = self.group_of(participant, conditions)[0] if self.between else None
+        practice = self.practice_condition if practice is None else practice
         for p in range(1, self.practice + 1):
-            cond = conditions[self.practice_condition]
+            cond = conditions[practice]
             tid = f"practice{p}_{trial_id(cond, participant, 1)}"
-            out.append(LiveTrialPlan(tid, len(out) + 1, self.practice_condition, 0, True, p, 0))
+            out.append(LiveTrialPlan(tid, len(out) + 1, practice, 0, True, p, 0))
         pos = 0
         for rep in range(1, repetitions + 1):
             for ci in order:
@@ -193,6 +223,14 @@ def parse(
             "live.instructions", section["instructions"], folder, problems
         )
     spec.instruction = _instructions(section.get("instruction", []), folder, conditions, problems)
+    spec.between = _between(section.get("between", []), conditions, problems)
+    if spec.between and "practice_condition" in section:
+        group_values = {repr([c.get(f) for f in spec.between]) for c in conditions}
+        if len(group_values) > 1:  # a practice in one group's condition would show it to all
+            problems.append(
+                "live.practice_condition: with between-subject factors each participant "
+                "practises in their own group's first condition; leave it out"
+            )
     catalogue = _catalogue(questionnaires, section.get("questionnaire_file"), folder, problems)
     seen: dict[str, str] = {}  # questionnaire -> the slot that asks it
     for slot in SLOTS:
@@ -207,6 +245,21 @@ def parse(
                 )
             seen.setdefault(q.id, slot)
     return spec
+
+
+def _between(raw: Any, conditions: list[dict[str, Any]], problems: list[str]) -> list[str]:
+    """Between-subject factors: factors of the study, keys as in [factors] (all of them is a
+    between-subject design: one condition per participant)."""
+    if not isinstance(raw, list) or not all(isinstance(x, str) for x in raw):
+        problems.append('live.between: a list of factor keys, e.g. ["robots.*.max_tcp_speed"]')
+        return []
+    known = set(conditions[0]) if conditions else set()
+    for key in raw:
+        if key not in known:
+            problems.append(f"live.between: {key!r} is not a factor of the study")
+    if len(set(raw)) != len(raw):
+        problems.append("live.between: a factor is named twice")
+    return [k for k in raw if k in known]
 
 
 def _participants(section: dict[str, Any], problems: list[str]) -> list[str]:

@@ -195,6 +195,7 @@ def describe(study: Study) -> dict[str, Any]:
         "participant_parameters": list(study.dists),
         "trials": len(study.trials),
         "live_participants": live.participants if live else [],
+        "between": live.between if live else [],  # the live participants' between factors
         "questionnaires": {
             q.id: {
                 "title": q.title,

@@ -127,3 +127,28 @@ def test_questionnaires_before_the_session_and_before_each_trial(tmp_path: Path)
     clash = 'n = 2\nbefore_session = ["ssq"]\nend = ["ssq"]\n'
     with pytest.raises(StudyError, match=r"live\.end: 'ssq' is also asked in live\.before_session"):
         load_study(study(tmp_path, clash), motion_check=False)
+
+
+def test_a_mixed_design_deals_the_between_factor_over_the_roster_balanced(
+    tmp_path: Path,
+) -> None:
+    """2 x 2 mixed: speed between subjects, anticipation within. Four people: two per speed
+    (dealt in turn over the roster), each doing both anticipation levels at their speed, the
+    two of a group in opposite orders; each practises at their own speed."""
+    live = 'n = 4\npractice = 1\nbetween = ["robots.*.max_tcp_speed"]\n'
+    s = load_study(study(tmp_path, live), motion_check=False)
+    assert s.live is not None and s.live.between == ["robots.*.max_tcp_speed"]
+    speed, ant = "robots.*.max_tcp_speed", "conditions.anticipation"
+    seen: dict[float, list[list[bool]]] = {}
+    for pid in s.live.participants:
+        trials = s.live_trials(pid)
+        speeds = {t.condition[speed] for t in trials}
+        assert len(speeds) == 1, (pid, speeds)  # one level of the between factor, practice too
+        analysed = [t.condition[ant] for t in trials if not t.plan.practice]
+        assert sorted(analysed) == [False, True], (pid, analysed)  # every within level
+        seen.setdefault(speeds.pop(), []).append(analysed)
+    assert sorted(seen) == [0.25, 0.5] and all(len(v) == 2 for v in seen.values()), seen
+    for orders in seen.values():  # counterbalanced within each group
+        assert orders[0] != orders[1], seen
+    with pytest.raises(StudyError, match=r"live\.between: 'speed' is not a factor"):
+        load_study(study(tmp_path, 'n = 4\nbetween = ["speed"]\n'), motion_check=False)

@@ -121,3 +121,14 @@ def test_a_participant_whose_trials_were_all_skipped_is_not_counted_as_taking_pa
     assert "12 participants with trials in the statistics (1 more with none: L07)" in plain, plain[
         :800
     ]
+
+
+def test_the_design_says_which_factor_the_people_meet_between_and_which_within(
+    tmp_path: Path,
+) -> None:
+    table(tmp_path)
+    meta = json.loads((tmp_path / "study.json").read_text())
+    meta.update(live_participants=["L01"], between=[FACTOR])
+    (tmp_path / "study.json").write_text(json.dumps(meta))
+    plain = text(write_report(tmp_path).read_text())
+    assert f"{FACTOR} True, False between (one level each)" in plain, plain[:1500]

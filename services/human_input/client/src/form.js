@@ -31,15 +31,19 @@ function wrapPx(ctx, text, width) {
   return out;
 }
 
-/** Markdown as the screens need it: headings, paragraphs, bullet lists; **, _ and ` dropped. */
+/** Markdown as the screens need it: headings, paragraphs, bullet lists; **, _ and ` dropped.
+ * As in Markdown, the lines of a paragraph (or of a list item) are one text: the file's own
+ * line breaks are not the screen's. */
 function markdownBlocks(md) {
   const blocks = [];
   for (const raw of String(md || '').split('\n')) {
     const line = raw.replace(/\*\*|__|`/g, '').replace(/(^|\s)[*_](\S[^*_]*)[*_]/g, '$1$2');
     const h = line.match(/^(#{1,6})\s+(.*)$/);
+    const prev = blocks[blocks.length - 1];
     if (h) blocks.push({ kind: 'h', text: h[2] });
     else if (/^\s*[-*]\s+/.test(line)) blocks.push({ kind: 'li', text: line.replace(/^\s*[-*]\s+/, '\u2022 ') });
     else if (!line.trim()) blocks.push({ kind: 'gap' });
+    else if (prev && (prev.kind === 'p' || prev.kind === 'li')) prev.text += ` ${line.trim()}`;
     else blocks.push({ kind: 'p', text: line.trim() });
   }
   return blocks;
@@ -192,9 +196,11 @@ export class FormView {
     }
     const pages = [[]];
     let h = 0;
+    // the text ends above "page k of n" (and the buttons below it)
+    const room = BOTTOM - 130 - 44;
     for (const l of lines) {
       const lh = l.px * 1.4;
-      if (h + lh > BOTTOM - 130 && pages[pages.length - 1].length) {
+      if (h + lh > room && pages[pages.length - 1].length) {
         pages.push([]);
         h = 0;
       }
@@ -209,11 +215,14 @@ export class FormView {
       y += l.px * 1.4;
       ctx.fillText(l.text, PAD, y);
     }
+    // what is on the page (the browser tests read it): its lines, where the last one ends
+    this.drawn = { lines: pages[this.textPage].map((l) => l.text), bottom: y, pages: pages.length, pageLine: null };
     const last = this.textPage === pages.length - 1;
     if (pages.length > 1) {
       ctx.fillStyle = '#9fb3c8';
       ctx.font = `18px ${FONT}`;
       ctx.fillText(`page ${this.textPage + 1} of ${pages.length}`, PAD, BOTTOM - 16);
+      this.drawn.pageLine = BOTTOM - 16 - 18; // the top of its letters
       if (this.textPage > 0) this.button(PAD, BOTTOM, 160, 60, 'Back', () => { this.textPage--; }, { id: 'back' });
     }
     if (!last) {

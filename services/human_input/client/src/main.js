@@ -485,7 +485,16 @@ class App {
     this.world.animate(now);
     this.hud.set('task', this.taskT === null || this.taskT === undefined ? '-' : `${this.taskT.toFixed(1)} s`);
     if (!this.xr.active() && this.mode === 'desktop') this.hud.set('hand', driving ? this.desktop.statusLine() : '');
-    if (this.xr.active()) this.hud.follow(this.renderer.xr.getCamera());
+    if (this.xr.active()) {
+      // between a session's trials the form is all there is to read (it shows the progress):
+      // the status panel, which would hang over the form's title, waits for the next trial
+      const formUp = !!this.form?.visible();
+      if (formUp !== this.panelAsideForForm) {
+        this.panelAsideForForm = formUp;
+        this.hud.setInWorld(!formUp);
+      }
+      this.hud.follow(this.renderer.xr.getCamera());
+    }
     this.beforeRender?.(); // the browser tests' hooks (test-hooks.js): what a test hides
     const updated = performance.now();
     this.renderer.render(this.scene, this.camera);
