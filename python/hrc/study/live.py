@@ -29,6 +29,7 @@ LIVE_KEYS = {
     "instructions",
     "instruction",
     "between",
+    "blocks",
     "before_session",
     "before_trial",
     "after_trial",
@@ -88,6 +89,9 @@ class LiveSpec:
     trial_timeout_s: float = DEFAULT_TRIAL_TIMEOUT_S
     # between-subject factors: each participant does one level (of their combination) only
     between: list[str] = field(default_factory=list)
+    # study.repetitions as blocks: each condition's trials in a row, the blocks in the order
+    # (else the whole order again for each repetition)
+    blocks: bool = False
 
     def groups(self, conditions: list[dict[str, Any]]) -> list[list[int]]:
         """The study's conditions by between-subject group (one group: every condition); a
@@ -121,7 +125,8 @@ class LiveSpec:
         self, participant: str, conditions: list[dict[str, Any]], repetitions: int, trial_id: Any
     ) -> list[LiveTrialPlan]:
         """The participant's trials: practice, then every condition in their order (the whole
-        order again for each repetition). `trial_id(condition, person, repetition)` names them."""
+        order again for each repetition, or with `blocks` each condition's repetitions in a
+        row). `trial_id(condition, person, repetition)` names them."""
         k = self.participants.index(participant)
         order = self.orders(conditions)[participant]
         out: list[LiveTrialPlan] = []
@@ -132,12 +137,15 @@ class LiveSpec:
             cond = conditions[practice]
             tid = f"practice{p}_{trial_id(cond, participant, 1)}"
             out.append(LiveTrialPlan(tid, len(out) + 1, practice, 0, True, p, 0))
-        pos = 0
-        for rep in range(1, repetitions + 1):
-            for ci in order:
-                pos += 1
-                tid = trial_id(conditions[ci], participant, rep)
-                out.append(LiveTrialPlan(tid, len(out) + 1, ci, pos, False, rep, 0))
+        reps = range(1, repetitions + 1)
+        pairs = (
+            [(ci, rep) for ci in order for rep in reps]
+            if self.blocks
+            else [(ci, rep) for rep in reps for ci in order]
+        )
+        for pos, (ci, rep) in enumerate(pairs, start=1):
+            tid = trial_id(conditions[ci], participant, rep)
+            out.append(LiveTrialPlan(tid, len(out) + 1, ci, pos, False, rep, 0))
         return [
             LiveTrialPlan(
                 t.id,
@@ -224,6 +232,11 @@ def parse(
         )
     spec.instruction = _instructions(section.get("instruction", []), folder, conditions, problems)
     spec.between = _between(section.get("between", []), conditions, problems)
+    blocks = section.get("blocks", False)
+    if not isinstance(blocks, bool):
+        problems.append(f"live.blocks: true or false (got {blocks!r})")
+    else:
+        spec.blocks = blocks
     if spec.between and "practice_condition" in section:
         group_values = {repr([c.get(f) for f in spec.between]) for c in conditions}
         if len(group_values) > 1:  # a practice in one group's condition would show it to all

@@ -152,3 +152,20 @@ def test_a_mixed_design_deals_the_between_factor_over_the_roster_balanced(
         assert orders[0] != orders[1], seen
     with pytest.raises(StudyError, match=r"live\.between: 'speed' is not a factor"):
         load_study(study(tmp_path, 'n = 4\nbetween = ["speed"]\n'), motion_check=False)
+
+
+def test_repetitions_in_blocks_keep_each_conditions_trials_together(tmp_path: Path) -> None:
+    """live.blocks: each condition's repetitions in a row (else the whole order again)."""
+    path = study(
+        tmp_path, "n = 2\nblocks = true\n", factors='"conditions.anticipation" = [true, false]'
+    )
+    path.write_text(path.read_text().replace('name = "s"', 'name = "s"\nrepetitions = 3'))
+
+    def values(pid: str) -> list[bool]:
+        s = load_study(path, motion_check=False)
+        return [t.condition["conditions.anticipation"] for t in s.live_trials(pid)]
+
+    assert values("L01") == [True] * 3 + [False] * 3  # the Williams rows: L01 on, then off
+    assert values("L02") == [False] * 3 + [True] * 3
+    path.write_text(path.read_text().replace("blocks = true", "blocks = false"))
+    assert values("L01") == [True, False] * 3
