@@ -10,6 +10,7 @@ headset (IWER) is answered with the controller's ray.
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -157,6 +158,9 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     state = json.loads((out / "sessions" / "L02" / "session.json").read_text())
     assert [t["status"] for t in state["trials"]] == ["ok", "ok", "failed"], state["trials"]
     assert s.interrupt() == 130, s.console()
+    # one spectator link for the session: every trial's bridge on the same port
+    links = {m for line in s.lines for m in re.findall(r"spectators: (http://\S+)\)", line)}
+    assert len(links) == 1, s.console()
 
     # the same command resumes: the failed trial again, its questionnaire, the end
     s2 = Session(study, "L02", out)

@@ -521,7 +521,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ss.add_argument("--port", type=int, default=8770, help="the session page's port (8770)")
     ss.add_argument(
-        "--vr-port", type=int, default=0, help="each trial's bridge port (default: a free one)"
+        "--vr-port",
+        type=int,
+        default=0,
+        help="the trials' bridge port (default: one free at the first trial, kept for all)",
     )
     ss.add_argument(
         "--page-mode",

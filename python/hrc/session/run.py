@@ -98,6 +98,7 @@ class Session:
         self.trials = {t.id: t for t in study.live_trials(participant)}
         self.paused = False
         self.trial_status = ""  # the running trial's last status line (its hrc run's console)
+        self.trial_port = 0  # the trials' bridge port, once chosen
         self.screen_id = 0
         self.screen: dict[str, Any] = {}
         self.break_until = 0.0
@@ -528,7 +529,11 @@ class Session:
             shutil.move(str(trial_dir), keep)
         from hrc.ports import free_port
 
-        port = self.opts.vr_port or free_port()
+        # one port for every trial of the session (reserved while it runs): the experimenter's
+        # spectator link stays the same from trial to trial
+        if not self.trial_port:
+            self.trial_port = self.opts.vr_port or free_port()
+        port = self.trial_port
         log_path = self.dir / f"hrc-run-{ts.id}-{len(ts.attempts) + 1}.log"
         argv = [
             sys.executable, "-m", "hrc.cli.main", "run", str(resolved),
@@ -577,6 +582,8 @@ class Session:
             outcome = "skipped"
         attempt.outcome, attempt.reason = outcome, reason
         ts.status, ts.reason = outcome, reason
+        if "address already in use" in reason and not self.opts.vr_port:
+            self.trial_port = 0  # somebody else took it meanwhile: the next attempt picks anew
         self.state.note(f"trial {ts.id} {outcome}", reason=reason)
         self._save()
         self.say(
