@@ -10,7 +10,9 @@ headset (IWER) is answered with the controller's ray.
 from __future__ import annotations
 
 import json
+import os
 import re
+import signal
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
@@ -157,18 +159,31 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     s.said(r"trial antTrue_L02_r1: failed \(the participant's page closed", 120)
     state = json.loads((out / "sessions" / "L02" / "session.json").read_text())
     assert [t["status"] for t in state["trials"]] == ["ok", "ok", "failed"], state["trials"]
-    assert s.interrupt() == 130, s.console()
     # one spectator link for the session: every trial's bridge on the same port
     links = {m for line in s.lines for m in re.findall(r"spectators: (http://\S+)\)", line)}
     assert len(links) == 1, s.console()
-
-    # the same command resumes: the failed trial again, its questionnaire, the end
-    s2 = Session(study, "L02", out)
-    sessions.append(s2)
-    path = out / "sessions" / "L02" / "session.json"
-    page = Page(browser, s2.url(), ready=False)
+    # the participant opens the link again; then hrc session is killed (kill -9): the page
+    # says in words that the session is not running
+    page = Page(browser, s.url(), ready=False)
     mouse = Pointer(page)
-    f = wait_screen(page, ("ready", "consent", "text", "questionnaire"))
+    f = wait_screen(page, ("ready",))
+    os.kill(s.proc.pid, signal.SIGKILL)
+    assert s.wait(30) == -signal.SIGKILL
+    away = "The session is not running"
+    assert wait_until(lambda: away in (form(page)["notice"] or ""), 30), form(page)
+    shot(page, "session-not-running.png")
+
+    # the same command resumes, on the same link: the page that was open goes on by itself,
+    # with the failed trial again, its questionnaire, the end
+    s2 = Session(study, "L02", out, port=s.port)
+    sessions.append(s2)
+    assert s2.url() == s.url()
+    path = out / "sessions" / "L02" / "session.json"
+    # (the new process counts its screens from 1: a screen of another id is its)
+    assert wait_until(lambda: form(page)["id"] != f["id"] and not form(page)["notice"], 60), form(
+        page
+    )
+    f = form(page)
     assert f["kind"] == "ready" and f["title"] == "Trial 3 of 3", f  # nothing asked again
     shot(page, "session-resumed-ready.png")
     mouse.press(f, "start")

@@ -9,6 +9,7 @@ import os
 import signal
 import socket
 import subprocess
+import urllib.error
 import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
@@ -69,6 +70,12 @@ def test_only_the_participants_page_takes_part_and_declining_consent_ends_it(
     with pytest.raises(InvalidStatus) as refused:  # another page (a wrong key) is refused
         connect(ws_url.replace(key, "not-the-key"), open_timeout=10)
     assert refused.value.response.status_code == 403
+    # a page whose link dropped asks whether its key still opens the session, to say so
+    with urllib.request.urlopen(f"{base}/session?driver={key}", timeout=10) as r:
+        assert r.status == 204
+    with pytest.raises(urllib.error.HTTPError) as wrong:
+        urllib.request.urlopen(f"{base}/session?driver=not-the-key", timeout=10)
+    assert wrong.value.code == 403
 
     with connect(ws_url, open_timeout=10) as ws:
         consent = screen(ws, "consent")

@@ -145,6 +145,15 @@ class SessionServer:
 
     def _http(self, connection: ServerConnection, request: Request) -> Response | None:
         parts = urlsplit(request.path)
+        query = parse_qs(parts.query)
+        if parts.path == "/session" and request.headers.get("Upgrade", "").lower() != "websocket":
+            # a page whose link drops asks whether its key still opens the session (204) or
+            # not (403: the session was begun anew), to say so in words (session.js)
+            if not key_ok(_first(query, "token"), self.token):
+                return response(HTTPStatus.UNAUTHORIZED, b"wrong token\n")
+            if not key_ok(_first(query, "driver"), self.driver_key):
+                return response(HTTPStatus.FORBIDDEN, b"not this session's link\n")
+            return response(HTTPStatus.NO_CONTENT, b"")
         if request.headers.get("Upgrade", "").lower() != "websocket":
             found = page_file(unquote(parts.path), self._html, self.client_dir)
             if isinstance(found, bytes):
@@ -152,7 +161,6 @@ class SessionServer:
             if found is None:
                 return response(HTTPStatus.NOT_FOUND, b"not found\n")
             return response(HTTPStatus.OK, found.read_bytes(), content_type(found))
-        query = parse_qs(parts.query)
         if parts.path != "/session":
             return response(HTTPStatus.NOT_FOUND, b"the session's endpoint is /session\n")
         if not key_ok(_first(query, "token"), self.token):

@@ -80,6 +80,13 @@ export class FormView {
     this.layout();
   }
 
+  /** A line about the link to the session ('' : none), drawn on every screen until cleared. */
+  setNotice(text) {
+    if (this.notice === text) return;
+    this.notice = text;
+    this.layout();
+  }
+
   visible() {
     return !!this.screen && !['trial'].includes(this.screen.kind);
   }
@@ -145,6 +152,14 @@ export class FormView {
     const skipped = s.progress?.skipped ? ` (${s.progress.skipped} skipped)` : '';
     const prog = s.progress ? `trials done: ${s.progress.done} of ${s.progress.total}${skipped}` : '';
     ctx.fillText(prog, PAD, 34);
+    if (this.notice) {
+      // the link to the session is down: said where the participant reads, on the form itself
+      ctx.fillStyle = '#f0a040';
+      ctx.font = `bold 18px ${FONT}`;
+      ctx.textAlign = 'right';
+      ctx.fillText(this.notice, FORM_W - PAD, 34);
+      ctx.textAlign = 'left';
+    }
     ctx.fillStyle = '#ffffff';
     ctx.font = `bold 34px ${FONT}`;
     ctx.fillText(s.title || s.questionnaire?.title || '', PAD, 84);

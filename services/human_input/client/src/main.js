@@ -209,6 +209,12 @@ class App {
       onStatus: (s) => {
         if (!this.bridge || OVER.has(this.run)) this.hud.set('connection', `session: ${s}`);
         if (s === 'replaced') this.hud.message('This page was replaced by another page of the participant.', 'over');
+        // in words, on the form the participant reads (desktop and headset alike)
+        const notice = {
+          away: 'The session is not running: this page goes on when it is started again.',
+          refused: 'This link no longer opens the session: ask the experimenter for the new one.',
+        };
+        this.form.setNotice(s === 'connected' ? '' : notice[s] || this.form.notice || '');
       },
     });
   }

@@ -31,6 +31,7 @@ export class SessionLink {
       this.state = 'connected';
       this.onStatus?.('connected');
     };
+    // (onclose below is called for a refused dial too: the browser does not say why)
     ws.onmessage = (ev) => {
       let msg;
       try {
@@ -58,8 +59,27 @@ export class SessionLink {
       }
       this.onStatus?.('lost');
       const delay = RETRY_MS[Math.min(this.retries++, RETRY_MS.length - 1)];
+      if (this.retries >= 3) this.check(); // down for a few seconds: is it gone, or this key?
       setTimeout(() => this.connect(), delay);
     };
+  }
+
+  /** Asks the page's server whether this link's key still opens the session: 'refused' if
+   * not (the session was begun anew: this link is not the participant's any more), 'away'
+   * if nobody answers (the session is stopped; it goes on when it is started again). */
+  async check() {
+    const q = new URLSearchParams();
+    if (this.token) q.set('token', this.token);
+    if (this.driver) q.set('driver', this.driver);
+    let state = 'away';
+    try {
+      const r = await fetch(`/session?${q}`, { cache: 'no-store' });
+      if (r.status === 401 || r.status === 403) state = 'refused';
+      else if (r.ok) return; // it answers: the next dial gets through
+    } catch {
+      // no answer: the session's process is not running
+    }
+    if (this.state === 'lost') this.onStatus?.(state);
   }
 
   send(obj) {

@@ -263,6 +263,7 @@ export function install(app) {
         answers: { ...f.answers },
         sent: f.sent,
         in_headset: !!window.hrcApp.formXr?.panel.visible,
+        notice: f.notice || '', // what the form says of the link to the session
         // a text screen's page as drawn: {lines, bottom (px), pages, pageLine (px) or null}
         text: f.screen.kind === 'questionnaire' ? null : f.drawn || null,
         widgets: f.widgets.map(({ id, kind, label, x, y, w, h, disabled }) => ({ id, kind: kind || 'button', label, x, y, w, h, disabled: !!disabled })),
