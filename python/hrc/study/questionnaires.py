@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import itertools
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 KINDS = ("scale", "likert", "choice", "text")
@@ -37,6 +37,11 @@ class Item:
     options: tuple[str, ...] = ()
     reverse: bool = False
     required: bool = True
+    # asked only when each earlier item named has one of these answers (branching); () always
+    show_if: tuple[tuple[str, tuple[Any, ...]], ...] = ()
+
+    def shown(self, answers: dict[str, Any]) -> bool:
+        return all(answers.get(iid) in values for iid, values in self.show_if)
 
     def check(self, value: Any) -> str | None:
         """A problem with an answer, or None."""
@@ -63,6 +68,8 @@ class Item:
             d.update(points=self.points, start=self.start, labels=list(self.labels))
         if self.kind == "choice":
             d["options"] = list(self.options)
+        if self.show_if:
+            d["show_if"] = {iid: list(values) for iid, values in self.show_if}
         return d
 
 
@@ -79,6 +86,10 @@ class Questionnaire:
     def check(self, answers: dict[str, Any]) -> list[str]:
         problems = [f"{k}: not an item" for k in answers if k not in self.item_ids()]
         for item in self.items:
+            if not item.shown(answers):  # not asked: no answer may come
+                if answers.get(item.id) is not None:
+                    problems.append(f"{item.id}: not asked with the answers given before it")
+                continue
             p = item.check(answers.get(item.id))
             if p:
                 problems.append(f"{item.id}: {p}")
@@ -105,7 +116,7 @@ class Questionnaire:
         values: list[float] = []
         for item in self.items:
             v = answers.get(item.id)
-            if item.kind not in ("scale", "likert"):
+            if item.kind not in ("scale", "likert") or not item.shown(answers):
                 continue
             if not isinstance(v, (int, float)):
                 return {self.scoring: None}
@@ -346,6 +357,10 @@ def parse(qid: str, spec: Any, problems: list[str]) -> Questionnaire | None:
         item = _item(f"{where}.items[{i}]", raw, kind, defaults, problems)
         if item is None:
             continue
+        if isinstance(raw, dict) and "show_if" in raw:
+            item = replace(
+                item, show_if=_show_if(f"{where}.items[{i}]", raw["show_if"], items, problems)
+            )
         if item.id in seen:
             problems.append(f"{where}.items[{i}].id: {item.id!r} is used twice")
         seen.add(item.id)
@@ -368,6 +383,32 @@ def parse(qid: str, spec: Any, problems: list[str]) -> Questionnaire | None:
     return Questionnaire(qid, title, text, tuple(items), score)
 
 
+def _show_if(
+    where: str, raw: Any, earlier: list[Item], problems: list[str]
+) -> tuple[tuple[str, tuple[Any, ...]], ...]:
+    """`show_if = { <earlier item> = <answer or [answers]>, ... }`: the item is asked only when
+    each of those items has one of those answers."""
+    if not isinstance(raw, dict) or not raw:
+        problems.append(f"{where}.show_if: a table {{ <earlier item> = <answer or [answers]> }}")
+        return ()
+    before = {i.id: i for i in earlier}
+    out: list[tuple[str, tuple[Any, ...]]] = []
+    for iid, want in raw.items():
+        values = tuple(want) if isinstance(want, list) else (want,)
+        item = before.get(iid)
+        if item is None:
+            problems.append(f"{where}.show_if.{iid}: not an item before this one")
+            continue
+        bad = [v for v in values if item.check(v) is not None]
+        if bad or not values:
+            problems.append(
+                f"{where}.show_if.{iid}: {bad[0] if bad else '[]'!r} is not an answer to it"
+            )
+            continue
+        out.append((iid, values))
+    return tuple(out)
+
+
 def _item(
     where: str, raw: Any, kind: str, defaults: dict[str, Any], problems: list[str]
 ) -> Item | None:
@@ -375,7 +416,7 @@ def _item(
         problems.append(f"{where}: should be a table {{ id = ..., text = ... }}")
         return None
     allowed = {"id", "text", "kind", "points", "start", "anchors", "labels", "options"}
-    allowed |= {"reverse", "required"}
+    allowed |= {"reverse", "required", "show_if"}
     for extra in sorted(set(raw) - allowed):
         problems.append(f"{where}.{extra}: unknown key")
     spec = {**defaults, **raw}

@@ -130,3 +130,43 @@ def test_a_bad_questionnaire_is_named(spec: dict, problem: str) -> None:
     problems: list[str] = []
     parse("q", spec, problems)
     assert any(problem in p for p in problems), problems
+
+
+def test_an_item_asked_only_after_some_answers_branching() -> None:
+    """show_if: asked only when an earlier item's answer is among those named; then it is
+    required like any other, else no answer may come, and the mean leaves it out."""
+    problems: list[str] = []
+    q = parse(
+        "vr",
+        {
+            "items": [
+                {"id": "used", "kind": "choice", "text": "Used VR?", "options": ["yes", "no"]},
+                {"id": "sick", "text": "VR made me sick.", "show_if": {"used": "yes"}},
+                {"id": "fun", "text": "I enjoy games."},
+            ]
+        },
+        problems,
+    )
+    assert not problems and q is not None
+    assert q.items[1].to_wire()["show_if"] == {"used": ["yes"]}
+    assert q.check({"used": "no", "fun": 4}) == []
+    assert q.check({"used": "yes", "fun": 4}) == ["sick: missing"]
+    assert q.check({"used": "no", "sick": 2, "fun": 4}) == [
+        "sick: not asked with the answers given before it"
+    ]
+    assert q.score({"used": "no", "fun": 4}) == {"mean": 4.0}
+    assert q.score({"used": "yes", "sick": 2, "fun": 4}) == {"mean": 3.0}
+    for show_if, problem in (
+        ({"later": "x"}, "show_if.later: not an item before this one"),
+        ({"used": "maybe"}, "show_if.used: 'maybe' is not an answer to it"),
+    ):
+        problems = []
+        spec = {
+            "items": [
+                {"id": "used", "kind": "choice", "text": "Used VR?", "options": ["yes", "no"]},
+                {"id": "sick", "text": "Sick?", "show_if": show_if},
+                {"id": "later", "text": "Later?"},
+            ]
+        }
+        parse("vr", spec, problems)
+        assert any(problem in p for p in problems), problems

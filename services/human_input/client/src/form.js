@@ -281,6 +281,12 @@ export class FormView {
     return pages;
   }
 
+  /** Asked, with the answers given so far (`show_if`: each named earlier item's answer is one
+   * of those listed; branching). */
+  shown(it) {
+    return Object.entries(it.show_if || {}).every(([id, values]) => values.includes(this.answers[id]));
+  }
+
   answered(it) {
     const v = this.answers[it.id];
     return v !== undefined && v !== null && v !== '';
@@ -290,7 +296,8 @@ export class FormView {
     const ctx = this.ctx;
     const q = this.screen.questionnaire;
     if (this.keyboardFor) return this.drawKeyboard();
-    const pages = this.pages(q.items);
+    const items = q.items.filter((it) => this.shown(it));
+    const pages = this.pages(items);
     this.page = Math.min(this.page, pages.length - 1);
     let y = 112;
     ctx.fillStyle = '#c9d6e3';
@@ -323,7 +330,7 @@ export class FormView {
         return;
       }
       const answers = {};
-      for (const it of q.items) if (this.answered(it)) answers[it.id] = this.answers[it.id];
+      for (const it of items) if (this.answered(it)) answers[it.id] = this.answers[it.id];
       this.send({ type: 'answers', questionnaire: q.id, answers });
     }, { id: last ? 'submit' : 'next', disabled: !pageDone || this.sent });
   }
