@@ -238,7 +238,7 @@ def test_a_service_that_fails_before_the_first_tick_ends_the_trial_at_once(
         returned = time.time()
     assert code != 0, err[-3000:]
     failed = [line for line in err.splitlines() if "trial FAILED" in line]
-    assert failed and "'human_input'" in failed[0], err[-3000:]
+    assert failed and "'human_input' exited with code 2 at start-up" in failed[0], err[-3000:]
     assert "address already in use" in err, err[-3000:]  # its own words, from its log
     log_lines = (trial.out / "services" / "human_input.log").read_text().splitlines()
     said = next(line for line in log_lines if "address already in use" in line)

@@ -130,6 +130,12 @@ def _watch(group: ServiceGroup, console: LiveConsole | None, guard: SpaceGuard) 
     return None
 
 
+def _when(watcher: _EndWatcher | None) -> str:
+    """When a service's end came: before every service was up, or later."""
+    up = watcher is None or watcher.all_up()
+    return "during the run" if up else "at start-up, before the first tick"
+
+
 def _interrupted(group: ServiceGroup, watcher: _EndWatcher | None, exc: BaseException) -> None:
     """Ctrl-C or SIGTERM during the run: the run is ended as a stop by the experimenter, so every
     service writes its files (metrics.json with that end reason); then the caller stops them."""
@@ -242,7 +248,8 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
                 # A clean exit (0) is not a failure by itself: the clock master notices the lost
                 # liveliness and ends the run naming the service, if the run was still going.
                 failed = dead[0]
-                failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
+                how = describe_exit(status[failed] or 0)
+                failure = f"service '{failed}' {how} {_when(watcher)}"
                 if stopped:
                     failed = stopped[0]
                     failure = not_responding(failed, how=group.halt_of(failed))
@@ -270,13 +277,13 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
         if killed and (not failed or (status.get(failed) or 0) >= 0):
             # a service killed by a signal is the root cause; the others' errors follow from it
             failed = killed[0]
-            failure = f"service '{failed}' {describe_exit(status[failed] or 0)} during the run"
+            failure = f"service '{failed}' {describe_exit(status[failed] or 0)} {_when(watcher)}"
         phys = status.get(master)
         if not failed and phys is not None and (phys < 0 or (end is None and phys != 0)):
             # the clock master itself died: the others' errors ("clock master disappeared")
             # follow from it
             failed = master
-            failure = f"service '{master}' {describe_exit(phys)} during the run"
+            failure = f"service '{master}' {describe_exit(phys)} {_when(watcher)}"
         if (
             not failed
             and stopped
