@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -20,7 +21,7 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
-from .conftest import HRC, ROOT
+from .conftest import HRC, ROOT, wait_until
 from .session_page import Session, write_study
 
 pytestmark = pytest.mark.slow
@@ -253,9 +254,18 @@ def test_the_console_shows_what_the_trial_waits_for(
         ready = screen(ws, "ready")
         ws.send(json.dumps({"type": "start", "screen": ready["id"]}))
         screen(ws, "trial")  # its bridge serves: the trial runs
-        s.command("?")
-        s.said(r"L01: 0/2 trials done, page connected; trial: L01: no driver, 0 spectator\(s\) "
-               r"\| waiting for the first grab \| task 0.0 s \| placed 0/3", 30)  # fmt: skip
+        # `?` until the trial's console has said its first status line (a loaded machine may
+        # take seconds: the experimenter asks again)
+        status = re.compile(
+            r"L01: 0/2 trials done, page connected; trial: L01: no driver, 0 spectator\(s\) "
+            r"\| waiting for the first grab \| task 0.0 s \| placed 0/3"
+        )
+
+        def told() -> bool:
+            s.command("?")
+            return wait_until(lambda: any(status.search(ln) for ln in s.lines), 2, 0.2)
+
+        assert wait_until(told, 60, 0.1), s.console()
         s.command("s")  # skipped: stopped, its end on the console
         s.said(r"trial \S+: skipped", 60)
         s.command("?")
