@@ -428,8 +428,11 @@ class Session:
         session.json and in the screen a reopened page gets."""
         if not isinstance(answers, dict):
             return
-        items = set(q.item_ids())
-        kept = {k: v for k, v in answers.items() if k in items and _answer_like(v)}
+        kept = {
+            i.id: answers[i.id]
+            for i in q.items
+            if answers.get(i.id) is not None and i.check(answers[i.id]) is None
+        }
         if kept == self.state.drafts.get(key):
             return
         self.state.drafts[key] = kept
@@ -593,15 +596,9 @@ class Session:
         )
         if outcome in ("ok", "stalled"):
             self.break_until = time.monotonic() + self.live.min_break_s
-        if stopped.startswith("ended"):
+        if stopped.startswith("ended"):  # (the page is told as the process leaves: _stopping)
             self.state.status = "ended"
             self._save()
-            self.show(
-                "paused",
-                title="Paused",
-                text="The experimenter has ended the session for now. Please wait.",
-            )
-            self._linger(1.0)
             raise SessionEnd(
                 "session ended by the experimenter: resume with the same command "
                 f"({self.status()})",
@@ -760,13 +757,6 @@ class TrialLog:
         self._offset += len(data)
         *lines, self._partial = (self._partial + data).split(b"\n")
         return [ln.decode("utf-8", "replace").rstrip("\r") for ln in lines]
-
-
-def _answer_like(v: object) -> bool:
-    """A value an item's answer can be: a number or a text (of at most 2000 characters)."""
-    if isinstance(v, str):
-        return len(v) <= 2000
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 def _serving(host: str, port: int) -> bool:

@@ -94,8 +94,8 @@ class SessionServer:
 
     def show(self, screen: dict[str, Any]) -> None:
         """What the page shows now (kept: a page that (re)connects gets it first)."""
-        text = json.dumps({"type": "screen", **screen})
-        self._screen = json.loads(text)
+        self.keep(screen)
+        text = json.dumps(self._screen)
         loop = self._loop
         if loop is not None:
             with contextlib.suppress(RuntimeError):

@@ -237,13 +237,12 @@ def parse(
         problems.append(f"live.blocks: true or false (got {blocks!r})")
     else:
         spec.blocks = blocks
-    if spec.between and "practice_condition" in section:
-        group_values = {repr([c.get(f) for f in spec.between]) for c in conditions}
-        if len(group_values) > 1:  # a practice in one group's condition would show it to all
-            problems.append(
-                "live.practice_condition: with between-subject factors each participant "
-                "practises in their own group's first condition; leave it out"
-            )
+    # (one group's practice condition would show it to all)
+    if spec.between and "practice_condition" in section and len(spec.groups(conditions)) > 1:
+        problems.append(
+            "live.practice_condition: with between-subject factors each participant "
+            "practises in their own group's first condition; leave it out"
+        )
     catalogue = _catalogue(questionnaires, section.get("questionnaire_file"), folder, problems)
     seen: dict[str, str] = {}  # questionnaire -> the slot that asks it
     for slot in SLOTS:

@@ -443,27 +443,15 @@ def write_report(sweep_dir: Path) -> Path:
     )
     parts.append("<h2>Design</h2>")
     between = set(meta.get("between") or [])
-    if meta.get("live_participants"):  # how the people meet each factor (simulated: crossed)
-        parts.append(
-            _table(
-                ["factor", "levels", "live participants"],
-                [
-                    [
-                        html.escape(f),
-                        html.escape(", ".join(levels[f])),
-                        "between (one level each)" if f in between else "within (every level)",
-                    ]
-                    for f in factors
-                ],
-            )
-        )
-    else:
-        parts.append(
-            _table(
-                ["factor", "levels"],
-                [[html.escape(f), html.escape(", ".join(levels[f]))] for f in factors],
-            )
-        )
+    # with live participants: how they meet each factor (the simulated ones: crossed)
+    live = bool(meta.get("live_participants"))
+    rows = []
+    for f in factors:
+        row = [html.escape(f), html.escape(", ".join(levels[f]))]
+        if live:
+            row.append("between (one level each)" if f in between else "within (every level)")
+        rows.append(row)
+    parts.append(_table(["factor", "levels", *(["live participants"] if live else [])], rows))
     params = [c for c in df.columns if c.startswith("participant.") and c not in factors]
     people = df.drop_duplicates("participant").sort_values("participant")
     parts.append("<h3>Participants</h3>")
