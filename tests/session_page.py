@@ -5,6 +5,7 @@ and the page's screens answered with the mouse (desktop) or the controller's ray
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
@@ -13,6 +14,11 @@ import subprocess
 import threading
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+from websockets.sync.client import ClientConnection
+
+from hrc.bench.client import REST_LEFT, REST_RIGHT, connect_when_up, grab, move
 
 from .conftest import HRC, ROOT, free_port, ignore_sigint, wait_until
 from .participant_page import MINIMAL, Page, grab_part, place_part
@@ -125,6 +131,67 @@ class Session:
             except subprocess.TimeoutExpired:
                 os.killpg(self.proc.pid, signal.SIGKILL)
                 self.proc.wait()
+
+
+# ------------------------------------------------- the page played by a WebSocket client
+
+
+def page_link(s: Session) -> tuple[str, str]:
+    """(the session's WebSocket URL, the participant's key) from the printed link."""
+    url = s.url()
+    assert url
+    parts = urlsplit(url)
+    key = parse_qs(parts.query)["driver"][0]
+    return f"ws://{parts.netloc}/session?driver={key}", key
+
+
+def screen(ws: ClientConnection, kind: str = "") -> dict[str, Any]:
+    """The next screen the session shows (of `kind`, if given; others passed over)."""
+    while True:
+        msg = json.loads(ws.recv(timeout=60))
+        if msg.get("type") == "screen" and (not kind or msg["kind"] == kind):
+            return msg
+
+
+def place_by_socket(port: int, key: str, pid: str = "H1") -> None:
+    """A session's trial played by a Python participant on the trial's bridge (port, the
+    session's driver key), as the page would: the right hand takes `pid` from its start, puts
+    it on its target, lets go and goes back to rest; returns once the trial has finished."""
+    client = connect_when_up(f"ws://127.0.0.1:{port}/ws?driver={key}&page=py-{pid}", 60)
+    try:
+        got = client.wait_for(lambda m: m.msg.get("type") == "scene", 30)
+        assert got is not None, "the trial's bridge sent no scene"
+        part = next(p for p in got[1].msg["parts"] if p["id"] == pid)
+        above = grab(client, part)
+        held = client.wait_for(
+            lambda m: (
+                m.msg.get("type") == "frame"
+                and m.msg["objects"].get(pid, {}).get("holder") == "right"
+            ),
+            30,
+        )
+        assert held is not None, f"{pid} was never held"
+        # (grab() holds it min(2 cm, half its height) above its centre, and lifts it 10 cm)
+        tx, ty, tz = part["target"]["xyz"]
+        down = (tx, ty, tz + min(0.02, part["size"][2] / 2))
+        over = (tx, ty, tz + 0.10)
+        move(client, above, over, 1.0, REST_LEFT)
+        move(client, over, down, 1.0, REST_LEFT, 10)
+        client.hands(REST_LEFT, down, 0.0, 0.0)
+        placed = client.wait_for(
+            lambda m: (
+                m.msg.get("type") == "frame" and m.msg["objects"].get(pid, {}).get("placed") is True
+            ),
+            30,
+        )
+        assert placed is not None, f"{pid} was not placed on its target"
+        move(client, down, REST_RIGHT, 0.0, REST_LEFT)
+        done = client.wait_for(
+            lambda m: m.msg.get("type") == "frame" and m.msg["run"] == "finished", 180
+        )
+        assert done is not None or client.closed, "the trial did not finish"
+    finally:
+        client.close()
 
 
 # ---------------------------------------------------------------- the page's screens

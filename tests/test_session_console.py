@@ -14,15 +14,13 @@ import urllib.error
 import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
-from urllib.parse import parse_qs, urlsplit
 
 import pytest
 from websockets.exceptions import InvalidStatus
-from websockets.sync.client import ClientConnection, connect
+from websockets.sync.client import connect
 
 from .conftest import HRC, ROOT, wait_until
-from .session_page import Session, write_study
+from .session_page import Session, page_link, screen, write_study
 
 pytestmark = pytest.mark.slow
 
@@ -39,22 +37,6 @@ def sessions() -> Iterator[list[Session]]:
     yield started
     for s in started:
         s.stop()
-
-
-def page_link(s: Session) -> tuple[str, str]:
-    """(the session's WebSocket URL, the participant's key) from the printed link."""
-    url = s.url()
-    assert url
-    parts = urlsplit(url)
-    key = parse_qs(parts.query)["driver"][0]
-    return f"ws://{parts.netloc}/session?driver={key}", key
-
-
-def screen(ws: ClientConnection, kind: str) -> dict[str, Any]:
-    while True:
-        msg = json.loads(ws.recv(timeout=60))
-        if msg.get("type") == "screen" and msg["kind"] == kind:
-            return msg
 
 
 def test_only_the_participants_page_takes_part_and_declining_consent_ends_it(
