@@ -28,6 +28,8 @@ from .participant_page import (  # noqa: F401  (browser: a fixture)
     Page,
     browser,
     controller_places,
+    grab_part,
+    rendered_frames,
 )
 from .session_page import (
     TLX_ANSWERS,
@@ -163,15 +165,27 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     # one spectator link for the session: every trial's bridge on the same port
     links = {m for line in s.lines for m in re.findall(r"spectators: (http://\S+)\)", line)}
     assert len(links) == 1, s.console()
-    # the participant opens the link again; then hrc session is killed (kill -9): the page
-    # says in words that the session is not running
+    # the participant opens the link again and starts the trial; in it hrc session is killed
+    # (kill -9): the page says in words that the session is not running
     page = Page(browser, s.url(), ready=False)
     mouse = Pointer(page)
     f = wait_screen(page, ("ready",))
+    assert f["title"] == "Trial 3 of 3", f
+    mouse.press(f, "start")
+    wait_screen(page, ("trial",), timeout=180)
+    page.wait_ready()
+    grab_part(page, "H1", timeout=60)  # mid-trial: H1 in the hand
     os.kill(s.proc.pid, signal.SIGKILL)
     assert s.wait(30) == -signal.SIGKILL
+    # (in the trial the form is not on screen: the message says it, not "the next screen
+    # follows in a moment", which nothing would follow)
     away = "The session is not running"
-    assert wait_until(lambda: away in (form(page)["notice"] or ""), 30), form(page)
+    assert wait_until(lambda: away in page.text()["message"], 60), page.text()
+    assert "The experimenter has stopped" not in page.text()["message"]  # nobody did
+    assert wait_until(lambda: "the session is not running" in page.text()["status"], 10), (
+        page.text()
+    )
+    assert away in (form(page)["notice"] or ""), form(page)
     shot(page, "session-not-running.png")
 
     # the same command resumes, on the same link: the page that was open goes on by itself,
@@ -180,8 +194,8 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     sessions.append(s2)
     assert s2.url() == s.url()
     path = out / "sessions" / "L02" / "session.json"
-    # (the new process counts its screens from 1: a screen of another id is its)
-    assert wait_until(lambda: form(page)["id"] != f["id"] and not form(page)["notice"], 60), form(
+    # (the page was in the trial: the new process's first screen is the trial's ready again)
+    assert wait_until(lambda: form(page)["kind"] == "ready" and not form(page)["notice"], 60), form(
         page
     )
     f = form(page)
@@ -218,7 +232,7 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     assert list(live["order_position"]) == [0, 1, 2]
     assert list(live["practice"]) == [True, False, False]
     assert list(live["outcome"]) == ["ok", "ok", "ok"]
-    assert list(live["attempts"]) == [1, 1, 2]
+    assert list(live["attempts"]) == [1, 1, 3]  # the page closed; hrc session killed
     assert live.loc["antFalse_L02_r1", "q.tlx.mental"] == 55
     assert live.loc["antTrue_L02_r1", "q.tlx.mental"] == 70
     raw = sum({**TLX_ANSWERS, "mental": 70}.values()) / 6  # the raw TLX: the six scales' mean
@@ -301,6 +315,25 @@ def test_the_session_in_a_headset_is_answered_with_the_controller_ray(
     wait_screen(page, ("trial",), f["id"], timeout=180)
     page.wait_ready()
     assert not form(page)["in_headset"]  # the panel is gone while the trial runs
+    # hrc session killed mid-trial (kill -9): the headset says so; the same command again,
+    # and the page in the headset goes on, at the trial's ready screen
+    os.kill(s.proc.pid, signal.SIGKILL)
+    assert s.wait(30) == -signal.SIGKILL
+    away = "The session is not running"
+    panel = lambda: " ".join(page.page.evaluate("window.hrcTest.panelText()").split())  # noqa: E731
+    assert wait_until(lambda: away in panel(), 60), panel()  # what the headset's panel says
+    assert "The experimenter has stopped" not in panel()
+    rendered_frames(page)
+    shot(page, "session-xr-not-running.png")
+    s = Session(study, "H01", out, mode="xr", port=s.port)
+    sessions.append(s)
+    assert wait_until(lambda: form(page)["kind"] == "ready" and form(page)["in_headset"], 60), (
+        form(page)
+    )
+    f = form(page)
+    ray.press(f, "start")
+    wait_screen(page, ("trial",), f["id"], timeout=180)
+    page.wait_ready()
     controller_places(page, "H1")
     page.wait("the trial finished", lambda st: st["run"] == "finished", 180)
     f = wait_screen(page, ("questionnaire",), f["id"])
@@ -314,6 +347,8 @@ def test_the_session_in_a_headset_is_answered_with_the_controller_ray(
 
     state = json.loads((out / "sessions" / "H01" / "session.json").read_text())
     assert state["trials"][0]["answers"]["tlx"] == TLX_ANSWERS
+    cut, done = state["trials"][0]["attempts"]
+    assert cut["outcome"] == "failed" and done["outcome"] == "ok", state["trials"][0]
     beside = json.loads((out / "trials" / state["trials"][0]["id"] / "answers.json").read_text())
     assert beside["answers"]["tlx"] == TLX_ANSWERS and beside["scores"]["tlx"]["raw"] > 0
     assert state["end_answers"]["trust"] == {"safe": 5, "remark": "ok"}

@@ -202,6 +202,7 @@ class App {
       if (this.form.visible() && this.form.key(e)) e.preventDefault();
     });
     this.hud.set('connection', 'session: connecting');
+    this.sessionNotice = ''; // why the session's link is down, in words ('' while it is up)
     this.session = new SessionLink({
       token: params.get('token'),
       driver: params.get('driver'),
@@ -215,6 +216,13 @@ class App {
           refused: 'This link no longer opens the session: ask the experimenter for the new one.',
         };
         this.form.setNotice(s === 'connected' ? '' : notice[s] || this.form.notice || '');
+        // in a trial the form is not on screen: the participant reads it in the message (a
+        // session killed mid-trial takes its trial along: "the next screen follows" would lie)
+        const was = this.sessionNotice;
+        if (s === 'connected' || notice[s]) this.sessionNotice = notice[s] || '';
+        if (this.sessionNotice === was || this.form.visible() || !this.trialPort) return;
+        if (OVER.has(this.run)) this.showEnd();
+        else if (this.sessionNotice) this.hud.message(this.sessionNotice, 'error', { force: true });
       },
     });
   }
@@ -368,7 +376,9 @@ class App {
 
   /** The trial is over: say how, once, and rest (no sending, no reconnecting, no errors). */
   showEnd() {
-    const head = END_TEXT[this.run] || 'The trial is over.';
+    // (a session that went away mid-trial took its trial along: nobody stopped it)
+    const head = (this.sessionNotice ? 'The trial has stopped.' : END_TEXT[this.run]) || 'The trial is over.';
+    if (this.sessionNotice) this.hud.set('run', 'stopped (the session is not running)');
     // one line of the reason: the log line without its time, the watchdog's first clause
     const why = this.run === 'failed'
       ? `\n${String(this.runReason || 'unknown').replace(/^\s*[\d.]+\s*sec\s*:\s*/, '').split(/[;\n]/)[0].slice(0, 160)}`
@@ -376,7 +386,8 @@ class App {
     this.waitFor = null;
     this.hud.set('wait', '');
     this.collision = null;
-    const next = this.session ? 'The next screen follows in a moment.' : 'Please wait for the experimenter.';
+    const next = this.sessionNotice
+      || (this.session ? 'The next screen follows in a moment.' : 'Please wait for the experimenter.');
     this.hud.message(`${head}${why}\n${next}`, 'over');
     this.hud.showHelp(false);
     this.desktop.disable(); // the hands stay where they are: nothing to do any more
