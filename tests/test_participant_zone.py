@@ -26,8 +26,9 @@ from hrc.scenario import Ssm
 from hrc.ssm import Zone, protective_distance
 from hrc.wire import pb
 
-from .conftest import ROOT
+from .conftest import ROOT, wait_until
 from .participant_page import (
+    VIEWPORT,
     Live,
     Page,
     browser,
@@ -240,7 +241,7 @@ def test_the_thesis_scene_on_the_desktop_has_readable_part_labels(
     page.wait("the parts' state", lambda s: "H1" in s["objects"], 20)
     labels = page.page.evaluate("window.hrcTest.labels()")
     page.screenshot("thesis-desktop.png")
-    shown = {lab["part"] for lab in labels}
+    shown = {lab.get("part") for lab in labels}
     # the participant's next part is labelled; the others lie on tables, unlabelled (yet)
     assert shown == {"H1"}, labels
     clashes = [
@@ -250,6 +251,33 @@ def test_the_thesis_scene_on_the_desktop_has_readable_part_labels(
         if overlap(a, b)
     ]
     assert not clashes, f"overlapping labels: {clashes}"
+
+    # a robot's "Waiting for you: ..." label stands high above its base, where the page's status
+    # panel is: it comes down clear of it (it hid behind it), and stays in the view
+    text = "Waiting for you: H2, H5"
+    for rid in ("r1", "r2"):
+        page.page.evaluate("([r, t]) => window.hrcTest.showWaiting(r, t)", [rid, text])
+    seen: dict[str, Any] = {}
+
+    def clear() -> bool:
+        seen["boxes"] = page.page.evaluate("window.hrcTest.boxes()")
+        seen["waiting"] = [
+            lab for lab in page.page.evaluate("window.hrcTest.labels()") if lab.get("cue")
+        ]
+        return (
+            len(seen["waiting"]) == 2
+            and all(w["text"] == text for w in seen["waiting"])
+            and not any(overlap(w, b) for w in seen["waiting"] for b in seen["boxes"].values())
+        )
+
+    assert "status" in page.page.evaluate("window.hrcTest.boxes()")
+    assert wait_until(clear, 20), f"a waiting label under a box of the page: {seen}"
+    for w in seen["waiting"]:
+        assert w["x0"] >= 0 and w["y0"] >= 0 and w["x1"] <= VIEWPORT["width"], seen
+    rendered_frames(page)
+    page.screenshot("thesis-desktop-waiting.png")
+    for rid in ("r1", "r2"):
+        page.page.evaluate("(r) => window.hrcTest.showWaiting(r, null)", rid)
 
     # the task starts with H1 taken; r1 brings RA1: that label is shown on its way
     grab_part(page, "H1")

@@ -16,6 +16,7 @@ import { DEFAULT_STAND, DEFAULT_TABLE_HEIGHT, placeRoot } from './frames.js';
 import { FormView, FORM_H, FORM_W } from './form.js';
 import { FormXr } from './form-xr.js';
 import { SessionLink } from './session.js';
+import { overlaps, pageBoxes, spriteRect } from './screen-rect.js';
 
 const params = new URLSearchParams(window.location.search);
 
@@ -46,6 +47,10 @@ function standParam() {
 // leaves the CPU to the trial. In a headset every frame is drawn: the headset shows what it gets.
 const MAX_FPS = numberParam('fps', 0, 1, 240);
 const KEEPALIVE_MS = 500; // an unchanged sample is still sent this often
+// A "Waiting.." label comes down at most this far (m), in these steps, to keep clear of the
+// desktop's status panel (from 0.6 m above its robot's base: still above the arm's elbow).
+const LABEL_DROP_M = 0.3;
+const LABEL_STEP_M = 0.03;
 const OVER = new Set(['finished', 'stopped', 'failed']); // the trial is over
 const END_TEXT = {
   finished: 'The task is finished. Thank you!',
@@ -445,11 +450,30 @@ class App {
     if (c && !c.open && c.until && performance.now() > c.until) this.collision = null;
     this.world.showGoal(this.collision ? this.collision.part : '', this.collision?.robot);
     this.world.updateWaitingTexts((rid) => this.waitingText(rid));
+    this.keepLabelsClear();
     this.hud.refresh(this.root);
+  }
+
+  /** On the desktop a "Waiting.." label that a box of the page (the status panel, a message)
+   * would cover comes down over its robot, a few centimetres at a time, until it is clear: the
+   * labels stand high above the robots, where the panel is (a headset has no such boxes). */
+  keepLabelsClear() {
+    if (this.xr.active()) return;
+    const boxes = Object.values(pageBoxes(['status', 'message']));
+    for (const cue of this.world.cues.values()) {
+      if (cue.spec.kind !== 'waiting' || !cue.on) continue;
+      const [x, y, z] = cue.obj.userData.anchor;
+      for (let dz = 0; dz <= LABEL_DROP_M + 1e-9; dz += LABEL_STEP_M) {
+        cue.obj.position.set(x, y, z - dz);
+        const r = spriteRect(this.camera, this.renderer.domElement, cue.obj);
+        if (!boxes.some((b) => overlaps(r, b))) break;
+      }
+    }
   }
 
   /** "Waiting for you: H3" for a robot that waits on a part the participant places. */
   waitingText(rid) {
+    if (this.testWaiting?.[rid]) return this.testWaiting[rid]; // (hrcTest.showWaiting)
     const spec = this.world.parts.get(this.partHeldBy(rid))?.spec;
     if (!spec) return '';
     const missing = (spec.after || []).filter((d) => !this.world.parts.get(d)?.placed);

@@ -293,6 +293,7 @@ export class World {
     } else if (c.kind === 'waiting') {
       obj = labelSprite([c.text || 'Waiting..'], 0.07, { fg: color, bg: 'rgba(20,20,20,0.8)' });
       setPose(obj, c.position);
+      obj.userData.anchor = [...c.position]; // where it stands unless a box would cover it
     } else if (c.kind === 'button' && this.scene.safety_policy !== 'retreat_button') {
       return; // only the retreat_button policy uses the continue button
     } else if (c.kind === 'button') {
@@ -401,7 +402,10 @@ export class World {
       // a cue is `true`/`false`, or its definition with `on` when it moved (an outline)
       if (v !== null && typeof v === 'object') {
         cue.on = !!v.on;
-        if (v.position && cue.spec.kind === 'waiting') setPose(cue.obj, v.position);
+        if (v.position && cue.spec.kind === 'waiting') {
+          setPose(cue.obj, v.position);
+          cue.obj.userData.anchor = [...v.position];
+        }
       } else {
         cue.on = !!v;
       }

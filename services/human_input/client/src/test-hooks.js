@@ -3,6 +3,7 @@
 // ?test=... in the page's URL (main.js imports this chunk then): a participant's page has none.
 import * as THREE from 'three';
 import { FORM_H, FORM_W } from './form.js';
+import { pageBoxes, spriteRect } from './screen-rect.js';
 
 /** The things a test can hide (and probe) by name: board, furniture, markings, parts, labels,
  * robot:<id>, hands, cue:<id>, panel (the headset's panel and the page's status box). */
@@ -219,31 +220,30 @@ export function install(app) {
     freeze: (on) => {
       window.hrcApp.frozen = !!on;
     },
-    /** The part labels on screen: [{part, text, x0, y0, x1, y1}] (CSS pixels). */
+    /** The labels on screen (CSS pixels): the parts' [{part, text, x0, y0, x1, y1}] and the
+     * robots' lit "Waiting.." labels [{cue, text, x0, y0, x1, y1}] (desktop). */
     labels: () => {
       const app = window.hrcApp;
-      const cam = app.camera;
-      const right = new THREE.Vector3().setFromMatrixColumn(cam.matrixWorld, 0);
-      const up = new THREE.Vector3().setFromMatrixColumn(cam.matrixWorld, 1);
+      const rect = (l) => spriteRect(app.camera, app.renderer.domElement, l);
       const out = [];
       for (const [id, p] of app.world.parts) {
-        const l = p.label;
-        if (!l.visible) continue;
-        const c = l.getWorldPosition(new THREE.Vector3());
-        const s = l.getWorldScale(new THREE.Vector3());
-        const xs = [];
-        const ys = [];
-        for (const [a, b] of [[-1, -1], [1, -1], [1, 1], [-1, 1]]) {
-          const w = c.clone().addScaledVector(right, (a * s.x) / 2).addScaledVector(up, (b * s.y) / 2);
-          app.root.worldToLocal(w);
-          const px = projectWith(app, w.toArray());
-          xs.push(px.x);
-          ys.push(px.y);
+        if (p.label.visible) out.push({ part: id, text: p.spec.kind || id, ...rect(p.label) });
+      }
+      for (const [id, c] of app.world.cues) {
+        if (c.spec.kind === 'waiting' && c.obj.visible) {
+          out.push({ cue: id, text: c.obj.userData.text || c.spec.text, ...rect(c.obj) });
         }
-        const text = p.spec.kind || id;
-        out.push({ part: id, text, x0: Math.min(...xs), y0: Math.min(...ys), x1: Math.max(...xs), y1: Math.max(...ys) });
       }
       return out;
+    },
+    /** The page's boxes over the view that are showing: {status, message, help: {x0, y0, x1, y1}}. */
+    boxes: () => pageBoxes(['status', 'message', 'help']),
+    /** Lights robot `rid`'s "Waiting.." label with `text` (null: off, its text the task's). */
+    showWaiting: (rid, text) => {
+      const app = window.hrcApp;
+      app.testWaiting = { ...app.testWaiting, [rid]: text };
+      const cue = app.world.cues.get(`waiting:${rid}`);
+      if (cue) cue.on = !!text;
     },
     /** What the headset's status panel says (with the page's message), its lines unwrapped. */
     panelText: () => window.hrcApp.hud.saying ?? '',
