@@ -327,8 +327,8 @@ def test_the_session_in_a_headset_is_answered_with_the_controller_ray(
     shot(page, "session-xr-not-running.png")
     s = Session(study, "H01", out, mode="xr", port=s.port)
     sessions.append(s)
-    assert wait_until(lambda: form(page)["kind"] == "ready" and form(page)["in_headset"], 60), (
-        form(page)
+    assert wait_until(lambda: form(page)["kind"] == "ready" and form(page)["in_headset"], 60), form(
+        page
     )
     f = form(page)
     ray.press(f, "start")

@@ -98,9 +98,8 @@ def live_rows(study: Study, out: Path) -> list[dict[str, Any]]:
 
     result: list[dict[str, Any]] = []
     for s in all_sessions(out):
-        session_q = answer_columns(  # (a questionnaire is asked in one slot only)
-            {**s.start_answers, **s.end_answers}, {**s.start_scores, **s.end_scores}
-        )
+        given = {**s.start_answers, **s.end_answers}  # (a questionnaire is asked in one slot)
+        session_q = answer_columns(given, _scores(study, given, {**s.start_scores, **s.end_scores}))
         for t in s.trials:
             if not t.attempts and t.status == "pending":
                 continue
@@ -127,10 +126,28 @@ def live_rows(study: Study, out: Path) -> list[dict[str, Any]]:
                     read_metrics(out / "trials" / t.id / "metrics.json") or {}
                 ).items():
                     row.setdefault(key, value)
-            row.update(answer_columns(t.answers, t.scores))
+            row.update(answer_columns(t.answers, _scores(study, t.answers, t.scores)))
             row.update(session_q)
             result.append(row)
     return result
+
+
+def _scores(
+    study: Study, answers: dict[str, dict[str, Any]], kept: dict[str, dict[str, Any]]
+) -> dict[str, dict[str, Any]]:
+    """The scores kept with the answers, by questionnaire; scored again from the answers (kept
+    as given) where the study's questionnaire names its scores otherwise: a session.json
+    written before the SSQ's subscales were named `*_score` kept `nausea` for the subscale,
+    the name of an item too."""
+    live = study.live
+    slots = (live.before_session, live.before_trial, live.after_trial, live.end) if live else ()
+    asked = {q.id: q for slot in slots for q in slot}
+    out = dict(kept)
+    for qid, items in answers.items():
+        asked_q = asked.get(qid)
+        if asked_q is not None and set(kept.get(qid) or {}) != set(asked_q.score_names()):
+            out[qid] = asked_q.score(items)
+    return out
 
 
 def answer_columns(

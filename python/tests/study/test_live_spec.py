@@ -169,3 +169,45 @@ def test_repetitions_in_blocks_keep_each_conditions_trials_together(tmp_path: Pa
     assert values("L02") == [False] * 3 + [True] * 3
     path.write_text(path.read_text().replace("blocks = true", "blocks = false"))
     assert values("L01") == [True, False] * 3
+
+
+def test_a_session_kept_before_the_ssq_scores_were_renamed_gives_items_and_scores_apart(
+    tmp_path: Path,
+) -> None:
+    """A session.json written when the SSQ's subscale scores were named like its items
+    (`nausea`) gives the item's answer under `q.ssq.nausea` and the subscale, scored again
+    from the answers, under `q.ssq.nausea_score` (the score had overwritten the answer)."""
+    from hrc.study import session_state as st
+    from hrc.study.questionnaires import builtin
+    from hrc.study.table import live_rows
+
+    s = load_study(study(tmp_path, 'participants = ["L01"]\nend = ["ssq"]'), motion_check=False)
+    ssq = builtin("ssq")
+    answers = {i: 1 for i in ssq.item_ids()} | {"nausea": 3}
+    old = {"nausea": 28.62, "oculomotor": 7.58, "disorientation": 13.92, "total": 14.96}
+    out = tmp_path / "out"
+    st.save(
+        st.SessionState(
+            study="s", participant="L01", created=st.now_iso(), order=[], trials=[],
+            end_answers={"ssq": answers}, end_scores={"ssq": old}, status="done",
+        ),
+        st.session_dir(out, "L01") / "session.json",
+    )  # fmt: skip
+    # (a row per trial: one trial, its answers beside the session's)
+    state = st.load(st.session_dir(out, "L01") / "session.json")
+    assert state is not None
+    trial = s.live_trials("L01")[0]
+    state.trials = [
+        st.TrialState(
+            id=trial.id, index=1, practice=False, order_position=1,
+            condition=trial.condition, condition_index=0, seed=1, input_hash="", status="skipped",
+            attempts=[st.Attempt(started=st.now_iso(), outcome="skipped")],
+        )
+    ]  # fmt: skip
+    st.save(state, st.session_dir(out, "L01") / "session.json")
+    (row,) = live_rows(s, out)
+    assert row["q.ssq.nausea"] == 3  # the answer as given
+    scores = ssq.score(answers)
+    for name in ("nausea_score", "oculomotor_score", "disorientation_score", "total_score"):
+        assert row[f"q.ssq.{name}"] == scores[name], name
+    assert "q.ssq.total" not in row and "q.ssq.oculomotor" not in row
