@@ -12,6 +12,7 @@ import re
 import signal
 import subprocess
 import threading
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 from urllib.parse import parse_qs, urlsplit
@@ -153,10 +154,13 @@ def screen(ws: ClientConnection, kind: str = "") -> dict[str, Any]:
             return msg
 
 
-def place_by_socket(port: int, key: str, pid: str = "H1") -> None:
+def place_by_socket(
+    port: int, key: str, pid: str = "H1", holding: Callable[[], None] | None = None
+) -> None:
     """A session's trial played by a Python participant on the trial's bridge (port, the
     session's driver key), as the page would: the right hand takes `pid` from its start, puts
-    it on its target, lets go and goes back to rest; returns once the trial has finished."""
+    it on its target, lets go and goes back to rest; returns once the trial has finished.
+    `holding`: called with the part in the hand (a participant who stops there a while)."""
     client = connect_when_up(f"ws://127.0.0.1:{port}/ws?driver={key}&page=py-{pid}", 60)
     try:
         got = client.wait_for(lambda m: m.msg.get("type") == "scene", 30)
@@ -171,6 +175,8 @@ def place_by_socket(port: int, key: str, pid: str = "H1") -> None:
             30,
         )
         assert held is not None, f"{pid} was never held"
+        if holding is not None:
+            holding()
         # (grab() holds it min(2 cm, half its height) above its centre, and lifts it 10 cm)
         tx, ty, tz = part["target"]["xyz"]
         down = (tx, ty, tz + min(0.02, part["size"][2] / 2))

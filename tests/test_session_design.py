@@ -6,6 +6,7 @@ session's real endpoint, and each trial by a Python participant on the trial's r
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -41,11 +42,17 @@ def sessions() -> Iterator[list[Session]]:
 
 def one_person(study: Path, pid: str, out: Path, sessions: list[Session]) -> list[str]:
     """`hrc session` for `pid`, its screens answered and its trials played; returns the titles
-    of the screens in the order shown."""
+    of the screens in the order shown. L01 stops in its first trial with H1 in the hand until
+    the console says so."""
     s = Session(study, pid, out)
     sessions.append(s)
     ws_url, key = page_link(s)
     seen: list[str] = []
+    stuck = (
+        (lambda: s.said(r"\[task +[\d.]+ s\] waiting for the participant: H1", 90))
+        if (pid == "L01")
+        else None
+    )
     with connect(ws_url, open_timeout=10) as ws:
         while True:
             sc = screen(ws)
@@ -57,7 +64,8 @@ def one_person(study: Path, pid: str, out: Path, sessions: list[Session]) -> lis
             elif sc["kind"] == "ready":
                 ws.send(json.dumps({"type": "start", "screen": sc["id"]}))
             elif sc["kind"] == "trial":
-                place_by_socket(sc["port"], key)
+                place_by_socket(sc["port"], key, holding=stuck)
+                stuck = None
             elif sc["kind"] == "done":
                 break
             else:
@@ -83,6 +91,17 @@ def test_a_mixed_design_for_four_people_is_balanced_in_the_table_and_report(
         shown = dict(zip(ROSTER, done, strict=True))
     for pid, screens in shown.items():
         assert sum(s.startswith("trial:") for s in screens) == 2, (pid, screens)
+    # the experimenter saw the stuck participant on the session's console within 15 s of the
+    # last thing that happened in the task (H1 grabbed, RA1 placed by r1)
+    l01 = next(s for s in sessions if "L01" in s.argv)
+    told = [
+        (float(m.group(1)), m.group(2))
+        for ln in l01.lines
+        if (m := re.search(r"\[task +([\d.]+) s\] (.*)", ln))
+    ]
+    at = next(t for t, what in told if what.startswith("waiting for the participant: H1"))
+    before = max(t for t, what in told if t < at)
+    assert at - before <= 15, l01.console()
 
     table = pd.read_csv(out / "trials.csv")
     live = table[table["participant_kind"] == "live"]
