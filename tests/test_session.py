@@ -215,6 +215,8 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     f = wait_screen(page, ("questionnaire",))
     assert form(page)["answers"] == given, form(page)
     shot(page, "session-questionnaire-reopened.png")
+    # nothing of the page's under the form's corners (the status panel and key help were)
+    assert page.page.evaluate("window.hrcTest.boxes()") == {}, "a box under the form"
     answer_questionnaire(page, mouse, {**TLX_ANSWERS, "mental": 70})
     f = wait_screen(page, ("questionnaire",), f["id"])
     assert f["title"] == "After the session", f

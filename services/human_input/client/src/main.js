@@ -251,6 +251,9 @@ class App {
   showForm() {
     const desktop = this.form.visible() && !this.xr.active();
     this.form.canvas.style.display = desktop ? 'block' : 'none';
+    // the form is all there is to read between trials (it shows the progress): the status
+    // panel and the key help, whose corners it covered, wait for the next trial (index.html)
+    document.body.classList.toggle('form-up', desktop);
     if (this.form.visible()) this.hud.clearEnd();
   }
 
