@@ -15,6 +15,7 @@ import urllib.request
 from collections.abc import Iterator
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
@@ -225,7 +226,8 @@ def test_the_console_shows_what_the_trial_waits_for(
     `running 7:31, page connected`): the trial's task events as they come and its status line,
     which `?` shows too. Here nobody drives the trial: it waits for the first grab."""
     study = write_study(tmp_path / "study", LIVE, simulated=0)
-    s = Session(study, "L01", tmp_path / "out")
+    out = tmp_path / "out"
+    s = Session(study, "L01", out)
     sessions.append(s)
     ws_url, _ = page_link(s)
     with connect(ws_url, open_timeout=10) as ws:
@@ -234,8 +236,15 @@ def test_the_console_shows_what_the_trial_waits_for(
         text = screen(ws, "text")
         ws.send(json.dumps({"type": "continue", "screen": text["id"]}))
         ready = screen(ws, "ready")
+        s.command("n came ten minutes late")  # before any trial: a note on the session
+        s.said(r"note on the session: came ten minutes late", 30)
         ws.send(json.dumps({"type": "start", "screen": ready["id"]}))
         screen(ws, "trial")  # its bridge serves: the trial runs
+        s.command("n the participant sneezed")  # notes and a flag on the trial in progress
+        s.command("f")
+        s.command("n")  # (an empty note: says how)
+        s.said(r"flagged on \S+$", 30)
+        s.said(r"n TEXT: type the note after the n", 30)
         # `?` until the trial's console has said its first status line (a loaded machine may
         # take seconds: the experimenter asks again)
         status = re.compile(
@@ -252,6 +261,16 @@ def test_the_console_shows_what_the_trial_waits_for(
         s.said(r"trial \S+: skipped", 60)
         s.command("?")
         s.said(r"L01: 0/2 trials done \(1 skipped\), page connected$", 30)
+    state = json.loads((out / "sessions" / "L01" / "session.json").read_text())
+    assert [n["text"] for n in state["notes"]] == ["came ten minutes late"], state["notes"]
+    first = state["trials"][0]
+    assert [(n["text"], n.get("flag", False)) for n in first["notes"]] == [
+        ("the participant sneezed", False),
+        ("", True),
+    ], first
+    rows = pd.read_csv(out / "trials.csv").set_index("trial")
+    assert rows.loc[first["id"], "notes"] == "the participant sneezed", rows
+    assert bool(rows.loc[first["id"], "flagged"]) is True
 
 
 def test_questionnaires_before_the_session_and_before_a_trial(

@@ -51,7 +51,8 @@ VR_WAIT_S = 300.0  # the trial waits this long for the page to connect to its br
 HELP = (
     "commands (type a letter, Enter): p pause/continue before the next step, r repeat the "
     "trial in progress, s skip it (or the next one), e end the session (resume later with the "
-    "same command), ? status"
+    "same command), n TEXT a note on the trial in progress (or the last one), f [TEXT] flag it, "
+    "? status"
 )
 
 
@@ -382,7 +383,7 @@ class Session:
                     self._keep_draft(draft[0], draft[1], msg.get("answers"))
                 continue
             if kind == "cmd":
-                self._command(msg["c"], running=None)
+                self._command(msg["c"], running=None, text=msg.get("text", ""))
                 if self.paused and types:  # held now, the screen waited on comes back after
                     waiting = self.screen
                     self._paused()
@@ -672,7 +673,7 @@ class Session:
                 if served:
                     self.show("trial", port=port, trial=ts.id)
             elif kind == "cmd":
-                why = self._command(msg["c"], running=ts)
+                why = self._command(msg["c"], running=ts, text=msg.get("text", ""))
                 if why:
                     return self._stop(proc, why)
 
@@ -697,12 +698,14 @@ class Session:
             for line in stream:
                 c = line.strip().lower()[:1]
                 if c:
-                    self.inbox.put(("cmd", {"c": c}))
+                    self.inbox.put(("cmd", {"c": c, "text": line.strip()[1:].strip()}))
 
-    def _command(self, c: str, running: st.TrialState | None) -> str:
+    def _command(self, c: str, running: st.TrialState | None, text: str = "") -> str:
         """Does what the experimenter typed; a reason to stop the running trial, or ""."""
         if c == "?":
             self.say(self.status())
+        elif c in ("n", "f"):
+            self._annotate(c == "f", text, running)
         elif c == "p":
             self.paused = not self.paused
             self.say(
@@ -736,6 +739,21 @@ class Session:
         else:
             self.say(HELP)
         return ""
+
+    def _annotate(self, flag: bool, text: str, running: st.TrialState | None) -> None:
+        """`n TEXT` / `f [TEXT]`: a note on, or a flag for, the trial in progress or else the
+        last one run (before any trial: the session's own notes); kept in session.json and in
+        the table's `notes` and `flagged` columns."""
+        if not flag and not text:
+            self.say("n TEXT: type the note after the n (n the participant sneezed)")
+            return
+        tried = [t for t in self.state.trials if t.attempts]
+        on = running or (tried[-1] if tried else None)
+        note = {"at": st.now_iso(), "text": text, **({"flag": True} if flag else {})}
+        (on.notes if on is not None else self.state.notes).append(note)
+        self._save()
+        what = "flagged" if flag else "note"
+        self.say(f"{what} on {on.id if on else 'the session'}" + (f": {text}" if text else ""))
 
 
 class TrialLog:

@@ -566,6 +566,8 @@ def write_report(sweep_dir: Path) -> Path:
         ]
         parts.append(_table(["trial", "outcome", "reason"], body, "fail"))
 
+    parts.extend(_notes_section(df))
+
     title = html.escape(f"Study {meta.get('name')}")
     head = f"<meta charset='utf-8'><title>{title}</title><style>{CSS}</style>"
     page = f"<!doctype html><html><head>{head}</head><body>" + "\n".join(parts) + "</body></html>\n"
@@ -600,6 +602,34 @@ def _condition(data: pd.DataFrame, factors: list[str]) -> pd.Series:
             axis=1,
         )
     )
+
+
+def _notes_section(df: pd.DataFrame) -> list[str]:
+    """The experimenter's notes and flags on live trials (`n`, `f` in hrc session): nothing is
+    left out for them; they are listed for a person to look at."""
+    if "notes" not in df and "flagged" not in df:
+        return []
+    flagged = df["flagged"].fillna(False).astype(bool) if "flagged" in df else False
+    noted = df["notes"].notna() if "notes" in df else False
+    marked = df[flagged | noted]
+    if marked.empty:
+        return []
+    body = [
+        [
+            html.escape(str(r["trial"]))
+            + f" <span class='muted'>({html.escape(str(r['participant']))})</span>",
+            "flagged" if bool(r.get("flagged")) is True else "",
+            html.escape(str(r["notes"])) if isinstance(r.get("notes"), str) else "",
+        ]
+        for _, r in marked.iterrows()
+    ]
+    return [
+        "<h2>The experimenter's notes</h2>",
+        "<p class='muted'>Trials the experimenter flagged (<code>f</code>) or wrote a note on "
+        "(<code>n</code>) during <code>hrc session</code>; the statistics above include them as "
+        "they are.</p>",
+        _table(["trial", "flag", "notes"], body),
+    ]
 
 
 def _kinds_section(

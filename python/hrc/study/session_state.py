@@ -47,6 +47,8 @@ class TrialState:
     attempts: list[Attempt] = field(default_factory=list)
     answers: dict[str, dict[str, Any]] = field(default_factory=dict)
     scores: dict[str, dict[str, Any]] = field(default_factory=dict)
+    # the experimenter's notes and flags (`n TEXT`, `f [TEXT]`): {"at", "text"[, "flag": true]}
+    notes: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def done(self) -> bool:
@@ -84,6 +86,8 @@ class SessionState:
     # the participant's link key: the same link for the whole session, across restarts (the
     # file is private: hrc.privacy); "" in files written before it was kept
     key: str = ""
+    # the experimenter's notes before any trial was run (as TrialState.notes)
+    notes: list[dict[str, Any]] = field(default_factory=list)
 
     def trial(self, tid: str) -> TrialState:
         return next(t for t in self.trials if t.id == tid)

@@ -120,6 +120,9 @@ def live_rows(study: Study, out: Path) -> list[dict[str, Any]]:
                 "exit_code": last.exit_code if last else None,
                 "wall_s": last.wall_s if last else None,
                 "attempts": len(t.attempts),
+                # the experimenter's notes on the trial (`n`, `f` in hrc session), in order
+                "notes": " | ".join(n["text"] for n in t.notes if n.get("text")) or None,
+                "flagged": any(n.get("flag") for n in t.notes),
             }
             if t.status in ("ok", "stalled"):
                 for key, value in flatten(

@@ -132,3 +132,25 @@ def test_the_design_says_which_factor_the_people_meet_between_and_which_within(
     (tmp_path / "study.json").write_text(json.dumps(meta))
     plain = text(write_report(tmp_path).read_text())
     assert f"{FACTOR} True, False between (one level each)" in plain, plain[:1500]
+
+
+def test_the_experimenters_notes_and_flags_are_listed_and_nothing_is_left_out(
+    tmp_path: Path,
+) -> None:
+    table(tmp_path)
+    df = pd.read_parquet(tmp_path / "trials.parquet")
+    df["notes"] = None
+    df["flagged"] = False
+    live = df.index[df["participant_kind"] == "live"]
+    df.loc[live[1], "notes"] = "the participant sneezed | asked to go on"
+    df.loc[live[2], "flagged"] = True
+    df.to_parquet(tmp_path / "trials.parquet", index=False)
+    plain = text(write_report(tmp_path).read_text())
+    notes = plain[plain.index("The experimenter's notes") :]
+    assert f"{df.loc[live[1], 'trial']} (L01) the participant sneezed | asked to go on" in notes
+    assert f"{df.loc[live[2], 'trial']} (L01) flagged" in notes
+    assert "Statistics use the 24 trials that ended ok" in plain  # none left out for them
+    # without notes or flags: no section
+    df["notes"], df["flagged"] = None, False
+    df.to_parquet(tmp_path / "trials.parquet", index=False)
+    assert "The experimenter's notes" not in write_report(tmp_path).read_text()
