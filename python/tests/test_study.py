@@ -277,3 +277,26 @@ def test_a_bad_fitted_table_is_named(
 def test_record_must_be_a_bool(tmp_path: Path) -> None:
     problems = _problems(tmp_path, STUDY.replace("[study]\n", '[study]\nrecord = "yes"\n'))
     assert any(p.startswith("study.record: should be true or false") for p in problems), problems
+
+
+def test_hrc_validate_checks_a_study_file_as_a_study(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """`hrc validate` of a study file checks the study (it said the file lacked a scenario's
+    keys: "scenario: missing required key", "study: unknown key", ...)."""
+    from hrc.cli.main import main
+
+    shipped = project_root() / "studies" / "people-speed-anticipation.toml"
+    assert main(["validate", "--no-reach", str(shipped)]) == 0
+    said = capsys.readouterr().out
+    assert "ok (study people-speed-anticipation: 6 conditions" in said, said
+    assert "12 live participants" in said
+    bad = tmp_path / "bad.toml"
+    minimal = project_root() / "scenarios" / "minimal.toml"
+    bad.write_text(
+        f'[study]\nname = "s"\nscenario = "{minimal}"\n'
+        '[factors]\n"conditions.anticipaton" = [true]\n[participants]\nn = 1\n'
+    )
+    assert main(["validate", "--no-reach", str(bad)]) == 1
+    err = capsys.readouterr().err
+    assert "anticipaton" in err and "missing required key" not in err, err

@@ -33,9 +33,36 @@ def _warn_if_exposed(folder: Path) -> None:
         print(f"warning: {why}", file=sys.stderr)
 
 
+def _is_study(path: str) -> bool:
+    """A study file (its `[study]` table) rather than a scenario; False if it cannot be read
+    (the scenario's loader then says why)."""
+    import tomllib
+
+    try:
+        with open(path, "rb") as f:
+            return "study" in tomllib.load(f)
+    except (OSError, tomllib.TOMLDecodeError):
+        return False
+
+
 def _cmd_validate(args: argparse.Namespace) -> int:
     from hrc import scenario as sc
 
+    if _is_study(args.scenario):  # a study file: checked as hrc sweep and hrc session read it
+        from hrc.study import StudyError, load_study
+
+        try:
+            st = load_study(args.scenario, motion_check=not args.no_reach)
+        except StudyError as exc:
+            print(str(exc), file=sys.stderr)
+            print(f"{len(exc.problems)} problem(s) found", file=sys.stderr)
+            return 1
+        live = f", {len(st.live.participants)} live participants" if st.live else ""
+        print(
+            f"{args.scenario}: ok (study {st.name}: {len(st.conditions)} conditions, "
+            f"{len(st.trials)} simulated or replayed trials{live})"
+        )
+        return 0
     try:
         s = sc.load(args.scenario, motion_check=not args.no_reach)
     except sc.ScenarioError as exc:
@@ -474,8 +501,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     r.set_defaults(func=_cmd_run)
 
-    v = sub.add_parser("validate", help="check a scenario file and report every problem")
-    v.add_argument("scenario")
+    v = sub.add_parser("validate", help="check a scenario or study file and report every problem")
+    v.add_argument("scenario", help="a scenario file, or a study file (its [study] table)")
     v.add_argument(
         "--no-reach",
         action="store_true",
