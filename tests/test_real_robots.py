@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import subprocess
 from pathlib import Path
 from typing import Any
@@ -30,6 +31,8 @@ POLICIES = ("retreat", "retreat_button", "stop_colliding", "ssm")
 # (it is beside the project on the development machines, not beside every clone); and the xArm 6
 # of pybullet's data folder (its meshes named package://...), which every setup installs.
 XARM6 = ROOT.parent / "shared" / "robots" / "xarm6" / "xarm6.urdf"
+# the maker's Panda (FR3 family) description: Collada visual meshes, STL collision meshes
+SHARED_PANDA = ROOT.parent / "shared" / "robots" / "franka_panda" / "franka_panda.urdf"
 PYBULLET_XARM6 = urdf.resolve("package://pybullet_data/xarm/xarm6_robot.urdf", None, [])
 WALL = {"wall_time", "wall_s", "realtime_factor", "end_reason"}
 
@@ -105,6 +108,20 @@ def _transforms(rrd: Path, entity: str) -> list[tuple[int, list[float], list[flo
     return sorted(rows)
 
 
+def _media_types(rrd: Path, robot: str) -> dict[str, str]:
+    """Visual mesh entity of each link -> the media type of its Asset3D (what the viewer gets)."""
+    out: dict[str, str] = {}
+    for chunk in rr.chunk.RrdReader(rrd).stream():
+        path = chunk.entity_path
+        if not path.startswith(f"/robot_{robot}/") or "/visual_geometries/" not in path:
+            continue
+        batch = chunk.to_record_batch()
+        if "Asset3D:media_type" in batch.schema.names:
+            kind = next(v for v in batch.column("Asset3D:media_type").to_pylist() if v)[0]
+            out[path.split("/visual_geometries/")[1].split("/")[0]] = kind
+    return out
+
+
 def _visual_meshes(rrd: Path, robot: str) -> dict[str, list[float] | None]:
     """Visual mesh entity of each link -> its albedo factor (rgba 0..1)."""
     out: dict[str, list[float] | None] = {}
@@ -173,3 +190,41 @@ def test_a_description_from_outside_the_project_runs_the_minimal_scenario(
         in proc.stdout + proc.stderr
     )
     assert "its links: world, link_base, link1" in proc.stdout + proc.stderr
+
+
+def test_a_description_with_collada_visuals_is_drawn_in_the_recording(
+    tmp_path: Path, ik_bin: Path
+) -> None:
+    """The maker's Panda draws its links with Collada meshes, which rerun's viewer does not
+    draw (the arm was missing from the recording, without a word): the logger converts them
+    to GLB, once (a cache), so every link is drawn, in the robot's colour."""
+    if not SHARED_PANDA.is_file():
+        pytest.skip(f"{SHARED_PANDA} is not on this machine")
+    text = (ROOT / "scenarios" / "minimal.toml").read_text()
+    scenario = tmp_path / "panda.toml"
+    scenario.write_text(
+        text.replace(
+            'urdf = "robots/arm5.urdf"',
+            f'urdf = "{SHARED_PANDA}"\nbase_link = "fer_link0"\ntip_link = "fer_link8"\n'
+            "tcp = { xyz = [0.0, 0.0, 0.2] }",
+            1,
+        )
+    )
+    cache = tmp_path / "meshes"  # a cold cache: the trial converts
+    out = tmp_path / "trial"
+    proc = subprocess.run(
+        [HRC, "run", str(scenario), "--out", str(out), "--ticks", "60"],
+        capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL,
+        env={**os.environ, "HRC_MESH_CACHE": str(cache)},
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    kinds = _media_types(out / "recording.rrd", "r1")
+    links = {f"fer_link{i}" for i in range(8)}
+    assert links <= kinds.keys(), f"visual meshes for {sorted(kinds)}"
+    assert {kinds[k] for k in links} == {"model/gltf-binary"}, kinds
+    assert len(list(cache.glob("link*.glb"))) == 8, sorted(cache.iterdir())
+    want = [c / 255 for c in colors.rgb("yellow")]  # tinted like any other arm
+    for link, rgba in _visual_meshes(out / "recording.rrd", "r1").items():
+        assert rgba is not None and all(
+            math.isclose(a, b, abs_tol=1.5 / 255) for a, b in zip(rgba, want, strict=False)
+        ), (link, rgba)

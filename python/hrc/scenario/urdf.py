@@ -163,6 +163,10 @@ def resolve(written: str, folder: Path | None, packages: Sequence[Path]) -> Path
     return None
 
 
+def _suffix(written: str) -> str:
+    return Path(written.partition("?")[0]).suffix.lower()
+
+
 def missing_meshes(info: UrdfInfo, packages: Sequence[Path]) -> list[str]:
     return [m for m in info.meshes if resolve(m, info.path.parent, packages) is None]
 
@@ -172,22 +176,39 @@ def localized_urdf(
     packages: Sequence[Path],
     out_dir: Path | None = None,
     tint_rgb: Sequence[float] | None = None,
+    draws: frozenset[str] | None = None,
 ) -> Path:
-    """`path` itself when every mesh it names is a plain relative or absolute path and no tint
-    is asked for; otherwise a copy (in `out_dir`, by default a per-user temporary folder, named
-    by its content) whose mesh paths are absolute, and whose visuals all have the colour
-    `tint_rgb` (0..1) if given. A mesh that is found nowhere is left as written: the scenario
-    check has named it already, and pybullet then says what it could not load."""
+    """`path` itself when every mesh it names is a plain relative or absolute path, no tint is
+    asked for and every visual mesh is of a kind in `draws` (suffixes; None: any); otherwise a
+    copy (in `out_dir`, by default a per-user temporary folder, named by its content) whose mesh
+    paths are absolute, whose visual meshes of other kinds are converted (hrc.scenario.meshes),
+    and whose visuals all have the colour `tint_rgb` (0..1) if given. A mesh that is found
+    nowhere is left as written: the scenario check has named it already, and pybullet then
+    says what it could not load; one that cannot be converted raises MeshError."""
     tree = ET.parse(path)
     meshes = list(tree.getroot().iter("mesh"))
-    if tint_rgb is None and not any(
-        m.get("filename", "").startswith((PACKAGE, FILE)) for m in meshes
+    shown = [m for v in tree.getroot().iter("visual") for m in v.iter("mesh")]
+    foreign = [
+        m for m in shown if draws is not None and _suffix(m.get("filename", "")) not in draws
+    ]
+    if (
+        tint_rgb is None
+        and not foreign
+        and not any(m.get("filename", "").startswith((PACKAGE, FILE)) for m in meshes)
     ):
         return path
     for mesh in meshes:  # all of them: the copy lives elsewhere, relative paths would break
         found = resolve(mesh.get("filename", ""), path.parent, packages)
         if found is not None:
             mesh.set("filename", str(found))
+    if foreign:
+        from hrc.scenario.meshes import drawable
+
+        assert draws is not None
+        for mesh in foreign:
+            found = Path(mesh.get("filename", ""))
+            if found.is_file():
+                mesh.set("filename", str(drawable(found, draws)))
     if tint_rgb is not None:
         rgba = " ".join(f"{c:.4g}" for c in (*tint_rgb[:3], 1.0))
         for visual in tree.getroot().iter("visual"):

@@ -45,6 +45,7 @@ from rerun.urdf import UrdfTree
 from hrc.geometry import vec3_from_pb, yaw_quat_deg
 from hrc.scenario import colors
 from hrc.scenario.convert import ssm_from_proto
+from hrc.scenario.meshes import RERUN_DRAWS
 from hrc.scenario.models import DEFAULT_TICK_HZ, HUMAN
 from hrc.scenario.urdf import localized_urdf
 from hrc.wire import pb
@@ -295,7 +296,10 @@ class View:
             # with absolute mesh paths, every visual in the robot's colour unless told not to
             # (written linear: the importer reads a URDF colour as linear and shows it as sRGB)
             tint = None if r.own_colors else [srgb_to_linear(c / 255.0) for c in rv.color]
-            shown = localized_urdf(Path(r.urdf_path), [Path(d) for d in r.package_dirs], None, tint)
+            # (and visual meshes rerun cannot draw, Collada above all, converted to GLB)
+            shown = localized_urdf(
+                Path(r.urdf_path), [Path(d) for d in r.package_dirs], None, tint, RERUN_DRAWS
+            )
             tree = UrdfTree.from_file_path(
                 shown,
                 ent,
