@@ -386,11 +386,16 @@ def _check_robot_files(
                 )
             )
     problems += _check_gripper(key, robot.get("gripper"), info, joints or [])
-    for mesh in urdf.missing_meshes(info, packages):
-        problems.append(
-            Problem(f"{key}.urdf", f"{path.name}: mesh " + _not_found(mesh, path.parent, packages))
+    lost = urdf.missing_meshes(info, packages)
+    if lost:  # all of them at once: a description is fixed in one go, not one run per mesh
+        first = _not_found(lost[0], path.parent, packages)
+        more = (
+            f"; {len(lost) - 1} more of its {len(info.meshes)} meshes not found: "
+            + ", ".join(lost[1:])
+            if len(lost) > 1
+            else ""
         )
-        break  # one names the cause; a description usually misses them all the same way
+        problems.append(Problem(f"{key}.urdf", f"{path.name}: mesh {first}{more}"))
     return problems
 
 
@@ -398,8 +403,15 @@ def _not_found(written: str, folder: Path | None, packages: list[Path]) -> str:
     tried = [str(c) for c in urdf.candidates(written, folder, packages)]
     hint = ""
     if written.startswith(urdf.PACKAGE):
-        name = written[len(urdf.PACKAGE) :].partition("/")[0]
-        hint = f"; add the folder that holds {name}/ to packages"
+        name, _, rest = written[len(urdf.PACKAGE) :].partition("/")
+        holding = [d / name for d in packages if (d / name).is_dir()]
+        hint = (
+            f"; {holding[0]} is in packages but has no {rest}"
+            if holding
+            else f"; add the folder that holds {name}/ to packages"
+        )
+    elif written.startswith(urdf.FILE) or Path(written).is_absolute():
+        hint = "; an absolute path of the machine it was made on: make it package:// or relative"
     return f"{written} not found (tried {', '.join(tried) or 'nothing'}){hint}"
 
 

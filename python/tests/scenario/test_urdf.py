@@ -146,3 +146,40 @@ def test_the_shipped_real_arm_scenarios_load_with_their_chains() -> None:
     assert back.robots["r1"].tcp == r1.tcp and back.robots["r1"].gripper == r1.gripper
     ur5e = sc.load(root / "thesis-ur5e.toml", motion_check=False)
     assert ur5e.robots["r2"].tip_link == "tool" and ur5e.robots["r2"].gripper is None
+
+
+def test_every_missing_mesh_is_named_at_once_with_a_hint_that_fits(tmp_path: Path) -> None:
+    """A description with many meshes a check cannot find names them all in one run (it named
+    the first, so a lab fixed them one run at a time); the hint fits what `packages` holds."""
+    ws = tmp_path / "ws"
+    (ws / "toy_description" / "meshes").mkdir(parents=True)
+    text = ROBOT.format(mesh="package://toy_description/meshes/base.stl").replace(
+        '<link name="arm"/>',
+        '<link name="arm"><visual><geometry><mesh filename="file:///home/maker/arm.dae"/>'
+        "</geometry></visual><collision><geometry>"
+        '<mesh filename="package://toy_description/meshes/arm.stl"/></geometry></collision></link>',
+    )
+    robot = tmp_path / "d" / "toy.urdf"
+    robot.parent.mkdir()
+    robot.write_text(text)
+    keys = f'urdf = "{robot}"\nbase_link = "base"\ntip_link = "arm"\n'
+    # the package's folder is in packages, the files are not in it: no "add ... to packages"
+    got = [
+        p
+        for p in problems(scenario_with(tmp_path, keys + f'packages = ["{ws}"]'))
+        if p.startswith("robots.r1.urdf")
+    ]
+    assert len(got) == 1, got
+    (msg,) = got
+    assert "toy.urdf: mesh package://toy_description/meshes/base.stl not found (tried " in msg
+    assert f"; {ws / 'toy_description'} is in packages but has no meshes/base.stl" in msg
+    assert "add the folder" not in msg
+    assert (
+        "; 2 more of its 3 meshes not found: file:///home/maker/arm.dae, "
+        "package://toy_description/meshes/arm.stl" in msg
+    ), msg
+    # without packages: the hint to give them; an absolute path first: made on another machine
+    (msg,) = [p for p in problems(scenario_with(tmp_path, keys)) if p.startswith("robots.r1.urdf")]
+    assert "add the folder that holds toy_description/ to packages" in msg, msg
+    bare = urdf.read_urdf(robot)
+    assert urdf.missing_meshes(bare, [])[1] == "file:///home/maker/arm.dae"
