@@ -657,3 +657,59 @@ def test_bench_ik_passes_json_through(capsys: pytest.CaptureFixture[str]) -> Non
         for solver in chain.values():
             assert 0.0 <= solver["success"] <= 1.0 and solver["n"] == 20
     assert out["tick_p99_us"] > 0
+
+
+SHARED_ROBOTS = ROOT.parent / "shared" / "robots"
+MAKERS = {  # the makers' descriptions beside the project: (file, base, tip)
+    "ur5e": ("ur5e/ur5e.urdf", "base_link", "tool0"),
+    "xarm6": ("xarm6/xarm6.urdf", "link_base", "link6"),
+    "franka_panda": ("franka_panda/franka_panda.urdf", "fer_link0", "fer_link8"),
+}
+
+
+@pytest.mark.parametrize("name", sorted(MAKERS))
+def test_bench_ik_takes_a_labs_own_urdf(name: str, capsys: pytest.CaptureFixture[str]) -> None:
+    """``hrc bench ik --urdf FILE --base LINK --tip LINK``: that chain alone, every solver (the
+    C++ benchmark took it, hrc bench ik did not)."""
+    import argparse
+    import json
+
+    from hrc.bench.ik import run as bench_ik
+
+    file, base, tip = MAKERS[name]
+    urdf = SHARED_ROBOTS / file
+    if not urdf.is_file():
+        pytest.skip(f"{urdf} is not on this machine")
+    args = argparse.Namespace(what="ik", json=True, n=50, urdf=str(urdf), base=base, tip=tip)
+    assert bench_ik(args) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert list(out["chains"]) == [urdf.stem] and out["tick_p99_us"] is None, out
+    service = out["chains"][urdf.stem]["service"]
+    assert service["n"] == 50 and service["success"] >= 0.95, service
+
+
+def test_bench_ik_names_a_bad_urdf_chain_before_it_starts(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    import argparse
+
+    from hrc.bench.ik import run as bench_ik
+
+    def said(**kw: Any) -> str:
+        args = argparse.Namespace(what="ik", json=False, n=10, **kw)
+        assert bench_ik(args) == 2
+        return capsys.readouterr().err
+
+    arm5 = str(ROOT / "robots" / "arm5.urdf")
+    assert "has no link named 'hand'; its links: " in said(urdf=arm5, base="base_link", tip="hand")
+    assert "'base_link' is not below 'tool'" in said(urdf=arm5, base="tool", tip="base_link")
+    assert "--urdf needs --base LINK and --tip LINK" in said(urdf=arm5, base=None, tip=None)
+    assert "--base and --tip go with --urdf" in said(urdf=None, base="a", tip="b")
+    xacro = tmp_path / "arm.urdf.xacro"
+    xacro.write_text(
+        '<robot name="a" xmlns:xacro="http://www.ros.org/wiki/xacro">'
+        '<xacro:macro name="m"><link name="l"/></xacro:macro><xacro:m/></robot>'
+    )
+    assert "a xacro file (macros not expanded), not a URDF" in said(
+        urdf=str(xacro), base="l", tip="l"
+    )

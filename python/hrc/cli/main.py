@@ -646,6 +646,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--n", type=int, default=0, help="samples / ticks (0: the benchmark's default)")
+    b.add_argument(
+        "--urdf", default=None, metavar="FILE", help="ik: benchmark this description's chain alone"
+    )
+    b.add_argument("--base", default=None, metavar="LINK", help="ik --urdf: the chain's base link")
+    b.add_argument("--tip", default=None, metavar="LINK", help="ik --urdf: the chain's tip link")
     b.set_defaults(func=_cmd_bench)
     return p
 

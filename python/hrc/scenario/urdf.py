@@ -93,6 +93,11 @@ def read_urdf(path: Path) -> UrdfInfo:
         raise UrdfError(f"URDF {path}: cannot read it ({exc.strerror or exc})") from exc
     except ET.ParseError as exc:
         raise UrdfError(f"URDF {path}: not valid XML ({exc})") from exc
+    if _is_xacro(path, root):
+        raise UrdfError(
+            f"{path}: a xacro file (macros not expanded), not a URDF: expand it first "
+            f"(hrc robot add {path.name}, or xacro {path.name} -o {path.stem}.urdf)"
+        )
     if root.tag != "robot":
         raise UrdfError(f"URDF {path}: the top element is <{root.tag}>, not <robot>")
     links = [e.get("name", "") for e in root.findall("link")]
@@ -118,6 +123,17 @@ def read_urdf(path: Path) -> UrdfInfo:
         if m.get("filename")
     ]
     return UrdfInfo(path, root.get("name", ""), links, joints, list(dict.fromkeys(meshes)))
+
+
+XACRO_NS = "{http://www.ros.org/wiki/xacro}"
+
+
+def _is_xacro(path: Path, root: ET.Element) -> bool:
+    """A xacro file: named so, or any element of xacro's namespace (xacro:macro, :include, ...)
+    left in it (a URDF read as is would lack every link the macros make)."""
+    if path.name.endswith((".xacro", ".urdf.xacro")):
+        return True
+    return any(e.tag.startswith(XACRO_NS) for e in root.iter())
 
 
 def _installed_package(name: str) -> Path | None:

@@ -183,3 +183,28 @@ def test_every_missing_mesh_is_named_at_once_with_a_hint_that_fits(tmp_path: Pat
     assert "add the folder that holds toy_description/ to packages" in msg, msg
     bare = urdf.read_urdf(robot)
     assert urdf.missing_meshes(bare, [])[1] == "file:///home/maker/arm.dae"
+
+
+def test_a_xacro_file_given_as_the_urdf_is_said_to_be_xacro(tmp_path: Path) -> None:
+    """It said "has no link named 'base_link'; its links: world" (the macros unexpanded)."""
+    for name, text in (
+        (
+            "arm.urdf.xacro",
+            '<robot name="a" xmlns:xacro="http://www.ros.org/wiki/xacro"><link name="world"/>'
+            '<xacro:include filename="$(find arm_description)/urdf/arm.xacro"/></robot>',
+        ),
+        (  # named .urdf, but macros in it
+            "arm.urdf",
+            '<robot name="a" xmlns:xacro="http://www.ros.org/wiki/xacro"><link name="world"/>'
+            '<xacro:arm prefix=""/></robot>',
+        ),
+    ):
+        path = tmp_path / name
+        path.write_text(text)
+        got = problems(scenario_with(tmp_path, f'urdf = "{path}"'))
+        assert any(
+            f"robots.r1.urdf: {path}: a xacro file (macros not expanded), not a URDF: expand it "
+            f"first (hrc robot add {name}" in p
+            for p in got
+        ), got
+        assert not any("has no link named" in p for p in got), got

@@ -44,6 +44,7 @@ struct Options {
   bool json = false;
   int tick_seconds = 30;
   std::vector<std::string> extra_chains;  // NAME=URDF:BASE:TIP (--chain)
+  bool only = false;  // --only: the --chain chains alone, no tick benchmark (a lab's own arm)
 };
 
 struct Stats {
@@ -62,7 +63,7 @@ double median(std::vector<double> v) {
   if (!err.empty()) std::cerr << "hrc-ik-bench: " << err << "\n";
   std::cerr
       << "usage: hrc-ik-bench [--n N] [--gd-n M] [--seed S] [--robots-dir DIR] "
-         "[--tick-seconds T] [--chain NAME=URDF:BASE:TIP]... [--json]\n"
+         "[--tick-seconds T] [--chain NAME=URDF:BASE:TIP]... [--only] [--json]\n"
          "  --n N            targets per chain (default 10000)\n"
          "  --gd-n M         targets for the (slow) gradient descent baseline, <= N "
          "(default 1000)\n"
@@ -72,6 +73,7 @@ double median(std::vector<double> v) {
          "  --tick-seconds T simulated seconds of the 2-arm 1 kHz tick benchmark (default 30)\n"
          "  --chain NAME=URDF:BASE:TIP  also benchmark this chain (repeatable; a shipped real\n"
          "                   robot's description, e.g. hrc bench ik passes the scenarios' ones)\n"
+         "  --only           benchmark the --chain chains alone (no arm5/UR5/Panda, no tick)\n"
          "  --json           print one JSON object instead of a table\n";
   std::exit(err.empty() ? 0 : 2);
 }
@@ -108,12 +110,15 @@ Options parse(int argc, char** argv) {
       o.extra_chains.emplace_back(value());
     else if (a == "--json")
       o.json = true;
+    else if (a == "--only")
+      o.only = true;
     else if (a == "-h" || a == "--help")
       usage("");
     else
       usage("unknown option '" + a + "'");
   }
   if (gd_given && o.gd_n > o.n) usage("--gd-n must be <= --n");
+  if (o.only && o.extra_chains.empty()) usage("--only needs at least one --chain");
   o.gd_n = std::min(o.gd_n, o.n);
   return o;
 }
@@ -345,10 +350,12 @@ double tick_bench(const RobotModel& arm5, const Options& o) {
 
 int main(int argc, char** argv) {
   const Options o = parse(argc, argv);
-  const std::string dir = find_robots_dir(o.robots_dir);
-  std::vector<Chain> chains{{"arm5", true, "", "base_link", "tool"},
-                            {"ur5", false, "", "base_link", "tool"},
-                            {"panda", false, "", "base_link", "tool"}};
+  const std::string dir = o.only ? std::string() : find_robots_dir(o.robots_dir);
+  std::vector<Chain> chains;
+  if (!o.only)
+    chains = {{"arm5", true, "", "base_link", "tool"},
+              {"ur5", false, "", "base_link", "tool"},
+              {"panda", false, "", "base_link", "tool"}};
   for (const std::string& spec : o.extra_chains) chains.push_back(parse_chain(spec));
   std::map<std::string, std::map<std::string, Stats>> results;
   std::unique_ptr<RobotModel> arm5;
@@ -364,7 +371,7 @@ int main(int argc, char** argv) {
     std::cerr << "hrc-ik-bench: " << e.what() << "\n";
     return 1;
   }
-  const double tick_p99 = tick_bench(*arm5, o);
+  const double tick_p99 = arm5 ? tick_bench(*arm5, o) : -1.0;  // -1: not run (--only)
   const char* solvers[] = {"service", "kdl_nr_jl", "kdl_lma", "gradient_descent"};
   if (o.json) {
     std::printf("{\"chains\": {");
@@ -384,8 +391,12 @@ int main(int argc, char** argv) {
       }
       std::printf("}");
     }
-    std::printf("}, \"tick_p99_us\": %.3f, \"seed\": %llu}\n", tick_p99,
-                static_cast<unsigned long long>(o.seed));
+    if (tick_p99 >= 0)
+      std::printf("}, \"tick_p99_us\": %.3f, \"seed\": %llu}\n", tick_p99,
+                  static_cast<unsigned long long>(o.seed));
+    else
+      std::printf("}, \"tick_p99_us\": null, \"seed\": %llu}\n",
+                  static_cast<unsigned long long>(o.seed));
   } else {
     std::printf("%-18s %-17s %9s %10s %10s %7s %12s %12s\n", "chain", "solver", "success",
                 "mean_us", "p99_us", "n", "med_pos_mm", "med_ang_deg");
@@ -396,7 +407,8 @@ int main(int argc, char** argv) {
                     100.0 * st.success, st.mean_us, st.p99_us, st.n, st.median_pos_mm,
                     st.median_ang_deg);
       }
-    std::printf("tick_p99_us (2 x arm5 motion generators at 1 kHz): %.1f\n", tick_p99);
+    if (tick_p99 >= 0)
+      std::printf("tick_p99_us (2 x arm5 motion generators at 1 kHz): %.1f\n", tick_p99);
   }
   return 0;
 }
