@@ -12,15 +12,15 @@ import numpy as np
 import numpy.typing as npt
 import rerun as rr
 
-from hrc.wire import pb
-
-from hrc_logger.entities import part
-from hrc_logger.urdf_fk import (
+from hrc.urdf_fk import (
     Joint,
     UrdfModel,
     point_polyline_distance,
     polyline_distances,
 )
+from hrc.wire import pb
+
+from hrc_logger.entities import part
 
 S = TypeVar("S", pb.RobotState, pb.HumanState)
 

@@ -8,7 +8,7 @@ Entities:
 - ``robot_<id>/...``: the robot from its URDF (rerun's URDF loader, ``rerun.urdf.UrdfTree``, with
   frame prefix ``<id>/``); ``robot_<id>/base`` places its root link in the world (static);
   ``robot_<id>/joints/<joint>`` holds each joint's transform (parent link -> child link, from our
-  own FK, ``urdf_fk``), logged at most ``view_hz`` times per simulated second plus the last state.
+  FK, ``hrc.urdf_fk``), logged at most ``view_hz`` times per simulated second plus the last state.
 - ``world/tcp/<id>``: the TCP point; ``plots/tcp_speed/<id>``: its speed (m/s).
 - ``world/parts/<id>``: each part as a box coloured by owner; its transform is logged only when it
   moved (at most ``view_hz``/s, immediately on grab/release/snap/spawn).
@@ -48,6 +48,12 @@ from hrc.scenario.convert import ssm_from_proto
 from hrc.scenario.meshes import RERUN_DRAWS
 from hrc.scenario.models import DEFAULT_TICK_HZ, HUMAN
 from hrc.scenario.urdf import localized_urdf
+from hrc.urdf_fk import (
+    UrdfError,
+    UrdfModel,
+    matrix_to_quat_xyzw,
+    yaw_transform,
+)
 from hrc.wire import pb
 
 from hrc_logger.blueprint import blueprint
@@ -56,12 +62,6 @@ from hrc_logger.entities import CLEAR, cue_entity, finite, part, rgb, rgba, srgb
 from hrc_logger.series import PointRow, SeriesBatch, StateStream
 from hrc_logger.ssm_zone import Zone
 from hrc_logger.textlog import kind_name
-from hrc_logger.urdf_fk import (
-    UrdfError,
-    UrdfModel,
-    matrix_to_quat_xyzw,
-    yaw_transform,
-)
 
 log = logging.getLogger(__name__)
 

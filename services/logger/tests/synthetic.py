@@ -21,9 +21,8 @@ from google.protobuf.message import Message
 from hrc.geometry import pose_to_pb, vec3_to_pb, yaw_pose_deg
 from hrc.scenario.conventions import WAITING_TEXT
 from hrc.scenario.models import DEFAULT_TICK_HZ
+from hrc.urdf_fk import UrdfModel, matrix_to_quat_xyzw, yaw_transform
 from hrc.wire import pb
-
-from hrc_logger.urdf_fk import UrdfModel, matrix_to_quat_xyzw, yaw_transform
 
 START_TICK = 10  # the first grab: task time 0
 WALL_TIME = "2024-05-02T14:03:11+02:00"

@@ -15,11 +15,11 @@ from synthetic import SyntheticTrial
 
 from hrc import scenario as sc
 from hrc.paths import project_root
+from hrc.urdf_fk import point_polyline_distance, yaw_transform
 from hrc.wire import pb
 
 from hrc_logger.records import event_record, metrics_record
 from hrc_logger.rrd import summarize
-from hrc_logger.urdf_fk import point_polyline_distance, yaw_transform
 
 
 @pytest.fixture(scope="module")

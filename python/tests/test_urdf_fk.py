@@ -12,8 +12,7 @@ import pytest
 from rerun.urdf import UrdfTree
 
 from hrc.paths import project_root
-
-from hrc_logger.urdf_fk import (
+from hrc.urdf_fk import (
     UrdfError,
     UrdfModel,
     matrix_to_quat_xyzw,

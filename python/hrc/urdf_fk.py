@@ -1,4 +1,4 @@
-"""A small URDF forward-kinematics model (numpy) for the view.
+"""A small URDF forward-kinematics model (numpy): the logger's view and `hrc robot add`.
 
 The view animates each robot by logging one transform per joint (parent link frame -> child link
 frame) and measures hand-robot distances against the arm's link chain; both need the joint
@@ -15,8 +15,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 
 from hrc.geometry import vec3
+
+Mat = npt.NDArray[np.float64]  # transforms (4 x 4, or stacks of them), points, joint vectors
 
 MOVABLE = ("revolute", "continuous", "prismatic")
 KNOWN_TYPES = (*MOVABLE, "fixed")
@@ -26,7 +29,7 @@ class UrdfError(ValueError):
     """The URDF cannot be used for the view (names the file and what is wrong)."""
 
 
-def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
+def rpy_matrix(roll: float, pitch: float, yaw: float) -> Mat:
     """URDF fixed-axis roll-pitch-yaw: R = Rz(yaw) Ry(pitch) Rx(roll)."""
     cr, sr = math.cos(roll), math.sin(roll)
     cp, sp = math.cos(pitch), math.sin(pitch)
@@ -40,7 +43,7 @@ def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
     )
 
 
-def axis_angle_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
+def axis_angle_matrix(axis: Sequence[float], angle: float) -> Mat:
     """Rodrigues' rotation about a unit axis."""
     x, y, z = axis
     c, s = math.cos(angle), math.sin(angle)
@@ -54,7 +57,7 @@ def axis_angle_matrix(axis: Sequence[float], angle: float) -> np.ndarray:
     )
 
 
-def matrix_to_quat_xyzw(r: np.ndarray) -> tuple[float, float, float, float]:
+def matrix_to_quat_xyzw(r: Mat) -> tuple[float, float, float, float]:
     """Rotation matrix -> unit quaternion (x, y, z, w) with w >= 0 (Shepperd's method)."""
     m = r
     tr = m[0, 0] + m[1, 1] + m[2, 2]
@@ -81,7 +84,7 @@ def matrix_to_quat_xyzw(r: np.ndarray) -> tuple[float, float, float, float]:
     return float(q[0]), float(q[1]), float(q[2]), float(q[3])
 
 
-def quat_mul_xyzw(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def quat_mul_xyzw(a: Mat, b: Mat) -> Mat:
     """Hamilton products a * b of (x, y, z, w) quaternions, row by row (N x 4, broadcast)."""
     ax, ay, az, aw = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
     bx, by, bz, bw = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
@@ -96,14 +99,14 @@ def quat_mul_xyzw(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     )
 
 
-def transform(rot: np.ndarray, xyz: Sequence[float] | np.ndarray) -> np.ndarray:
+def transform(rot: Mat, xyz: Sequence[float] | Mat) -> Mat:
     t = np.eye(4)
     t[:3, :3] = rot
     t[:3, 3] = xyz
     return t
 
 
-def yaw_transform(xyz: Sequence[float], yaw_deg: float) -> np.ndarray:
+def yaw_transform(xyz: Sequence[float], yaw_deg: float) -> Mat:
     """A base pose as the scenario writes it: position plus yaw about world z."""
     return transform(rpy_matrix(0.0, 0.0, math.radians(yaw_deg)), xyz)
 
@@ -114,10 +117,10 @@ class Joint:
     kind: str
     parent: str
     child: str
-    origin: np.ndarray  # 4x4, parent link frame -> joint frame at q = 0
+    origin: Mat  # 4x4, parent link frame -> joint frame at q = 0
     axis: tuple[float, float, float]
 
-    def local(self, q: float) -> np.ndarray:
+    def local(self, q: float) -> Mat:
         """Parent link frame -> child link frame at joint position ``q``."""
         if self.kind in ("revolute", "continuous"):
             return self.origin @ transform(axis_angle_matrix(self.axis, q), (0.0, 0.0, 0.0))
@@ -125,7 +128,7 @@ class Joint:
             return self.origin @ transform(np.eye(3), np.asarray(self.axis) * q)
         return self.origin
 
-    def local_stack(self, qs: np.ndarray) -> np.ndarray:
+    def local_stack(self, qs: Mat) -> Mat:
         """``local(q)`` for many joint positions at once: N x 4 x 4."""
         n = len(qs)
         out = np.broadcast_to(self.origin, (n, 4, 4)).copy()
@@ -155,7 +158,7 @@ class Joint:
             out[:, :3, 3] += shift @ self.origin[:3, :3].T
         return out
 
-    def local_columns(self, qs: Sequence[float] | np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def local_columns(self, qs: Sequence[float] | Mat) -> tuple[Mat, Mat]:
         """``local(q)`` for many joint positions at once, as rerun takes them: translations
         (N x 3) and unit quaternions (x, y, z, w; w >= 0; N x 4). The view sends a joint's
         transforms in columns, so one call per column replaces a 4x4 product per row."""
@@ -283,31 +286,29 @@ class UrdfModel:
                 pending.remove(joint)
         return cls(robot.get("name", ""), roots[0], ordered)
 
-    def joint_transforms(self, q: Mapping[str, float]) -> dict[str, np.ndarray]:
+    def joint_transforms(self, q: Mapping[str, float]) -> dict[str, Mat]:
         """Every joint's local transform (parent link -> child link); missing joints at 0."""
         return {j.name: j.local(float(q.get(j.name, 0.0))) for j in self.joints}
 
-    def link_poses(
-        self, q: Mapping[str, float], base: np.ndarray | None = None
-    ) -> dict[str, np.ndarray]:
+    def link_poses(self, q: Mapping[str, float], base: Mat | None = None) -> dict[str, Mat]:
         """Every link's pose in the world (``base`` places the root link; identity if None)."""
         poses = {self.root: np.eye(4) if base is None else base}
         for j in self.joints:
             poses[j.child] = poses[j.parent] @ j.local(float(q.get(j.name, 0.0)))
         return poses
 
-    def chain_points(self, q: Mapping[str, float], base: np.ndarray | None = None) -> np.ndarray:
+    def chain_points(self, q: Mapping[str, float], base: Mat | None = None) -> Mat:
         """Origins of the links in tree order (root first): the arm's skeleton, N x 3."""
         poses = self.link_poses(q, base)
         order = [self.root] + [j.child for j in self.joints]
         return np.array([poses[link][:3, 3] for link in order])
 
-    def joint_vector(self, q: Mapping[str, float]) -> np.ndarray:
+    def joint_vector(self, q: Mapping[str, float]) -> Mat:
         """``q`` as one position per joint in tree order (``self.joints``; missing: 0), the
         input of :meth:`chain_points_columns`."""
         return np.array([float(q.get(j.name, 0.0)) for j in self.joints])
 
-    def chain_points_columns(self, qs: np.ndarray, base: np.ndarray | None = None) -> np.ndarray:
+    def chain_points_columns(self, qs: Mat, base: Mat | None = None) -> Mat:
         """``chain_points`` for many joint vectors at once (N x len(joints), as
         :meth:`joint_vector` gives them): N x (1 + len(joints)) x 3. The view computes the
         hand-robot distances of a whole column in one go instead of a chain per row."""
@@ -320,7 +321,7 @@ class UrdfModel:
         return np.stack([poses[link][:, :3, 3] for link in order], axis=1)
 
 
-def polyline_distances(p: np.ndarray, pts: np.ndarray) -> np.ndarray:
+def polyline_distances(p: Mat, pts: Mat) -> Mat:
     """Row by row ``point_polyline_distance``: points ``p`` (N x 3), polylines ``pts``
     (N x L x 3, L >= 1) -> N distances."""
     if pts.shape[1] == 1:
@@ -336,7 +337,7 @@ def polyline_distances(p: np.ndarray, pts: np.ndarray) -> np.ndarray:
     return np.asarray(np.min(np.linalg.norm(closest - p[:, None, :], axis=2), axis=1))
 
 
-def point_polyline_distance(p: np.ndarray, pts: np.ndarray) -> float:
+def point_polyline_distance(p: Mat, pts: Mat) -> float:
     """Shortest distance from point ``p`` to the polyline through ``pts`` (N x 3, N >= 1)."""
     if len(pts) == 1:
         return float(np.linalg.norm(p - pts[0]))
