@@ -374,6 +374,34 @@ def _cmd_fit(args: argparse.Namespace) -> int:
     return fit.run(args)
 
 
+def _cmd_robot_add(args: argparse.Namespace) -> int:
+    from hrc.robot.add import RobotError, add
+
+    pairs: dict[str, str] = {}
+    for a in args.arg:
+        key, sep, value = a.partition(":=")
+        if not sep or not key:
+            print(f"hrc robot add: --arg {a!r}: expected NAME:=VALUE (xacro's)", file=sys.stderr)
+            return 2
+        pairs[key] = value
+    try:
+        report = add(
+            Path(args.source),
+            Path(args.out) if args.out else None,
+            args.name,
+            [Path(p) for p in args.packages],
+            pairs,
+            args.base,
+            args.tip,
+        )
+    except RobotError as exc:
+        print(f"hrc robot add: {exc}", file=sys.stderr)
+        return 2
+    print(report.markdown(), end="")
+    print(f"written: {report.urdf.parent} ({report.urdf.name}, meshes/, report.md)")
+    return 0
+
+
 def _cmd_bench(args: argparse.Namespace) -> int:
     from hrc import bench
 
@@ -639,6 +667,28 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--out", default=None, metavar="FILE", help="default: FOLDER/fitted.toml")
     f.add_argument("--json", action="store_true", help="print one JSON object")
     f.set_defaults(func=_cmd_fit)
+
+    rb = sub.add_parser("robot", help="bring a lab's own robot (robots/README.md)")
+    rsub = rb.add_subparsers(dest="robot_command", required=True)
+    ra = rsub.add_parser(
+        "add", help="a description package, URDF or xacro file made into a robot folder"
+    )
+    ra.add_argument("source", help="a URDF, a xacro file, or a description package's folder")
+    ra.add_argument("--out", default=None, help="the robot's folder (default robots/NAME)")
+    ra.add_argument("--name", default=None, help="default: the description's robot name")
+    ra.add_argument(
+        "--packages",
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="a folder holding ROS packages: $(find PKG) and package://PKG/ (repeatable)",
+    )
+    ra.add_argument(
+        "--arg", action="append", default=[], metavar="NAME:=VALUE", help="a xacro argument"
+    )
+    ra.add_argument("--base", default=None, metavar="LINK", help="the chain's base (guessed)")
+    ra.add_argument("--tip", default=None, metavar="LINK", help="the chain's tip (guessed)")
+    ra.set_defaults(func=_cmd_robot_add)
 
     b = sub.add_parser("bench", help="benchmarks that print their figures")
     b.add_argument(
