@@ -6,6 +6,7 @@ folders: a scenario that names them validates, the report's figures hold, bad in
 
 from __future__ import annotations
 
+import json
 import re
 import shutil
 import subprocess
@@ -19,7 +20,7 @@ from hrc.scenario import urdf
 
 from .conftest import HRC, ROOT
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
 SHARED = ROOT.parent / "shared" / "robots"
 MAKERS = {  # file, its chain as the report should guess it
@@ -75,6 +76,11 @@ def test_a_makers_description_becomes_a_robot_with_its_report(name: str, tmp_pat
     # and a scenario naming it validates (its chain as the report gives it)
     s = sc.load(scenario_for(made, base, tip, tmp_path), motion_check=False)
     assert s.robots["r1"].tip_link == tip
+    # the thesis board laid out for it: every move of the task planned by the motion check
+    board = out / f"thesis-{made.stem}.toml"
+    assert f"The thesis board laid out for it: `{board.name}` (it validates)" in report, report
+    laid = sc.load(board)  # (with the motion check)
+    assert {r.urdf for r in laid.robots.values()} == {made.name}  # beside it: the folder moves
 
 
 @pytest.fixture
@@ -122,7 +128,7 @@ def test_a_description_package_with_xacro_and_collada_becomes_a_robot(
     out = tmp_path / "robot"
     proc = robot_add(
         str(ur_package), "--packages", str(ur_package.parent), "--arg", "prefix:=left_",
-        "--out", str(out),
+        "--out", str(out), "--tcp", "0,0,0.15",
     )  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     made = out / "ur5e.urdf"
@@ -136,6 +142,19 @@ def test_a_description_package_with_xacro_and_collada_becomes_a_robot(
         scenario_for(made, "left_base_link", "left_wrist_3_link", tmp_path), motion_check=False
     )
     assert s.robots["r1"].base_link == "left_base_link"
+    # the thesis board laid out for it (a UR cannot point down near its own axis: the retreat
+    # poses move outward), and the thesis task run to its end on it
+    board = out / "thesis-ur5e.toml"
+    assert "retreat moved: [0.45, 0.45, 0.4] -> [0.55, 0.45, 0.4]" in proc.stdout, proc.stdout
+    run = subprocess.run(
+        [HRC, "run", str(board), "--out", str(tmp_path / "trial"), "--max-ticks", "120000"],
+        capture_output=True, text=True, timeout=900, stdin=subprocess.DEVNULL,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    m = json.loads((tmp_path / "trial" / "metrics.json").read_text())
+    assert m["task"]["finished"] and m["run"]["ok"], m["run"]
+    assert all(p["placed_s"] is not None for p in m["parts"].values()), m["parts"]
+    assert len(m["parts"]) == 18
     # the raw xacro, given to a scenario: said to be xacro, with what to do
     raw = scenario_for(ur_package / "urdf" / "ur5e.urdf.xacro", "base_link", "tool0", tmp_path)
     v = subprocess.run([HRC, "validate", "--no-reach", str(raw)], capture_output=True, text=True)

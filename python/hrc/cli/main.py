@@ -10,6 +10,7 @@ import argparse
 import contextlib
 import json
 import logging
+import math
 import os
 import re
 import secrets
@@ -375,8 +376,16 @@ def _cmd_fit(args: argparse.Namespace) -> int:
 
 
 def _cmd_robot_add(args: argparse.Namespace) -> int:
+    from hrc.paths import project_root
     from hrc.robot.add import RobotError, add
 
+    try:
+        tcp = [float(v) for v in args.tcp.split(",")]
+        if len(tcp) != 3 or not all(math.isfinite(v) for v in tcp):
+            raise ValueError
+    except ValueError:
+        print(f"hrc robot add: --tcp {args.tcp!r}: expected X,Y,Z in metres", file=sys.stderr)
+        return 2
     pairs: dict[str, str] = {}
     for a in args.arg:
         key, sep, value = a.partition(":=")
@@ -393,12 +402,18 @@ def _cmd_robot_add(args: argparse.Namespace) -> int:
             pairs,
             args.base,
             args.tip,
+            tcp,
+            None if args.no_board else Path(args.board or project_root() / "scenarios/thesis.toml"),
         )
     except RobotError as exc:
         print(f"hrc robot add: {exc}", file=sys.stderr)
         return 2
     print(report.markdown(), end="")
-    print(f"written: {report.urdf.parent} ({report.urdf.name}, meshes/, report.md)")
+    board = f", {report.board.name}" if report.board else ""
+    print(f"written: {report.urdf.parent} ({report.urdf.name}, meshes/, report.md{board})")
+    if report.board_error:
+        print(f"hrc robot add: the board: {report.board_error}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -688,6 +703,16 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ra.add_argument("--base", default=None, metavar="LINK", help="the chain's base (guessed)")
     ra.add_argument("--tip", default=None, metavar="LINK", help="the chain's tip (guessed)")
+    ra.add_argument(
+        "--tcp", default="0,0,0", metavar="X,Y,Z", help="the tool centre point in the tip's frame"
+    )
+    ra.add_argument(
+        "--board",
+        default=None,
+        metavar="SCENARIO",
+        help="lay this scenario's board out for the arm (default scenarios/thesis.toml)",
+    )
+    ra.add_argument("--no-board", action="store_true", help="no board scenario")
     ra.set_defaults(func=_cmd_robot_add)
 
     b = sub.add_parser("bench", help="benchmarks that print their figures")

@@ -54,6 +54,10 @@ class Report:
     fk_error_mm: float | None = None
     ik: dict[str, Any] = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
+    tcp: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    board: Path | None = None  # the board's scenario laid out for the arm (board.py)
+    board_changes: list[str] = field(default_factory=list)
+    board_error: str = ""
 
     def markdown(self) -> str:
         dof = sum(j.kind in urdf.MOVABLE for j in self.joints)
@@ -87,6 +91,12 @@ class Report:
             )
         lines += ["", "| joint | type | lower | upper |", "|---|---|---|---|", *rows]
         lines += [f"\nNote: {n}" for n in self.notes]
+        if self.board is not None:
+            lines += ["", f"The thesis board laid out for it: `{self.board.name}` (it validates)"]
+            lines += [f"- {c}" for c in self.board_changes] or ["- as the template has it"]
+        if self.board_error:
+            lines += ["", f"The board could not be laid out for it: {self.board_error}"]
+        tcp = ", ".join(f"{v:g}" for v in self.tcp)
         lines += [
             "",
             "In a scenario:",
@@ -96,7 +106,7 @@ class Report:
             f'urdf = "{self.urdf}"',
             f'base_link = "{self.base}"',
             f'tip_link = "{self.tip}"',
-            "tcp = { xyz = [0.0, 0.0, 0.0] }   # the tool centre point in the tip link's frame",
+            f"tcp = {{ xyz = [{tcp}] }}   # the tool centre point in the tip link's frame",
             "```",
         ]
         return "\n".join(lines) + "\n"
@@ -333,6 +343,8 @@ def add(
     args: Mapping[str, str] | None = None,
     base: str | None = None,
     tip: str | None = None,
+    tcp: Sequence[float] = (0.0, 0.0, 0.0),
+    board: Path | None = None,
 ) -> Report:
     """Makes the robot folder `out` (default `robots/<name>` in the working folder) from
     `source` and returns its report (also in the folder: `report.md`)."""
@@ -385,8 +397,37 @@ def add(
     ]
     if odd:
         report.notes.append(f"joints without position limits: {', '.join(odd)}")
+    report.tcp = [float(v) for v in tcp]
+    if board is not None:
+        _lay_out(report, board, out, name)
     (out / "report.md").write_text(report.markdown(), encoding="utf-8")
     return report
+
+
+def _lay_out(report: Report, template: Path, out: Path, name: str) -> None:
+    """`<out>/<template>-<name>.toml`: the template's board laid out for the arm (board.py)."""
+    from hrc.paths import project_root
+    from hrc.robot.board import BoardError, layout
+
+    keys = {
+        "urdf": str(report.urdf),
+        "base_link": report.base,
+        "tip_link": report.tip,
+        "tcp": {"xyz": report.tcp},
+    }
+    stem = f"{template.stem}-{name}"
+    try:
+        # (the scenario names the URDF beside it: the folder moves as a whole)
+        laid = layout(template, keys, out, project_root(), stem, report.urdf.name)
+    except (BoardError, OSError, ValueError) as exc:
+        report.board_error = str(exc)
+        return
+    report.board = out / f"{stem}.toml"
+    report.board.write_text(
+        f"# {template.name} laid out for {name} by hrc robot add (robots/README.md)\n" + laid.text,
+        encoding="utf-8",
+    )
+    report.board_changes = laid.changes
 
 
 def _has_xacro(path: Path) -> bool:
