@@ -122,6 +122,17 @@ def _media_types(rrd: Path, robot: str) -> dict[str, str]:
     return out
 
 
+def _visual_links(rrd: Path) -> dict[str, set[str]]:
+    """Robot -> the links with visual geometry in the recording (meshes and shapes alike)."""
+    out: dict[str, set[str]] = {"r1": set(), "r2": set()}
+    for chunk in rr.chunk.RrdReader(rrd).stream():
+        path = chunk.entity_path
+        if path.startswith("/robot_") and "/visual_geometries/" in path:
+            robot = path.split("/")[1].removeprefix("robot_")
+            out.setdefault(robot, set()).add(path.split("/visual_geometries/")[1].split("/")[0])
+    return out
+
+
 def _visual_meshes(rrd: Path, robot: str) -> dict[str, list[float] | None]:
     """Visual mesh entity of each link -> its albedo factor (rgba 0..1)."""
     out: dict[str, list[float] | None] = {}
@@ -176,10 +187,18 @@ def test_a_description_from_outside_the_project_runs_the_minimal_scenario(
         f'urdf = "{description}"\nbase_link = "link_base"\ntip_link = "link6"\n'
         "tcp = { xyz = [0.0, 0.0, 0.172] }",
     )
+    if description == XARM6:  # r1 with the project's generic gripper attached at its flange
+        own = own.replace(
+            "tcp = { xyz = [0.0, 0.0, 0.172] }", 'gripper_urdf = "generic"', 1
+        )  # fmt: skip
     scenario = tmp_path / "xarm6.toml"
     scenario.write_text(own)
     m = run(scenario, tmp_path / "trial")["metrics.json"]
     assert m["task"]["finished"] and all(p["placed_s"] is not None for p in m["parts"].values())
+    if description == XARM6:  # the gripper drawn in the recording, beside the arm's links
+        drawn = _visual_links(tmp_path / "trial" / "recording.rrd")
+        assert {"gripper_palm", "link6", "link_base"} <= drawn["r1"], drawn
+        assert "gripper_palm" not in drawn["r2"], drawn
     # Without the chain, the check names what is missing and what the file has.
     bare = tmp_path / "bare.toml"
     bare.write_text(text.replace('urdf = "robots/arm5.urdf"', f'urdf = "{description}"'))

@@ -9,6 +9,7 @@ the problems of the others.
 from __future__ import annotations
 
 import itertools
+import xml.etree.ElementTree as ET
 from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
@@ -386,6 +387,7 @@ def _check_robot_files(
                 )
             )
     problems += _check_gripper(key, robot.get("gripper"), info, joints or [])
+    problems += _check_gripper_urdf(key, robot, path, folder, root, packages, missing)
     lost = urdf.missing_meshes(info, packages)
     if lost:  # all of them at once: a description is fixed in one go, not one run per mesh
         first = _not_found(lost[0], path.parent, packages)
@@ -397,6 +399,40 @@ def _check_robot_files(
         )
         problems.append(Problem(f"{key}.urdf", f"{path.name}: mesh {first}{more}"))
     return problems
+
+
+def _check_gripper_urdf(
+    key: str,
+    robot: dict[str, Any],
+    arm: Path,
+    folder: Path | None,
+    root: Path | None,
+    packages: list[Path],
+    missing: Callable[[str], str],
+) -> list[Problem]:
+    """An attached gripper (`gripper_urdf`): its description found and read, its meshes there,
+    and attachable (one tree, no link or joint named like the arm's)."""
+    written = robot.get("gripper_urdf")
+    tip = robot.get("tip_link", DEFAULT_TIP_LINK)
+    if not isinstance(written, str) or not written or not isinstance(tip, str):
+        return []  # none, or the schema check names it
+    wanted = "robots/gripper.urdf" if written == urdf.GENERIC_GRIPPER else written
+    path = resolve_urdf(wanted, folder, root, packages)
+    gkey = f"{key}.gripper_urdf"
+    if path is None:
+        package = wanted.startswith(urdf.PACKAGE)
+        return [Problem(gkey, _not_found(wanted, None, packages) if package else missing(wanted))]
+    try:
+        info = urdf.read_urdf(path)
+        lost = urdf.missing_meshes(info, packages)
+        if lost:
+            return [
+                Problem(gkey, f"{path.name}: mesh {_not_found(lost[0], path.parent, packages)}")
+            ]
+        urdf.with_gripper(arm, tip, path, packages)
+    except (urdf.UrdfError, ET.ParseError, OSError) as exc:
+        return [Problem(gkey, str(exc))]
+    return []
 
 
 def _not_found(written: str, folder: Path | None, packages: list[Path]) -> str:

@@ -19,6 +19,7 @@ from hrc.scenario.colors import NAMED_RGB
 from hrc.scenario.enums import InputSource, ParticipantProfile, RobotRole, SafetyPolicy
 from hrc.scenario.paths import resolve_dir, resolve_path, resolve_urdf
 from hrc.scenario.profiles import profile_defaults
+from hrc.scenario.urdf import GENERIC_GRIPPER, GENERIC_GRIPPER_TCP_M, with_gripper
 
 # ---------------------------------------------------------------- constants and conventions
 
@@ -246,6 +247,15 @@ class Gripper(_Strict):
 class Robot(_Strict):
     """One arm. Its id is the key under [robots] (available as `.id` once loaded)."""
 
+    @model_validator(mode="before")
+    @classmethod
+    def _generic_gripper_tcp(cls, data: Any) -> Any:
+        """With the generic gripper attached and no tcp given: its finger tips."""
+        generic = isinstance(data, dict) and data.get("gripper_urdf") == GENERIC_GRIPPER
+        if generic and "tcp" not in data:
+            return {**data, "tcp": {"xyz": [0.0, 0.0, GENERIC_GRIPPER_TCP_M]}}
+        return data
+
     role: RoleChoice
     urdf: Annotated[str, Field(min_length=1)]
     # The chain, as MoveIt and KDL name one (robots/README.md): base_link -> tip_link, then tcp.
@@ -256,6 +266,9 @@ class Robot(_Strict):
     packages: list[Annotated[str, Field(min_length=1)]] = Field(default_factory=list)
     tint: bool = True  # the page and the view show it in its colour (false: the URDF's own)
     gripper: Gripper | None = None
+    # A gripper attached at tip_link (robots/README.md): "generic" (robots/gripper.urdf; the
+    # tcp then defaults to its finger tips) or a gripper's own URDF (path, package://...)
+    gripper_urdf: Annotated[str, Field(min_length=1)] | None = None
     base: PoseYaw
     max_tcp_speed: Annotated[float, Field(gt=0.0, le=MAX_TCP_SPEED, allow_inf_nan=False)]
     home: Vec3
@@ -366,8 +379,31 @@ class Scenario(_Strict):
         return [d for d in found if d is not None]
 
     def urdf_path(self, robot_id: str) -> Path | None:
+        """The robot's description as every service reads it: its URDF, or, with a gripper
+        attached (`gripper_urdf`), one URDF of both (hrc.scenario.urdf.with_gripper)."""
+        robot = self.robots[robot_id]
+        arm = self.arm_urdf_path(robot_id)
+        if arm is None or robot.gripper_urdf is None:
+            return arm
+        gripper = self.gripper_path(robot_id)
+        if gripper is None:
+            return None
+        return with_gripper(arm, robot.tip_link, gripper, self.package_dirs(robot_id))
+
+    def arm_urdf_path(self, robot_id: str) -> Path | None:
+        """The robot's own URDF, as `urdf` names it (without an attached gripper)."""
         folder = self._source_path.parent if self._source_path else None
         written = self.robots[robot_id].urdf
+        return resolve_urdf(written, folder, self._project_root, self.package_dirs(robot_id))
+
+    def gripper_path(self, robot_id: str) -> Path | None:
+        """The attached gripper's own URDF (None: none attached, or not found)."""
+        written = self.robots[robot_id].gripper_urdf
+        if written is None:
+            return None
+        if written == GENERIC_GRIPPER:
+            written = "robots/gripper.urdf"
+        folder = self._source_path.parent if self._source_path else None
         return resolve_urdf(written, folder, self._project_root, self.package_dirs(robot_id))
 
     # -------------------------------------------------- accessors the task logic uses

@@ -64,9 +64,14 @@ class Resolved:
         every key, with URDF and replay paths made absolute (the copy runs from any folder)."""
         data = self.settings()
         for rid, robot in data.get("robots", {}).items():
-            urdf = self.scenario.urdf_path(rid)
+            # the arm's own file and the gripper's (not the two joined: that file is made again
+            # from them when the copy is loaded, under the same name)
+            urdf = self.scenario.arm_urdf_path(rid)
             if urdf is not None:
                 robot["urdf"] = str(urdf)
+            gripper = self.scenario.gripper_path(rid)
+            if gripper is not None:
+                robot["gripper_urdf"] = str(gripper)
             if robot.get("packages"):
                 robot["packages"] = [str(d) for d in self.scenario.package_dirs(rid)]
         participant = data.get("participant", {})

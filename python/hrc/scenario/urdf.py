@@ -242,3 +242,51 @@ def localized_urdf(
         tmp.write_text(text, encoding="utf-8")
         tmp.replace(out)  # atomic: trials started together may write the same copy
     return out
+
+
+GENERIC_GRIPPER = "generic"  # the project's two-finger gripper: robots/gripper.urdf
+GENERIC_GRIPPER_TCP_M = 0.05  # its tool centre point from the mounting face (gripper_tcp)
+
+
+def with_gripper(
+    arm: Path, tip: str, gripper: Path, packages: Sequence[Path], out_dir: Path | None = None
+) -> Path:
+    """The arm's description with `gripper`'s attached at link `tip` by a fixed joint (the
+    gripper's root link on the tip's frame): one URDF every view and physics read, written once
+    (named by its content) in `out_dir` (default: a per-user temporary folder). Both files'
+    mesh paths are made absolute; a gripper link or joint named like one of the arm's is
+    refused (UrdfError)."""
+    root, groot = ET.parse(arm).getroot(), ET.parse(gripper).getroot()
+    for tree_root, path in ((root, arm), (groot, gripper)):
+        for mesh in tree_root.iter("mesh"):  # absolute: the joined file lives elsewhere
+            found = resolve(mesh.get("filename", ""), path.parent, packages)
+            if found is not None:
+                mesh.set("filename", str(found))
+    names = {e.get("name") for e in root if e.tag in ("link", "joint")}
+    clash = sorted(
+        str(e.get("name")) for e in groot if e.tag in ("link", "joint") and e.get("name") in names
+    )
+    if clash:
+        raise UrdfError(f"{gripper.name}: names that {arm.name} has too: {', '.join(clash)}")
+    children = {c.get("link") for j in groot.findall("joint") for c in j.findall("child")}
+    groots = [str(e.get("name")) for e in groot.findall("link") if e.get("name") not in children]
+    if len(groots) != 1:
+        raise UrdfError(f"{gripper.name}: not one tree (its roots: {', '.join(groots)})")
+    for e in list(groot):  # materials first-come: the arm's win a name both have
+        if e.tag == "material" and root.find(f"material[@name='{e.get('name')}']") is not None:
+            continue
+        root.append(e)
+    mount = ET.SubElement(root, "joint", name=f"{groots[0]}_mount", type="fixed")
+    ET.SubElement(mount, "parent", link=tip)
+    ET.SubElement(mount, "child", link=groots[0])
+    ET.SubElement(mount, "origin", xyz="0 0 0", rpy="0 0 0")
+    text = ET.tostring(root, encoding="unicode")
+    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
+    folder = out_dir or Path(tempfile.gettempdir()) / f"hrc-urdf-{os.getuid()}"
+    folder.mkdir(parents=True, exist_ok=True)
+    out = folder / f"{arm.stem}-{gripper.stem}-{digest}.urdf"
+    if not out.is_file():
+        tmp = out.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(out)  # atomic: services started together may write the same file
+    return out

@@ -208,3 +208,40 @@ def test_a_xacro_file_given_as_the_urdf_is_said_to_be_xacro(tmp_path: Path) -> N
             for p in got
         ), got
         assert not any("has no link named" in p for p in got), got
+
+
+def test_a_gripper_is_attached_at_the_tip_from_the_scenario(tmp_path: Path) -> None:
+    """`gripper_urdf = "generic"`: the project's two-finger gripper joined to the arm at its tip
+    link in one URDF (what every service reads), the TCP at its finger tips unless given; a
+    gripper's own description likewise; clashing names and missing files named."""
+    arm = make_robot(tmp_path / "d", "meshes/base.stl")
+    (tmp_path / "d" / "meshes").mkdir()
+    (tmp_path / "d" / "meshes" / "base.stl").write_text("solid x\nendsolid x\n")
+    keys = f'urdf = "{arm}"\nbase_link = "base"\ntip_link = "arm"\ngripper_urdf = "generic"'
+    s = sc.load(scenario_with(tmp_path, keys), motion_check=False)
+    assert s.robots["r1"].tcp.xyz == [0.0, 0.0, urdf.GENERIC_GRIPPER_TCP_M]
+    joined = s.urdf_path("r1")
+    assert joined is not None and joined != arm
+    info = urdf.read_urdf(joined)
+    assert {"gripper_palm", "gripper_tcp", "stand", "arm"} <= set(info.links), info.links
+    mount = next(j for j in info.joints if j.name == "gripper_palm_mount")
+    assert (mount.parent, mount.child, mount.kind) == ("arm", "gripper_palm", "fixed")
+    assert urdf.missing_meshes(info, []) == []  # the arm's relative mesh, made absolute
+    assert s.arm_urdf_path("r1") == arm.resolve()
+    # the trial's copy of the scenario names both files; it loads to the same joined URDF
+    from hrc.scenario.resolved import resolve
+
+    again = sc.loads(resolve(s).toml(), tmp_path, motion_check=False)
+    assert again.urdf_path("r1") == joined
+    # a tcp given stays as given
+    s = sc.load(scenario_with(tmp_path, keys + "\ntcp = { xyz = [0, 0, 0.2] }"), motion_check=False)
+    assert s.robots["r1"].tcp.xyz == [0, 0, 0.2]
+    # a gripper whose names clash with the arm's; one that is not there
+    clash = tmp_path / "clash.urdf"
+    clash.write_text('<robot name="g"><link name="arm"/></robot>')
+    got = problems(scenario_with(tmp_path, keys.replace('"generic"', f'"{clash}"')))
+    assert any(
+        "robots.r1.gripper_urdf: clash.urdf: names that toy.urdf has too: arm" in p for p in got
+    ), got
+    got = problems(scenario_with(tmp_path, keys.replace('"generic"', '"nowhere.urdf"')))
+    assert any(p.startswith("robots.r1.gripper_urdf: ") and "nowhere.urdf" in p for p in got), got
