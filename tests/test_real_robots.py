@@ -214,9 +214,10 @@ def test_a_description_from_outside_the_project_runs_the_minimal_scenario(
 def test_a_description_with_collada_visuals_is_drawn_in_the_recording(
     tmp_path: Path, ik_bin: Path
 ) -> None:
-    """The maker's Panda draws its links with Collada meshes, which rerun's viewer does not
-    draw (the arm was missing from the recording, without a word): the logger converts them
-    to GLB, once (a cache), so every link is drawn, in the robot's colour."""
+    """The maker's Panda draws its links with Collada meshes, outside the formats rerun
+    documents (a Kinova's were dropped from the view without a word): the logger converts them
+    to GLB, once (a cache), so the recording holds every link in a documented format, in the
+    robot's colour."""
     if not SHARED_PANDA.is_file():
         pytest.skip(f"{SHARED_PANDA} is not on this machine")
     text = (ROOT / "scenarios" / "minimal.toml").read_text()

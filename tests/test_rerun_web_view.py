@@ -138,3 +138,62 @@ def test_the_web_viewer_shows_the_scene_large_from_behind_the_participant(
     assert hi - lo > w / 5, f"the scene is small: parts over {hi - lo:.0f} of {w} px ({shot})"
     # the side column holds the plots, not the scene
     assert near(side, HUMAN_PARTS, 5).sum() < human.sum() / 10
+
+
+SHARED_PANDA = ROOT.parent / "shared" / "robots" / "franka_panda" / "franka_panda.urdf"
+ARM_PIXELS = 5000  # r1's yellow in the scene: about 16,000 with the Panda drawn, its part alone
+
+
+def test_a_makers_collada_arm_is_drawn_in_the_rerun_view(tmp_path: Path, ik_bin: Path) -> None:
+    """The maker's Panda, whose visual meshes are Collada (the logger converts them to GLB),
+    as r1 of the minimal scenario: its recording opened in the rerun web viewer shows the arm,
+    in r1's yellow, not only its part (the picture: test-output/viewer/rerun-collada-arm.png).
+    Seen failing with the converted meshes broken (HRC_MESH_CACHE of garbage GLBs)."""
+    from PIL import Image
+
+    if not SHARED_PANDA.is_file():
+        pytest.skip(f"{SHARED_PANDA} is not on this machine")
+    text = (ROOT / "scenarios" / "minimal.toml").read_text()
+    scenario = tmp_path / "panda.toml"
+    scenario.write_text(
+        text.replace(
+            'urdf = "robots/arm5.urdf"',
+            f'urdf = "{SHARED_PANDA}"\nbase_link = "fer_link0"\ntip_link = "fer_link8"\n'
+            "tcp = { xyz = [0.0, 0.0, 0.2] }",
+            1,
+        )
+    )
+    out = tmp_path / "trial"
+    run = subprocess.run(
+        [HRC, "run", str(scenario), "--out", str(out), "--ticks", "60"],
+        capture_output=True, text=True, timeout=600, stdin=subprocess.DEVNULL,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    web, grpc = free_port(), free_port()
+    viewer = subprocess.Popen(
+        [
+            str(ROOT / ".venv" / "bin" / "rerun"), "--serve-web", "--bind", "127.0.0.1",
+            "--web-viewer-port", str(web), "--port", str(grpc), str(out / "recording.rrd"),
+        ],
+        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
+    )  # fmt: skip
+    shot = output_dir("viewer") / "rerun-collada-arm.png"
+    arm = 0
+    try:
+        wait_for_port(web, 60)
+        url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}%2Fproxy"
+        with headless_chromium() as browser:
+            page = browser.new_page(viewport=VIEWPORT)
+            page.goto(url, timeout=120_000)
+            page.wait_for_selector("canvas", timeout=120_000)
+            deadline = time.monotonic() + 240  # the viewer compiles and draws in software
+            while arm <= ARM_PIXELS and time.monotonic() < deadline:
+                time.sleep(5)
+                page.screenshot(path=str(shot), timeout=120_000)
+                img = np.asarray(Image.open(shot).convert("RGB"))[UI_BARS_PX:-UI_BARS_PX]
+                scene = img[:, : int(SCENE_RIGHT * img.shape[1])]
+                arm = int(near(scene, R1_PARTS).sum())
+    finally:
+        os.killpg(viewer.pid, signal.SIGTERM)
+        viewer.wait(30)
+    assert arm > ARM_PIXELS, f"r1's arm is not drawn: {arm} yellow pixels (see {shot})"

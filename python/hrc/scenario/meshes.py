@@ -2,10 +2,11 @@
 
 A maker's description ships its visual meshes in whatever its tools wrote: often Collada (.dae,
 most ROS description packages). The participant's page reads Collada (three.js), pybullet
-reads the collision meshes (STL, OBJ), but rerun's viewer draws only glTF/GLB, OBJ and STL: it
-took a Collada mesh and showed nothing, so an arm was missing from the recording without a
-word. A mesh rerun cannot draw is converted once to GLB (trimesh; pycollada reads Collada), its
-scene graph and colours kept, and cached by the source file's content.
+reads the collision meshes (STL, OBJ); rerun documents glTF/GLB, OBJ, STL and PLY for its
+Asset3D. Its 0.41 viewer drew the Panda's Collada meshes here, but a Kinova Gen3's were dropped
+without a word (issue 46): a mesh outside rerun's documented formats is converted once to GLB
+(trimesh; pycollada reads Collada), its scene graph and colours kept, and cached by the source
+file's content.
 """
 
 from __future__ import annotations
@@ -18,10 +19,10 @@ from typing import Any
 
 log = logging.getLogger(__name__)
 
-# What rerun's Asset3D draws (its URDF importer logs any other mesh as a blob nobody shows).
-RERUN_DRAWS = frozenset({".glb", ".gltf", ".obj", ".stl"})
+# What rerun documents for Asset3D (its URDF importer logs any other mesh as a blob as it is).
+RERUN_DRAWS = frozenset({".glb", ".gltf", ".obj", ".stl", ".ply"})
 # What the project converts from (trimesh reads them; Collada through pycollada).
-CONVERTS = frozenset({".dae", ".ply", ".off", ".3mf"})
+CONVERTS = frozenset({".dae", ".off", ".3mf"})
 
 
 class MeshError(ValueError):

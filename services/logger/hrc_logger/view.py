@@ -296,7 +296,7 @@ class View:
             # with absolute mesh paths, every visual in the robot's colour unless told not to
             # (written linear: the importer reads a URDF colour as linear and shows it as sRGB)
             tint = None if r.own_colors else [srgb_to_linear(c / 255.0) for c in rv.color]
-            # (and visual meshes rerun cannot draw, Collada above all, converted to GLB)
+            # (and visual meshes outside the formats rerun documents converted to GLB)
             shown = localized_urdf(
                 Path(r.urdf_path), [Path(d) for d in r.package_dirs], None, tint, RERUN_DRAWS
             )
