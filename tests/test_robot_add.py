@@ -56,7 +56,7 @@ def test_a_makers_description_becomes_a_robot_with_its_report(name: str, tmp_pat
     if not src.is_file():
         pytest.skip(f"{src} is not on this machine")
     out = tmp_path / "robot"
-    proc = robot_add(str(src), "--out", str(out))
+    proc = robot_add(str(src), "--out", str(out), "--tcp", "0,0,0.1")
     assert proc.returncode == 0, proc.stderr
     assert "pybullet build time" not in proc.stdout + proc.stderr  # (its C code kept quiet)
     report = (out / "report.md").read_text()
@@ -81,6 +81,19 @@ def test_a_makers_description_becomes_a_robot_with_its_report(name: str, tmp_pat
     assert f"The thesis board laid out for it: `{board.name}` (it validates)" in report, report
     laid = sc.load(board)  # (with the motion check)
     assert {r.urdf for r in laid.robots.values()} == {made.name}  # beside it: the folder moves
+    finishes(board, tmp_path / "trial")
+
+
+def finishes(scenario: Path, out: Path) -> None:
+    """The thesis task on `scenario` runs to its end: all 18 parts placed."""
+    run = subprocess.run(
+        [HRC, "run", str(scenario), "--out", str(out), "--max-ticks", "120000"],
+        capture_output=True, text=True, timeout=900, stdin=subprocess.DEVNULL,
+    )  # fmt: skip
+    assert run.returncode == 0, run.stderr[-3000:]
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["task"]["finished"] and m["run"]["ok"], m["run"]
+    assert len(m["parts"]) == 18 and all(p["placed_s"] is not None for p in m["parts"].values())
 
 
 @pytest.fixture
@@ -144,17 +157,8 @@ def test_a_description_package_with_xacro_and_collada_becomes_a_robot(
     assert s.robots["r1"].base_link == "left_base_link"
     # the thesis board laid out for it (a UR cannot point down near its own axis: the retreat
     # poses move outward), and the thesis task run to its end on it
-    board = out / "thesis-ur5e.toml"
     assert "retreat moved: [0.45, 0.45, 0.4] -> [0.55, 0.45, 0.4]" in proc.stdout, proc.stdout
-    run = subprocess.run(
-        [HRC, "run", str(board), "--out", str(tmp_path / "trial"), "--max-ticks", "120000"],
-        capture_output=True, text=True, timeout=900, stdin=subprocess.DEVNULL,
-    )  # fmt: skip
-    assert run.returncode == 0, run.stderr[-3000:]
-    m = json.loads((tmp_path / "trial" / "metrics.json").read_text())
-    assert m["task"]["finished"] and m["run"]["ok"], m["run"]
-    assert all(p["placed_s"] is not None for p in m["parts"].values()), m["parts"]
-    assert len(m["parts"]) == 18
+    finishes(out / "thesis-ur5e.toml", tmp_path / "trial")
     # the raw xacro, given to a scenario: said to be xacro, with what to do
     raw = scenario_for(ur_package / "urdf" / "ur5e.urdf.xacro", "base_link", "tool0", tmp_path)
     v = subprocess.run([HRC, "validate", "--no-reach", str(raw)], capture_output=True, text=True)
