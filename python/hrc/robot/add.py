@@ -256,7 +256,11 @@ def _fk_against_pybullet(path: Path, text: str, base: str, tip: str, info: urdf.
         import pybullet as p
 
         cid = p.connect(p.DIRECT)
-        body = p.loadURDF(str(path), useFixedBase=True, physicsClientId=cid)
+        try:
+            body = p.loadURDF(str(path), useFixedBase=True, physicsClientId=cid)
+        except p.error as exc:
+            p.disconnect(physicsClientId=cid)
+            raise RobotError(f"{path.name}: pybullet cannot load it ({exc})") from exc
     try:
         index = {
             p.getJointInfo(body, i, physicsClientId=cid)[12].decode(): i
@@ -379,7 +383,9 @@ def add(
     base, tip = base or g_base, tip or g_tip
     for flag, link in (("--base", base), ("--tip", tip)):
         if link not in info.links:
-            raise RobotError(f"{flag}: {path.name} has no link {link!r}; its links: {info.links}")
+            raise RobotError(
+                f"{flag}: {path.name} has no link {link!r}; its links: {', '.join(info.links)}"
+            )
     if info.chain(base, tip) is None:
         raise RobotError(f"--tip: {tip!r} is not below {base!r} in {path.name}")
     joints = info.chain(base, tip) or []
@@ -392,6 +398,8 @@ def add(
             "look at the joints' origins and axes"
         )
     report.ik = _ik_figures(path, base, tip)
+    if not report.ik:
+        report.notes.append("no IK figures: build services/ik_cpp (scripts/setup.sh)")
     odd = [
         j.name for j in joints if j.kind in urdf.LIMITED and (j.lower is None or j.upper is None)
     ]
