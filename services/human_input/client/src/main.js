@@ -461,12 +461,13 @@ class App {
    * would cover comes down over its robot, a few centimetres at a time, until it is clear: the
    * labels stand high above the robots, where the panel is (a headset has no such boxes). */
   keepLabelsClear() {
-    if (this.xr.active()) return;
-    const boxes = Object.values(pageBoxes(['status', 'message']));
+    const inXr = this.xr.active();
+    const boxes = inXr ? [] : Object.values(pageBoxes(['status', 'message']));
     for (const cue of this.world.cues.values()) {
       if (cue.spec.kind !== 'waiting' || !cue.on) continue;
       const [x, y, z] = cue.obj.userData.anchor;
-      for (let dz = 0; dz <= LABEL_DROP_M + 1e-9; dz += LABEL_STEP_M) {
+      // (in a headset: where the scene puts it, however low the desktop had it)
+      for (let dz = 0; dz <= (inXr ? 0 : LABEL_DROP_M + 1e-9); dz += LABEL_STEP_M) {
         cue.obj.position.set(x, y, z - dz);
         const r = spriteRect(this.camera, this.renderer.domElement, cue.obj);
         if (!boxes.some((b) => overlaps(r, b))) break;
