@@ -239,6 +239,7 @@ def test_the_thesis_scene_on_the_desktop_has_readable_part_labels(
 ) -> None:
     page = Page(browser, live(ROOT / "scenarios" / "thesis.toml").url + "&mode=desktop")
     page.wait("the parts' state", lambda s: "H1" in s["objects"], 20)
+    rendered_frames(page)  # (labels show or hide with the frames drawn after the state came)
     labels = page.page.evaluate("window.hrcTest.labels()")
     page.screenshot("thesis-desktop.png")
     shown = {lab.get("part") for lab in labels}
