@@ -30,6 +30,7 @@ import numpy as np
 from hrc.robot.expand import ExpandError, expand
 from hrc.scenario import urdf
 from hrc.scenario.urdf import UrdfJoint
+from hrc.urdf_fk import UrdfModel
 
 REACH_SAMPLES = 2000  # random postures for the reach
 FK_CHECKS = 5  # random postures on which the project's FK is compared with pybullet's
@@ -184,11 +185,8 @@ def _copy_meshes(root: ET.Element, src: Path, packages: Sequence[Path], out: Pat
     """Every mesh the description names copied into `out/meshes/`, its path made relative; all
     missing ones named at once."""
     meshes = list(root.iter("mesh"))
-    lost = [
-        m.get("filename", "")
-        for m in meshes
-        if urdf.resolve(m.get("filename", ""), src.parent, packages) is None
-    ]
+    found_at = {m: urdf.resolve(m.get("filename", ""), src.parent, packages) for m in meshes}
+    lost = [m.get("filename", "") for m, found in found_at.items() if found is None]
     if lost:
         first = ", ".join(str(c) for c in urdf.candidates(lost[0], src.parent, packages))
         raise RobotError(
@@ -197,9 +195,8 @@ def _copy_meshes(root: ET.Element, src: Path, packages: Sequence[Path], out: Pat
             + f" (the first looked for at {first or 'nowhere'}); give the folder that holds "
             "their package (--packages)"
         )
-    for m in meshes:
+    for m, found in found_at.items():
         written = m.get("filename", "")
-        found = urdf.resolve(written, src.parent, packages)
         assert found is not None
         if written.startswith(urdf.PACKAGE):
             rel = Path(written[len(urdf.PACKAGE) :])
@@ -215,11 +212,9 @@ def _copy_meshes(root: ET.Element, src: Path, packages: Sequence[Path], out: Pat
         m.set("filename", str(target.relative_to(out)))
 
 
-def _reach(text: str, base: str, tip: str, info: urdf.UrdfInfo) -> tuple[float, list[float]]:
-    from hrc.urdf_fk import UrdfModel
-
-    model = UrdfModel.from_string(text, info.path.name)
-    chain = info.chain(base, tip) or []
+def _reach(
+    model: UrdfModel, chain: Sequence[UrdfJoint], base: str, tip: str
+) -> tuple[float, list[float]]:
     rng = np.random.default_rng(0)
     far = 0.0
     zero: list[float] = []
@@ -244,13 +239,11 @@ def _random_q(chain: Sequence[urdf.UrdfJoint], rng: np.random.Generator) -> dict
     return q
 
 
-def _fk_against_pybullet(path: Path, text: str, base: str, tip: str, info: urdf.UrdfInfo) -> float:
+def _fk_against_pybullet(
+    path: Path, model: UrdfModel, chain: Sequence[UrdfJoint], base: str, tip: str
+) -> float:
     """The largest distance (mm) between the tip's position in the base link's frame by the
     project's FK and by pybullet's, over FK_CHECKS random postures."""
-    from hrc.urdf_fk import UrdfModel
-
-    model = UrdfModel.from_string(text, info.path.name)
-    chain = info.chain(base, tip) or []
     rng = np.random.default_rng(1)
     with _quiet():  # pybullet's C code prints (its build time, no inertia, ...) on the terminal
         import pybullet as p
@@ -386,12 +379,13 @@ def add(
             raise RobotError(
                 f"{flag}: {path.name} has no link {link!r}; its links: {', '.join(info.links)}"
             )
-    if info.chain(base, tip) is None:
+    joints = info.chain(base, tip)
+    if joints is None:
         raise RobotError(f"--tip: {tip!r} is not below {base!r} in {path.name}")
-    joints = info.chain(base, tip) or []
     report = Report(name, path, base, tip, joints)
-    report.reach_m, report.zero_tip_m = _reach(text, base, tip, info)
-    report.fk_error_mm = _fk_against_pybullet(path, text, base, tip, info)
+    model = UrdfModel.from_string(text, path.name)  # the FK the views use
+    report.reach_m, report.zero_tip_m = _reach(model, joints, base, tip)
+    report.fk_error_mm = _fk_against_pybullet(path, model, joints, base, tip)
     if report.fk_error_mm > FK_TOLERANCE_MM:
         report.notes.append(
             f"the forward kinematics differ by {report.fk_error_mm:.3f} mm from pybullet's: "

@@ -213,10 +213,8 @@ def localized_urdf(
         and not any(m.get("filename", "").startswith((PACKAGE, FILE)) for m in meshes)
     ):
         return path
-    for mesh in meshes:  # all of them: the copy lives elsewhere, relative paths would break
-        found = resolve(mesh.get("filename", ""), path.parent, packages)
-        if found is not None:
-            mesh.set("filename", str(found))
+    # all of them: the copy lives elsewhere, relative paths would break
+    _absolute_meshes(tree.getroot(), path.parent, packages)
     if foreign:
         from hrc.scenario.meshes import drawable
 
@@ -233,14 +231,28 @@ def localized_urdf(
             material = ET.SubElement(visual, "material", name=f"hrc_tint_{rgba.replace(' ', '_')}")
             ET.SubElement(material, "color", rgba=rgba)
     text = ET.tostring(tree.getroot(), encoding="unicode")
-    digest = hashlib.sha256(f"{path.resolve()}\n{text}".encode()).hexdigest()[:16]
+    return _written_once(text, path.stem, out_dir, salt=str(path.resolve()))
+
+
+def _absolute_meshes(root: ET.Element, folder: Path, packages: Sequence[Path]) -> None:
+    """Every mesh path under `root` made absolute where the file is found (else as written)."""
+    for mesh in root.iter("mesh"):
+        found = resolve(mesh.get("filename", ""), folder, packages)
+        if found is not None:
+            mesh.set("filename", str(found))
+
+
+def _written_once(text: str, stem: str, out_dir: Path | None, salt: str = "") -> Path:
+    """`text` as `<stem>-<hash>.urdf` in `out_dir` (default: a per-user temporary folder),
+    written only if not there yet: the name is the content's."""
+    digest = hashlib.sha256(f"{salt}\n{text}".encode()).hexdigest()[:16]
     folder = out_dir or Path(tempfile.gettempdir()) / f"hrc-urdf-{os.getuid()}"
     folder.mkdir(parents=True, exist_ok=True)
-    out = folder / f"{path.stem}-{digest}.urdf"
+    out = folder / f"{stem}-{digest}.urdf"
     if not out.is_file():
         tmp = out.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(text, encoding="utf-8")
-        tmp.replace(out)  # atomic: trials started together may write the same copy
+        tmp.replace(out)  # atomic: trials (services) started together may write the same file
     return out
 
 
@@ -257,11 +269,8 @@ def with_gripper(
     mesh paths are made absolute; a gripper link or joint named like one of the arm's is
     refused (UrdfError)."""
     root, groot = ET.parse(arm).getroot(), ET.parse(gripper).getroot()
-    for tree_root, path in ((root, arm), (groot, gripper)):
-        for mesh in tree_root.iter("mesh"):  # absolute: the joined file lives elsewhere
-            found = resolve(mesh.get("filename", ""), path.parent, packages)
-            if found is not None:
-                mesh.set("filename", str(found))
+    for tree_root, path in ((root, arm), (groot, gripper)):  # the joined file lives elsewhere
+        _absolute_meshes(tree_root, path.parent, packages)
     names = {e.get("name") for e in root if e.tag in ("link", "joint")}
     clash = sorted(
         str(e.get("name")) for e in groot if e.tag in ("link", "joint") and e.get("name") in names
@@ -281,12 +290,4 @@ def with_gripper(
     ET.SubElement(mount, "child", link=groots[0])
     ET.SubElement(mount, "origin", xyz="0 0 0", rpy="0 0 0")
     text = ET.tostring(root, encoding="unicode")
-    digest = hashlib.sha256(text.encode()).hexdigest()[:16]
-    folder = out_dir or Path(tempfile.gettempdir()) / f"hrc-urdf-{os.getuid()}"
-    folder.mkdir(parents=True, exist_ok=True)
-    out = folder / f"{arm.stem}-{gripper.stem}-{digest}.urdf"
-    if not out.is_file():
-        tmp = out.with_suffix(f".{os.getpid()}.tmp")
-        tmp.write_text(text, encoding="utf-8")
-        tmp.replace(out)  # atomic: services started together may write the same file
-    return out
+    return _written_once(text, f"{arm.stem}-{gripper.stem}", out_dir)
