@@ -2,9 +2,14 @@
 progresses for ``stall_timeout_s`` of simulated time ends, with one message saying who waits on
 what.
 
-Progress is any task event except the human's idle changes and an unreachable report, and any
-cue switching on or off. The message is a pure function of the task's state, so it is the same
-in every run of a scenario and seed.
+Progress is a task event of the work itself: a grab, release or placement, a robot's phase, wait
+or finish, the task's start and end. A collision and what answers it (halts, retreats, the
+continue button, the robots going on, protective stops) is not: those repeat without end when a
+hand keeps meeting a robot that retreats and comes back (a livelock, 300 collisions in 1,000
+simulated seconds before this rule), and they are counted for the message. Cues follow the
+task's state (they change with the events above, or toggle with the collisions) and do not
+count either. The message is a pure function of the task's state, so it is the same in every run
+of a scenario and seed.
 
 A live participant is a person, not a process: in a live trial, time the task spends waiting on
 the person (every robot done, not started, waiting for a part that waits on the person, halted or
@@ -34,6 +39,7 @@ class Task(Protocol):
     agents: dict[str, RobotAgent]
     safety: Safety
     started: bool
+    watchdog: Watchdog
 
 
 K = pb.TaskEventKind
@@ -47,12 +53,33 @@ NOT_PROGRESS = frozenset(
         K.TASK_EVENT_KIND_PARTICIPANT_WAIT,
     }
 )
+# A collision and its recovery: no progress of the work, however often they repeat.
+RECOVERY = frozenset(
+    {
+        K.TASK_EVENT_KIND_COLLISION,
+        K.TASK_EVENT_KIND_COLLISION_END,
+        K.TASK_EVENT_KIND_CONTINUED,
+        K.TASK_EVENT_KIND_NEAR_COLLISION,
+        K.TASK_EVENT_KIND_NEAR_COLLISION_END,
+        K.TASK_EVENT_KIND_ROBOT_HALTED,
+        K.TASK_EVENT_KIND_RETREAT_REACHED,
+        K.TASK_EVENT_KIND_BUTTON_PRESSED,
+        K.TASK_EVENT_KIND_PROTECTIVE_STOP,
+        K.TASK_EVENT_KIND_PROTECTIVE_RESUME,
+    }
+)
+# what the stall message counts since the last progress
+COUNTED = {
+    K.TASK_EVENT_KIND_COLLISION: "human-robot collision",
+    K.TASK_EVENT_KIND_NEAR_COLLISION: "near collision",
+    K.TASK_EVENT_KIND_PROTECTIVE_STOP: "protective stop",
+}
 # A live trial announces a wait on the participant after this much quiet (simulated = wall s).
 PARTICIPANT_WAIT_NOTICE_S = 10.0
 
 
 def progressed(out: Outputs) -> bool:
-    return bool(out.cues) or any(e.kind not in NOT_PROGRESS for e in out.events)
+    return any(e.kind not in NOT_PROGRESS and e.kind not in RECOVERY for e in out.events)
 
 
 class Watchdog:
@@ -62,6 +89,7 @@ class Watchdog:
         self.last_progress = 0.0  # simulated time
         self.message = ""  # set once it fired
         self.announced = ""  # live: the part the announced wait on the participant is for
+        self.recoveries: dict[int, int] = {}  # COUNTED event kind -> count since the progress
 
     def check(self, sim_time: float, out: Outputs) -> bool:
         """True on the ticks the trial has gone `timeout_s` without progress: once, as the
@@ -71,7 +99,11 @@ class Watchdog:
         if progressed(out):
             self.last_progress = sim_time
             self.announced = ""
+            self.recoveries.clear()
             return False
+        for e in out.events:
+            if e.kind in COUNTED:
+                self.recoveries[e.kind] = self.recoveries.get(e.kind, 0) + 1
         return self.timeout_s > 0 and sim_time - self.last_progress >= self.timeout_s - 1e-9
 
     def quiet_s(self, sim_time: float) -> float:
@@ -215,4 +247,12 @@ def describe(task: Task, stalled_s: float) -> str:
     # the robots that wait or are stuck come first, then the human (often what they wait for)
     stuck = [r for r in robots if " waits " in r or " cannot " in r]
     rest = [r for r in robots if r not in stuck]
-    return f"stalled for {stalled_s:g} s: " + "; ".join([*stuck, _human(task), *rest])
+    counts = task.watchdog.recoveries
+    meanwhile = ", ".join(
+        f"{counts[k]} {name}{'s' if counts[k] > 1 else ''}"
+        for k, name in COUNTED.items()
+        if counts.get(k)
+    )
+    # a livelock: the work stands still while the same collision comes back again and again
+    how = f" ({meanwhile} meanwhile)" if meanwhile else ""
+    return f"stalled for {stalled_s:g} s{how}: " + "; ".join([*stuck, _human(task), *rest])

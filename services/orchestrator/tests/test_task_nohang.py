@@ -117,6 +117,43 @@ def test_an_unreachable_move_ends_the_trial_at_once_naming_it() -> None:
     assert len(stalled) == 1 and out.stalled in stalled[0].text
 
 
+def test_a_hand_that_keeps_meeting_a_robot_is_a_stall_not_progress() -> None:
+    """A livelock seen in a simulated study: the hand rests where r1 comes back to after each
+    retreat, so collision, retreat, continue repeat without end (300 times in 1,000 simulated
+    s) while no part moves on. The collisions are not progress: the trial ends as stalled,
+    the message counting them."""
+    sim = Sim(load("thesis.toml", scenario={"stall_timeout_s": 10.0}))
+    sim.run(lambda x: x.task.started, max_s=20)
+    assert sim.human is not None
+    sim.human.enabled = False  # holds H1 and stays still
+    sim.run(lambda x: x.task.agents["r1"].carrying != "", max_s=30)
+    touching = {"on": False, "since": 0.0}
+
+    def bump(s: Sim) -> None:
+        # the hand meets r1 once it has gone on after the last collision, for 0.2 s each time
+        going_on = s.task.safety.retreating is None and s.task.safety.can_move("r1")
+        if not touching["on"] and going_on and s.t - touching["since"] > 0.5:
+            s.contact(pb.CONTACT_KIND_HAND_ROBOT, True, "right", "r1", "link5_flange")
+            touching.update(on=True, since=s.t)
+        elif touching["on"] and s.t - touching["since"] > 0.2:
+            s.contact(pb.CONTACT_KIND_HAND_ROBOT, False, "right", "r1", "link5_flange")
+            touching.update(on=False, since=s.t)
+
+    sim.hooks.append(bump)
+    out = None
+    for _ in range(int(120 / sim.dt)):
+        out = sim.step()
+        if out.stalled:
+            break
+    collisions = sim.kinds(K.TASK_EVENT_KIND_COLLISION)
+    assert out is not None and out.stalled, f"no stall after {len(collisions)} collisions"
+    assert len(collisions) >= 3  # the collisions went on: they alone did not keep it alive
+    assert out.stalled.startswith("stalled for 10 s (")
+    counted = int(out.stalled.split("(", 1)[1].split(" human-robot collision")[0])
+    assert 3 <= counted <= len(collisions), out.stalled
+    assert "the human holds H1 since " in out.stalled
+
+
 def test_watchdog_off_and_progress_resets_it() -> None:
     task = Task(load("thesis.toml"), stall_timeout_s=0)
     assert task.watchdog.timeout_s == 0
