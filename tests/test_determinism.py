@@ -1,5 +1,6 @@
 """Same scenario + seed => identical events and metrics, whatever the machine's load
-(docs/ARCHITECTURE.md, "Modes")."""
+(docs/ARCHITECTURE.md, "Modes"); and whether the logger keeps the 3D recording or not
+(`hrc run --no-view`: the second run, which thus costs no trial of its own)."""
 
 from __future__ import annotations
 
@@ -22,7 +23,7 @@ def _strip(obj: Any) -> Any:
     return strip_fields(obj, WALL)
 
 
-def _run(out: Path, ik_bin: Path) -> tuple[list[dict], dict]:
+def _run(out: Path, ik_bin: Path, *options: str) -> tuple[list[dict], dict]:
     proc = subprocess.run(
         [
             HRC,
@@ -34,6 +35,7 @@ def _run(out: Path, ik_bin: Path) -> tuple[list[dict], dict]:
             "7",
             "--max-ticks",
             "60000",
+            *options,
         ],
         capture_output=True,
         text=True,
@@ -46,7 +48,9 @@ def _run(out: Path, ik_bin: Path) -> tuple[list[dict], dict]:
 
 def test_two_runs_of_the_thesis_trial_are_identical(tmp_path: Path, ik_bin: Path) -> None:
     e1, m1 = _run(tmp_path / "a", ik_bin)
-    e2, m2 = _run(tmp_path / "b", ik_bin)
+    e2, m2 = _run(tmp_path / "b", ik_bin, "--no-view")
+    assert (tmp_path / "a" / "recording.rrd").stat().st_size > 100_000
+    assert not (tmp_path / "b" / "recording.rrd").exists()
     assert m1["task"]["completion_s"] is not None, "the task did not finish"
     assert m1["seed"] == 7
     assert len(e1) == len(e2)

@@ -65,6 +65,7 @@ class Settings:
     web: bool = False
     web_port: str | None = None  # the rerun web viewer's HTTP port (None: the logger's 9090)
     grpc_port: str | None = None  # the port the web viewer reads the data from
+    no_view: bool = False  # the logger writes no 3D recording (a study that needs the metrics)
 
 
 Value = str | bool | tuple[str, ...] | None
@@ -183,6 +184,7 @@ SERVICES: tuple[Service, ...] = (
             Option("--web", "web"),
             Option("--web-port", "web_port"),
             Option("--grpc-port", "grpc_port"),
+            Option("--no-view", "no_view"),
         ),
         needs=("a display, for --viewer",),
         stop_timeout_s=20,  # it closes the .rrd and flushes its files on SIGTERM

@@ -274,6 +274,30 @@ def test_a_bad_fitted_table_is_named(
     assert any(expected in p for p in problems), problems
 
 
+def test_seeds_per_trial_differ_between_conditions_and_not_with_the_study_size(
+    tmp_path: Path,
+) -> None:
+    """`study.seeds = "trial"` (hrc power's pools): a person's trials each with a seed of its
+    own; a trial's seed is the same in a larger pool (its trials are reused)."""
+    path = _write(tmp_path, STUDY)
+    shared = load_study(path, motion_check=False)
+    assert {t.seed for t in shared.trials if t.person.id == "P01"} == {1001}
+    own = load_study(path, motion_check=False, seeds="trial")
+    mine = [t for t in own.trials if t.person.id == "P01"]
+    assert len({t.seed for t in mine}) == len(mine) == 4
+    larger = load_study(path, motion_check=False, seeds="trial", participants=5)
+    assert len({t.person.id for t in larger.trials}) == 5
+    again = {t.id: (t.seed, t.input_hash) for t in larger.trials}
+    assert all(again[t.id] == (t.seed, t.input_hash) for t in own.trials)
+    in_file = load_study(
+        _write(tmp_path, STUDY.replace("[study]\n", '[study]\nseeds = "trial"\n'), "b.toml"),
+        motion_check=False,
+    )
+    assert [t.seed for t in in_file.trials] == [t.seed for t in own.trials]
+    problems = _problems(tmp_path, STUDY.replace("[study]\n", '[study]\nseeds = "each"\n'))
+    assert "study.seeds: should be one of participant, trial (got 'each')" in problems
+
+
 def test_record_must_be_a_bool(tmp_path: Path) -> None:
     problems = _problems(tmp_path, STUDY.replace("[study]\n", '[study]\nrecord = "yes"\n'))
     assert any(p.startswith("study.record: should be true or false") for p in problems), problems

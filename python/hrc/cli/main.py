@@ -187,12 +187,16 @@ def _cmd_run(args: argparse.Namespace) -> int:
         viewer=args.viewer,
         web=args.web,
         record=Path(args.record).resolve() if args.record else None,
+        view=not args.no_view,
         replay=replay,
         input=args.input,
         vr=vr,
         participant=resolved.scenario.participant.name,
         parts_total=len(resolved.scenario.parts),
     )
+    if args.no_view and (args.viewer or args.web):
+        print("--no-view leaves nothing for --viewer or --web to show", file=sys.stderr)
+        return 2
     if args.web_port:
         if not 0 < args.web_port < 65536:
             print(f"--web-port must be a port number, got {args.web_port}", file=sys.stderr)
@@ -256,6 +260,79 @@ def _cmd_sweep(args: argparse.Namespace) -> int:
     print(f"{len(records) - len(bad)} ok, {len(bad)} not ok; table: {out / 'trials.parquet'}")
     for r in bad:
         print(f"  {r.trial}: {r.outcome}: {r.reason.splitlines()[0] if r.reason else ''}")
+    return 0
+
+
+def _cmd_power(args: argparse.Namespace) -> int:
+    from hrc.study import StudyError, power
+    from hrc.study.power import PowerError, PowerSettings, answer, run_power
+    from hrc.study.sweep import ClusterError
+    from hrc.trial import Terminated, stop_on_signals
+
+    # what the command line leaves out, the module's defaults give
+    given = {k: v for k, v in vars(args).items() if v is not None}
+    try:
+        ns = tuple(sorted({int(v) for v in given["n"].split(",") if v.strip()}))
+    except KeyError:
+        ns = power.DEFAULT_NS
+    except ValueError:
+        print(f"--n: a list of whole numbers such as 4,8,12 (got {args.n!r})", file=sys.stderr)
+        return 2
+    settings = PowerSettings(
+        args.effect,
+        given.get("outcome", power.DEFAULT_OUTCOME),
+        ns,
+        given.get("sims", power.DEFAULT_SIMS),
+        given.get("alpha", power.DEFAULT_ALPHA),
+        given.get("target", power.DEFAULT_TARGET),
+        args.seed,
+    )
+    pool = given.get("pool", power.DEFAULT_POOL)
+    problems = [
+        text
+        for bad, text in (
+            (not ns or min(ns) < 2, "--n: every N at least 2"),
+            (pool < 2, "--pool: at least 2"),
+            (settings.sims < 1, "--sims: at least 1"),
+            (not 0 < settings.alpha < 1, "--alpha: between 0 and 1"),
+            (not 0 < settings.target <= 1, "--target: above 0, at most 1"),
+            (args.workers < 0 or args.trial_timeout <= 0, "--workers >= 0, --trial-timeout > 0"),
+        )
+        if bad
+    ]
+    if problems:
+        print("\n".join(problems), file=sys.stderr)
+        return 2
+    name = Path(args.study).stem
+    out = Path(args.out) if args.out else Path("runs") / "power" / name
+    _warn_if_exposed(out)
+    try:
+        stop_on_signals()
+        result = run_power(
+            Path(args.study),
+            out,
+            settings,
+            pool=pool,
+            workers=args.workers,
+            cluster=args.cluster,
+            timeout_s=args.trial_timeout,
+            motion_check=not args.no_reach,
+        )
+    except StudyError as exc:
+        print(str(exc), file=sys.stderr)
+        print(f"study rejected: {len(exc.problems)} problem(s); nothing was run", file=sys.stderr)
+        return 2
+    except (PowerError, ClusterError) as exc:
+        print(f"power: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"power interrupted; the pool's finished trials are kept in {out}", file=sys.stderr)
+        return 130
+    except Terminated as exc:
+        print(f"power stopped by {exc}; finished trials are kept in {out}", file=sys.stderr)
+        return 128 + exc.signum
+    print(f"{answer(result)}.")
+    print(f"{result.wall_s:.0f} s; curve and table: {out / 'power.html'}")
     return 0
 
 
@@ -491,6 +568,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     r.add_argument("--record", default=None, help="record the participant's input to FILE (JSONL)")
     r.add_argument(
+        "--no-view",
+        action="store_true",
+        help="no 3D recording (recording.rrd): the logs, events and metrics as always",
+    )
+    r.add_argument(
         "--replay", default=None, help="replay a recording instead of the scenario's input"
     )
     r.add_argument("--session", default=None, help="session id (default: random)")
@@ -576,6 +658,33 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-reach", action="store_true", help="skip the motion check of the resolved scenarios"
     )
     sw.set_defaults(func=_cmd_sweep)
+
+    pw = sub.add_parser(
+        "power",
+        help="how many participants a study needs: power by simulation (docs/studies.md)",
+    )
+    pw.add_argument("study", help="study TOML file")
+    pw.add_argument("--effect", required=True, metavar="FACTOR", help="the factor to detect")
+    # (the defaults are hrc.study.power's, given in docs/studies.md)
+    pw.add_argument("--outcome", help="the outcome (default task_completion_s)")
+    pw.add_argument("--n", help="study sizes, e.g. 4,6,8,10 (the default)")
+    pw.add_argument("--pool", type=int, help="simulated participants (default 20)")
+    pw.add_argument("--sims", type=int, help="studies drawn per N (default 200)")
+    pw.add_argument("--alpha", type=float, help="significance level (default 0.05)")
+    pw.add_argument("--target", type=float, help="the power wanted (default 0.8)")
+    pw.add_argument("--seed", type=int, default=1, help="seed of the draws from the pool")
+    pw.add_argument("--out", default=None, help="folder (default runs/power/<study>/)")
+    pw.add_argument(
+        "--workers", type=int, default=0, help="trials at a time on this machine (0: one a core)"
+    )
+    pw.add_argument("--cluster", default=None, metavar="ADDRESS", help="a Dask scheduler")
+    pw.add_argument(
+        "--trial-timeout", type=float, default=900.0, metavar="S", help="wall seconds a trial"
+    )
+    pw.add_argument(
+        "--no-reach", action="store_true", help="skip the motion check of the resolved scenarios"
+    )
+    pw.set_defaults(func=_cmd_power)
 
     ss = sub.add_parser(
         "session", help="run a live participant's session of a study (docs/studies.md)"

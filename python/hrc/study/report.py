@@ -285,23 +285,37 @@ def _fit(
     return res, "MixedLM (REML), random intercept per participant", var
 
 
-def fit_model(
+@dataclass
+class ModelData:
+    """An outcome's data as the model sees it: `y`, `participant`, factors renamed `f0`, `f1`,
+    ... (categorical, the study's first level the reference) and covariates `c0`, ...; the
+    formula over those that vary."""
+
+    d: pd.DataFrame
+    formula: str
+    names: dict[str, str]  # f0 -> the factor's key
+    covariates: dict[str, str]  # c0 -> the covariate's column
+    reference: dict[str, str]  # factor key -> its reference level
+    notes: list[str]
+    problem: str = ""  # why nothing can be fitted ("" if it can)
+
+
+def model_data(
     data: pd.DataFrame,
-    outcome: Outcome,
+    outcome: str,
     factors: list[str],
     levels: dict[str, list[str]],
     covariates: tuple[str, ...] = (),
-) -> ModelResult:
-    """One outcome's mixed model; every degenerate case gives notes, never an exception.
-    `covariates`: numeric columns entered as they are (a live trial's order position)."""
+) -> ModelData:
+    """The study's model of one outcome (`y ~ C(f0) + C(f1) + ... + c0 ...`, a random intercept
+    per participant): its data and formula, shared by the report and `hrc power`."""
     import pandas as pd
-    import statsmodels.formula.api as smf
 
     notes: list[str] = []
-    d = data[[outcome.name, "participant", *factors, *covariates]].dropna()
+    d = data[[outcome, "participant", *factors, *covariates]].dropna()
     d = d.rename(
         columns={
-            outcome.name: "y",
+            outcome: "y",
             **{f: f"f{i}" for i, f in enumerate(factors)},
             **{c: f"c{i}" for i, c in enumerate(covariates)},
         }
@@ -315,21 +329,36 @@ def fit_model(
     for key in names:
         if key not in used:
             notes.append(f"{_label(names[key])} has one level here: left out of the model")
+    problem = ""
     if len(d) < 3:
-        return ModelResult(outcome, [], None, [*notes, f"{len(d)} trial(s): too few to fit"])
-    if float(d["y"].std(ddof=0)) == 0.0:
+        problem = f"{len(d)} trial(s): too few to fit"
+    elif float(d["y"].std(ddof=0)) == 0.0:
         value = _fmt(float(d["y"].iloc[0]))
-        return ModelResult(
-            outcome,
-            [],
-            None,
-            [*notes, f"the same value ({value}) in every trial: nothing to model"],
-        )
+        problem = f"the same value ({value}) in every trial: nothing to model"
     for key in used:  # reference level = the study's first level
         order = [lv for lv in levels[names[key]] if lv in set(d[key])]
         d[key] = pd.Categorical(d[key], categories=order)
     reference = {names[k]: str(d[k].cat.categories[0]) for k in used}
     formula = "y ~ " + (" + ".join([*(f"C({k})" for k in used), *covs]) or "1")
+    return ModelData(d, formula, names, cov_names, reference, notes, problem)
+
+
+def fit_model(
+    data: pd.DataFrame,
+    outcome: Outcome,
+    factors: list[str],
+    levels: dict[str, list[str]],
+    covariates: tuple[str, ...] = (),
+) -> ModelResult:
+    """One outcome's mixed model; every degenerate case gives notes, never an exception.
+    `covariates`: numeric columns entered as they are (a live trial's order position)."""
+    import statsmodels.formula.api as smf
+
+    m = model_data(data, outcome.name, factors, levels, covariates)
+    notes, d, formula, names, reference = m.notes, m.d, m.formula, m.names, m.reference
+    cov_names = m.covariates
+    if m.problem:
+        return ModelResult(outcome, [], None, [*notes, m.problem])
     groups = d["participant"].nunique()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -408,14 +437,12 @@ def _table(head: list[str], body: list[list[str]], cls: str = "") -> str:
     return f'<table class="{cls}"><tr>{th}</tr>{trs}</table>'
 
 
-def write_report(sweep_dir: Path) -> Path:
-    """Write `<sweep_dir>/report.html` and `<sweep_dir>/figures/`; return the page's path."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    df, meta = _load(sweep_dir)
-    figdir = sweep_dir / FIGURES
-    figdir.mkdir(exist_ok=True)
+def analysis_frame(
+    df: pd.DataFrame, meta: dict[str, Any]
+) -> tuple[pd.DataFrame, list[str], dict[str, list[str]]]:
+    """The trials the statistics use (ended ok, no practice), factor values as text and one
+    column per outcome; the study's factors and their levels in the study's order. (`df` gets a
+    `participant_kind` column if a table from before live participants has none.)"""
     factors = [f for f in meta.get("factors", {}) if f in df.columns]
     if "participant_kind" not in df.columns:  # a table from before live participants
         df["participant_kind"] = "simulated"
@@ -427,7 +454,18 @@ def write_report(sweep_dir: Path) -> Path:
         values = _outcome_values(data, outcome)
         if values is not None:
             data[outcome.name] = values
-    levels = {f: _levels(data, f, meta) for f in factors}
+    return data, factors, {f: _levels(data, f, meta) for f in factors}
+
+
+def write_report(sweep_dir: Path) -> Path:
+    """Write `<sweep_dir>/report.html` and `<sweep_dir>/figures/`; return the page's path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    df, meta = _load(sweep_dir)
+    figdir = sweep_dir / FIGURES
+    figdir.mkdir(exist_ok=True)
+    data, factors, levels = analysis_frame(df, meta)
 
     parts: list[str] = [f"<h1>Study {html.escape(str(meta.get('name')))}</h1>"]
     n_ok = int((df["outcome"] == "ok").sum())

@@ -13,6 +13,7 @@ from __future__ import annotations
 import copy
 import hashlib
 import itertools
+import json
 import math
 import re
 import tomllib
@@ -33,8 +34,12 @@ DESIGNS = ("factorial", "list")
 DISTS = ("normal", "uniform")
 PARTICIPANT_PARAMS = tuple(sc.ScriptedParams.model_fields)
 # keys of [study]
-STUDY_KEYS = {"name", "scenario", "repetitions", "design", "description", "record"}
+STUDY_KEYS = {"name", "scenario", "repetitions", "design", "description", "record", "seeds"}
 REPETITION_SEED_STRIDE = 100_000  # repetition r > 1 of a participant: seed + (r - 1) * stride
+# study.seeds: "participant" (default): a participant's trials of every condition share a seed
+# (common random numbers: a comparison between conditions sees no noise of its own); "trial":
+# each trial its own seed, as a real person's noise differs from one trial to the next.
+SEEDS = ("participant", "trial")
 _NAME = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 _SHORT = {
     "max_tcp_speed": "speed",
@@ -116,6 +121,7 @@ class Study:
     trials: list[Trial] = field(default_factory=list)
     live: LiveSpec | None = None
     record: bool = False  # each simulated trial records its participant's input
+    seeds: str = "participant"  # study.seeds: one seed per participant, or per trial
     # the parsed base scenario (paths made portable) and where it is: live trials resolve from it
     base_raw: dict[str, Any] = field(default_factory=dict)
     base_folder: Path | None = None
@@ -398,15 +404,30 @@ def trial_id(condition: dict[str, Any], person: str, repetition: int) -> str:
     return "_".join([*(_short(k, v) for k, v in condition.items()), person, f"r{repetition}"])
 
 
+def trial_seed(seed: int, condition: dict[str, Any]) -> int:
+    """A seed of its own for a participant's trial in `condition` (`study.seeds = "trial"`):
+    derived from the participant's seed and the condition's values, so it does not depend on
+    which other conditions or people the study has."""
+    text = json.dumps(condition, sort_keys=True, default=str)
+    return int.from_bytes(hashlib.sha256(f"{seed}|{text}".encode()).digest()[:4], "big") >> 1
+
+
 def input_hash(scenario_text: str, seed: int) -> str:
     data = f"v{FORMAT_VERSION}\nseed={seed}\n{scenario_text}".encode()
     return hashlib.sha256(data).hexdigest()[:16]
 
 
-def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
+def load_study(
+    path: str | Path,
+    *,
+    motion_check: bool = True,
+    participants: int | None = None,
+    seeds: str | None = None,
+) -> Study:
     """Read and check a study file, and resolve every trial's scenario; StudyError lists every
     problem (the study's own, then each distinct scenario problem with the condition it comes
-    from)."""
+    from). `participants` and `seeds` replace the file's `participants.n` and `study.seeds`
+    (`hrc power` simulates its own pool of people)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
@@ -417,6 +438,8 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
         raise StudyError([f"toml: not valid TOML: {exc}"], path) from exc
     folder = path.resolve().parent
     problems: list[str] = []
+    if participants is not None and isinstance(raw.get("participants"), dict):
+        raw["participants"]["n"] = participants
     tables = {"study", "factors", "conditions", "participants", "live", "questionnaires"}
     for extra in sorted(set(raw) - tables):
         problems.append(f"{extra}: unknown table")
@@ -436,6 +459,9 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
     if not isinstance(record, bool):
         problems.append(f"study.record: should be true or false (got {record!r})")
         record = False
+    seeds = seeds or head.get("seeds", "participant")
+    if seeds not in SEEDS:
+        problems.append(f"study.seeds: should be one of {', '.join(SEEDS)} (got {seeds!r})")
     reps = head.get("repetitions", 1)
     if isinstance(reps, bool) or not isinstance(reps, int) or reps < 1:
         problems.append(f"study.repetitions: should be an integer >= 1 (got {reps!r})")
@@ -490,6 +516,7 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
         text=text,
         live=live,
         record=record,
+        seeds=seeds,
         base_raw=base_raw,
         base_folder=base.parent,
     )
@@ -525,6 +552,8 @@ def load_study(path: str | Path, *, motion_check: bool = True) -> Study:
                 continue
             for rep in range(1, reps + 1):
                 seed = person.seed + (rep - 1) * REPETITION_SEED_STRIDE
+                if seeds == "trial":
+                    seed = trial_seed(seed, cond)
                 tid = trial_id(cond, person.id, rep)
                 study.trials.append(
                     Trial(tid, cond, person, rep, seed, scen_text, input_hash(scen_text, seed))

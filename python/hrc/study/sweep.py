@@ -132,9 +132,11 @@ def sweep(
     cluster: str | None = None,
     timeout_s: float = 900.0,
     progress: Callable[[Record], None] | None = None,
+    view: bool = True,
 ) -> list[Record]:
     """Run the trials of `study` not already done in `out`; write the manifest, the tables and
-    a copy of the study; return every trial's record (in the study's order)."""
+    a copy of the study; return every trial's record (in the study's order). `view=False`: the
+    trials keep no 3D recording (`hrc power`'s pool, whose trials only give their metrics)."""
     write_study_files(study, out)
     manifest = Manifest(out / MANIFEST)
     todo = [t for t in study.trials if not manifest.done(t)]
@@ -152,6 +154,7 @@ def sweep(
             t.input_hash,
             timeout_s,
             study.record and t.person.replay is None,
+            view,
         )
         for t in todo
     ]
@@ -190,6 +193,7 @@ def describe(study: Study) -> dict[str, Any]:
         "scenario": str(study.scenario),
         "design": study.design,
         "repetitions": study.repetitions,
+        "seeds": study.seeds,
         "factors": study.factors,
         "participants": [p.id for p in study.people],
         "participant_parameters": list(study.dists),

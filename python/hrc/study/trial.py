@@ -41,6 +41,7 @@ class Job:
     input_hash: str
     timeout_s: float
     record: bool = False  # record the participant's input into the trial folder
+    view: bool = True  # False: the trial keeps no 3D recording (hrc run --no-view)
 
 
 @dataclass
@@ -129,6 +130,8 @@ def run_job(job: Job) -> Record:
     ]
     if job.record:
         argv += ["--record", str(trial_dir / RECORDING_FILE)]
+    if not job.view:
+        argv.append("--no-view")
     t0 = time.monotonic()
     host = os.uname().nodename
     # own process group: a timeout stops hrc run and everything it started

@@ -38,6 +38,7 @@ class TrialOptions:
     web: bool = False
     web_port: int = 0  # > 0: the rerun web viewer's port (its data port then a free one)
     grpc_port: int = 0
+    view: bool = True  # False: no 3D recording (recording.rrd); the logs and metrics as always
     record: Path | None = None
     replay: Path | None = None
     connect: list[str] = field(default_factory=list)  # extra endpoints for every service (router)
@@ -185,6 +186,7 @@ def trial_settings(
         web=opts.web,
         web_port=str(opts.web_port) if opts.web and opts.web_port else None,
         grpc_port=str(opts.grpc_port) if opts.web and opts.grpc_port else None,
+        no_view=not opts.view,
     )
 
 

@@ -149,6 +149,12 @@ class LoggerService(Service):
             help="gRPC port the web viewer reads the data from (default 9877)",
         )
         p.add_argument(
+            "--no-view",
+            action="store_true",
+            help=f"no 3D recording ({RRD_FILE}) and no viewer: log.txt, events.jsonl and the "
+            "statistics only (a study's trials that only need their metrics)",
+        )
+        p.add_argument(
             "--view-hz",
             type=float,
             default=30.0,
@@ -167,6 +173,8 @@ class LoggerService(Service):
         super().__init__(args)
         if not args.view_hz > 0:
             raise ServiceExit(f"--view-hz must be > 0, got {args.view_hz}", EXIT_BAD_INPUT)
+        if args.no_view and (args.viewer or args.web):
+            raise ServiceExit("--no-view leaves nothing for --viewer or --web", EXIT_BAD_INPUT)
         self._view_ready = threading.Event()
         self._view_lock = threading.Lock()
         self._view_abandoned = False
@@ -202,6 +210,9 @@ class LoggerService(Service):
             self.scenario = fetch_scenario(self.bus, args.scenario_timeout)
             # log.txt's first line; events wait for the view (_view_up), so none comes before
             self.recorder.write_settings(self.scenario)
+            if args.no_view:
+                log.info("no view (--no-view): no %s", RRD_FILE)
+                return
             from hrc_logger.view import View, ViewSettings, open_recording
 
             rec = open_recording(
