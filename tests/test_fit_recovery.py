@@ -69,6 +69,32 @@ def test_fit_recovers_people_and_their_twins_predict_a_held_out_condition(tmp_pa
     assert printed["recovery"]["reaction_time_s"]["n"] == PEOPLE
     twins = pd.read_csv(tmp_path / "twins" / "trials.csv")
     assert list(twins["participant_kind"]) == ["fitted"] * PEOPLE
+    # each estimate with its uncertainty; the true values within two standard errors
+    sure = printed["info"]["P01"]["uncertainty"]
+    assert 0.03 < sure["reaction_time_s_rel_se"] < 0.2 and 0 < sure["mt_heldout_error"] < 0.2
+    within = printed["recovery"]["reaction_time_s"]["within_2se"]
+    assert within[1] == PEOPLE and within[0] >= PEOPLE - 1, within
+
+    # P01's second trial lost its recording, P02's are unreadable: P01 is fitted from one
+    # trial (said so), P02 is named, and the others are fitted all the same
+    trials = pd.read_csv(people / "trials.csv")
+    mine = trials[trials["participant"] == "P01"]["trial"].tolist()
+    (people / "trials" / mine[1] / "participant-input.jsonl").unlink()
+    for t in trials[trials["participant"] == "P02"]["trial"]:
+        (people / "trials" / t / "participant-input.jsonl").write_text("not a recording\n")
+    proc = subprocess.run(
+        [HRC, "fit", str(people), "--out", str(out), "--json"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
+    assert proc.returncode == 1, proc.stderr
+    printed = json.loads(proc.stdout)
+    assert "P02" in printed["not_fitted"] and "hrc fit: P02: not fitted: " in proc.stderr
+    assert sorted(printed["fitted"]) == ["P01", "P03", "P04"][: PEOPLE - 1]
+    assert printed["info"]["P01"]["trials"] == [mine[0]]
+    assert any(n.startswith("rests on one trial") for n in printed["info"]["P01"]["notes"])
 
 
 def test_fit_names_what_is_missing(tmp_path: Path) -> None:

@@ -58,32 +58,53 @@ def run(args: argparse.Namespace) -> int:
         out = Path(args.out) if args.out else Path(FITTED_FILE)
     fitted: dict[str, dict[str, Any]] = {}
     info: dict[str, Any] = {}
+    refused: dict[str, str] = {}
     for who, trial_dirs in sorted(groups.items()):
         try:
             fit = fit_folders(trial_dirs)
         except (FitError, OSError, ValueError) as exc:
-            print(f"hrc fit: {who}: {exc}", file=sys.stderr)
-            return 1
+            # one person's unusable recordings do not cost the others their fit
+            print(f"hrc fit: {who}: not fitted: {exc}", file=sys.stderr)
+            refused[who] = str(exc)
+            continue
         fitted[who] = fit.params
-        info[who] = {"trials": [d.name for d in trial_dirs], **fit.counts, "notes": fit.notes}
+        info[who] = {
+            "trials": [d.name for d in trial_dirs],
+            **fit.counts,
+            "uncertainty": fit.uncertainty,
+            "notes": fit.notes,
+        }
+    if not fitted:
+        print("hrc fit: nobody could be fitted (above: why)", file=sys.stderr)
+        return 1
     write_fitted(out, fitted, info)
-    report: dict[str, Any] = {"fitted": fitted, "file": str(out)}
+    report: dict[str, Any] = {"fitted": fitted, "file": str(out), "info": info}
+    if refused:
+        report["not_fitted"] = refused
     if table is not None:
-        rec = recovery(table, fitted)
+        rec = recovery(table, fitted, {w: i["uncertainty"] for w, i in info.items()})
         if rec:
             report["recovery"] = rec
     if args.json:
         print(json.dumps(report, indent=1))
-        return 0
+        return 1 if refused else 0
     for who, params in fitted.items():
         shown = ", ".join(f"{k} {v}" for k, v in params.items())
-        print(f"{who} ({len(groups[who])} trials): {shown}")
+        n = len(info[who]["trials"])
+        print(f"{who} ({n} trial{'s' if n != 1 else ''}): {shown}")
+        sure = info[who]["uncertainty"]
+        if sure:
+            print("  uncertainty: " + ", ".join(f"{k} {v:g}" for k, v in sure.items()))
         for note in info[who]["notes"]:
             print(f"  note: {note}")
     for key, r in report.get("recovery", {}).items():
+        within = r.get("within_2se")
         print(
             f"recovery {key}: n {r['n']}, bias {100 * r['bias']:+.1f} %, mean |error| "
             f"{100 * r['mean_abs_error']:.1f} %, max {100 * r['max_abs_error']:.1f} %"
+            + (f"; within 2 standard errors: {within[0]} of {within[1]}" if within else "")
         )
     print(f"written: {out}")
-    return 0
+    if refused:
+        print(f"not fitted: {', '.join(refused)} (above: why)")
+    return 1 if refused else 0

@@ -14,7 +14,17 @@ format) and what happened (`events.jsonl`: grabs, placements, the outline cues).
   the peak-speed cap did not shorten; `peak_hand_speed` is the highest peak seen (a lower bound
   when no move reached the cap, said in `notes`).
 - **Reaction time**: from a part's outline cue (or the end of the hand's previous move, if later)
-  to the onset of the reach for it; the median, as the model's parameter is a median.
+  to the onset of the reach for it; the median, as the model's parameter is a median. Its
+  standard error is the reactions' own log spread over the square root of their number: with the
+  model's spread (0.25) and the thesis's six reactions a trial, about 7 % from two trials, so
+  a person's estimate misses by up to about 15 % by chance alone, whatever their caution.
+- **What the moves can tell apart** (`uncertainty`): a and b are resampled with the moves
+  (`BOOTSTRAP` resamples, seeded); their relative standard errors and correlation are given. On
+  a task whose moves have few distinct difficulties a and b trade off (a longer a, a smaller b
+  fit the same moves): where they cannot be told apart (`AB_LOCKSTEP`, `AB_CORRELATION`,
+  `AB_REL_SE`) b is held at the profile's value and only a (and c) fitted, said in `notes`.
+  The movement time law is checked on moves it did not use: each move left out once, predicted
+  by the law fitted to the others (`mt_heldout_error`, mean absolute relative error).
 - **Dwells and grip**: the grip's closing and opening ramps; the pause between arriving at a part
   and leaving with it (`pick_dwell_s`); twice the pause between arriving at the target and
   starting to let go (`place_dwell_s`).
@@ -43,7 +53,7 @@ from hrc.metrics import EVENTS_FILE
 from hrc.participant.motor import MIN_JERK_PEAK_FACTOR, REACTION_LOG_SD, fitts_index
 from hrc.participant.plans import GROSS_WIDTH, PICK_WIDTH
 from hrc.participant.recording import load_recording
-from hrc.scenario.models import DEFAULT_TOLERANCE_M
+from hrc.scenario.models import DEFAULT_TOLERANCE_M, ScriptedParams
 from hrc.study.trial import RECORDING_FILE
 
 Array = npt.NDArray[np.float64]
@@ -58,6 +68,15 @@ C_SPAN = 2.0
 ONSET_LAG_S = 0.05  # a move this long before the cue's record may already answer it
 TRIM_SD = 2.5  # reactions further than this many log-sds from their median are not counted
 SCENARIO_FILE = "scenario.toml"  # the trial's resolved scenario (hrc run writes it)
+BOOTSTRAP = 200  # resamples of the moves for a's and b's uncertainty
+BOOTSTRAP_SEED = 0  # a person's fit is the same every time
+# a and b cannot be told apart when they move in lockstep across resamples (|correlation| at
+# least AB_LOCKSTEP; the thesis task's recordings reach 0.97 with b known to 10 %), or nearly so
+# (AB_CORRELATION) with b's standard error above AB_REL_SE of b
+AB_LOCKSTEP = 0.99
+AB_CORRELATION = 0.95
+AB_REL_SE = 0.5
+B_PROFILE = float(ScriptedParams.model_fields["fitts_b_s"].default)  # b held here, then
 
 
 class FitError(ValueError):
@@ -341,6 +360,19 @@ def lognormal_median(values: list[float]) -> float:
     return math.exp(statistics.fmean(kept))
 
 
+def lognormal_rel_se(values: list[float]) -> float:
+    """The relative standard error of :func:`lognormal_median`: the kept reactions' log spread
+    (at least the model's, as a few draws understate it) over the square root of their
+    number."""
+    logs = [math.log(v) for v in values if v > 0.0]
+    if not logs:
+        return 0.0
+    centre = statistics.median(logs)
+    kept = [x for x in logs if abs(x - centre) <= TRIM_SD * REACTION_LOG_SD] or [centre]
+    spread = statistics.stdev(kept) if len(kept) > 1 else REACTION_LOG_SD
+    return math.expm1(max(spread, REACTION_LOG_SD) / math.sqrt(len(kept)))
+
+
 @dataclass
 class Fit:
     """A person's estimated parameters, and how they were found."""
@@ -348,6 +380,45 @@ class Fit:
     params: dict[str, float | bool]
     counts: dict[str, int]
     notes: list[str]
+    # relative standard errors (`<param>_rel_se`), a's and b's correlation, the movement time
+    # law's error on moves it did not use (`mt_heldout_error`)
+    uncertainty: dict[str, float] = field(default_factory=dict)
+
+
+def _law(x: Array, y: Array, b_fixed: float | None) -> Array:
+    """The movement time law's coefficients (a, b[, c]) >= 0, with b held at `b_fixed` if given."""
+    if b_fixed is None:
+        return nonnegative_lstsq(x, y)
+    rest = [i for i in range(x.shape[1]) if i != 1]
+    coef = np.zeros(x.shape[1])
+    coef[rest] = nonnegative_lstsq(x[:, rest], y - b_fixed * x[:, 1])
+    coef[1] = b_fixed
+    return coef
+
+
+def _ab_spread(x: Array, y: Array) -> tuple[float, float, float]:
+    """a's and b's standard deviations over bootstrap resamples of the moves, and their
+    correlation (0 where either does not vary)."""
+    rng = np.random.default_rng(BOOTSTRAP_SEED)
+    draws = np.array(
+        [
+            nonnegative_lstsq(x[idx], y[idx])[:2]
+            for idx in rng.integers(0, len(y), (BOOTSTRAP, len(y)))
+        ]
+    )
+    sd_a, sd_b = (float(v) for v in draws.std(axis=0))
+    corr = float(np.corrcoef(draws.T)[0, 1]) if sd_a > 0 and sd_b > 0 else 0.0
+    return sd_a, sd_b, corr
+
+
+def _heldout_error(x: Array, y: Array, b_fixed: float | None) -> float:
+    """Mean absolute relative error of each move's time predicted by the law fitted without it."""
+    errors = []
+    for i in range(len(y)):
+        keep = np.arange(len(y)) != i
+        predicted = float(x[i] @ _law(x[keep], y[keep], b_fixed))
+        errors.append(abs(predicted - y[i]) / y[i])
+    return float(np.mean(errors))
 
 
 def fit_measures(trials: list[TrialMeasures]) -> Fit:
@@ -355,6 +426,9 @@ def fit_measures(trials: list[TrialMeasures]) -> Fit:
     if not moves:
         raise FitError("no hand movement found in the recordings")
     notes: list[str] = []
+    uncertainty: dict[str, float] = {}
+    if len(trials) == 1:
+        notes.append("rests on one trial: its estimates are less sure than from two (uncertainty)")
     v_peak = max(mv.peak for mv in moves)
     # Moves the cap shortened all peak at the cap; free moves peak where their length and time
     # put them. A cap is seen when several moves share the highest peak.
@@ -383,6 +457,26 @@ def fit_measures(trials: list[TrialMeasures]) -> Fit:
         )
         y = np.array([mv.mt for mv, _w in free])
         coef = nonnegative_lstsq(x, y)
+        sd_a, sd_b, corr = _ab_spread(x, y)
+        b_fixed = None
+        rel_b = sd_b / coef[1] if coef[1] > 0 else 0.0
+        if abs(corr) >= AB_LOCKSTEP or (abs(corr) >= AB_CORRELATION and rel_b >= AB_REL_SE):
+            b_fixed = B_PROFILE
+            coef = _law(x, y, b_fixed)
+            ids = x[:, 1]
+            notes.append(
+                f"a and b cannot be told apart on these moves (difficulties {ids.min():.1f}-"
+                f"{ids.max():.1f} bits; a and b correlate {corr:+.2f} across resamples, b's "
+                f"error {100 * rel_b:.0f} %): b held at the profile's "
+                f"{b_fixed:g} s/bit, a fitted"
+            )
+        else:
+            for i, key in enumerate(("fitts_a_s", "fitts_b_s")):
+                if coef[i] > 0:
+                    uncertainty[f"{key}_rel_se"] = round(float((sd_a, sd_b)[i] / coef[i]), 4)
+        uncertainty["fitts_ab_correlation"] = round(corr, 4)
+        if len(y) >= 4:
+            uncertainty["mt_heldout_error"] = round(_heldout_error(x, y, b_fixed), 4)
         params.update(fitts_a_s=round(float(coef[0]), 4), fitts_b_s=round(float(coef[1]), 4))
         if with_c:
             params["fitts_c_s_per_m"] = round(float(coef[2]), 4)
@@ -397,6 +491,7 @@ def fit_measures(trials: list[TrialMeasures]) -> Fit:
     reactions = [r for t in trials for r in t.reactions_s]
     if reactions:
         params["reaction_time_s"] = round(lognormal_median(reactions), 4)
+        uncertainty["reaction_time_s_rel_se"] = round(lognormal_rel_se(reactions), 4)
     grips_c = [g for t in trials for g in t.grip_close_s]
     grips_o = [g for t in trials for g in t.grip_open_s]
     if grips_c:
@@ -418,7 +513,7 @@ def fit_measures(trials: list[TrialMeasures]) -> Fit:
         "moves_capped": len(at_cap) if cap_seen else 0,
         "reactions": len(reactions),
     }
-    return Fit(params, counts, notes)
+    return Fit(params, counts, notes, uncertainty)
 
 
 def fit_folders(folders: list[Path]) -> Fit:

@@ -67,9 +67,15 @@ def relative_errors(pairs: list[tuple[float, float]]) -> dict[str, float]:
     }
 
 
-def recovery(table: Any, fitted: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def recovery(
+    table: Any,
+    fitted: dict[str, dict[str, Any]],
+    uncertainty: dict[str, dict[str, float]] | None = None,
+) -> dict[str, Any]:
     """Per parameter: the simulated participants' true and fitted values, relative bias and
-    mean absolute relative error (only parameters the table gives per participant)."""
+    mean absolute relative error (only parameters the table gives per participant); with the
+    fit's `uncertainty` (person -> `<param>_rel_se`), how many true values lie within two of
+    its standard errors (`within_2se`: [k, of n])."""
     out: dict[str, Any] = {}
     for key in RECOVERED:
         column = f"participant.{key}"
@@ -91,6 +97,13 @@ def recovery(table: Any, fitted: dict[str, dict[str, Any]]) -> dict[str, Any]:
             **relative_errors([(true, fit) for _w, true, fit in pairs]),
             "people": [{"participant": w, "true": t, "fitted": f} for w, t, f in pairs],
         }
+        ses = [
+            (abs(f - t) / t, (uncertainty or {}).get(w, {}).get(f"{key}_rel_se"))
+            for w, t, f in pairs
+        ]
+        judged = [err <= 2.0 * se for err, se in ses if se is not None]
+        if judged:
+            out[key]["within_2se"] = [sum(judged), len(judged)]
     return out
 
 
