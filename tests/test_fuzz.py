@@ -201,7 +201,17 @@ def run_variant(name: str, doc: dict[str, Any], folder: Path) -> Outcome:
         return Outcome(name, "refused", reasons.splitlines()[0])
     try:
         r = subprocess.run(
-            [HRC, "run", str(path), "--out", str(folder / "trial"), "--max-ticks", str(MAX_TICKS)],
+            # (no 3D recording: what is checked is how the trial ends, and it costs a tenth)
+            [
+                HRC,
+                "run",
+                str(path),
+                "--out",
+                str(folder / "trial"),
+                "--max-ticks",
+                str(MAX_TICKS),
+                "--no-view",
+            ],
             capture_output=True,
             text=True,
             timeout=RUN_TIMEOUT_S,
