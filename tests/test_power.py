@@ -103,7 +103,8 @@ def test_a_request_the_study_cannot_answer_is_refused_before_any_trial(tmp_path:
     assert "--effect 'conditions.anticipation' is not a factor of the study" in wrong.stderr
     assert "robots.*.max_tcp_speed, robots.r2.color" in wrong.stderr
     big = power(study, out, "--effect", "robots.r2.color", "--n", "4,12")
-    assert big.returncode == 2 and "--n up to 12 needs --pool of at least that" in big.stderr
+    assert big.returncode == 2
+    assert "--n up to 12 needs a pool of at least that many people (the pool has 8" in big.stderr
     bad = power(study, out, "--effect", "robots.r2.color", "--n", "1,x")
     assert bad.returncode == 2 and "--n: a list of whole numbers" in bad.stderr
     assert not (out / "pool").exists()

@@ -292,7 +292,7 @@ def _cmd_power(args: argparse.Namespace) -> int:
         text
         for bad, text in (
             (not ns or min(ns) < 2, "--n: every N at least 2"),
-            (pool < 2, "--pool: at least 2"),
+            (pool == 1 or pool < 0, "--pool: at least 2 (0: the study's own participants)"),
             (settings.sims < 1, "--sims: at least 1"),
             (not 0 < settings.alpha < 1, "--alpha: between 0 and 1"),
             (not 0 < settings.target <= 1, "--target: above 0, at most 1"),
@@ -668,7 +668,11 @@ def build_parser() -> argparse.ArgumentParser:
     # (the defaults are hrc.study.power's, given in docs/studies.md)
     pw.add_argument("--outcome", help="the outcome (default task_completion_s)")
     pw.add_argument("--n", help="study sizes, e.g. 4,6,8,10 (the default)")
-    pw.add_argument("--pool", type=int, help="simulated participants (default 20)")
+    pw.add_argument(
+        "--pool",
+        type=int,
+        help="simulated participants (default 20; 0: the study's own, e.g. a pilot's twins)",
+    )
     pw.add_argument("--sims", type=int, help="studies drawn per N (default 200)")
     pw.add_argument("--alpha", type=float, help="significance level (default 0.05)")
     pw.add_argument("--target", type=float, help="the power wanted (default 0.8)")

@@ -430,21 +430,29 @@ def run_power(
     progress: IO[str] | None = None,
 ) -> PowerResult:
     """Run the pool's trials (those not done before in `out/pool`), then the curve; write the
-    outputs; return the result."""
+    outputs; return the result. `pool` simulated participants drawn as the study draws them
+    (its replays and fitted twins besides); 0: the study's own people as the file gives them
+    (a pilot's twins alone, say)."""
     from hrc.study.spec import load_study
     from hrc.study.sweep import sweep
 
     t0 = time.monotonic()
-    study = load_study(study_path, motion_check=motion_check, participants=pool, seeds="trial")
+    study = load_study(
+        study_path, motion_check=motion_check, participants=pool or None, seeds="trial"
+    )
+    people = len(study.people)
     if settings.effect not in study.factors:
         raise PowerError(
             f"--effect {settings.effect!r} is not a factor of the study "
             f"(its factors: {', '.join(study.factors) or 'none'})"
         )
-    if max(settings.ns) > pool:
-        raise PowerError(f"--n up to {max(settings.ns)} needs --pool of at least that")
-    # the pool's trials give their metrics; a 3D recording of each would cost a sixth of the
-    # CPU (the logger's view) and 2.5 MB a trial
+    if max(settings.ns) > people:
+        raise PowerError(
+            f"--n up to {max(settings.ns)} needs a pool of at least that many people "
+            f"(the pool has {people}: give --pool)"
+        )
+    # the pool's trials give their metrics; a 3D recording of each costs a tenth of the CPU
+    # (the logger's view) and 2.5 MB a trial
     sweep(study, out / POOL, workers=workers, cluster=cluster, timeout_s=timeout_s, view=False)
     try:
         result = analyse(out / POOL, settings, progress or sys.stderr)
