@@ -20,6 +20,12 @@ Around that:
   coming); without, it only sees where the TCPs are and extrapolates their motion over
   0.5 + caution s. It goes when the way is clear: it waits for a moving robot as long as it
   moves there, and for one standing still in the way at most `max_hold_back_s`.
+- Once hit, it lets that robot pass (whatever its caution): after a collision with a robot its
+  next reach or carry waits while that robot is in motion, until it has moved and come to rest
+  (or has stood still for `max_hold_back_s`); hit again by it meanwhile (the robot's way goes
+  where the hand waits), the hand goes all the way back to rest. Without it a hand that goes
+  straight back where the robot returns to meets it again and again (a livelock seen in
+  simulated studies: the same collision 300 times).
 - While it waits (held back, for a part's `after` parts, for the robots to continue after a
   collision, with nothing to grab) its hands are out of the robots' way: at rest in front of the
   body, and under `ssm` beside the body (WAIT_SSM), outside every robot's protective separation
@@ -135,6 +141,8 @@ class ScriptedParticipant:
         self.hold_expired = False
         self.still_since: float | None = None  # the robot holding it back stands still since
         self.hold_backs: list[tuple[float, str]] = []  # (time, robot) whenever caution held back
+        # the robot that last hit a hand, let pass before the next action: (robot, seen moving)
+        self.bitten: tuple[str, bool] | None = None
         self.grasp: tuple[Vec3, float, float] | None = None  # hand - object, hand & object yaw_rad
         self.in_collision = False
         self.collision_since = 0.0
@@ -275,7 +283,16 @@ class ScriptedParticipant:
         return 0.08 + 0.17 * self.caution
 
     def danger(self, view: TaskView, goal: Vec3) -> str | None:
-        """The robot heading into the region around ``goal``, as this participant can tell."""
+        """The robot heading into the region around ``goal``, as this participant can tell; or
+        the robot that last hit it, until it has passed."""
+        if self.bitten is not None and not self.in_collision:
+            hitter, seen_moving = self.bitten
+            if self._robot_moving(view, hitter):
+                self.bitten = (hitter, True)
+                return hitter
+            if not seen_moving:
+                return hitter  # not yet on its way again: a still robot is waited for a while
+            self.bitten = None  # it moved and came to rest: passed
         if self.caution <= 0.0:
             return None
         radius = self.caution_radius()
@@ -333,6 +350,8 @@ class ScriptedParticipant:
                 self.go_t = None
                 return True
             self.hold_expired = True
+            if self.bitten is not None and self.bitten[0] == robot:
+                self.bitten = None  # it did not move on: not waited for again
             self.log.append((t, f"{robot} stood still in the way {self.max_hold:g} s: going"))
         if self.hold_since is not None:
             self.hold_since = None
@@ -371,10 +390,12 @@ class ScriptedParticipant:
             if e.object == self.part and e.kind == pb.ObjectEvent.KIND_RESTED:
                 self.rested = True
         collision_begins = False
+        hit_by: str | None = None
         for ev in task_events:
             if ev.kind == pb.TASK_EVENT_KIND_COLLISION:
                 self.collision_confirmed = True
                 collision_begins = True
+                hit_by = ev.robot or hit_by
             elif ev.kind == pb.TASK_EVENT_KIND_CONTINUED:
                 self._collision_over(t, "robots continue")
             elif (
@@ -384,8 +405,14 @@ class ScriptedParticipant:
                 self._collision_over(t, "collision ended")
         if view.hand_robot_contacts:  # felt before the orchestrator announces it
             collision_begins = True
+            hit_by = min(robot for _hand, robot in view.hand_robot_contacts)
         if collision_begins and not self.in_collision:
-            self._collision_begins(t, view)
+            # hit again by a robot it was letting pass: its way goes where the hand waited, so
+            # the hand goes all the way back to rest this time
+            again = hit_by is not None and self.bitten is not None and self.bitten[0] == hit_by
+            if hit_by is not None:
+                self.bitten = (hit_by, False)
+            self._collision_begins(t, view, to_rest=again)
         self._pull_away(t, view)
         if self.in_collision:
             waited = t - self.collision_since
@@ -417,7 +444,7 @@ class ScriptedParticipant:
             if name == self.active and self.phase != Phase.DONE:
                 self._set(Phase.PULLBACK, t, "still touching a robot")
 
-    def _collision_begins(self, t: float, view: TaskView) -> None:
+    def _collision_begins(self, t: float, view: TaskView, to_rest: bool = False) -> None:
         self.in_collision = True
         self.collision_since = t
         self.provoke_robot = None
@@ -432,7 +459,7 @@ class ScriptedParticipant:
         if not holding:
             hand.do(Grip(0.0))
         back = (hand.pos[0], max(HAND_Y_MIN, hand.pos[1] + PULLBACK[1]), hand.pos[2] + PULLBACK[2])
-        if self.ssm:
+        if self.ssm or to_rest:
             back = self.rest_pose(self.active)
         hand.do(Dwell(self._collision_rt(), "reflex"), Move(back, None, GROSS_WIDTH, "pull back"))
         self._set(Phase.PULLBACK, t, "collision")

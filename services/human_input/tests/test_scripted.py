@@ -153,6 +153,35 @@ def test_collision_pulls_back_waits_and_resumes() -> None:
     assert min(w.grabbed_at["H2"]) > t_col + w.continue_after_s
 
 
+def test_once_hit_it_lets_that_robot_pass_before_its_next_reach() -> None:
+    """Without caution the hand used to go straight back after the robots continued, into the
+    robot coming back the same way (a livelock in simulated studies: the same collision 300
+    times). Now it waits while the robot that hit it moves, until it has come to rest."""
+    w = make_world("thesis", caution=0.0)
+    while "H1" not in w.placed_at:
+        w.step()
+    part = w.facts.parts["H2"]
+    w.tcp["r1"] = (part.start[0], part.start[1], part.start[2] + 0.10)
+    while not w.collisions and w.tick * w.dt < 20:
+        w.step()
+    assert w.collisions, "the hand never touched the parked tool"
+    t_col = w.collisions[0][0]
+    retreat = (0.45, 0.45, 0.40)
+    w.tcp["r1"] = retreat
+    while w.tick * w.dt < t_col + w.continue_after_s + 0.05:
+        w.step()
+    assert not w.participant.in_collision  # the robots continued
+    # r1 comes back towards the board for 3 s (away from H2's place), then stands there
+    t_go, far = w.tick * w.dt, (0.30, 0.10, 0.30)
+    while w.tick * w.dt < t_go + 3.0:
+        u = (w.tick * w.dt - t_go) / 3.0
+        w.tcp["r1"] = tuple(a + u * (b - a) for a, b in zip(retreat, far, strict=True))
+        w.step()
+    assert "H2" not in w.grabbed_at, "it reached again while the robot that hit it moved"
+    assert w.run(max_s=200.0)
+    assert min(w.grabbed_at["H2"]) > t_go + 3.0
+
+
 def test_a_held_part_may_still_be_placed_during_a_collision() -> None:
     w = make_world(caution=0.0)
     while w.participant.phase != Phase.CARRY:
