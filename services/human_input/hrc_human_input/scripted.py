@@ -21,11 +21,11 @@ Around that:
   0.5 + caution s. It goes when the way is clear: it waits for a moving robot as long as it
   moves there, and for one standing still in the way at most `max_hold_back_s`.
 - Once hit, it lets that robot pass (whatever its caution): after a collision with a robot its
-  next reach or carry waits while that robot is in motion, until it has moved and come to rest
-  (or has stood still for `max_hold_back_s`); hit again by it meanwhile (the robot's way goes
-  where the hand waits), the hand goes all the way back to rest. Without it a hand that goes
-  straight back where the robot returns to meets it again and again (a livelock seen in
-  simulated studies: the same collision 300 times).
+  next reach or carry waits while that robot is on a move (its state's status, which changes at
+  declared events only, so the timing of one-tick exchanges holds), until it has moved and come
+  to rest (or has stood still for `max_hold_back_s`). Without it a hand that goes straight back
+  where the robot returns to meets it again and again (a livelock seen in simulated studies:
+  the same collision 300 times).
 - While it waits (held back, for a part's `after` parts, for the robots to continue after a
   collision, with nothing to grab) its hands are out of the robots' way: at rest in front of the
   body, and under `ssm` beside the body (WAIT_SSM), outside every robot's protective separation
@@ -287,7 +287,7 @@ class ScriptedParticipant:
         the robot that last hit it, until it has passed."""
         if self.bitten is not None and not self.in_collision:
             hitter, seen_moving = self.bitten
-            if self._robot_moving(view, hitter):
+            if self._under_way(view, hitter):
                 self.bitten = (hitter, True)
                 return hitter
             if not seen_moving:
@@ -319,6 +319,14 @@ class ScriptedParticipant:
                     return rid
         return None
 
+    def _under_way(self, view: TaskView, robot: str) -> bool:
+        """The robot is on a move (its state says MOVING). Not its TCP's speed: the status
+        changes only at ticks the exchanges end on (a move's end is declared, a new one follows
+        a command), so waiting for it keeps the timing of one-tick exchanges, as a caution-free
+        participant must (docs/ARCHITECTURE.md, "Exchange step")."""
+        r = view.robots.get(robot)
+        return r is not None and r.status == pb.MOTION_STATUS_MOVING
+
     def _robot_moving(self, view: TaskView, robot: str) -> bool:
         r = view.robots.get(robot)
         if r is None:
@@ -340,7 +348,8 @@ class ScriptedParticipant:
             # A robot moving into the region is waited for as long as it moves there; one that
             # stands still in it (e.g. waiting for something the participant does not see) at
             # most max_hold in all, counted while it stands still.
-            if self._robot_moving(view, robot):
+            bitten = self.bitten is not None and self.bitten[0] == robot
+            if self._under_way(view, robot) if bitten else self._robot_moving(view, robot):
                 self.still_since = None
                 self.go_t = None
                 return True
@@ -407,12 +416,9 @@ class ScriptedParticipant:
             collision_begins = True
             hit_by = min(robot for _hand, robot in view.hand_robot_contacts)
         if collision_begins and not self.in_collision:
-            # hit again by a robot it was letting pass: its way goes where the hand waited, so
-            # the hand goes all the way back to rest this time
-            again = hit_by is not None and self.bitten is not None and self.bitten[0] == hit_by
             if hit_by is not None:
                 self.bitten = (hit_by, False)
-            self._collision_begins(t, view, to_rest=again)
+            self._collision_begins(t, view)
         self._pull_away(t, view)
         if self.in_collision:
             waited = t - self.collision_since
@@ -444,7 +450,7 @@ class ScriptedParticipant:
             if name == self.active and self.phase != Phase.DONE:
                 self._set(Phase.PULLBACK, t, "still touching a robot")
 
-    def _collision_begins(self, t: float, view: TaskView, to_rest: bool = False) -> None:
+    def _collision_begins(self, t: float, view: TaskView) -> None:
         self.in_collision = True
         self.collision_since = t
         self.provoke_robot = None
@@ -459,7 +465,7 @@ class ScriptedParticipant:
         if not holding:
             hand.do(Grip(0.0))
         back = (hand.pos[0], max(HAND_Y_MIN, hand.pos[1] + PULLBACK[1]), hand.pos[2] + PULLBACK[2])
-        if self.ssm or to_rest:
+        if self.ssm:
             back = self.rest_pose(self.active)
         hand.do(Dwell(self._collision_rt(), "reflex"), Move(back, None, GROSS_WIDTH, "pull back"))
         self._set(Phase.PULLBACK, t, "collision")
