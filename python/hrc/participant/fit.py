@@ -348,27 +348,30 @@ def nonnegative_lstsq(x: Array, y: Array) -> Array:
     return best
 
 
-def lognormal_median(values: list[float]) -> float:
-    """The median of the model's lognormal reaction times (log-sd REACTION_LOG_SD): the mean
-    of the logs (its estimate with the least spread), over the values within TRIM_SD log-sds
-    of their median (a reaction held up by a collision or a robot in the way is not one)."""
+def _kept_logs(values: list[float]) -> list[float]:
+    """The logs of the reactions within TRIM_SD log-sds of their median (a reaction held up by
+    a collision or a robot in the way is not one); empty without a positive value."""
     logs = [math.log(v) for v in values if v > 0.0]
     if not logs:
-        return 0.0
+        return []
     centre = statistics.median(logs)
-    kept = [x for x in logs if abs(x - centre) <= TRIM_SD * REACTION_LOG_SD] or [centre]
-    return math.exp(statistics.fmean(kept))
+    return [x for x in logs if abs(x - centre) <= TRIM_SD * REACTION_LOG_SD] or [centre]
+
+
+def lognormal_median(values: list[float]) -> float:
+    """The median of the model's lognormal reaction times (log-sd REACTION_LOG_SD): the mean
+    of the kept logs (its estimate with the least spread)."""
+    kept = _kept_logs(values)
+    return math.exp(statistics.fmean(kept)) if kept else 0.0
 
 
 def lognormal_rel_se(values: list[float]) -> float:
     """The relative standard error of :func:`lognormal_median`: the kept reactions' log spread
     (at least the model's, as a few draws understate it) over the square root of their
     number."""
-    logs = [math.log(v) for v in values if v > 0.0]
-    if not logs:
+    kept = _kept_logs(values)
+    if not kept:
         return 0.0
-    centre = statistics.median(logs)
-    kept = [x for x in logs if abs(x - centre) <= TRIM_SD * REACTION_LOG_SD] or [centre]
     spread = statistics.stdev(kept) if len(kept) > 1 else REACTION_LOG_SD
     return math.expm1(max(spread, REACTION_LOG_SD) / math.sqrt(len(kept)))
 

@@ -40,6 +40,7 @@ from hrc.study.report import (
     _load,
     _table,
     analysis_frame,
+    fit_formula,
     model_data,
 )
 
@@ -116,6 +117,15 @@ def wilson(k: int, n: int) -> tuple[float, float]:
     return low, high
 
 
+def check_effect(effect: str, factors: list[str]) -> None:
+    """PowerError unless `effect` is one of the study's factors."""
+    if effect not in factors:
+        raise PowerError(
+            f"--effect {effect!r} is not a factor of the study "
+            f"(its factors: {', '.join(factors) or 'none'})"
+        )
+
+
 def effect_test(
     data: pd.DataFrame,
     outcome: str,
@@ -126,8 +136,6 @@ def effect_test(
     """The study's model fitted to `data`: the p-value of `effect` (Wald, jointly over its
     levels) and its estimate per level against the reference; None when it cannot be fitted
     (too few trials, the factor at one level, a degenerate fit)."""
-    import statsmodels.formula.api as smf
-
     m = model_data(data, outcome, factors, levels)
     key = next(k for k, v in m.names.items() if v == effect)
     if m.problem or f"C({key})" not in m.formula:
@@ -135,16 +143,8 @@ def effect_test(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # boundary fits and the like: counted, not printed
         try:
-            res = None
-            if m.d["participant"].nunique() >= 2:
-                res = smf.mixedlm(m.formula, m.d, groups=m.d["participant"]).fit(reml=True)
-            names = list(res.params.index) if res is not None else []
-            if res is None or not np.isfinite(np.asarray(res.bse)[: len(names) - 1]).all():
-                # one participant, or a degenerate mixed model (the factors explain the
-                # outcome exactly, or the people do not differ): the plain regression, as the
-                # report does
-                res = smf.ols(m.formula, m.d).fit()
-                names = list(res.params.index)
+            res, _method, _var = fit_formula(m.formula, m.d, [])  # the report's own fit
+            names = list(res.params.index)
             terms = [t for t in names if t.startswith(f"C({key})[T.")]
             if not terms:
                 return None
@@ -232,11 +232,7 @@ def analyse(
     """The power curve from a pool's sweep folder (its `trials.parquet` and `study.json`)."""
     df, meta = _load(pool_dir)
     data, factors, levels = analysis_frame(df, meta)
-    if settings.effect not in factors:
-        raise PowerError(
-            f"--effect {settings.effect!r} is not a factor of the study "
-            f"(its factors: {', '.join(factors) or 'none'})"
-        )
+    check_effect(settings.effect, factors)
     names = [o.name for o in OUTCOMES]
     if settings.outcome not in names:
         raise PowerError(f"--outcome {settings.outcome!r}: one of {', '.join(names)}")
@@ -441,11 +437,7 @@ def run_power(
         study_path, motion_check=motion_check, participants=pool or None, seeds="trial"
     )
     people = len(study.people)
-    if settings.effect not in study.factors:
-        raise PowerError(
-            f"--effect {settings.effect!r} is not a factor of the study "
-            f"(its factors: {', '.join(study.factors) or 'none'})"
-        )
+    check_effect(settings.effect, list(study.factors))  # before any trial runs
     if max(settings.ns) > people:
         raise PowerError(
             f"--n up to {max(settings.ns)} needs a pool of at least that many people "

@@ -272,17 +272,27 @@ def _term(
     )
 
 
-def _fit(
-    formula: str, d: pd.DataFrame, groups: int, notes: list[str]
-) -> tuple[Any, str, float | None]:
+def fit_formula(formula: str, d: pd.DataFrame, notes: list[str]) -> tuple[Any, str, float | None]:
+    """The study's model of `d` (`model_data`): a mixed model with a random intercept per
+    participant, or the plain regression with one participant or where the mixed model is
+    degenerate (saying so in `notes`); the fit, its method and the participant variance. Raises
+    what statsmodels raises on data it cannot fit."""
     import statsmodels.formula.api as smf
 
-    if groups < 2:
+    if d["participant"].nunique() < 2:
         notes.append("one participant: no random intercept; ordinary least squares")
         return smf.ols(formula, d).fit(), "OLS (one participant)", None
     res = smf.mixedlm(formula, d, groups=d["participant"]).fit(reml=True)
-    var = float(res.cov_re.iloc[0, 0])
-    return res, "MixedLM (REML), random intercept per participant", var
+    if not np.isfinite(np.asarray(res.bse)).all():
+        # a degenerate fit (no residual or no participant variance) has no standard errors:
+        # say so, and give the plain regression, which is what remains
+        notes.append(
+            "the mixed model is degenerate here (no standard errors: the factors explain "
+            "the outcome almost exactly, or the participants do not differ); shown: "
+            "ordinary least squares"
+        )
+        return smf.ols(formula, d).fit(), "OLS (degenerate MixedLM)", None
+    return res, "MixedLM (REML), random intercept per participant", float(res.cov_re.iloc[0, 0])
 
 
 @dataclass
@@ -352,27 +362,15 @@ def fit_model(
 ) -> ModelResult:
     """One outcome's mixed model; every degenerate case gives notes, never an exception.
     `covariates`: numeric columns entered as they are (a live trial's order position)."""
-    import statsmodels.formula.api as smf
-
     m = model_data(data, outcome.name, factors, levels, covariates)
     notes, d, formula, names, reference = m.notes, m.d, m.formula, m.names, m.reference
     cov_names = m.covariates
     if m.problem:
         return ModelResult(outcome, [], None, [*notes, m.problem])
-    groups = d["participant"].nunique()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            res, method, group_var = _fit(formula, d, groups, notes)
-            if method.startswith("MixedLM") and not np.isfinite(np.asarray(res.bse)).all():
-                # a degenerate fit (no residual or no participant variance) has no standard
-                # errors: say so, and give the plain regression, which is what remains
-                notes.append(
-                    "the mixed model is degenerate here (no standard errors: the factors explain "
-                    "the outcome almost exactly, or the participants do not differ); shown: "
-                    "ordinary least squares"
-                )
-                res, method, group_var = smf.ols(formula, d).fit(), "OLS (degenerate MixedLM)", None
+            res, method, group_var = fit_formula(formula, d, notes)
         except (np.linalg.LinAlgError, ValueError, IndexError, ZeroDivisionError) as exc:
             return ModelResult(outcome, [], None, [*notes, f"model not fitted: {exc}"])
     texts = {str(w.message).split("\n")[0] for w in caught}

@@ -43,16 +43,6 @@ class Task(Protocol):
 
 
 K = pb.TaskEventKind
-# Events that do not show the task moving on: hands wandering in and out of the workspace, and a
-# robot saying it cannot make its move.
-NOT_PROGRESS = frozenset(
-    {
-        K.TASK_EVENT_KIND_HUMAN_IDLE_BEGIN,
-        K.TASK_EVENT_KIND_HUMAN_IDLE_END,
-        K.TASK_EVENT_KIND_ROBOT_UNREACHABLE,
-        K.TASK_EVENT_KIND_PARTICIPANT_WAIT,
-    }
-)
 # A collision and its recovery: no progress of the work, however often they repeat.
 RECOVERY = frozenset(
     {
@@ -68,6 +58,14 @@ RECOVERY = frozenset(
         K.TASK_EVENT_KIND_PROTECTIVE_RESUME,
     }
 )
+# Events that do not show the task moving on: hands wandering in and out of the workspace, a
+# robot saying it cannot make its move, a wait on a live participant, and the above.
+NOT_PROGRESS = RECOVERY | {
+    K.TASK_EVENT_KIND_HUMAN_IDLE_BEGIN,
+    K.TASK_EVENT_KIND_HUMAN_IDLE_END,
+    K.TASK_EVENT_KIND_ROBOT_UNREACHABLE,
+    K.TASK_EVENT_KIND_PARTICIPANT_WAIT,
+}
 # what the stall message counts since the last progress
 COUNTED = {
     K.TASK_EVENT_KIND_COLLISION: "human-robot collision",
@@ -79,7 +77,7 @@ PARTICIPANT_WAIT_NOTICE_S = 10.0
 
 
 def progressed(out: Outputs) -> bool:
-    return any(e.kind not in NOT_PROGRESS and e.kind not in RECOVERY for e in out.events)
+    return any(e.kind not in NOT_PROGRESS for e in out.events)
 
 
 class Watchdog:
