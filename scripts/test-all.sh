@@ -77,8 +77,13 @@ if [ "$WORKERS" -gt 0 ] && [ "$OVERLAP" = 1 ]; then
   # they are done. Its output is shown when it ends (and is in its own log as it comes).
   rest="the rest, $WORKERS workers, at nice 19 beside the browser tests"
   echo "[test-all] pytest ($rest: its output at its end; as it comes: $LOG_DIR/pytest-rest.log)"
-  HRC_TEST_PHASE=parallel nice -n 19 "$ROOT/.venv/bin/python" -m pytest --durations=30 \
-    -n "$WORKERS" --dist load --maxschedchunk 1 "$@" >"$LOG_DIR/pytest-rest.log" 2>&1 &
+  # In a session of its own whose autogroup is at nice 19 too: with Linux's autogroups (on by
+  # default) the CPU is shared out between sessions first, and a niceness counts only within
+  # its session (the trials it starts in sessions of their own carry it: hrc.priority).
+  HRC_TEST_PHASE=parallel setsid bash -c \
+    'echo 19 >/proc/self/autogroup 2>/dev/null || true; exec nice -n 19 "$@"' nice19 \
+    "$ROOT/.venv/bin/python" -m pytest --durations=30 -n "$WORKERS" --dist load \
+    --maxschedchunk 1 "$@" >"$LOG_DIR/pytest-rest.log" 2>&1 &
   rest_pid=$!
   trap 'kill "$rest_pid" 2>/dev/null || true' EXIT  # this script stopped: so is that run
   HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" "$@"

@@ -20,6 +20,7 @@ import pytest
 from hrc.bus import Bus, BusConfig, access
 from hrc.paths import ik_binary, project_root
 from hrc.ports import free_port  # tests import it from here too
+from hrc.priority import carry_niceness
 from hrc.service_table import EXPERIMENTER, SERVICES
 from hrc.wire import pb
 
@@ -128,6 +129,8 @@ class Trial:
             # as a script's background job (or nohup, or a CI runner) starts it
             preexec_fn=ignore_sigint if sigint_ignored else None,
         )
+        if not {"realtime", "vr"} & set(extra):  # (a realtime trial keeps the wall clock's pace)
+            carry_niceness(self.proc.pid)  # the test run's niceness (scripts/test-all.sh)
         self._bus: Bus | None = None
         self.stdout = ""
         self.stderr = ""

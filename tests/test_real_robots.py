@@ -51,9 +51,11 @@ def variant(src: Path, folder: Path, policy: str, provoke: bool = True) -> Path:
     return out
 
 
-def run(scenario: Path, out: Path, *extra: str) -> dict[str, Any]:
+def run(scenario: Path, out: Path, *extra: str, view: bool = False) -> dict[str, Any]:
+    """The trial's normalised outputs; ``view``: it also keeps its 3D recording."""
+    argv = [HRC, "run", str(scenario), "--out", str(out), "--max-ticks", "120000", *extra]
     proc = subprocess.run(
-        [HRC, "run", str(scenario), "--out", str(out), "--max-ticks", "120000", *extra],
+        argv if view else [*argv, "--no-view"],
         capture_output=True,
         text=True,
         timeout=1200,
@@ -156,7 +158,7 @@ def _visual_meshes(rrd: Path, robot: str) -> dict[str, list[float] | None]:
 
 def test_the_recording_holds_the_meshes_and_the_fingers_move(tmp_path: Path, ik_bin: Path) -> None:
     out = tmp_path / "trial"
-    run(PANDA, out)
+    run(PANDA, out, view=True)
     rrd = out / "recording.rrd"
     for robot, color in (("r1", "yellow"), ("r2", "green")):
         meshes = _visual_meshes(rrd, robot)
@@ -193,7 +195,7 @@ def test_a_description_from_outside_the_project_runs_the_minimal_scenario(
         )  # fmt: skip
     scenario = tmp_path / "xarm6.toml"
     scenario.write_text(own)
-    m = run(scenario, tmp_path / "trial")["metrics.json"]
+    m = run(scenario, tmp_path / "trial", view=True)["metrics.json"]
     assert m["task"]["finished"] and all(p["placed_s"] is not None for p in m["parts"].values())
     if description == XARM6:  # the gripper drawn in the recording, beside the arm's links
         drawn = _visual_links(tmp_path / "trial" / "recording.rrd")

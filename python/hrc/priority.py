@@ -1,6 +1,7 @@
 """Scheduling policy per thread (on Linux policy and niceness belong to each thread, not to the
 process): the logger lowers itself to SCHED_IDLE during a run, and it, or whoever stops it,
-lifts it again."""
+lifts it again. A process started in a session of its own keeps the niceness of whoever
+started it (`carry_niceness`)."""
 
 from __future__ import annotations
 
@@ -36,3 +37,19 @@ def leave_idle(pid: int | None = None) -> None:
             pass  # a thread (or the process) that just ended
         except OSError as exc:
             log.debug("thread %d stays under SCHED_IDLE: %s", tid, exc)
+
+
+def carry_niceness(pid: int) -> None:
+    """Gives the session that process ``pid`` leads (started with ``start_new_session``) this
+    process's niceness. With Linux's autogroups (on by default) the CPU is first shared out
+    between sessions, each as one, and a niceness counts only within its own session: a trial
+    started in a session of its own by `nice hrc sweep` would otherwise take as much CPU as
+    anything else on the machine. No-op at niceness 0 or where autogroups are off."""
+    nice = os.getpriority(os.PRIO_PROCESS, 0)
+    if nice <= 0:
+        return
+    try:
+        with open(f"/proc/{pid}/autogroup", "w") as f:
+            f.write(str(nice))
+    except OSError as exc:  # no autogroups, or the process already gone
+        log.debug("session of %d keeps its niceness: %s", pid, exc)

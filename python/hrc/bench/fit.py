@@ -119,7 +119,8 @@ def bench(out: Path, workers: int = 2, people: int = 0) -> dict[str, Any]:
     t0 = time.monotonic()
     study = load_study(_recovery_study(out, people))
     people_dir = out / "people"
-    records = sweep(study, people_dir, workers=workers)
+    # the fit reads the participant's input and the events: no 3D recording is kept
+    records = sweep(study, people_dir, workers=workers, view=False)
     fitted, table = _fit_all(people_dir, [])
     fitted_file = people_dir / "fitted.toml"
     write_fitted(fitted_file, fitted, {})
@@ -128,7 +129,7 @@ def bench(out: Path, workers: int = 2, people: int = 0) -> dict[str, Any]:
     # prediction: the people and their twins in the held-out condition
     held_file, twin_file = _held_out_studies(study, fitted_file, out)
     for name, path in (("held-out", held_file), ("twins", twin_file)):
-        more = sweep(load_study(path), out / name, workers=workers)
+        more = sweep(load_study(path), out / name, workers=workers, view=False)
         records += more
         report["trials"] += len(more)
     report["failed"] = [r.trial for r in records if r.outcome != "ok"]

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+from hrc.priority import carry_niceness
 from hrc.session.web import SessionServer
 from hrc.study import session_state as st
 from hrc.study.live import LiveSpec
@@ -559,6 +560,7 @@ class Session:
                 argv, stdout=logf, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                 env=env, start_new_session=True,
             )  # fmt: skip
+            carry_niceness(proc.pid)
             threading.Thread(
                 target=lambda: self.inbox.put(("exit", {"code": proc.wait()})), daemon=True
             ).start()

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from hrc import privacy
+from hrc.priority import carry_niceness
 
 if TYPE_CHECKING:
     from hrc.study.spec import Trial
@@ -143,6 +144,7 @@ def run_job(job: Job) -> Record:
         text=True,
         start_new_session=True,
     )
+    carry_niceness(proc.pid)  # `nice hrc sweep`: its trials are nice too
     with _LOCK:
         _RUNNING.add(proc)
         stopping = _STOPPING.is_set()
