@@ -130,7 +130,7 @@ class Trial:
             preexec_fn=ignore_sigint if sigint_ignored else None,
         )
         if not {"realtime", "vr"} & set(extra):  # (a realtime trial keeps the wall clock's pace)
-            carry_niceness(self.proc.pid)  # the test run's niceness (scripts/test-all.sh)
+            carry_niceness(self.proc.pid)  # `nice scripts/test-all.sh`: the trials are nice too
         self._bus: Bus | None = None
         self.stdout = ""
         self.stderr = ""
