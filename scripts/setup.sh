@@ -365,6 +365,19 @@ fi
 # some shells), every service start would otherwise compile them again (~30 ms CPU each).
 # compileall skips what is up to date.
 run_logged compileall "$VPY" -m compileall -q -j 0 python/hrc services/*/hrc_*
+# So are the installed packages (uv installs them without bytecode): with that variable set, a
+# trial's processes compiled numpy, zenoh, rerun, ... from source at every start, 0.7 CPU-s of a
+# minimal trial's 2.5 (bench/README.md, "Bytecode"). Their own tests and the tools no trial
+# imports are left out (7 s on 2 cores, once per installed set of packages).
+BYTECODE_STAMP="$VENV/.hrc-bytecode-stamp"
+if [ "$(cat "$BYTECODE_STAMP" 2>/dev/null)" != "$want_stamp" ]; then
+  site="$("$VPY" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')"
+  skip='/tests?/|/testing/|site-packages/(mypy|mypyc|pip|setuptools|pygments|fontTools|pybullet_envs|pybullet_data|pybullet_utils|pkg_resources|wheel)/'
+  # (a package may ship a file that is not Python 3.11, a template say: not an error here)
+  "$VPY" -m compileall -q -j 0 -x "$skip" "$site" >"$LOG_DIR/compileall-site.log" 2>&1 \
+    || warn "some installed files did not compile (see $LOG_DIR/compileall-site.log)"
+  echo "$want_stamp" >"$BYTECODE_STAMP"
+fi
 
 # Type stubs of the wire contract: mypy-protobuf (pinned in requirements.lock) instead of
 # protoc's --pyi_out, whose enums mypy cannot read. Remade when the .proto or the pins change.

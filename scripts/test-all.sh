@@ -47,6 +47,9 @@ ctest --test-dir build/ik_cpp --output-on-failure --no-tests=error -j "$JOBS" 2>
 [ "$ctest_rc" -eq 0 ] || failed+=("ctest (exit $ctest_rc)")
 
 # --- Python ------------------------------------------------------------------
+# pytest rewrites the test modules' asserts; with PYTHONDONTWRITEBYTECODE set (as in some shells)
+# every pytest process rewrote and compiled them all again (collection 5.0 -> 2.4 CPU-s each).
+unset PYTHONDONTWRITEBYTECODE
 : >"$LOG_DIR/pytest.log"
 # run_pytest NAME ARGS...: one pytest run, its output on the terminal and appended to the log; a
 # run that selected no test (exit 5) is no failure here, as long as the whole command ran some.
