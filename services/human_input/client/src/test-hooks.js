@@ -159,7 +159,49 @@ function applyHidden(app, hidden) {
 }
 
 /** Installs window.hrcTest on the page of `app` (main.js's App, before its init). */
+/** An emulated headset (IWER) draws every device frame, in software WebGL as fast as a core
+ * lets it, beside the trial; and it clears the picture at each of its frames, so the page's own
+ * `fps` limit cannot skip frames there (a skipped XR frame is an empty picture). So with `fps`,
+ * the page's frames themselves come at most that often: every animation-frame callback waits
+ * for the next of `fps` slots a second, all those of one slot run together (as in one browser
+ * frame). A real headset never loads this chunk. */
+function limitAnimationFrames(fps) {
+  const raf = window.requestAnimationFrame.bind(window);
+  const periodMs = 1000 / fps;
+  let queue = new Map(); // id -> callback, for the next slot
+  let nextId = 1;
+  let scheduled = false;
+  let lastMs = -Infinity;
+  const run = (t) => {
+    scheduled = false;
+    lastMs = performance.now();
+    const batch = queue;
+    queue = new Map();
+    for (const cb of batch.values()) cb(t);
+  };
+  const schedule = () => {
+    if (scheduled) return;
+    scheduled = true;
+    // (2 ms early: the browser's frames come a little before or after their period)
+    const waitMs = lastMs + periodMs - 2 - performance.now();
+    if (waitMs > 0) setTimeout(() => raf(run), waitMs);
+    else raf(run);
+  };
+  window.requestAnimationFrame = (cb) => {
+    const id = nextId++;
+    queue.set(id, cb);
+    schedule();
+    return id;
+  };
+  window.cancelAnimationFrame = (id) => {
+    queue.delete(id);
+  };
+}
+
 export function install(app) {
+  const params = new URLSearchParams(window.location.search);
+  const fps = Number(params.get('fps'));
+  if (params.get('test') === 'iwer' && fps > 0) limitAnimationFrames(fps);
   const hidden = new Map(); // what a test hides (hrcTest.hide): name -> reasons
   app.beforeRender = () => {
     if (hidden.size) applyHidden(app, hidden);
