@@ -421,6 +421,10 @@ def what_is_seen(
     finally:
         for other in others:
             other.page.evaluate("window.hrcTest.pause(false)")
+        # ... and have drawn again: a paused page in an emulated headset shows an empty picture
+        # (IWER clears it at each of its frames) until its next drawn frame
+        for other in others:
+            rendered_frames(other, 1)
 
 
 def _what_is_seen(page: Page, view: str, only: tuple[str, ...]) -> dict[str, Seen]:

@@ -316,7 +316,8 @@ def test_the_session_in_a_headset_is_answered_with_the_controller_ray(
     ray.press(f, "start")
     wait_screen(page, ("trial",), f["id"], timeout=180)
     page.wait_ready()
-    assert not form(page)["in_headset"]  # the panel is gone while the trial runs
+    # the panel is gone while the trial runs (from the page's next frame on)
+    assert wait_until(lambda: not form(page)["in_headset"], 10), form(page)
     # hrc session killed mid-trial (kill -9): the headset says so; the same command again,
     # and the page in the headset goes on, at the trial's ready screen
     os.kill(s.proc.pid, signal.SIGKILL)
@@ -339,7 +340,7 @@ def test_the_session_in_a_headset_is_answered_with_the_controller_ray(
     controller_places(page, "H1")
     page.wait("the trial finished", lambda st: st["run"] == "finished", 180)
     f = wait_screen(page, ("questionnaire",), f["id"])
-    assert form(page)["in_headset"]
+    assert wait_until(lambda: form(page)["in_headset"], 10), form(page)  # at its next frame
     shot(page, "session-xr-questionnaire.png")
     answer_questionnaire(page, ray, TLX_ANSWERS)
     f = wait_screen(page, ("questionnaire",), f["id"])
