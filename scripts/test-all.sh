@@ -10,12 +10,10 @@
 # test at all (ctest without tests, pytest exit code 5 in both phases). It ends with the
 # closing line of lint and of each runner.
 #
-# pytest runs in two phases (conftest.py) at once: the live trials with a browser page, one at a
-# time, at the normal priority (their pages and realtime trials must keep the CPU they need), and
-# every other test in HRC_TEST_WORKERS parallel workers (pytest-xdist; default 2, one per core of
-# the CI machine), handed one test at a time, the longest first, at nice 19: they take the CPU
-# the browser tests leave, all of it once those are done. HRC_TEST_OVERLAP=0 runs the second
-# phase after the first instead; HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the
+# pytest runs in two phases (conftest.py): first the live trials with a browser page, one at a
+# time (they must have the machine to themselves), then every other test in HRC_TEST_WORKERS
+# parallel workers (pytest-xdist; default 2, one per core of the CI machine), handed one test at
+# a time, the longest first. HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the
 # same order. Each phase prints its 30 slowest tests.
 set -euo pipefail
 
@@ -23,7 +21,6 @@ ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
 cd "$ROOT"
 JOBS="${HRC_JOBS:-2}"
 WORKERS="${HRC_TEST_WORKERS:-2}"
-OVERLAP="${HRC_TEST_OVERLAP:-1}"
 LOG_DIR="$ROOT/build/test-logs"
 
 echo "[test-all] setup"
@@ -62,40 +59,15 @@ run_pytest() {
   echo "[test-all] pytest ($name)"
   "$ROOT/.venv/bin/python" -m pytest --durations=30 "$@" 2>&1 | tee -a "$LOG_DIR/pytest.log" \
     || rc=$?
-  finish_pytest "$name" "$rc"
-}
-# finish_pytest NAME RC: a run's exit code counted as run_pytest counts it.
-finish_pytest() {
-  case "$2" in
+  case "$rc" in
     0 | 5) ;;
-    *) failed+=("pytest, $1 (exit $2)") ;;
+    *) failed+=("pytest, $name (exit $rc)") ;;
   esac
-  [ "$2" -eq 0 ] && ran_tests=1
+  [ "$rc" -eq 0 ] && ran_tests=1
   return 0
 }
 ran_tests=0
-if [ "$WORKERS" -gt 0 ] && [ "$OVERLAP" = 1 ]; then
-  # The rest starts at once beside the browser tests, at the lowest priority (nice 19): it takes
-  # only the CPU they leave (their pages and realtime trials keep theirs), and all of it once
-  # they are done. Its output is shown when it ends (and is in its own log as it comes).
-  rest="the rest, $WORKERS workers, at nice 19 beside the browser tests"
-  echo "[test-all] pytest ($rest: its output at its end; as it comes: $LOG_DIR/pytest-rest.log)"
-  # In a session of its own whose autogroup is at nice 19 too: with Linux's autogroups (on by
-  # default) the CPU is shared out between sessions first, and a niceness counts only within
-  # its session (the trials it starts in sessions of their own carry it: hrc.priority).
-  HRC_TEST_PHASE=parallel setsid -w bash -c \
-    'echo 19 >/proc/self/autogroup 2>/dev/null || true; exec nice -n 19 "$@"' nice19 \
-    "$ROOT/.venv/bin/python" -m pytest --durations=30 -n "$WORKERS" --dist load \
-    --maxschedchunk 1 "$@" >"$LOG_DIR/pytest-rest.log" 2>&1 &
-  rest_pid=$!
-  trap 'kill "$rest_pid" 2>/dev/null || true' EXIT  # this script stopped: so is that run
-  HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" "$@"
-  rest_rc=0
-  wait "$rest_pid" || rest_rc=$?
-  echo "[test-all] pytest ($rest)"
-  tee -a "$LOG_DIR/pytest.log" <"$LOG_DIR/pytest-rest.log"
-  finish_pytest "$rest" "$rest_rc"
-elif [ "$WORKERS" -gt 0 ]; then
+if [ "$WORKERS" -gt 0 ]; then
   HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" "$@"
   HRC_TEST_PHASE=parallel run_pytest "the rest, $WORKERS workers" \
     -n "$WORKERS" --dist load --maxschedchunk 1 "$@"
