@@ -158,7 +158,6 @@ function applyHidden(app, hidden) {
   }
 }
 
-/** Installs window.hrcTest on the page of `app` (main.js's App, before its init). */
 /** An emulated headset (IWER) draws every device frame, in software WebGL as fast as a core
  * lets it, beside the trial; and it clears the picture at each of its frames, so the page's own
  * `fps` limit cannot skip frames there (a skipped XR frame is an empty picture). So with `fps`,
@@ -177,7 +176,16 @@ function limitAnimationFrames(fps) {
     lastMs = performance.now();
     const batch = queue;
     queue = new Map();
-    for (const cb of batch.values()) cb(t);
+    for (const cb of batch.values()) {
+      try {
+        cb(t);
+      } catch (e) {
+        // as the browser's own: the others of the slot still run, the error is still reported
+        setTimeout(() => {
+          throw e;
+        });
+      }
+    }
   };
   const schedule = () => {
     if (scheduled) return;
@@ -198,6 +206,7 @@ function limitAnimationFrames(fps) {
   };
 }
 
+/** Installs window.hrcTest on the page of `app` (main.js's App, before its init). */
 export function install(app) {
   const params = new URLSearchParams(window.location.search);
   const fps = Number(params.get('fps'));
