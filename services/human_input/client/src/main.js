@@ -70,7 +70,8 @@ function softwareWebGl() {
 }
 
 async function main() {
-  if (params.get('test') === 'iwer') {
+  const emulatedXr = params.get('test') === 'iwer';
+  if (emulatedXr) {
     // the WebXR emulation runtime, a separate bundle: only the browser tests load it
     const url = new URL('assets/iwer.js', document.baseURI).href;
     await import(/* @vite-ignore */ url);
@@ -80,7 +81,7 @@ async function main() {
   if (params.has('test')) {
     // the browser tests' hooks (window.hrcTest): a chunk of their own, loaded only for tests
     const hooks = await import('./test-hooks.js');
-    hooks.install(app);
+    hooks.install(app, { maxFps: MAX_FPS, emulatedXr });
   }
   await app.init();
 }

@@ -206,11 +206,10 @@ function limitAnimationFrames(fps) {
   };
 }
 
-/** Installs window.hrcTest on the page of `app` (main.js's App, before its init). */
-export function install(app) {
-  const params = new URLSearchParams(window.location.search);
-  const fps = Number(params.get('fps'));
-  if (params.get('test') === 'iwer' && fps > 0) limitAnimationFrames(fps);
+/** Installs window.hrcTest on the page of `app` (main.js's App, before its init); `maxFps` is
+ * the page's `fps` as main.js read it (0: none), `emulatedXr` whether IWER is loaded. */
+export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
+  if (emulatedXr && maxFps > 0) limitAnimationFrames(maxFps);
   const hidden = new Map(); // what a test hides (hrcTest.hide): name -> reasons
   app.beforeRender = () => {
     if (hidden.size) applyHidden(app, hidden);
