@@ -101,7 +101,7 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
     out = tmp_path / "out"
     # the simulated participants first: the same study folder, the same table
     sweep = subprocess.run(
-        [HRC, "sweep", str(study), "--out", str(out), "--workers", "1"],
+        [HRC, "sweep", str(study), "--out", str(out), "--workers", "2"],
         capture_output=True, text=True, cwd=ROOT, timeout=600,
     )  # fmt: skip
     assert sweep.returncode == 0, sweep.stderr[-3000:]
@@ -262,7 +262,7 @@ def test_a_participant_at_the_desktop_does_a_whole_session_resumed_after_the_pag
         f'[participants]\nreplay = ["{recording}"]\n'
     )
     again = subprocess.run(
-        [HRC, "sweep", str(replayed), "--out", str(tmp_path / "replayed"), "--workers", "1"],
+        [HRC, "sweep", str(replayed), "--out", str(tmp_path / "replayed"), "--workers", "2"],
         capture_output=True, text=True, cwd=ROOT, timeout=600,
     )  # fmt: skip
     assert again.returncode == 0, again.stderr[-3000:]
