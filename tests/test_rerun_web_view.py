@@ -10,7 +10,9 @@ import signal
 import socket
 import subprocess
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -48,6 +50,28 @@ def wait_for_port(port: int, timeout_s: float) -> None:
     raise AssertionError(f"the web viewer never listened on port {port}")
 
 
+def split(img: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The scene (left) and the side column (right) of a picture of the viewer."""
+    right = int(SCENE_RIGHT * img.shape[1])
+    return img[:, :right], img[:, right:]
+
+
+def look_until(page: Any, shot: Path, seen: Callable[[np.ndarray], bool]) -> np.ndarray:
+    """Screenshots of the viewer (saved at `shot`), one after the other, until `seen` holds for
+    the scene of one, or for at most 240 s: compiling the viewer and rendering in software takes
+    a while on a loaded machine (a screenshot is a frame, 1-30 s here). Returns the last picture
+    without the viewer's top and bottom bars."""
+    from PIL import Image
+
+    deadline = time.monotonic() + 240
+    while True:
+        page.screenshot(path=str(shot), timeout=120_000)
+        img = np.asarray(Image.open(shot).convert("RGB"))[UI_BARS_PX:-UI_BARS_PX]
+        if seen(split(img)[0]) or time.monotonic() > deadline:
+            return img
+        time.sleep(1)
+
+
 def near(img: np.ndarray, rgb: tuple[int, int, int], tol: int = 8) -> np.ndarray:
     """Mask of the pixels of `rgb`'s hue (within `tol` degrees), saturated and bright enough.
     Shading scales the channels and translucency mixes in the white background, neither moves
@@ -70,8 +94,6 @@ def _hue_deg(px: np.ndarray) -> np.ndarray:
 def test_the_web_viewer_shows_the_scene_large_from_behind_the_participant(
     tmp_path: Path, ik_bin: Path
 ) -> None:
-    from PIL import Image
-
     web = free_port()
     # realtime and long: the viewer lives as long as the trial; we interrupt it when done
     proc = subprocess.Popen(
@@ -108,21 +130,15 @@ def test_the_web_viewer_shows_the_scene_large_from_behind_the_participant(
             page = browser.new_page(viewport=VIEWPORT)
             page.goto(url, timeout=120_000)
             page.wait_for_selector("canvas", timeout=120_000)
-            # Compiling the viewer and rendering in software takes a while on a loaded machine
-            # (a screenshot is a frame: 1-30 s here): look until the participant's parts and
-            # r2's arm are drawn in the scene (the parts of all owners come in one message).
-            deadline = time.monotonic() + 240
-            while True:
-                page.screenshot(path=str(shot), timeout=120_000)
-                img = np.asarray(Image.open(shot).convert("RGB"))[UI_BARS_PX:-UI_BARS_PX]
-                w = img.shape[1]
-                scene, side = img[:, : int(SCENE_RIGHT * w)], img[:, int(SCENE_RIGHT * w) :]
-                human, yellow = near(scene, HUMAN_PARTS), near(scene, R1_PARTS)
-                green = near(scene, R2_ARM)
-                drawn = human.sum() > HUMAN_PARTS_PX and green.sum() > R2_ARM_PX
-                if drawn or time.monotonic() > deadline:
-                    break
-                time.sleep(1)
+            # the participant's parts and r2's arm (the parts of all owners come in one message)
+            img = look_until(
+                page,
+                shot,
+                lambda scene: (
+                    near(scene, HUMAN_PARTS).sum() > HUMAN_PARTS_PX
+                    and near(scene, R2_ARM).sum() > R2_ARM_PX
+                ),
+            )
     finally:
         os.killpg(proc.pid, signal.SIGINT)  # hrc run stops its services and keeps the files
         try:
@@ -130,6 +146,9 @@ def test_the_web_viewer_shows_the_scene_large_from_behind_the_participant(
         except subprocess.TimeoutExpired:
             os.killpg(proc.pid, signal.SIGKILL)
             proc.wait()
+    w = img.shape[1]
+    scene, side = split(img)
+    human, yellow, green = near(scene, HUMAN_PARTS), near(scene, R1_PARTS), near(scene, R2_ARM)
     # The page shows the recording: the participant's parts, r1's parts and r2's arm are drawn ...
     assert human.sum() > HUMAN_PARTS_PX, f"no participant parts drawn in the scene (see {shot})"
     assert yellow.sum() > 400, f"no r1 parts drawn in the scene (see {shot})"
@@ -153,8 +172,6 @@ def test_a_makers_collada_arm_is_drawn_in_the_rerun_view(tmp_path: Path, ik_bin:
     as r1 of the minimal scenario: its recording opened in the rerun web viewer shows the arm,
     in r1's yellow, not only its part (the picture: test-output/viewer/rerun-collada-arm.png).
     Seen failing with the converted meshes broken (HRC_MESH_CACHE of garbage GLBs)."""
-    from PIL import Image
-
     if not SHARED_PANDA.is_file():
         pytest.skip(f"{SHARED_PANDA} is not on this machine")
     text = (ROOT / "scenarios" / "minimal.toml").read_text()
@@ -182,7 +199,6 @@ def test_a_makers_collada_arm_is_drawn_in_the_rerun_view(tmp_path: Path, ik_bin:
         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True,
     )  # fmt: skip
     shot = output_dir("viewer") / "rerun-collada-arm.png"
-    arm = 0
     try:
         wait_for_port(web, 60)
         url = f"http://127.0.0.1:{web}/?url=rerun%2Bhttp%3A%2F%2F127.0.0.1%3A{grpc}%2Fproxy"
@@ -190,15 +206,8 @@ def test_a_makers_collada_arm_is_drawn_in_the_rerun_view(tmp_path: Path, ik_bin:
             page = browser.new_page(viewport=VIEWPORT)
             page.goto(url, timeout=120_000)
             page.wait_for_selector("canvas", timeout=120_000)
-            deadline = time.monotonic() + 240  # the viewer compiles and draws in software
-            while True:
-                page.screenshot(path=str(shot), timeout=120_000)
-                img = np.asarray(Image.open(shot).convert("RGB"))[UI_BARS_PX:-UI_BARS_PX]
-                scene = img[:, : int(SCENE_RIGHT * img.shape[1])]
-                arm = int(near(scene, R1_PARTS).sum())
-                if arm > ARM_PIXELS or time.monotonic() > deadline:
-                    break
-                time.sleep(1)
+            img = look_until(page, shot, lambda scene: near(scene, R1_PARTS).sum() > ARM_PIXELS)
+            arm = int(near(split(img)[0], R1_PARTS).sum())
     finally:
         os.killpg(viewer.pid, signal.SIGTERM)
         viewer.wait(30)
