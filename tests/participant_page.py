@@ -279,6 +279,13 @@ class Page:
         self.context.close()
 
 
+def carrying_ra1_lit(s: dict[str, Any]) -> bool:
+    """r1 holds RA1 and its target cue is lit: the moment `freezeWhen('RA1', 'r1',
+    'target:RA1')` holds a page at (the grasp comes from physics, the cue from the orchestrator:
+    a frame may show the one a tick before the other)."""
+    return bool(s["objects"]["RA1"]["holder"] == "r1" and s["cues"]["target:RA1"]["on"])
+
+
 def grab_part(page: Page, pid: str, timeout: float = 20) -> None:
     """Hand over the part, down to its top face, close the grip; the bridge reports the hold."""
     part = page.part(pid)

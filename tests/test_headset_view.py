@@ -32,6 +32,7 @@ from .participant_page import (
     Page,
     assert_whole_scene,
     browser,  # noqa: F401  (a fixture)
+    carrying_ra1_lit,
     controller_to,
     grab_part,
     live,  # noqa: F401  (a fixture)
@@ -160,9 +161,9 @@ def test_every_view_shows_the_whole_scene(
     desk.wait("H1 let go", lambda s: s["objects"]["H1"]["holder"] == "", 20)
     desk.keys("r")
     for page in (desk, watcher, headset):
-        page.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1')")
+        page.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1', 'target:RA1')")
     for page in (desk, watcher, headset):
-        page.wait("r1 carries RA1", lambda s: s["objects"]["RA1"]["holder"] == "r1", 120)
+        page.wait("r1 carries RA1, its cue lit", carrying_ra1_lit, 120)
 
     for page, view in (
         (desk, "desktop-driver"),

@@ -33,6 +33,7 @@ from .participant_page import (
     Page,
     assert_whole_scene,
     browser,  # noqa: F401  (a fixture)
+    carrying_ra1_lit,
     controller_places,
     grab_part,
     live,  # noqa: F401  (a fixture)
@@ -189,15 +190,15 @@ def test_pictures_while_a_robot_carries_with_anticipation(
     # each page stops applying frames at the first one in which r1 holds RA1 (the XR page may
     # run seconds behind on a loaded machine): the positions read and the pictures then agree
     # (the condition is a state: a page told after the grasp freezes at its next frame)
-    xr.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1')")
+    xr.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1', 'target:RA1')")
     # the first grab starts the task; H1 is let go where it was, the hand goes back to rest
     grab_part(desk, "H1")
     desk.keys(" ")
     desk.wait("H1 let go", lambda s: s["objects"]["H1"]["holder"] == "", 20)
     desk.keys("r")
-    desk.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1')")
+    desk.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1', 'target:RA1')")
     for page in (desk, xr):
-        page.wait("r1 carries RA1", lambda s: s["objects"]["RA1"]["holder"] == "r1", 30)
+        page.wait("r1 carries RA1, its cue lit", carrying_ra1_lit, 30)
 
     cue = next(c for c in scene["cues"] if c["id"] == "target:RA1")
     h1 = desk.part("H1")

@@ -355,7 +355,7 @@ class App {
         if (m.run && m.run !== this.run) this.setRun(m.run, '');
         if (m.task_t_s !== undefined) this.taskT = m.task_t_s;
         if (m.hands) this.serverHands = m.hands;
-        if (this.freezeOn && this.world.parts.get(this.freezeOn.part)?.holder === this.freezeOn.holder) {
+        if (this.freezeOn && this.awaitedOnScreen(this.freezeOn)) {
           this.frozen = true; // hrcTest.freezeWhen: the awaited moment is on screen now
           this.freezeOn = null;
         }
@@ -439,6 +439,11 @@ class App {
   partHeldBy(robot) {
     for (const [id, p] of this.world.parts) if (p.holder === robot) return id;
     return '';
+  }
+
+  /** hrcTest.freezeWhen's moment: `part` held by `holder` and, if named, `cue` lit. */
+  awaitedOnScreen({ part, holder, cue }) {
+    return this.world.parts.get(part)?.holder === holder && (!cue || !!this.world.cues.get(cue)?.on);
   }
 
   /** A few times a second: the panel, the waiting labels, the robot's target after a collision

@@ -335,9 +335,11 @@ export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
     /** Shows (true) or hides (false) the robots' protective zones (ssm). */
     showZones: (on) => window.hrcApp.robots.showZones(!!on),
     /** Freezes the page (as freeze(true)) at the first frame in which `part` is held by
-     * `holder`, however late this page runs behind the trial. */
-    freezeWhen: (part, holder) => {
-      window.hrcApp.freezeOn = { part, holder };
+     * `holder` and, with `cue`, that cue is lit, however late this page runs behind the trial.
+     * A grasp and the cue it lights come from two services (physics, orchestrator): a frame
+     * may show the part held a tick before its cue. */
+    freezeWhen: (part, holder, cue = null) => {
+      window.hrcApp.freezeOn = { part, holder, cue };
     },
     /** The page's frame times (ms), oldest first: `intervals` between rendered frames, the
      * `work` of each (update + render call), its `render` call alone, and how many robots were
