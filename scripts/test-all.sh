@@ -14,7 +14,8 @@
 # time (they must have the machine to themselves), then every other test in HRC_TEST_WORKERS
 # parallel workers (pytest-xdist; default 2, one per core of the CI machine), handed one test at
 # a time, the longest first. HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the
-# same order. Each phase prints its 30 slowest tests.
+# same order. Each phase prints its 30 slowest tests; every test's time is in
+# build/test-logs/pytest-*.xml (JUnit XML: `scripts/slow_tests.py` sums them by file).
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -68,11 +69,12 @@ run_pytest() {
 }
 ran_tests=0
 if [ "$WORKERS" -gt 0 ]; then
-  HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" "$@"
+  HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" \
+    --junitxml="$LOG_DIR/pytest-alone.xml" "$@"
   HRC_TEST_PHASE=parallel run_pytest "the rest, $WORKERS workers" \
-    -n "$WORKERS" --dist load --maxschedchunk 1 "$@"
+    -n "$WORKERS" --dist load --maxschedchunk 1 --junitxml="$LOG_DIR/pytest-parallel.xml" "$@"
 else
-  run_pytest "one process" "$@"
+  run_pytest "one process" --junitxml="$LOG_DIR/pytest.xml" "$@"
 fi
 [ "$ran_tests" -eq 1 ] || failed+=("pytest collected no tests (exit 5)")
 
