@@ -281,8 +281,8 @@ class Page:
 
 def carrying_ra1_lit(s: dict[str, Any]) -> bool:
     """r1 holds RA1 and its target cue is lit: the moment `freezeWhen('RA1', 'r1',
-    'target:RA1')` holds a page at (the grasp comes from physics, the cue from the orchestrator:
-    a frame may show the one a tick before the other)."""
+    'target:RA1')` holds a page at (the hold comes from physics, the cue from the orchestrator,
+    on two threads of the bridge: a frame may show the one before the other)."""
     return bool(s["objects"]["RA1"]["holder"] == "r1" and s["cues"]["target:RA1"]["on"])
 
 

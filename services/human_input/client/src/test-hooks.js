@@ -336,8 +336,8 @@ export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
     showZones: (on) => window.hrcApp.robots.showZones(!!on),
     /** Freezes the page (as freeze(true)) at the first frame in which `part` is held by
      * `holder` and, with `cue`, that cue is lit, however late this page runs behind the trial.
-     * A grasp and the cue it lights come from two services (physics, orchestrator): a frame
-     * may show the part held a tick before its cue. */
+     * The hold (physics's objects) and the cue (the orchestrator's) reach the bridge on two
+     * subscriber threads: a frame may show the part held before its cue is lit. */
     freezeWhen: (part, holder, cue = null) => {
       window.hrcApp.freezeOn = { part, holder, cue };
     },
