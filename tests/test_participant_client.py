@@ -187,9 +187,10 @@ def test_pictures_while_a_robot_carries_with_anticipation(
     )
     scene = desk.scene()
     assert scene["anticipation"] is True
-    # each page stops applying frames at the first one in which r1 holds RA1 (the XR page may
-    # run seconds behind on a loaded machine): the positions read and the pictures then agree
-    # (the condition is a state: a page told after the grasp freezes at its next frame)
+    # each page stops applying frames at the first one in which r1 holds RA1 with its target
+    # cue lit (the XR page may run seconds behind on a loaded machine): the positions read and
+    # the pictures then agree (the condition is a state: a page told after the grasp freezes at
+    # its next frame; the cue may come a frame after the hold, carrying_ra1_lit)
     xr.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1', 'target:RA1')")
     # the first grab starts the task; H1 is let go where it was, the hand goes back to rest
     grab_part(desk, "H1")
