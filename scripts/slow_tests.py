@@ -14,16 +14,25 @@ import argparse
 import sys
 import xml.etree.ElementTree as ET
 from collections import defaultdict
+from datetime import datetime
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 LOGS = ROOT / "build" / "test-logs"
 
 
+class Unreadable(Exception):
+    """A file that is not JUnit XML."""
+
+
 def by_file(xml: Path) -> dict[str, list[tuple[float, str]]]:
     """Test file -> [(seconds, test name)] from one JUnit XML file."""
     out: dict[str, list[tuple[float, str]]] = defaultdict(list)
-    for case in ET.parse(xml).getroot().iter("testcase"):
+    try:
+        root = ET.parse(xml).getroot()
+    except ET.ParseError as exc:
+        raise Unreadable(f"{xml}: not XML ({exc})") from None
+    for case in root.iter("testcase"):
         # classname: the dotted module path (tests.test_fuzz), then a class if any
         out[source_file(case.get("classname", "?"))].append(
             (float(case.get("time", "0")), case.get("name", "?"))
@@ -43,13 +52,15 @@ def source_file(classname: str) -> str:
 def report(xml: Path, top: int) -> str:
     files = by_file(xml)
     total = sum(t for cases in files.values() for t, _ in cases)
-    lines = [f"{xml.name}: {sum(map(len, files.values()))} tests, {total:.0f} s in all"]
+    written = datetime.fromtimestamp(xml.stat().st_mtime).strftime("%Y-%m-%d %H:%M")
+    count = sum(map(len, files.values()))
+    lines = [f"{xml.name} (written {written}): {count} tests, {total:.0f} s in all"]
     ranked = sorted(files.items(), key=lambda kv: -sum(t for t, _ in kv[1]))
     for name, cases in ranked[:top]:
         spent = sum(t for t, _ in cases)
         slowest = max(cases)
         lines.append(
-            f"  {spent:7.1f} s {spent / total:6.1%}  {len(cases):3d} tests  {name}"
+            f"  {spent:7.1f} s {spent / total if total else 0:6.1%}  {len(cases):3d} tests  {name}"
             f"  (slowest {slowest[0]:.1f} s: {slowest[1]})"
         )
     return "\n".join(lines)
@@ -70,7 +81,11 @@ def main(argv: list[str] | None = None) -> int:
         if not path.is_file():
             print(f"{path}: no such file", file=sys.stderr)
             return 1
-        print(report(path, args.top))
+        try:
+            print(report(path, args.top))
+        except Unreadable as exc:
+            print(exc, file=sys.stderr)
+            return 1
     return 0
 
 
