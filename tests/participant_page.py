@@ -279,10 +279,16 @@ class Page:
         self.context.close()
 
 
+def freeze_at_ra1_carry(page: Page) -> None:
+    """The page stops applying frames at the first one in which r1 holds RA1 with its target
+    cue lit (:func:`carrying_ra1_lit` then holds; the hold comes from physics, the cue from the
+    orchestrator, on two threads of the bridge: a frame may show the one before the other)."""
+    page.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1', 'target:RA1')")
+
+
 def carrying_ra1_lit(s: dict[str, Any]) -> bool:
-    """r1 holds RA1 and its target cue is lit: the moment `freezeWhen('RA1', 'r1',
-    'target:RA1')` holds a page at (the hold comes from physics, the cue from the orchestrator,
-    on two threads of the bridge: a frame may show the one before the other)."""
+    """r1 holds RA1 and its target cue is lit: the moment :func:`freeze_at_ra1_carry` holds a
+    page at."""
     return bool(s["objects"]["RA1"]["holder"] == "r1" and s["cues"]["target:RA1"]["on"])
 
 

@@ -34,6 +34,7 @@ from .participant_page import (
     browser,  # noqa: F401  (a fixture)
     carrying_ra1_lit,
     controller_to,
+    freeze_at_ra1_carry,
     grab_part,
     live,  # noqa: F401  (a fixture)
     what_is_seen,
@@ -161,7 +162,7 @@ def test_every_view_shows_the_whole_scene(
     desk.wait("H1 let go", lambda s: s["objects"]["H1"]["holder"] == "", 20)
     desk.keys("r")
     for page in (desk, watcher, headset):
-        page.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1', 'target:RA1')")
+        freeze_at_ra1_carry(page)
     for page in (desk, watcher, headset):
         page.wait("r1 carries RA1, its cue lit", carrying_ra1_lit, 120)
 

@@ -35,6 +35,7 @@ from .participant_page import (
     browser,  # noqa: F401  (a fixture)
     carrying_ra1_lit,
     controller_places,
+    freeze_at_ra1_carry,
     grab_part,
     live,  # noqa: F401  (a fixture)
     metrics,
@@ -191,13 +192,13 @@ def test_pictures_while_a_robot_carries_with_anticipation(
     # cue lit (the XR page may run seconds behind on a loaded machine): the positions read and
     # the pictures then agree (the condition is a state: a page told after the grasp freezes at
     # its next frame; the cue may come a frame after the hold, carrying_ra1_lit)
-    xr.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1', 'target:RA1')")
+    freeze_at_ra1_carry(xr)
     # the first grab starts the task; H1 is let go where it was, the hand goes back to rest
     grab_part(desk, "H1")
     desk.keys(" ")
     desk.wait("H1 let go", lambda s: s["objects"]["H1"]["holder"] == "", 20)
     desk.keys("r")
-    desk.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1', 'target:RA1')")
+    freeze_at_ra1_carry(desk)
     for page in (desk, xr):
         page.wait("r1 carries RA1, its cue lit", carrying_ra1_lit, 30)
 
