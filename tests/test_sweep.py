@@ -1,10 +1,12 @@
 """`hrc sweep` and `hrc report` end to end: real trials (five services each) of a small study on
-minimal.toml, here and on a local Dask cluster; resume; a trial that stalls; the report page."""
+minimal.toml, here and on a local Dask cluster; resume; a trial that stalls; the report page;
+a trial started from the sweep's warm worker gives the files of a fresh `hrc run`."""
 
 from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -16,6 +18,7 @@ import pandas as pd
 import pytest
 
 from hrc.browser import headless_chromium, output_dir
+from hrc.study.sweep import WARM_SAYS
 
 from .conftest import HRC, ROOT, free_port, wait_until
 from .netns import Hosts
@@ -49,6 +52,46 @@ def _sweep(*args: str, timeout: float = 280) -> subprocess.CompletedProcess[str]
     return subprocess.run(
         [HRC, "sweep", *args], capture_output=True, text=True, timeout=timeout, env=env
     )
+
+
+def _wall_free(doc: object) -> object:
+    """A JSON document without its wall-clock fields (events' wall_time, the run's wall_s)."""
+    if isinstance(doc, dict):
+        return {k: _wall_free(v) for k, v in doc.items() if k not in WALL_FIELDS}
+    if isinstance(doc, list):
+        return [_wall_free(v) for v in doc]
+    return doc
+
+
+WALL_FIELDS = {"wall_time", "wall_s", "realtime_factor"}
+_STAMP = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d ")  # log.txt's wall-clock lines
+
+
+def assert_as_a_fresh_run(out: Path, trial: str, tmp: Path) -> None:
+    """The sweep's files of ``trial`` (started as a fork of its warm worker) are those of `hrc
+    run` of its resolved scenario and seed in a new interpreter: the same events, metrics and
+    text log, wall-clock fields aside."""
+    seed = int(pd.read_parquet(out / "trials.parquet").set_index("trial").loc[trial, "seed"])
+    fresh = tmp / f"fresh-{trial}"
+    argv = [HRC, "run", str(out / "resolved" / f"{trial}.toml"), "--out", str(fresh)]
+    run = subprocess.run(
+        [*argv, "--seed", str(seed), "--no-reach-check"],
+        capture_output=True,
+        text=True,
+        timeout=180,
+        env=dict(os.environ, HRC_SWEEP_START="exec"),
+    )
+    warm = out / "trials" / trial
+    ok = json.loads((warm / "metrics.json").read_text())["run"]["ok"]
+    assert (run.returncode == 0) == ok, (ok, run.returncode, run.stderr[-2000:])
+    a, b = ((d / "events.jsonl").read_text().splitlines() for d in (warm, fresh))
+    assert [_wall_free(json.loads(x)) for x in a] == [_wall_free(json.loads(x)) for x in b], (
+        f"{trial}: events.jsonl differs from a fresh run's"
+    )
+    a, b = (_wall_free(json.loads((d / "metrics.json").read_text())) for d in (warm, fresh))
+    assert a == b, f"{trial}: metrics.json differs from a fresh run's"
+    a, b = ((d / "log.txt").read_text().splitlines() for d in (warm, fresh))
+    assert [_STAMP.sub("", x) for x in a] == [_STAMP.sub("", x) for x in b], f"{trial}: log.txt"
 
 
 @pytest.fixture(scope="module")
@@ -94,6 +137,12 @@ def test_a_2x2x2_study_gives_8_rows_with_factors_participants_and_metrics(local_
     assert proc.stderr.count("ETA") == 8
 
 
+def test_a_trial_from_the_warm_worker_gives_a_fresh_runs_files(local_sweep, tmp_path) -> None:
+    out, proc = local_sweep
+    assert WARM_SAYS in proc.stderr, proc.stderr  # (else this compares two fresh runs)
+    assert_as_a_fresh_run(out, "speed0.5_antTrue_P02_r1", tmp_path)
+
+
 def test_a_second_run_resumes_without_rerunning_any_trial(local_sweep, study_file) -> None:
     out, _ = local_sweep
     manifest = json.loads((out / "manifest.json").read_text())["trials"]
@@ -129,6 +178,8 @@ def test_a_stalled_trial_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> No
     assert stalled["exit_code"] != 0 and not stalled["task.finished"]
     assert df.loc["rt0.4_stall60_P01_r1", "outcome"] == "ok"
     assert "rt10_stall1_P01_r1: stalled" in proc.stdout
+    assert WARM_SAYS in proc.stderr, proc.stderr
+    assert_as_a_fresh_run(out, "rt10_stall1_P01_r1", tmp_path)  # a trial that fails, too
     # a resumed sweep keeps it: its inputs have not changed and it ended (deterministically)
     again = _sweep(str(study), "--out", str(out), timeout=60)
     assert "2 done before (kept), 0 to run" in again.stderr

@@ -24,6 +24,12 @@ tick to every service and their acks, nothing computed); per board ``floor_cpu_r
 ratio the trial would have if every service's own work cost nothing: (start-up + exchanges x
 bare exchange + raw physics) / raw physics.
 
+And ``study`` (the thesis trial as a sweep runs it, ``STUDY_TRIALS`` times in a row through one
+warm worker, ``hrc.study.warm``: no interpreter start per trial): ``cpu_s_per_trial`` (the
+worker's CPU with all its trials', its own start-up shared by them), ``us_per_exchange_by_service``
+(the services' mean over the trials) and, under ``thesis``, ``study_cpu_ratio``: that CPU per
+simulated second over raw physics's, as ``cpu_ratio`` is for a lone ``hrc run``.
+
 And ``busy``: the thesis trial again beside one busy process per core (a build, another trial):
 its run phase (``run_wall_s``, ``realtime_factor``) and ``slowdown``, its run-phase wall over the
 quiet run's. An observer that got no CPU at all there (the logger under SCHED_IDLE in lockstep)
@@ -190,6 +196,39 @@ def measure_busy(scenario: Path, out: Path, quiet: dict[str, Any]) -> dict[str, 
     }
 
 
+STUDY_TRIALS = 3
+
+
+def measure_study(scenario: Path, tmpdir: Path, lone: dict[str, Any]) -> dict[str, Any]:
+    """``STUDY_TRIALS`` runs of ``scenario`` through one warm worker, one after the other."""
+    from hrc.study.warm import WarmStarter
+
+    by_service: dict[str, float] = {}
+    exchanges = 0
+    with WarmStarter() as ws:
+        for i in range(STUDY_TRIALS):
+            out = tmpdir / f"study-{i}"
+            argv = [sys.executable, "-m", "hrc.cli.main", "run", str(scenario), "--out", str(out)]
+            proc = ws.popen(argv)
+            _stdout, stderr = proc.communicate(timeout=600)
+            if proc.returncode != 0:
+                raise RuntimeError(f"hrc run {scenario} failed ({proc.returncode}):\n{stderr}")
+            found = _EXCHANGES.search((out / "services" / "physics.log").read_text())
+            exchanges += int(found.group(2)) if found else 0
+            for name, v in json.loads((out / "services" / "cpu.json").read_text()).items():
+                by_service[name] = by_service.get(name, 0.0) + v["user_s"] + v["system_s"]
+    per_trial = ws.cpu_s / STUDY_TRIALS
+    raw = lone["raw_physics_cpu_s_per_sim_s"] * lone["sim_s"]
+    return {
+        "trials": STUDY_TRIALS,
+        "cpu_s_per_trial": round(per_trial, 3),
+        "us_per_exchange_by_service": {
+            n: round(v / max(1, exchanges) * 1e6) for n, v in by_service.items()
+        },
+        "study_cpu_ratio": round(per_trial / raw, 2),
+    }
+
+
 def measure_floor(empty: Path, tmpdir: Path) -> dict[str, float]:
     """Start-up and one bare exchange, from two runs of the one-tick empty scenario."""
     _wall, startup = hrc_run(empty, tmpdir / "floor-start", ["--ticks", "10"])
@@ -225,6 +264,8 @@ def run(args: argparse.Namespace) -> int:
         for f in figures.values():
             f["floor_cpu_ratio"] = floor_ratio(f, floor)
         figures["floor"] = floor
+        figures["study"] = measure_study(root / THESIS, tmpdir, thesis)
+        thesis["study_cpu_ratio"] = figures["study"]["study_cpu_ratio"]
         figures["busy"] = measure_busy(root / THESIS, tmpdir / "thesis-busy", thesis)
     if getattr(args, "json", False):
         print(json.dumps(figures))
@@ -233,13 +274,19 @@ def run(args: argparse.Namespace) -> int:
         f"floor: start-up {floor['startup_cpu_s']} CPU-s, a bare exchange "
         f"{floor['bare_exchange_cpu_us']} CPU-us (every service, nothing computed)"
     )
+    study = figures["study"]
+    print(
+        f"thesis in a study ({study['trials']} trials through one warm worker): "
+        f"{study['cpu_s_per_trial']} CPU-s per trial, CPU ratio {study['study_cpu_ratio']}; "
+        f"CPU us per exchange: {study['us_per_exchange_by_service']}"
+    )
     busy = figures["busy"]
     print(
         f"thesis beside {busy['busy_processes']} busy processes: run phase {busy['run_wall_s']} s "
         f"= {busy['realtime_factor']}x real time, {busy['slowdown']}x the quiet run's"
     )
     for name, f in figures.items():
-        if name in ("floor", "busy"):
+        if name in ("floor", "busy", "study"):
             continue
         print(
             f"{name}: {f['ticks']} ticks ({f['sim_s']} s simulated) in {f['exchanges']} exchanges"

@@ -27,6 +27,8 @@ from hrc.study.trial import (
     run_job,
     stop_running,
 )
+from hrc.study.warm import WarmError, WarmStarter
+from hrc.trial.prefork import START_ENV
 
 log = logging.getLogger(__name__)
 
@@ -81,11 +83,34 @@ def _clock(seconds: float) -> str:
     )
 
 
+# "exec": the sweep's trials start as new interpreters, not from its warm worker
+SWEEP_START_ENV = "HRC_SWEEP_START"
+WARM_SAYS = "each trial starts as a fork of a warm worker (no interpreter start per trial)"
+
+
+def _warm_starter() -> WarmStarter | None:
+    """The sweep's warm worker (hrc.study.warm), or None where it cannot start or is not
+    wanted (``HRC_SWEEP_START=exec``, or ``HRC_SERVICE_START=exec``): the trials then start as
+    new interpreters, with the same outputs and 0.4 CPU-s more each."""
+    if "exec" in (os.environ.get(SWEEP_START_ENV), os.environ.get(START_ENV)):
+        return None
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        return WarmStarter()
+    except (WarmError, OSError) as exc:
+        log.warning("%s: each trial starts as a new interpreter", exc)
+        return None
+
+
 def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
     allow_trials()
+    starter = _warm_starter()
+    if starter is not None:
+        print(f"sweep: {WARM_SAYS}", file=sys.stderr, flush=True)
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="trial")
     try:
-        futures = [pool.submit(run_job, job) for job in jobs]
+        futures = [pool.submit(run_job, job, starter) for job in jobs]
         for fut in as_completed(futures):
             yield fut.result()
     except BaseException:  # Ctrl-C, or the caller stopped: no new trial, stop those running
@@ -94,6 +119,8 @@ def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
         raise
     finally:
         pool.shutdown(wait=True)
+        if starter is not None:
+            starter.close()
 
 
 class ClusterError(Exception):

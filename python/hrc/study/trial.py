@@ -18,10 +18,11 @@ import threading
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from hrc import privacy
 from hrc.priority import carry_niceness
+from hrc.study.warm import WarmError, WarmStarter
 
 if TYPE_CHECKING:
     from hrc.study.spec import Trial
@@ -67,8 +68,19 @@ class Record:
         return cls(**{k: d[k] for k in cls.__dataclass_fields__ if k in d})
 
 
+class TrialProcess(Protocol):
+    """An `hrc run` in progress: a subprocess, or a fork of the warm worker (hrc.study.warm)."""
+
+    pid: int
+    returncode: int | None
+
+    def wait(self, timeout: float | None = None) -> int: ...
+
+    def communicate(self, *, timeout: float | None = None) -> tuple[str, str]: ...
+
+
 # the `hrc run` processes of this process's trials in progress (stop_running ends them)
-_RUNNING: set[subprocess.Popen[str]] = set()
+_RUNNING: set[TrialProcess] = set()
 _LOCK = threading.Lock()
 # set by stop_running: a trial a worker thread starts after it is stopped at once (no trial may
 # begin in the window between the snapshot of those running and the pool's shutdown)
@@ -95,7 +107,7 @@ def _tail(text: str, lines: int = STDERR_TAIL_LINES) -> str:
     return "\n".join(text.strip().splitlines()[-lines:])
 
 
-def stop_process(proc: subprocess.Popen[Any], grace_s: float = 10.0) -> None:
+def stop_process(proc: subprocess.Popen[Any] | TrialProcess, grace_s: float = 10.0) -> None:
     """SIGTERM to `hrc run`'s process group (it stops its services), then SIGKILL to the whole
     group after `grace_s`."""
     try:
@@ -107,8 +119,27 @@ def stop_process(proc: subprocess.Popen[Any], grace_s: float = 10.0) -> None:
         proc.wait()
 
 
-def run_job(job: Job) -> Record:
-    """Run one trial to its end (bounded by ``job.timeout_s`` of wall time)."""
+def start(argv: list[str], starter: WarmStarter | None) -> TrialProcess:
+    """``argv`` (``python -m hrc.cli.main run ...``) in a session of its own: forked from the
+    sweep's warm worker where there is one that works, else a new interpreter."""
+    if starter is not None and starter.alive():
+        try:
+            return starter.popen(argv)
+        except WarmError as exc:
+            log.warning("%s: this trial starts as a new interpreter", exc)
+    return subprocess.Popen(
+        argv,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        stdin=subprocess.DEVNULL,
+        text=True,
+        start_new_session=True,
+    )
+
+
+def run_job(job: Job, starter: WarmStarter | None = None) -> Record:
+    """Run one trial to its end (bounded by ``job.timeout_s`` of wall time), through the warm
+    worker ``starter`` if given (the same outputs, less start-up)."""
     privacy.apply()  # a Dask worker's process too: what it writes here is participant data
     out = Path(job.out)
     scen = out / "resolved" / f"{job.trial}.toml"
@@ -136,14 +167,7 @@ def run_job(job: Job) -> Record:
     t0 = time.monotonic()
     host = os.uname().nodename
     # own process group: a timeout stops hrc run and everything it started
-    proc = subprocess.Popen(
-        argv,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        stdin=subprocess.DEVNULL,
-        text=True,
-        start_new_session=True,
-    )
+    proc = start(argv, starter)
     carry_niceness(proc.pid)  # `nice hrc sweep`: its trials are nice too
     with _LOCK:
         _RUNNING.add(proc)

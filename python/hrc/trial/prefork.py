@@ -100,7 +100,7 @@ def fork_service(
     flush_output()  # or what is buffered would be written twice
     pid = os.fork()
     if pid == 0:
-        _child(module, argv, log_fd, env, in_child)
+        child_main(module, argv, log_fd, env, in_child)
     return ForkedProcess(pid)
 
 
@@ -113,13 +113,16 @@ def _exit_code(exc: SystemExit) -> int:
     return 1
 
 
-def _child(
+def child_main(
     module: str,
     argv: list[str],
     log_fd: int,
     env: dict[str, str],
     in_child: Callable[[], None],
+    err_fd: int | None = None,
 ) -> NoReturn:
+    """The forked child's life: ``log_fd`` becomes its stdout, and its stderr too unless
+    ``err_fd`` is given (the caller's descriptors, closed here once copied)."""
     code = 1
     try:
         # First: it needs the process's environment strings as they were at its start.
@@ -132,8 +135,10 @@ def _child(
         with open(os.devnull, "rb") as null:
             os.dup2(null.fileno(), 0)
         os.dup2(log_fd, 1)
-        os.dup2(log_fd, 2)
+        os.dup2(log_fd if err_fd is None else err_fd, 2)
         os.close(log_fd)
+        if err_fd is not None:
+            os.close(err_fd)
         os.environ.clear()
         os.environ.update(env)
         for stream in (sys.stdout, sys.stderr):
