@@ -121,11 +121,13 @@ def test_a_disk_filled_by_another_process_stops_a_realtime_trial_within_a_second
     """Realtime: once the trial runs, another process fills the disk to the margin; the
     trial's simulated time (which follows the wall clock) ends within a second of it."""
     small, copy = tmp_path / "small", tmp_path / "copy"
-    log = f"{small}/t/log.txt"
+    log = f"{small}/t/services/logger.log"
     body = (
         f"{HRC} run {THESIS} --out {small}/t --mode realtime & pid=$!; "
-        # the run is on once the logger has written the settings line (at most 60 s)
-        f"n=0; while [ ! -s {log} ] && [ $n -lt 600 ]; do sleep 0.1; n=$((n+1)); done; "
+        # the run is on once the logger's view is up (at most 60 s): its recording exists (a
+        # stop that comes before, on a loaded machine, leaves the view unbuilt: no recording)
+        f"n=0; while ! grep -qs 'view ready' {log} && [ $n -lt 600 ]; do sleep 0.1; "
+        "n=$((n+1)); done; "
         "sleep 1; "
         # fill to 0.5 MiB below the margin, and note the wall clock of it
         f"free=$(df --output=avail -B1 {small} | tail -1); "
