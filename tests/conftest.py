@@ -8,7 +8,6 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import time
 import uuid
 from collections.abc import Iterator
@@ -25,9 +24,9 @@ from hrc.service_table import EXPERIMENTER, SERVICES
 from hrc.wire import pb
 
 from .goldens import THESIS, Finished, run_trial
+from .warm_cli import HRC as HRC  # (defined there: warm_cli falls back on it)
 
 ROOT = project_root()
-HRC = str(Path(sys.executable).with_name("hrc"))
 # what identifies each service's process on its command line (hrc run: python -m / the binary)
 SERVICE_MARKERS = {s.name: s.module or s.script for s in SERVICES}
 
@@ -248,7 +247,7 @@ def shared_trial(factory: pytest.TempPathFactory, name: str, scenario: Path) -> 
         done = folder / "finished.json"
         if done.exists():
             return Finished(folder / "trial", **json.loads(done.read_text()))
-        trial = run_trial(HRC, scenario, folder / "trial")
+        trial = run_trial(scenario, folder / "trial")
         folder.mkdir(parents=True, exist_ok=True)
         said = {"returncode": trial.returncode, "stdout": trial.stdout, "stderr": trial.stderr}
         done.write_text(json.dumps(said))

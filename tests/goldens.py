@@ -13,10 +13,11 @@ and the date line at the top of log.txt.
 from __future__ import annotations
 
 import json
-import subprocess
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+from .warm_cli import hrc
 
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN_ROOT = Path(__file__).resolve().parent / "golden"
@@ -76,17 +77,13 @@ class Finished:
 
 
 def run_trial(
-    hrc: str, scenario: Path, out: Path, *extra: str, max_ticks: int = 60000, timeout: float = 900
+    scenario: Path, out: Path, *extra: str, max_ticks: int = 60000, timeout: float = 900
 ) -> Finished:
     """`hrc run SCENARIO --out OUT --max-ticks N EXTRA...` to its end (the tests' one way to run a
-    whole trial from the command line; the cap only ends a trial that would never finish)."""
-    proc = subprocess.run(
-        [hrc, "run", str(scenario), "--out", str(out), "--max-ticks", str(max_ticks), *extra],
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-        stdin=subprocess.DEVNULL,
-    )
+    whole trial from the command line; the cap only ends a trial that would never finish),
+    forked from the test process's warm worker (tests/warm_cli.py)."""
+    proc = hrc("run", str(scenario), "--out", str(out), "--max-ticks", str(max_ticks), *extra,
+               timeout=timeout)  # fmt: skip
     return Finished(out, proc.returncode, proc.stdout, proc.stderr)
 
 

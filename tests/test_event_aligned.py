@@ -19,7 +19,6 @@ from typing import Any
 
 import pytest
 
-from .conftest import HRC
 from .goldens import THESIS, normalised, run_trial
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
@@ -48,7 +47,7 @@ def _trial(tmp: Path, max_ticks: int) -> tuple[dict[str, Any], int, int]:
     scenario = _scenario(tmp, max_ticks)
     out = tmp / f"span{max_ticks}"
     try:
-        proc = run_trial(HRC, scenario, out, "--no-view")  # the events are compared, not views
+        proc = run_trial(scenario, out, "--no-view")  # the events are compared, not views
     finally:
         scenario.unlink()
     assert proc.returncode == 0, proc.stderr[-3000:]

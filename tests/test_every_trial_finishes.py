@@ -22,7 +22,7 @@ import pytest
 
 from hrc.paths import ik_binary, project_root
 
-from .conftest import HRC
+from .warm_cli import hrc
 
 ROOT = project_root()
 pytestmark = [
@@ -43,14 +43,11 @@ def variant(text: str, **lines: str) -> str:
 
 
 def run(path: Path, out: Path) -> tuple[subprocess.CompletedProcess[str], dict]:
-    v = subprocess.run([HRC, "validate", str(path)], capture_output=True, text=True, timeout=300)
+    v = hrc("validate", str(path), timeout=300)
     assert v.returncode == 0, f"{path.name} does not validate: {v.stderr}"
-    proc = subprocess.run(
-        # (no 3D recording: what is checked is how the trial ends, and it costs a tenth)
-        [HRC, "run", str(path), "--out", str(out), "--max-ticks", "100000", "--no-view"],
-        capture_output=True,
-        text=True,
-        timeout=900,
+    # (no 3D recording: what is checked is how the trial ends, and it costs a tenth)
+    proc = hrc(
+        "run", str(path), "--out", str(out), "--max-ticks", "100000", "--no-view", timeout=900
     )
     metrics_file = out / "metrics.json"
     metrics = json.loads(metrics_file.read_text()) if metrics_file.exists() else {}

@@ -35,7 +35,8 @@ from typing import Any
 
 import pytest
 
-from .conftest import HRC, ROOT
+from .conftest import ROOT
+from .warm_cli import hrc
 
 N_VARIANTS = int(os.environ.get("HRC_FUZZ_N", "0"))  # 0: the fixed set and a fresh one
 GENERATOR_SEED = int(os.environ.get("HRC_FUZZ_SEED", "12"))
@@ -193,29 +194,17 @@ def run_variant(name: str, doc: dict[str, Any], folder: Path) -> Outcome:
     folder.mkdir(parents=True)
     path = folder / "scenario.toml"
     path.write_text(dump_toml(doc))
-    v = subprocess.run([HRC, "validate", str(path)], capture_output=True, text=True, timeout=300)
+    v = hrc("validate", str(path), timeout=300)
     if v.returncode != 0:
         reasons = v.stderr.strip()
         if v.returncode != 1 or not reasons:
             return Outcome(name, "failed", f"hrc validate exited {v.returncode}: {reasons}")
         return Outcome(name, "refused", reasons.splitlines()[0])
     try:
-        r = subprocess.run(
-            # (no 3D recording: what is checked is how the trial ends, and it costs a tenth)
-            [
-                HRC,
-                "run",
-                str(path),
-                "--out",
-                str(folder / "trial"),
-                "--max-ticks",
-                str(MAX_TICKS),
-                "--no-view",
-            ],
-            capture_output=True,
-            text=True,
-            timeout=RUN_TIMEOUT_S,
-        )
+        # (no 3D recording: what is checked is how the trial ends, and it costs a tenth)
+        trial = str(folder / "trial")
+        r = hrc("run", str(path), "--out", trial, "--max-ticks", str(MAX_TICKS), "--no-view",
+                timeout=RUN_TIMEOUT_S)  # fmt: skip
     except subprocess.TimeoutExpired:
         return Outcome(name, "failed", f"hrc run still going after {RUN_TIMEOUT_S} s")
     metrics_file = folder / "trial" / "metrics.json"

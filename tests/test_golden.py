@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import HRC
 from .goldens import GOLDEN_ROOT, GOLDEN_TRIALS, normalised, run_trial, scenario_file
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
@@ -21,7 +20,7 @@ def test_a_golden_trial_gives_the_committed_outputs(
     name: str, tmp_path: Path, request: pytest.FixtureRequest
 ) -> None:
     if GOLDEN_TRIALS[name]:
-        trial = run_trial(HRC, scenario_file(name, tmp_path), tmp_path / "out", "--no-view")
+        trial = run_trial(scenario_file(name, tmp_path), tmp_path / "out", "--no-view")
     else:  # the unmodified thesis trial: the session's shared run
         trial = request.getfixturevalue("thesis_trial")
     assert trial.returncode == 0, trial.stderr[-3000:]

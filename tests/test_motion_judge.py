@@ -153,7 +153,7 @@ def test_reported_layout_with_reachable_feeder_runs_to_the_end(
         ).returncode
         == 0
     )
-    proc = run_trial(HRC, path, tmp_path / "out", "--no-view")
+    proc = run_trial(path, tmp_path / "out", "--no-view")
     assert proc.returncode == 0, proc.stderr[-3000:]
     metrics = json.loads((tmp_path / "out" / "metrics.json").read_text())
     assert "task finished" in metrics["run"]["end_reason"], metrics["run"]

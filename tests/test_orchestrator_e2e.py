@@ -74,7 +74,7 @@ class Line:
 
 def run_trial(scenario: Path, out: Path, ticks: int = TICK_CAP) -> tuple[dict, list[Line]]:
     # (the task's events and metrics are read, not the 3D recording: a tenth of the CPU less)
-    return read_trial(goldens.run_trial(str(HRC), scenario, out, "--no-view", max_ticks=ticks))
+    return read_trial(goldens.run_trial(scenario, out, "--no-view", max_ticks=ticks))
 
 
 def read_trial(trial: Finished) -> tuple[dict, list[Line]]:

@@ -20,6 +20,7 @@ from hrc.scenario import colors, urdf
 
 from .conftest import HRC, ROOT, strip_fields
 from .goldens import normalised
+from .warm_cli import hrc
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
@@ -53,14 +54,8 @@ def variant(src: Path, folder: Path, policy: str, provoke: bool = True) -> Path:
 
 def run(scenario: Path, out: Path, *extra: str, view: bool = False) -> dict[str, Any]:
     """The trial's normalised outputs; ``view``: it also keeps its 3D recording."""
-    argv = [HRC, "run", str(scenario), "--out", str(out), "--max-ticks", "120000", *extra]
-    proc = subprocess.run(
-        argv if view else [*argv, "--no-view"],
-        capture_output=True,
-        text=True,
-        timeout=1200,
-        stdin=subprocess.DEVNULL,
-    )
+    argv = ["run", str(scenario), "--out", str(out), "--max-ticks", "120000", *extra]
+    proc = hrc(*(argv if view else [*argv, "--no-view"]), timeout=1200)
     assert proc.returncode == 0, f"{scenario.name}: exit {proc.returncode}\n{proc.stderr[-3000:]}"
     return normalised(out)
 

@@ -162,14 +162,21 @@ class WarmStarter:
             self.close()
             raise WarmError(f"the warm worker did not start: {line or 'no word from it'}")
 
-    def popen(self, argv: list[str], cwd: str | None = None) -> WarmProcess:
+    def popen(
+        self, argv: list[str], cwd: str | None = None, env: dict[str, str] | None = None
+    ) -> WarmProcess:
         """Starts ``argv`` (``python -m hrc.cli.main ...``) as a fork of the worker, with this
-        process's environment and working folder."""
+        process's working folder and environment (or ``cwd``, ``env``)."""
         if MODULE not in argv:
             raise WarmError(f"the warm worker runs {MODULE} only, not {argv}")
         # what a new process started from here inherits (the file-creation mask: participant
         # data is private, hrc.privacy)
-        here = {"argv": argv, "cwd": cwd or os.getcwd(), "env": dict(os.environ), "umask": _umask()}
+        here = {
+            "argv": argv,
+            "cwd": cwd or os.getcwd(),
+            "env": dict(os.environ if env is None else env),
+            "umask": _umask(),
+        }
         request = json.dumps(here).encode()
         out = tempfile.TemporaryFile()
         err = tempfile.TemporaryFile()
