@@ -45,7 +45,12 @@ def hrc(
     """`hrc ARGS...` to its end (stdin empty, stdout and stderr kept): as subprocess.run would
     give it, TimeoutExpired past ``timeout`` (after stopping it and all it started)."""
     starter = _warm()
-    if starter is None:
+    argv = [sys.executable, "-m", "hrc.cli.main", *args]
+    try:
+        if starter is None:
+            raise WarmError("no warm worker here")
+        proc = starter.popen(argv, env=env)
+    except WarmError:
         return subprocess.run(
             [HRC, *args],
             capture_output=True,
@@ -54,12 +59,9 @@ def hrc(
             stdin=subprocess.DEVNULL,
             env=env,
         )
-    argv = [sys.executable, "-m", "hrc.cli.main", *args]
-    proc = starter.popen(argv, env=env)
     try:
         out, err = proc.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
+    except BaseException:  # the timeout, or the test's own (as subprocess.run, it goes too)
         stop_process(proc)
-        proc.communicate()
         raise
     return subprocess.CompletedProcess(argv, proc.wait(), out, err)
