@@ -10,7 +10,7 @@ command line, environment, working folder, stdout and stderr, exit code), so a t
 metrics and logs are what a new interpreter gives, by construction.
 
 Protocol (one Unix-socket connection per trial): the caller sends its stdout and stderr files
-(SCM_RIGHTS) with an 8-byte length, then the JSON request (argv, cwd, env); the worker forks
+(SCM_RIGHTS) with an 8-byte length, then the JSON request (argv, cwd, env, umask); the worker forks
 and answers ``{"pid": N}`` (a session leader: the caller stops the trial with ``killpg``), then
 ``{"exit": code, "cpu_s": ...}`` when the trial has ended (its CPU with its services', from
 wait4). A worker that ends first closes the connection: the trial ends with it (``hrc run``
