@@ -8,6 +8,7 @@ import json
 import os
 import signal
 import subprocess
+import sys
 import time
 import uuid
 from collections.abc import Iterator
@@ -24,9 +25,9 @@ from hrc.service_table import EXPERIMENTER, SERVICES
 from hrc.wire import pb
 
 from .goldens import THESIS, Finished, run_trial
-from .warm_cli import HRC as HRC  # (defined there: warm_cli falls back on it)
 
 ROOT = project_root()
+HRC = str(Path(sys.executable).with_name("hrc"))
 # what identifies each service's process on its command line (hrc run: python -m / the binary)
 SERVICE_MARKERS = {s.name: s.module or s.script for s in SERVICES}
 

@@ -20,7 +20,7 @@ import pytest
 from hrc.browser import headless_chromium, output_dir
 from hrc.study.sweep import WARM_SAYS
 
-from .conftest import HRC, ROOT, free_port, wait_until
+from .conftest import HRC, ROOT, free_port, strip_fields, wait_until
 from .netns import Hosts
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
@@ -54,15 +54,8 @@ def _sweep(*args: str, timeout: float = 280) -> subprocess.CompletedProcess[str]
     )
 
 
-def _wall_free(doc: object) -> object:
-    """A JSON document without its wall-clock fields (events' wall_time, the run's wall_s)."""
-    if isinstance(doc, dict):
-        return {k: _wall_free(v) for k, v in doc.items() if k not in WALL_FIELDS}
-    if isinstance(doc, list):
-        return [_wall_free(v) for v in doc]
-    return doc
-
-
+# a trial's wall-clock fields (events' wall_time, the run's wall_s and real-time factor); the
+# end reason stays compared (goldens.WALL drops it)
 WALL_FIELDS = {"wall_time", "wall_s", "realtime_factor"}
 _STAMP = re.compile(r"^\d{4}-\d\d-\d\d \d\d:\d\d:\d\d ")  # log.txt's wall-clock lines
 
@@ -85,10 +78,11 @@ def assert_as_a_fresh_run(out: Path, trial: str, tmp: Path) -> None:
     ok = json.loads((warm / "metrics.json").read_text())["run"]["ok"]
     assert (run.returncode == 0) == ok, (ok, run.returncode, run.stderr[-2000:])
     a, b = ((d / "events.jsonl").read_text().splitlines() for d in (warm, fresh))
-    assert [_wall_free(json.loads(x)) for x in a] == [_wall_free(json.loads(x)) for x in b], (
-        f"{trial}: events.jsonl differs from a fresh run's"
-    )
-    a, b = (_wall_free(json.loads((d / "metrics.json").read_text())) for d in (warm, fresh))
+    assert [strip_fields(json.loads(x), WALL_FIELDS) for x in a] == [
+        strip_fields(json.loads(x), WALL_FIELDS) for x in b
+    ], f"{trial}: events.jsonl differs from a fresh run's"
+    a, b = (strip_fields(json.loads((d / "metrics.json").read_text()), WALL_FIELDS)
+            for d in (warm, fresh))  # fmt: skip
     assert a == b, f"{trial}: metrics.json differs from a fresh run's"
     a, b = ((d / "log.txt").read_text().splitlines() for d in (warm, fresh))
     assert [_STAMP.sub("", x) for x in a] == [_STAMP.sub("", x) for x in b], f"{trial}: log.txt"

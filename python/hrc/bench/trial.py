@@ -122,19 +122,27 @@ def raw_physics_us(scenario: Path, n: int) -> float:
     return float(json.loads(out)["us_per_tick"])
 
 
+def service_figures(out: Path) -> tuple[dict[str, float], int | None]:
+    """A trial folder's CPU-s by service (user + system) and its exchanges (None if physics's
+    log does not say)."""
+    by_service = {
+        name: v["user_s"] + v["system_s"]
+        for name, v in json.loads((out / "services" / "cpu.json").read_text()).items()
+    }
+    found = _EXCHANGES.search((out / "services" / "physics.log").read_text())
+    return by_service, int(found.group(2)) if found else None
+
+
 def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> dict[str, Any]:
     """One ``hrc run`` of ``scenario`` into ``out`` (at most ``max_ticks``), then the physics
     bench of the same board."""
     wall, cpu = hrc_run(scenario, out, ["--max-ticks", str(max_ticks)] if max_ticks else [])
     run = json.loads((out / "metrics.json").read_text())["run"]
-    by_service = {
-        name: round(v["user_s"] + v["system_s"], 3)
-        for name, v in json.loads((out / "services" / "cpu.json").read_text()).items()
-    }
+    cpu_by_service, found = service_figures(out)
+    by_service = {name: round(v, 3) for name, v in cpu_by_service.items()}
     timing = json.loads((out / "services" / "timing.json").read_text())
-    found = _EXCHANGES.search((out / "services" / "physics.log").read_text())
     ticks = int(run["ticks"])
-    exchanges = int(found.group(2)) if found else ticks
+    exchanges = found if found is not None else ticks
     sim_s = run["wall_s"] * run["realtime_factor"]
     cosim_us = run["wall_s"] / ticks * 1e6
     raw_us = raw_physics_us(scenario, physics_n)
@@ -213,10 +221,10 @@ def measure_study(scenario: Path, tmpdir: Path, lone: dict[str, Any]) -> dict[st
             _stdout, stderr = proc.communicate(timeout=600)
             if proc.returncode != 0:
                 raise RuntimeError(f"hrc run {scenario} failed ({proc.returncode}):\n{stderr}")
-            found = _EXCHANGES.search((out / "services" / "physics.log").read_text())
-            exchanges += int(found.group(2)) if found else 0
-            for name, v in json.loads((out / "services" / "cpu.json").read_text()).items():
-                by_service[name] = by_service.get(name, 0.0) + v["user_s"] + v["system_s"]
+            cpu, found = service_figures(out)
+            exchanges += found or 0
+            for name, v in cpu.items():
+                by_service[name] = by_service.get(name, 0.0) + v
     per_trial = ws.cpu_s / STUDY_TRIALS
     raw = lone["raw_physics_cpu_s_per_sim_s"] * lone["sim_s"]
     return {

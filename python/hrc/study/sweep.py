@@ -27,8 +27,7 @@ from hrc.study.trial import (
     run_job,
     stop_running,
 )
-from hrc.study.warm import WarmError, WarmStarter
-from hrc.trial.prefork import START_ENV
+from hrc.study.warm import start_worker
 
 log = logging.getLogger(__name__)
 
@@ -83,29 +82,12 @@ def _clock(seconds: float) -> str:
     )
 
 
-# "exec": the sweep's trials start as new interpreters, not from its warm worker
-SWEEP_START_ENV = "HRC_SWEEP_START"
 WARM_SAYS = "each trial starts as a fork of a warm worker (no interpreter start per trial)"
-
-
-def _warm_starter() -> WarmStarter | None:
-    """The sweep's warm worker (hrc.study.warm), or None where it cannot start or is not
-    wanted (``HRC_SWEEP_START=exec``, or ``HRC_SERVICE_START=exec``): the trials then start as
-    new interpreters, with the same outputs and 0.4 CPU-s more each."""
-    if "exec" in (os.environ.get(SWEEP_START_ENV), os.environ.get(START_ENV)):
-        return None
-    if not sys.platform.startswith("linux"):
-        return None
-    try:
-        return WarmStarter()
-    except (WarmError, OSError) as exc:
-        log.warning("%s: each trial starts as a new interpreter", exc)
-        return None
 
 
 def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
     allow_trials()
-    starter = _warm_starter()
+    starter = start_worker()  # (None: each trial a new interpreter)
     if starter is not None:
         print(f"sweep: {WARM_SAYS}", file=sys.stderr, flush=True)
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="trial")
