@@ -286,6 +286,22 @@ def freeze_at_ra1_carry(page: Page) -> None:
     page.page.evaluate("window.hrcTest.freezeWhen('RA1', 'r1', 'target:RA1')")
 
 
+def freeze_in(
+    page: Page, what: str, pred: Callable[[dict[str, Any]], bool], timeout: float
+) -> dict[str, Any]:
+    """Holds the page still (window.hrcTest.freeze) on a frame in which `pred` holds, and
+    returns that frame's state: a state seen before the freeze may be gone by the frame the
+    picture shows (a protective stop lasts a few frames when the arm moves away)."""
+    deadline = time.monotonic() + timeout
+    while True:
+        page.wait(what, pred, max(0.1, deadline - time.monotonic()))
+        page.page.evaluate("window.hrcTest.freeze(true)")
+        state = page.state()  # the frame on screen: later frames wait
+        if pred(state):
+            return state
+        page.page.evaluate("window.hrcTest.freeze(false)")
+
+
 def carrying_ra1_lit(s: dict[str, Any]) -> bool:
     """r1 holds RA1 and its target cue is lit: the moment :func:`freeze_at_ra1_carry` holds a
     page at."""
@@ -417,7 +433,11 @@ class Seen:
 
 
 def what_is_seen(
-    page: Page, view: str, only: tuple[str, ...] = (), others: tuple[Page, ...] = ()
+    page: Page,
+    view: str,
+    only: tuple[str, ...] = (),
+    others: tuple[Page, ...] = (),
+    hold_scene: bool = False,
 ) -> dict[str, Seen]:
     """For each thing the page names (board, each robot's links, parts, hands, lit cues, the
     status panel): a picture with everything, then one with that thing hidden
@@ -426,11 +446,13 @@ def what_is_seen(
 
     The picture is held still meanwhile (frames frozen, cues held lit); the ``others`` pages
     stop rendering meanwhile (software WebGL: the CPU goes to the page looked at). Pictures are
-    saved as test-output/client/<view>.png (everything) and <view>-without-<thing>.png."""
+    saved as test-output/client/<view>.png (everything) and <view>-without-<thing>.png.
+    ``hold_scene``: the page's frames stay held afterwards (its panel live), so that a next view
+    of the same page (after a calibration) shows the same moment, whatever the time it took."""
     for other in others:
         other.page.evaluate("window.hrcTest.pause(true)")
     try:
-        return _what_is_seen(page, view, only)
+        return _what_is_seen(page, view, only, hold_scene)
     finally:
         for other in others:
             other.page.evaluate("window.hrcTest.pause(false)")
@@ -440,7 +462,9 @@ def what_is_seen(
             rendered_frames(other, 1)
 
 
-def _what_is_seen(page: Page, view: str, only: tuple[str, ...]) -> dict[str, Seen]:
+def _what_is_seen(
+    page: Page, view: str, only: tuple[str, ...], hold_scene: bool
+) -> dict[str, Seen]:
     t0 = time.monotonic()
     page.wait("the headset's panel in place", lambda s: not s["panel_moving"], 30)
     page.page.evaluate("window.hrcTest.freeze(true); window.hrcTest.flash(true)")
@@ -482,7 +506,10 @@ def _what_is_seen(page: Page, view: str, only: tuple[str, ...]) -> dict[str, See
                 misses.append(f"{point} at px ({px[0]:.0f}, {px[1]:.0f}): {n} pixels change")
         out[name] = Seen(len(pixels) - len(misses), len(pixels), misses)
     rendered_frames(page)
-    page.page.evaluate("window.hrcTest.flash(null); window.hrcTest.freeze(false)")
+    page.page.evaluate(
+        "(hold) => { window.hrcTest.flash(null); window.hrcTest.freeze(hold ? 'scene' : false); }",
+        hold_scene,
+    )
     return out
 
 

@@ -32,6 +32,7 @@ from .participant_page import (
     Live,
     Page,
     browser,
+    freeze_in,
     grab_part,
     live,
     metrics,
@@ -169,9 +170,7 @@ def test_the_page_draws_r1s_zone_red_when_the_hand_stops_it(
     grab_part(page, "H1")
     page.wait("task started", lambda s: s["run"] == "running", 10)
     page.height_to(0.10)
-    page.wait("r1 stopped", lambda s: s["robots"]["r1"]["zone"]["state"] == "stopped", 90)
-    page.page.evaluate("window.hrcTest.freeze(true)")
-    s = page.state()
+    s = freeze_in(page, "r1 stopped", lambda s: s["robots"]["r1"]["zone"]["state"] == "stopped", 90)
     zone = s["robots"]["r1"]["zone"]
     tcp = s["robots"]["r1"]["tcp"]
     rendered_frames(page)  # the state on screen (the page draws a few frames a second)

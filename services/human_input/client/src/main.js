@@ -449,7 +449,10 @@ class App {
   /** A few times a second: the panel, the waiting labels, the robot's target after a collision
    * (held still, like the frames, while a test freezes the picture). */
   refresh() {
-    if (this.frozen) return;
+    if (this.frozen) {
+      if (this.frozen === 'scene') this.hud.refresh(this.root);
+      return;
+    }
     if (this.waitFor && !OVER.has(this.run)) {
       const s = Math.round((performance.now() - this.waitSince) / 1000);
       const who = this.role === 'driver' ? 'you' : 'the participant';

@@ -266,9 +266,11 @@ export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
       };
     },
     /** Stops (true) or resumes (false) applying the bridge's frames, so that a screenshot and
-     * the positions read before it agree; rendering, blinking and sending go on. */
+     * the positions read before it agree; rendering, blinking and sending go on, the panel is
+     * held too. 'scene': the frames stay held but the panel shows what the person does (a
+     * calibration between two pictures of one moment). */
     freeze: (on) => {
-      window.hrcApp.frozen = !!on;
+      window.hrcApp.frozen = on === 'scene' ? 'scene' : !!on;
     },
     /** The labels on screen (CSS pixels): the parts' [{part, text, x0, y0, x1, y1}] and the
      * robots' lit "Waiting.." labels [{cue, text, x0, y0, x1, y1}] (desktop). */
