@@ -7,13 +7,13 @@ cd "$ROOT"
 exec .venv/bin/python - <<'PY'
 import shutil, sys, tempfile
 from pathlib import Path
-sys.path.insert(0, "tests")
-from goldens import FILES, GOLDEN_ROOT, GOLDEN_TRIALS, run_trial, scenario_file
+sys.path.insert(0, ".")
+from tests.goldens import FILES, GOLDEN_ROOT, GOLDEN_TRIALS, run_trial, scenario_file
 
 for name in sorted(GOLDEN_TRIALS):
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(tmp) / "out"
-        proc = run_trial(".venv/bin/hrc", scenario_file(name, Path(tmp)), out)
+        proc = run_trial(scenario_file(name, Path(tmp)), out)
         if proc.returncode != 0:
             sys.exit(f"[update-golden] {name} failed:\n{proc.stderr[-3000:]}")
         (GOLDEN_ROOT / name).mkdir(parents=True, exist_ok=True)

@@ -125,6 +125,13 @@ class Service:
         quantities only (docs/ARCHITECTURE.md, "Exchange step")."""
         return 0
 
+    def next_sample_tick(self) -> tuple[int, int]:
+        """Participants, after the steps of an exchange: the earliest tick at which the service
+        reads its inputs to decide from what it perceives, and every how many ticks it goes on
+        doing so (0: once); exchanges then start there, with no reaction chain. (0, 0): none
+        (docs/ARCHITECTURE.md, "Exchange step")."""
+        return 0, 0
+
     def finish(self, outcome: Outcome) -> int | None:
         """The run is over (the bus is still open): write what the service writes at the end.
         Returns the exit code, or None for the outcome's (0 ok, 1 failed)."""
@@ -239,6 +246,7 @@ def _run_role(service: Service, bus: Bus) -> Outcome:
     else:
         role = LockstepParticipant(bus, input_timeout_s=timeout)
         role.on_next_event(service.next_event_tick)
+        role.on_next_sample(service.next_sample_tick)
     # a participant too: the orchestrator stopped right after the run's end (or by Ctrl-C)
     # still writes metrics.json with the end it saw
     _stop_on_signals(role)

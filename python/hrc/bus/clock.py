@@ -119,14 +119,25 @@ class DeclaredEvents:
         self.reaction_ticks = reaction_ticks
         # Tick 0 is everyone's first change: the first states, commands and cues.
         self._ticks: set[int] = {0}
+        # participant -> (first tick, period): ticks that start an exchange (no chain), as its
+        # latest ack declared (TickAck.next_sample_tick, sample_period_ticks)
+        self._samples: dict[str, tuple[int, int]] = {}
 
     def add(self, tick: int) -> None:
         if tick > 0:
             self._ticks.add(tick)
 
+    def set_samples(self, participant: str, tick: int, period: int = 0) -> None:
+        """``participant`` reads its inputs at ``tick`` and every ``period`` ticks after it
+        (0: only there): exchanges start there. Replaces what it declared before."""
+        if tick > 0:
+            self._samples[participant] = (tick, period)
+        else:
+            self._samples.pop(participant, None)
+
     def limit(self, k: int, n: int) -> int:
         """At most ``n`` ticks from ``k``, ending the exchange at each declared event e and
-        starting one at each tick e + 1 .. e + reaction_ticks."""
+        starting one at each tick e + 1 .. e + reaction_ticks, and at each declared sample."""
         d = self.reaction_ticks
         for e in list(self._ticks):
             if e + d <= k:
@@ -135,6 +146,13 @@ class DeclaredEvents:
                 n = min(n, e - k + 1)
             else:  # e < k < e + d: a tick of the reaction chain
                 n = 1
+        for name, (s, period) in list(self._samples.items()):
+            if s <= k:
+                if not period:
+                    del self._samples[name]  # it starts this exchange, or is past
+                    continue
+                s += -(-(k + 1 - s) // period) * period  # the first of the grid after k
+            n = min(n, s - k)
         return max(1, n)
 
 
@@ -237,6 +255,7 @@ class ClockMaster:
                 self.compute_us[name] = ack.compute_us
                 self._compute_total[name] += ack.compute_us
                 self.events.add(ack.next_event_tick)
+                self.events.set_samples(name, ack.next_sample_tick, ack.sample_period_ticks)
             for m in ack.published:
                 mk = (m.key, m.sender)
                 if m.seq > self._marks.get(mk, 0):

@@ -361,6 +361,14 @@ class LockstepParticipant(ClockFollower):
         super().__init__(bus, input_timeout_s=input_timeout_s)
         self._ack_pub: Publisher[pb.TickAck] | None = None
         self._next_event: Callable[[], int] | None = None
+        self._next_sample: Callable[[], tuple[int, int]] | None = None
+
+    def on_next_sample(self, next_sample: Callable[[], tuple[int, int]]) -> None:
+        """``next_sample()``, asked after the exchange's steps: the earliest tick at which the
+        service reads its inputs to decide from what it perceives, and the period in ticks at
+        which it goes on doing so (0: once); (0, 0) if none (``TickAck.next_sample_tick``,
+        ``sample_period_ticks``; docs/ARCHITECTURE.md "Exchange step")."""
+        self._next_sample = next_sample
 
     def on_next_event(self, next_event: Callable[[], int]) -> None:
         """``next_event()``, asked after the exchange's steps: the earliest tick at which the
@@ -388,4 +396,6 @@ class LockstepParticipant(ClockFollower):
         ack.published.extend(self.bus.new_marks(exclude=ack_pub.key))
         if self._next_event is not None:
             ack.next_event_tick = self._next_event()
+        if self._next_sample is not None:
+            ack.next_sample_tick, ack.sample_period_ticks = self._next_sample()
         ack_pub.put(ack, tick.header.tick, tick.header.sim_time)

@@ -147,6 +147,35 @@ class Hand:
                 at, g = at + abs(v - g) / rate, v
         return None
 
+    def free_not_before(self, t: float) -> float:
+        """A time before which the hand stays busy as it goes through its plan from time ``t``
+        (after its advance to ``t``); ``t`` if it is not busy. A lower bound, as
+        :meth:`grip_crossing_not_before`: moves not started yet count at their shortest."""
+        at, g, pos = t, self.grip, self.pos
+        if self._grip_target is not None:
+            at, g = (
+                at + abs(self._grip_target - g) / self._grip_rate(self._grip_target, g),
+                (self._grip_target),
+            )
+        if self.segment is not None:
+            at, pos = max(at, self.segment.t_end), self.segment.p1
+        if self._dwell_until is not None:
+            at = max(at, self._dwell_until)
+        for step in self.plan:
+            if isinstance(step, Move):
+                d = distance(pos, step.goal)
+                if d >= 1e-6:
+                    at += max(
+                        MIN_MOVEMENT_TIME_S, MIN_JERK_PEAK_FACTOR * d / self.motor.peak_hand_speed
+                    )
+                pos = step.goal
+            elif isinstance(step, Dwell):
+                at += max(0.0, step.seconds)
+            else:
+                v = min(1.0, max(0.0, step.value))
+                at, g = at + abs(v - g) / self._grip_rate(v, g), v
+        return at
+
     # ------------------------------------------------------------------ time
     def advance(self, t: float) -> None:
         if self._t_last is None:

@@ -86,6 +86,10 @@ PROVOKE_GIVE_UP_S = 4.0
 BUTTON_REPEAT_S = 3.0
 TOUCH_MAX_S = 2.0  # a hand touching a robot this long is pulled right back
 HEAD_TIME_CONSTANT_S = 0.15
+# While it holds back (caution) or follows a robot's tool (provoking), it looks at the robots
+# this often: at declared ticks (next_look_s), which start exchanges, so what it sees is what
+# it would see with one-tick exchanges, however long they are.
+LOOK_S = 1.0 / 30.0
 
 
 class Phase(str, Enum):
@@ -140,6 +144,7 @@ class ScriptedParticipant:
         self.hold_since: float | None = None  # holding back (caution) since
         self.hold_expired = False
         self.still_since: float | None = None  # the robot holding it back stands still since
+        self.next_look: float | None = None  # holding back or provoking: its next look at robots
         self.hold_backs: list[tuple[float, str]] = []  # (time, robot) whenever caution held back
         # the robot that last hit a hand, let pass before the next action: (robot, seen moving)
         self.bitten: tuple[str, bool] | None = None
@@ -158,6 +163,34 @@ class ScriptedParticipant:
         self.log: list[tuple[float, str]] = []  # (time, what) decisions, for tests and debugging
 
     # ------------------------------------------------------------------ helpers
+    @property
+    def look_ticks(self) -> int:
+        """LOOK_S in ticks: the period of its looks at the robots."""
+        return max(1, round(LOOK_S * self.facts.tick_hz))
+
+    def _look_after(self, t: float) -> float:
+        """The next look's time: look_ticks after ``t``, half a tick early, so that its tick
+        (the first at or after it) is the same whatever the rounding of the times."""
+        return t + (self.look_ticks - 0.5) / self.facts.tick_hz
+
+    def next_look_s(self) -> tuple[float, int] | None:
+        """When it next looks at the robots, if after its last step, and the period in ticks of
+        the looks after it: held back by caution, or following a tool it provokes, every
+        look_ticks; holding a part, a look that falls due while the hand is busy (its grip and
+        dwell, its way back from where it waited) comes when the hand is free: from a lower
+        bound of that time on, every tick (the next step's declaration is nearer). A look at
+        go_t is a timer (next_timer_s)."""
+        looking = self.hold_since is not None or self.phase == Phase.PROVOKE
+        due = self.next_look if looking else self.go_t if self.phase == Phase.HOLD else None
+        if due is None:
+            return None
+        period = self.look_ticks
+        if self.phase == Phase.HOLD and self.hand.busy:
+            # _hold looks only once the hand is free (e.g. back from where it waited)
+            due, period = max(due, self.hand.free_not_before(self.t)), 1
+        # (a look already due comes at the next step)
+        return max(due, self.t + 0.5 / self.facts.tick_hz), period
+
     def hand_speed_bound(self) -> float:
         """m/s no point of either hand exceeds: every motion is a Move whose minimum-jerk
         profile peaks at most at peak_hand_speed, for the hand's centre and, separately, for
@@ -335,9 +368,21 @@ class ScriptedParticipant:
         return math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2) > STILL_SPEED
 
     def _held_back(self, t: float, view: TaskView, goal: Vec3) -> bool:
-        """True while caution holds this action back (and arranges the reaction afterwards)."""
+        """True while caution holds this action back (and arranges the reaction afterwards).
+        It looks at the robots when the action would start (at go_t, a timer: that tick starts
+        an exchange) and, while it holds back, every LOOK_S (declared) and when the wait for a
+        still robot runs out (a timer); between two looks the last one holds. So what it sees
+        is what one-tick exchanges would show it."""
         if self.hold_expired:  # a robot stood still in the way long enough: go anyway
             return False
+        if self.hold_since is None:
+            if self.go_t is None or t < self.go_t:
+                return False  # not deciding yet (the caller waits for go_t)
+        else:
+            wait_over = self.still_since is not None and t - self.still_since >= self.max_hold
+            if self.next_look is not None and t < self.next_look and not wait_over:
+                return True
+        self.next_look = self._look_after(t)
         robot = self.danger(view, goal)
         if robot is not None:
             if self.hold_since is None:
@@ -372,6 +417,7 @@ class ScriptedParticipant:
         self.hold_since = None
         self.still_since = None
         self.hold_expired = False
+        self.next_look = None
 
     # ------------------------------------------------------------------ the tick
     def step(self, t: float, view: TaskView) -> Sample:
@@ -505,6 +551,7 @@ class ScriptedParticipant:
         if not (self.part is not None and view.held_by(self.part) == self.active):
             hand.do(Grip(0.0))
         hand.do(Move(self._provoke_goal(view, rid), None, 0.05, "provoke"))
+        self.next_look = self._look_after(t)
         self.provoke_robot = rid
         self._set(Phase.PROVOKE, t, f"reaching into {rid} {why}")
         return True
@@ -778,6 +825,9 @@ class ScriptedParticipant:
             hand.cancel()
             self._set(Phase.IDLE, t, "gave up provoking")
             return
+        if self.next_look is not None and t < self.next_look:
+            return  # it looks at the tool every LOOK_S
+        self.next_look = self._look_after(t)
         if not hand.busy:  # arrived but no contact yet: follow the tool
             goal = self._provoke_goal(view, rid)
             hand.do(Move(goal, None, 0.02, "provoke"))

@@ -15,6 +15,7 @@ import os
 from pathlib import Path
 
 from hrc.bus import Bus, Outcome
+from hrc.bus.lockstep import opens_exchange
 from hrc.participant.recording import Recorder, Recording, ReplayError, load_recording
 from hrc.participant.sample import Sample
 from hrc.scenario import InputSource, ScenarioError
@@ -264,6 +265,8 @@ class HumanInputService(Service):
 
     def step(self, tick: pb.ClockTick) -> None:
         k, t = tick.header.tick, tick.header.sim_time
+        if opens_exchange(tick):
+            self.source.exchange_opened(t)
         sample = self.source.sample(t)
         if sample.t != t:
             sample = sample.at(t)
@@ -294,6 +297,17 @@ class HumanInputService(Service):
             # the tick before: the decision's tick then starts an exchange
             ticks.append(math.ceil(decide / self.dt - 1e-6) - 1)
         return max(self._last_k + 1, min(ticks)) if ticks else 0
+
+    def next_sample_tick(self) -> tuple[int, int]:
+        """The first tick at which the source reads its inputs to decide from what it perceives
+        (the scripted participant's next look at the robots) and its period in ticks: exchanges
+        start there."""
+        looks = self.source.next_sample_s(self._last_t)
+        if looks is None:
+            return 0, 0
+        at, period = looks
+        # the 1e-6 tick margin: the source looks at the first tick at or after ``at``
+        return max(self._last_k + 1, math.ceil(at / self.dt - 1e-6)), period
 
     def finish(self, outcome: Outcome) -> int | None:
         if isinstance(self.source, VrSource):

@@ -55,11 +55,19 @@ class Source(Protocol):
         """After the sample of time ``t``: the earliest time a timer of the source may make it
         decide from its inputs (they must then be those of one-tick exchanges); None: none."""
 
+    def next_sample_s(self, t: float) -> tuple[float, int] | None:
+        """After the sample of time ``t``: the next time the source looks at its inputs to
+        decide (an exchange starts at the first tick at or after it, no reaction chain follows)
+        and every how many ticks it goes on looking (0: once); None: none."""
+
     def hand_speed_bound(self) -> float:
         """m/s no point of a hand exceeds (HumanState.hand_speed_bound); 0: unknown."""
 
     def published(self, tick: int, t: float, sample: Sample) -> None:
         """The tick's sample is on the bus (the bridge streams the world from here)."""
+
+    def exchange_opened(self, t: float) -> None:
+        """An exchange opens at time ``t``: the inputs now held are of the ticks before it."""
 
     def ended(self, ok: bool, reason: str) -> None:
         """The run is over."""
@@ -94,8 +102,14 @@ class ScriptedSource:
     def next_decision_s(self, t: float) -> float | None:
         return self.participant.next_timer_s(self.view)
 
+    def next_sample_s(self, t: float) -> tuple[float, int] | None:
+        return self.participant.next_look_s()
+
     def hand_speed_bound(self) -> float:
         return self.participant.hand_speed_bound()
+
+    def exchange_opened(self, t: float) -> None:
+        self.view.exchange_t = t
 
     def summary(self) -> str | None:
         sp = self.participant
@@ -134,6 +148,12 @@ class ReplaySource:
 
     def summary(self) -> str | None:
         return None
+
+    def next_sample_s(self, t: float) -> tuple[float, int] | None:
+        return None
+
+    def exchange_opened(self, t: float) -> None:
+        """Nothing: its samples do not depend on when inputs came."""
 
     def published(self, tick: int, t: float, sample: Sample) -> None:
         pass
@@ -175,6 +195,12 @@ class VrSource:
         inputs.input(keys.robot_states(), pb.RobotState, lambda _k, msg: m.on_robot_state(msg))
         inputs.input(keys.task_indicators(), pb.Indicators, lambda _k, msg: m.on_indicators(msg))
         inputs.input(keys.task_events(), pb.TaskEvent, lambda _k, msg: m.on_task_event(msg))
+
+    def next_sample_s(self, t: float) -> tuple[float, int] | None:
+        return None
+
+    def exchange_opened(self, t: float) -> None:
+        """Nothing: its samples do not depend on when inputs came."""
 
     def published(self, tick: int, t: float, sample: Sample) -> None:
         if self.mirror.world_seen:  # until then the frame would show an empty world

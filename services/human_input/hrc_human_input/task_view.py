@@ -65,6 +65,9 @@ class TaskView:
     object_events: list[ObjectEventView] = field(default_factory=list)
     task_events: list[TaskEventView] = field(default_factory=list)
     robot_waiting_events: set[str] = field(default_factory=set)
+    # Sim time of the tick that opened the exchange being computed: the view holds the inputs
+    # of the ticks before it, whichever tick of the exchange the participant is at.
+    exchange_t: float | None = None
 
     # ------------------------------------------------------------------ bus handlers
     def on_objects(self, msg: pb.WorldObjects) -> None:
@@ -98,9 +101,12 @@ class TaskView:
         self.robots[msg.robot] = RobotView(msg.robot, tcp, msg.tcp_speed, velocity, msg.status, t)
 
     def robot_velocity(self, robot: RobotView, now: float) -> Vec3:
-        """The arm's TCP velocity at ``now``: zero once its last state is older than a tick (no
-        new state means nothing changed, so it stands still)."""
-        if now - robot.t > 1.5 / self.facts.tick_hz:
+        """The arm's TCP velocity as last heard: zero once its last state is older than the
+        tick before the inputs' (no new state means nothing changed, so it stands still). The
+        inputs' tick is the exchange's first (``exchange_t``), not ``now``: inside a longer
+        exchange no state can have come since, so a moving arm is not taken for a still one."""
+        ref = now if self.exchange_t is None else self.exchange_t
+        if ref - robot.t > 1.5 / self.facts.tick_hz:
             return (0.0, 0.0, 0.0)
         return robot.velocity
 

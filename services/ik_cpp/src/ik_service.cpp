@@ -239,8 +239,10 @@ void IkEngine::plan_speed_bound(Arm& arm) const {
   }
   // Thirty simulated seconds: far longer than any move of a task, and a bounded cost per command.
   const auto lookahead = static_cast<std::size_t>(std::ceil(30.0 / dt_));
-  bool complete = false;
-  const Eigen::MatrixXd steps = arm.motion->joint_speed_fractions(lookahead, complete);
+  const kin::MotionGenerator::SpeedForecast forecast = arm.motion->speed_forecast(lookahead);
+  const bool complete = forecast.complete;
+  Eigen::MatrixXd steps(forecast.joint_fractions.rows(), 3 * arm.model->dof());
+  steps << forecast.joint_fractions, forecast.link_linear, forecast.link_angular;
   const Eigen::Index n = steps.rows();
   arm.speed_table.resize(n, steps.cols());
   if (speed_window_ == 0) {  // the maximum over the rest of the motion
@@ -266,13 +268,26 @@ void IkEngine::step() {
   }
 }
 
-std::optional<Eigen::VectorXd> IkEngine::joint_speed_fraction_bounds(std::size_t index) const {
+std::optional<Eigen::VectorXd> IkEngine::speed_row(std::size_t index) const {
   const Arm& arm = arms_.at(index);
   if (!arm.speed_known) return std::nullopt;
   // The next step is row steps_taken of the table; past its end nothing moves.
   const auto next = static_cast<Eigen::Index>(arm.steps_taken);
   if (next < arm.speed_table.rows()) return Eigen::VectorXd(arm.speed_table.row(next).transpose());
-  return Eigen::VectorXd::Zero(arm.model->dof());
+  return Eigen::VectorXd::Zero(3 * arm.model->dof());
+}
+
+std::optional<Eigen::VectorXd> IkEngine::joint_speed_fraction_bounds(std::size_t index) const {
+  const std::optional<Eigen::VectorXd> row = speed_row(index);
+  if (!row) return std::nullopt;
+  return Eigen::VectorXd(row->head(arms_.at(index).model->dof()));
+}
+
+std::optional<IkEngine::LinkSpeeds> IkEngine::link_speed_bounds(std::size_t index) const {
+  const std::optional<Eigen::VectorXd> row = speed_row(index);
+  if (!row) return std::nullopt;
+  const int dof = arms_.at(index).model->dof();
+  return LinkSpeeds{row->segment(dof, dof), row->segment(2 * dof, dof)};
 }
 
 const kin::MotionState& IkEngine::state(std::size_t index) const {
@@ -284,7 +299,7 @@ uint64_t IkEngine::min_ticks_to_end(std::size_t index) const {
 void IkEngine::reset(std::size_t index, const Eigen::VectorXd& q) {
   Arm& arm = arms_.at(index);
   arm.motion->reset(q);
-  arm.speed_table.resize(0, arm.model->dof());  // at rest
+  arm.speed_table.resize(0, 3 * arm.model->dof());  // at rest
   arm.speed_known = true;
 }
 const kin::RobotModel& IkEngine::model(std::size_t index) const { return *arms_.at(index).model; }
@@ -322,15 +337,25 @@ void IkEngine::fill_state(std::size_t index, v2::RobotState& out) const {
   out.set_command_id(arm.command_id);
   if (out.detail() != s.detail) out.set_detail(s.detail);
   auto* bounds = out.mutable_joint_speed_fraction_bounds();
-  if (const std::optional<Eigen::VectorXd> f = joint_speed_fraction_bounds(index)) {
+  auto* linear = out.mutable_link_linear_speed_bounds();
+  auto* angular = out.mutable_link_angular_speed_bounds();
+  if (const std::optional<Eigen::VectorXd> row = speed_row(index)) {
     if (bounds->size() != n) bounds->Resize(n, 0.0);
-    for (int i = 0; i < n_chain; ++i) bounds->Set(i, (*f)[i]);
+    if (linear->size() != n_chain) linear->Resize(n_chain, 0.0);
+    if (angular->size() != n_chain) angular->Resize(n_chain, 0.0);
+    for (int i = 0; i < n_chain; ++i) {
+      bounds->Set(i, (*row)[i]);
+      linear->Set(i, (*row)[n_chain + i]);
+      angular->Set(i, (*row)[2 * n_chain + i]);
+    }
     // A finger moves at its velocity limit until it is where the command sends it.
     for (int k = 0; k < n - n_chain; ++k)
       bounds->Set(n_chain + k, arm.grip[k] == arm.grip_target[k] ? 0.0 : 1.0);
     out.set_joint_speed_window_ticks(speed_window_);
   } else {
     bounds->Clear();
+    linear->Clear();
+    angular->Clear();
     out.clear_joint_speed_window_ticks();
   }
   // Unset at scale 1: the policies without speed scaling publish the same bytes as before.

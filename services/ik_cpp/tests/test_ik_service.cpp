@@ -533,6 +533,10 @@ TEST_F(Engine, StatesDeclareJointSpeedBoundsThatTheArmKeeps) {
   ASSERT_EQ(st.joint_speed_fraction_bounds_size(), st.joint_names_size());  // known at rest
   for (const double f : st.joint_speed_fraction_bounds()) EXPECT_EQ(f, 0.0);
   const hrc::kin::RobotModel& m = engine_.model(0);
+  // the links' speeds: one per joint of the chain (not the fingers), 0 at rest
+  ASSERT_EQ(st.link_linear_speed_bounds_size(), m.dof());
+  ASSERT_EQ(st.link_angular_speed_bounds_size(), m.dof());
+  for (const double v : st.link_linear_speed_bounds()) EXPECT_EQ(v, 0.0);
   const double targets[][2] = {{0.20, 0.25}, {0.35, 0.10}};
   for (const uint32_t window : {0u, 8u}) {
     engine_.set_speed_window(window);
@@ -544,7 +548,12 @@ TEST_F(Engine, StatesDeclareJointSpeedBoundsThatTheArmKeeps) {
     for (int k = 0; k < 2000; ++k) {
       engine_.fill_state(0, st);
       ASSERT_EQ(st.joint_speed_fraction_bounds_size(), m.dof());
+      ASSERT_EQ(st.link_linear_speed_bounds_size(), m.dof());
       EXPECT_EQ(st.joint_speed_window_ticks(), window);
+      if (k == 10) {  // moving: the link nearest the tool moves, within the TCP's speed
+        EXPECT_GT(st.link_linear_speed_bounds(m.dof() - 1), 0.0);
+        EXPECT_LT(st.link_linear_speed_bounds(m.dof() - 1), 1.0);
+      }
       declared.emplace_back(Eigen::Map<const Eigen::VectorXd>(
           st.joint_speed_fraction_bounds().data(), st.joint_speed_fraction_bounds_size()));
       const Eigen::VectorXd q0 = engine_.state(0).q;
@@ -568,6 +577,8 @@ TEST_F(Engine, StatesDeclareJointSpeedBoundsThatTheArmKeeps) {
   ASSERT_EQ(engine_.apply("r1", move(0.20, 0.25, 0.25, 5)), "");
   engine_.fill_state(0, st);
   EXPECT_EQ(st.joint_speed_fraction_bounds_size(), 0);
+  EXPECT_EQ(st.link_linear_speed_bounds_size(), 0);
+  EXPECT_EQ(st.link_angular_speed_bounds_size(), 0);
   engine_.set_declare_speeds(true);
   // Under a speed scale < 1 the lookahead does not hold: nothing is declared.
   ASSERT_EQ(engine_.apply("r1", move(0.30, 0.25, 0.25, 4)), "");
@@ -578,4 +589,5 @@ TEST_F(Engine, StatesDeclareJointSpeedBoundsThatTheArmKeeps) {
   engine_.step();
   engine_.fill_state(0, st);
   EXPECT_EQ(st.joint_speed_fraction_bounds_size(), 0);
+  EXPECT_EQ(st.link_linear_speed_bounds_size(), 0);
 }

@@ -22,9 +22,15 @@ Speed bounds: an arm's from its URDF joint velocity limits (every point of it mo
 sum_j |qdot_j| * r_j, r_j the farthest any collider beyond joint j can be from it), each joint's
 term scaled by what the arm's motion source declares for the coming ticks
 (RobotState.joint_speed_fraction_bounds: joint j no faster than f_j of its limit until a new
-command reaches the arm; all 0 at rest): sum_j f_j * v_j * r_j. An arm commanded in the
-exchange just ended, or without a declaration, counts with its full bound. The
-hand's is what its source declares (HumanState.hand_speed_bound), else :data:`HAND_SPEED_BOUND`.
+command reaches the arm; all 0 at rest): sum_j f_j * v_j * r_j. Where the source also declares
+how fast each joint's child link moves and turns (RobotState.link_linear_speed_bounds,
+link_angular_speed_bounds: what its planned poses do), each collider's bound is that of the
+nearest such link above it, v + w * r (r from that link's frame origin to the collider's
+farthest point), plus the terms of the joints between (a gripper's fingers); the arm's is the
+largest over its colliders, if lower than the sum (a sum of every joint at its own peak, 3-5
+times the arm's real speed). An arm commanded in the exchange just ended, or without a
+declaration, counts with its full bound. The hand's is what its source declares
+(HumanState.hand_speed_bound), else :data:`HAND_SPEED_BOUND`.
 """
 
 from __future__ import annotations
@@ -102,6 +108,77 @@ def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
     return terms
 
 
+@dataclass(frozen=True)
+class Lever:
+    """A movable joint above a collider: any point of the collider lies within ``reach_m`` of
+    the joint's child-link frame origin (which lies on the joint's axis), in any pose."""
+
+    joint: str
+    v_max: float  # rad/s (m/s when prismatic): its URDF limit, 2 pi rad/s where none
+    prismatic: bool
+    reach_m: float
+
+    def term(self) -> float:
+        """m/s: the most the joint alone moves a point of the collider, at its limit."""
+        return self.v_max if self.prismatic else self.v_max * self.reach_m
+
+
+def arm_levers(robot: KinematicRobot) -> list[tuple[Lever, ...]]:
+    """Per link with a collider: its movable joints, nearest first (see :class:`Lever`). The
+    nearest one's reach is the collider's farthest AABB corner from its frame (the two move as
+    one); a farther one's is the path of link offsets down to it plus that radius, each sliding
+    joint on the way adding its travel."""
+    c, body = robot._c, robot.body
+    n = p.getNumJoints(body, physicsClientId=c)
+    info = [p.getJointInfo(body, j, physicsClientId=c) for j in range(n)]
+    parent = {j: info[j][16] for j in range(n)}
+    origin: dict[int, tuple[float, ...]] = {-1: tuple(p.getBasePositionAndOrientation(body, c)[0])}
+    for j in range(n):
+        origin[j] = tuple(p.getLinkState(body, j, physicsClientId=c)[4])
+    out: list[tuple[Lever, ...]] = []
+    for link in range(n):
+        if not p.getCollisionShapeData(body, link, physicsClientId=c):
+            continue
+        box = p.getAABB(body, link, physicsClientId=c)
+        radius = _aabb_radius(origin[link], box)
+        levers: list[Lever] = []
+        path, at = 0.0, link
+        while at != -1:
+            kind = info[at][2]
+            if kind != p.JOINT_FIXED:
+                prismatic = kind == p.JOINT_PRISMATIC
+                v = info[at][11] if info[at][11] > 0 else 2 * math.pi
+                reach = _aabb_radius(origin[at], box) if not levers else path + radius
+                levers.append(Lever(info[at][1].decode(), v, prismatic, reach))
+            path += math.dist(origin[at], origin[parent[at]])
+            if kind == p.JOINT_PRISMATIC:
+                path += abs(info[at][9] - info[at][8])  # its travel: the offset varies by it
+            at = parent[at]
+        out.append(tuple(levers))
+    return out
+
+
+def link_speed_bound(
+    levers: list[tuple[Lever, ...]],
+    links: dict[str, tuple[float, float]],
+    fractions: dict[str, float],
+) -> float:
+    """m/s no collider exceeds: per collider, the nearest joint whose child link's speeds are
+    declared (``links``: joint -> (m/s, rad/s)) gives v + w * reach, the joints below it their
+    terms scaled by their declared fractions (1 where none)."""
+    bound = 0.0
+    for chain in levers:
+        extra = 0.0
+        for lever in chain:
+            speeds = links.get(lever.joint)
+            if speeds is not None:
+                extra += speeds[0] + speeds[1] * lever.reach_m
+                break
+            extra += fractions.get(lever.joint, 1.0) * lever.term()
+        bound = max(bound, extra)
+    return bound
+
+
 @dataclass
 class SpanPlanner:
     """Chooses each exchange's span from the world's gaps: hand-arm and arm-arm (their inflated
@@ -113,6 +190,8 @@ class SpanPlanner:
     hand_bound: float = HAND_SPEED_BOUND
     # robot pairs whose inflated volumes touch at a gap <= the margin (near-collisions)
     arm_pairs: list[tuple[str, str, float]] = field(default_factory=list)
+    # robot id -> its colliders' levers (arm_levers), for declared link speeds
+    arm_levers: dict[str, list[tuple[Lever, ...]]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         self.histogram: Counter[int] = Counter()  # exchanges planned, by span
@@ -120,23 +199,33 @@ class SpanPlanner:
         self.arm_bounds: dict[str, float] = {
             rid: sum(t.values()) for rid, t in self.arm_terms.items()
         }
-        # robot id -> its latest declaration (joints, fractions, window ticks); read only when a
-        # span is planned, once per exchange, though a moving arm's states come every tick
-        self._declared: dict[str, tuple[Sequence[str], Sequence[float], int]] = {}
+        # robot id -> its latest declaration (joints, fractions, window ticks, link m/s, link
+        # rad/s); read only when a span is planned, once per exchange, though a moving arm's
+        # states come every tick
+        self._declared: dict[
+            str, tuple[Sequence[str], Sequence[float], int, Sequence[float], Sequence[float]]
+        ] = {}
         self._commanded: set[str] = set()  # arms commanded since the last span was planned
 
     def declare(
-        self, robot: str, joints: Sequence[str], fractions: Sequence[float], window: int = 0
+        self,
+        robot: str,
+        joints: Sequence[str],
+        fractions: Sequence[float],
+        window: int = 0,
+        link_linear: Sequence[float] = (),
+        link_angular: Sequence[float] = (),
     ) -> None:
         """The robot's latest state declares these joint speed fractions for the next
         ``window`` ticks (0: all; empty fractions: nothing declared); a joint it does not name
-        counts in full."""
+        counts in full. ``link_linear`` and ``link_angular``: its first joints' child links'
+        speeds on the same ticks (m/s, rad/s), if declared."""
         if robot not in self.arm_terms:
             return
         if not fractions:
             self._declared.pop(robot, None)
             return
-        self._declared[robot] = (joints, fractions, window)
+        self._declared[robot] = (joints, fractions, window, link_linear, link_angular)
 
     def commanded(self, robot: str) -> None:
         """A command for ``robot`` was sent: its source applies it at the next exchange's first
@@ -149,10 +238,15 @@ class SpanPlanner:
         declared = self._declared.get(robot)
         if declared is None or robot in self._commanded:
             return self.arm_bounds[robot], 0
-        joints, fractions, window = declared
+        joints, fractions, window, linear, angular = declared
         given = dict(zip(joints, fractions, strict=True))
         terms = self.arm_terms[robot]
-        return sum(term * given.get(j, 1.0) for j, term in terms.items()), window
+        bound = sum(term * given.get(j, 1.0) for j, term in terms.items())
+        levers = self.arm_levers.get(robot)
+        if linear and levers:
+            links = {j: (v, w) for j, v, w in zip(joints, linear, angular, strict=False)}
+            bound = min(bound, link_speed_bound(levers, links, given))
+        return bound, window
 
     def span(
         self,

@@ -17,7 +17,7 @@ from hrc.service_table import OBSERVERS, PARTICIPANTS
 from hrc.validate import all_finite, check_pose
 from hrc.wire import pb
 
-from hrc_physics.exchange import HAND_SPEED_BOUND, SpanPlanner, arm_speed_terms
+from hrc_physics.exchange import HAND_SPEED_BOUND, SpanPlanner, arm_levers, arm_speed_terms
 from hrc_physics.robots import RobotModelError
 from hrc_physics.world import CommandRejected, World, WorldSettings
 
@@ -55,6 +55,17 @@ def _robot_ok(msg: pb.RobotState) -> str | None:
             )
         if not all(0.0 <= f < float("inf") for f in bounds):  # also false for NaN
             return f"robot {msg.robot!r}: joint_speed_fraction_bounds must be finite and >= 0"
+    linear, angular = msg.link_linear_speed_bounds, msg.link_angular_speed_bounds
+    if linear or angular:
+        if not bounds or len(linear) != len(angular) or len(linear) > len(msg.joint_names):
+            return (
+                f"robot {msg.robot!r}: {len(linear)} link_linear_speed_bounds and "
+                f"{len(angular)} link_angular_speed_bounds for {len(msg.joint_names)} "
+                f"joint_names and {len(bounds)} joint_speed_fraction_bounds (one each per "
+                "joint of the chain, with the fractions)"
+            )
+        if not all(0.0 <= v < float("inf") for v in (*linear, *angular)):
+            return f"robot {msg.robot!r}: link speed bounds must be finite and >= 0"
     return None
 
 
@@ -158,6 +169,7 @@ class PhysicsService(ClockMasterService):
         self.planner = SpanPlanner(
             dt=1.0 / tick_hz,
             arm_terms={rid: arm_speed_terms(r) for rid, r in self.world.robots.items()},
+            arm_levers={rid: arm_levers(r) for rid, r in self.world.robots.items()},
             max_span=args.max_span or typed.scenario.max_exchange_ticks,
             arm_pairs=[
                 (a, b, self.world.robots[a].near_margin + self.world.robots[b].near_margin)
@@ -213,7 +225,12 @@ class PhysicsService(ClockMasterService):
             self.bus.reject(key, msg.header.sender, f"robot state rejected: {exc}")
             return
         self.planner.declare(
-            robot, msg.joint_names, msg.joint_speed_fraction_bounds, msg.joint_speed_window_ticks
+            robot,
+            msg.joint_names,
+            msg.joint_speed_fraction_bounds,
+            msg.joint_speed_window_ticks,
+            msg.link_linear_speed_bounds,
+            msg.link_angular_speed_bounds,
         )
 
     def _on_robot_command(self, key: str, _msg: pb.RobotCommand) -> None:

@@ -5,9 +5,15 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pybullet as p
+import pytest
 
-from hrc_physics.exchange import SpanPlanner, arm_speed_terms
+from hrc import scenario as sc
+
+from .conftest import ROOT
+from hrc_physics.exchange import Lever, SpanPlanner, arm_levers, arm_speed_terms, link_speed_bound
+from hrc_physics.robots import KinematicRobot
 from hrc_physics.world import World
 
 
@@ -59,3 +65,81 @@ def test_a_commanded_arm_counts_in_full_for_one_exchange(world: World) -> None:
     assert planner.span(world.c, [], world.robots) == 16  # the full bound, far from everything
     assert planner.bound(rid) == (0.0, 8)  # then its declaration holds again (one exchange only)
     assert planner.span(world.c, [], world.robots) == 8  # and only for the ticks it covers
+
+
+def _frame(robot: KinematicRobot, link: int) -> tuple[np.ndarray, np.ndarray]:
+    s = p.getLinkState(robot.body, link, physicsClientId=robot._c)
+    return np.array(s[4]), np.array(p.getMatrixFromQuaternion(s[5])).reshape(3, 3)
+
+
+@pytest.mark.parametrize("scenario", ["thesis.toml", "thesis-panda.toml"])
+def test_declared_link_speeds_bound_every_collider_of_the_arm(scenario: str) -> None:
+    """From the arm's pose at start, random joint steps (the fingers too): the corners of each
+    collider's box, carried with their link, move no farther than the bound computed from how
+    far the links' frames moved and turned (what ik_cpp declares) and the fingers' fractions;
+    and that bound is below the sum of the joints' terms."""
+    rng = np.random.default_rng(7)
+    with World(sc.load(ROOT / "scenarios" / scenario)) as world:
+        robot = next(iter(world.robots.values()))
+        c, body = world.c, robot.body
+        n = p.getNumJoints(body, physicsClientId=c)
+        info = [p.getJointInfo(body, j, physicsClientId=c) for j in range(n)]
+        movable = [j for j in range(n) if info[j][2] != p.JOINT_FIXED]
+        names = {j: info[j][1].decode() for j in movable}
+        fingers = {j for j in movable if info[j][2] == p.JOINT_PRISMATIC}
+        chain = [j for j in movable if j not in fingers]
+        levers = arm_levers(robot)
+        terms = arm_speed_terms(robot)
+        q0 = [p.getJointState(body, j, physicsClientId=c)[0] for j in movable]
+        colliders = [j for j in range(n) if p.getCollisionShapeData(body, j, physicsClientId=c)]
+        corners = {}
+        for link in colliders:
+            lo, hi = p.getAABB(body, link, physicsClientId=c)
+            o, r = _frame(robot, link)
+            corners[link] = [
+                r.T @ (np.array([x, y, z]) - o) for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                for z in (lo[2], hi[2])
+            ]  # fmt: skip
+        start = {link: _frame(robot, link) for link in range(n)}
+        for _ in range(20):
+            dq = rng.uniform(-0.05, 0.05, len(movable))
+            for j, q, d in zip(movable, q0, dq, strict=True):
+                p.resetJointState(body, j, q + (d * 0.2 if j in fingers else d), physicsClientId=c)
+            moved = {link: _frame(robot, link) for link in range(n)}
+            links = {}
+            for j in chain:  # what the motion source declares: how far each child frame went
+                (o0, r0), (o1, r1) = start[j], moved[j]
+                angle = math.acos(min(1.0, max(-1.0, (np.trace(r0.T @ r1) - 1) / 2)))
+                links[names[j]] = (float(np.linalg.norm(o1 - o0)), angle)
+            # each joint's step as a fraction of its limit (a "tick" of 1 s: speeds are steps)
+            fractions = {
+                names[j]: abs(d * 0.2 if j in fingers else d) / (info[j][11] or 2 * math.pi)
+                for j, d in zip(movable, dq, strict=True)
+            }
+            bound = link_speed_bound(levers, links, fractions)
+            worst = 0.0
+            for link in colliders:
+                (o0, r0), (o1, r1) = start[link], moved[link]
+                for x in corners[link]:
+                    worst = max(worst, float(np.linalg.norm((o1 + r1 @ x) - (o0 + r0 @ x))))
+            assert worst <= bound + 1e-9, (scenario, worst, bound)
+            assert bound < sum(terms[name] * f for name, f in fractions.items()), scenario
+        for j, q in zip(movable, q0, strict=True):
+            p.resetJointState(body, j, q, physicsClientId=c)
+
+
+def test_declared_link_speeds_lower_the_bound_only_where_they_are_lower() -> None:
+    levers = {"r1": [(Lever("a", 2.0, False, 0.5), Lever("base", 1.0, False, 1.0))]}
+    planner = SpanPlanner(
+        dt=1 / 240, arm_terms={"r1": {"a": 1.0, "base": 1.0}}, max_span=16, arm_levers=levers
+    )
+    planner.declare("r1", ["a", "base"], [1.0, 1.0], 32, [0.2, 0.0], [0.4, 0.1])
+    assert math.isclose(planner.bound("r1")[0], 0.2 + 0.4 * 0.5)  # a's link: v + w r
+    planner.declare("r1", ["a", "base"], [0.1, 0.1], 32, [0.2, 0.0], [0.4, 0.1])
+    assert math.isclose(planner.bound("r1")[0], 0.2)  # the fractions' sum is lower here
+    # only the base's link declared: joint a (not declared) adds its term at its fraction
+    planner.declare("r1", ["base", "a"], [1.0, 0.5], 32, [0.0], [0.1])
+    assert math.isclose(planner.bound("r1")[0], 0.5 * 2.0 * 0.5 + 0.1 * 1.0)
+    # without levers (another arm model), the fractions alone
+    planner.arm_levers = {}
+    assert math.isclose(planner.bound("r1")[0], 1.5)

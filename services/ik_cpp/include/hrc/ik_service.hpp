@@ -89,6 +89,13 @@ class IkEngine {
   /// (RobotState.joint_speed_fraction_bounds); empty if not known (under a speed scale < 1, or a
   /// motion longer than the lookahead).
   std::optional<Eigen::VectorXd> joint_speed_fraction_bounds(std::size_t index) const;
+  /// Per joint of arm `index`, on the same ticks: the most its child link's frame origin moves
+  /// (m/s) and the link turns (rad/s) (RobotState.link_linear_speed_bounds and
+  /// link_angular_speed_bounds); empty when the fractions are.
+  struct LinkSpeeds {
+    Eigen::VectorXd linear, angular;
+  };
+  std::optional<LinkSpeeds> link_speed_bounds(std::size_t index) const;
   /// The bounds above hold for the next `ticks` ticks (the longest exchange: the scenario's
   /// max_exchange_ticks); 0 (the default): until the motion ends. Set before any command.
   void set_speed_window(uint32_t ticks) { speed_window_ = ticks; }
@@ -115,15 +122,19 @@ class IkEngine {
     uint64_t command_id = 0;
     // The fingers: where they are, where the last command sends them, how fast (per tick).
     Eigen::VectorXd grip, grip_target, grip_step;
-    // The motion's joint speed fractions, row i the max over the speed window's steps from i
-    // on, for the exchange step's gap rules; steps_taken since it was computed. speed_known
-    // is false when the table does not hold (speed scale < 1, motion past the lookahead).
+    // The motion's joint speed fractions, then its links' linear and angular speeds
+    // (kin::MotionGenerator::SpeedForecast, 3 x dof columns), row i the max over the speed
+    // window's steps from i on, for the exchange step's gap rules; steps_taken since it was
+    // computed. speed_known is false when the table does not hold (speed scale < 1, motion past
+    // the lookahead).
     Eigen::MatrixXd speed_table;
     std::size_t steps_taken = 0;
     bool speed_known = true;
   };
-  // Recomputes arm's speed_table for the motion just commanded (kin::joint_speed_fractions).
+  // Recomputes arm's speed_table for the motion just commanded (kin::speed_forecast).
   void plan_speed_bound(Arm& arm) const;
+  // The speed_table's row for the next step (zeros past its end: nothing moves), if known.
+  std::optional<Eigen::VectorXd> speed_row(std::size_t index) const;
 
   double dt_;
   uint32_t speed_window_ = 0;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
+#include <utility>
 
 #include "motion_detail.hpp"
 
@@ -161,25 +162,51 @@ uint64_t MotionGenerator::min_ticks_to_end() const {
 
 Eigen::MatrixXd MotionGenerator::joint_speed_fractions(std::size_t max_ticks,
                                                        bool& complete) const {
+  SpeedForecast f = speed_forecast(max_ticks);
+  complete = f.complete;
+  return std::move(f.joint_fractions);
+}
+
+MotionGenerator::SpeedForecast MotionGenerator::speed_forecast(std::size_t max_ticks) const {
   constexpr double kNoLimit = 2.0 * M_PI;  // rad/s: the same rule as the physics's arm bound
   const Eigen::VectorXd& vlim = model_.max_velocity();
   const Eigen::ArrayXd max_step =
       vlim.unaryExpr([](double v) { return std::isfinite(v) ? v : kNoLimit; }).array() * dt_;
-  std::vector<Eigen::VectorXd> rows;
+  const int dof = model_.dof();
+  std::vector<Eigen::VectorXd> fractions, linear, angular;
+  std::vector<Eigen::Isometry3d> X0, X1;
   MotionGenerator sim(*this);
-  complete = false;
-  while (rows.size() < max_ticks) {
+  SpeedForecast out;
+  model_.joint_child_frames(sim.state_.q, X0);
+  while (fractions.size() < max_ticks) {
     if (sim.segments_.empty()) {
-      complete = true;  // step() no longer changes q
+      out.complete = true;  // step() no longer changes q
       break;
     }
     const Eigen::VectorXd q0 = sim.state_.q;
     sim.step();
-    rows.emplace_back((sim.state_.q - q0).array().abs() / max_step);
+    fractions.emplace_back((sim.state_.q - q0).array().abs() / max_step);
+    model_.joint_child_frames(sim.state_.q, X1);
+    Eigen::VectorXd v(dof), w(dof);
+    for (int j = 0; j < dof; ++j) {
+      const auto i = static_cast<std::size_t>(j);
+      v[j] = (X1[i].translation() - X0[i].translation()).norm() / dt_;
+      w[j] = Eigen::AngleAxisd(X0[i].linear().transpose() * X1[i].linear()).angle() / dt_;
+    }
+    linear.push_back(std::move(v));
+    angular.push_back(std::move(w));
+    std::swap(X0, X1);
   }
-  Eigen::MatrixXd out(static_cast<Eigen::Index>(rows.size()), model_.dof());
-  for (std::size_t i = 0; i < rows.size(); ++i)
-    out.row(static_cast<Eigen::Index>(i)) = rows[i].transpose();
+  const auto rows = static_cast<Eigen::Index>(fractions.size());
+  out.joint_fractions.resize(rows, dof);
+  out.link_linear.resize(rows, dof);
+  out.link_angular.resize(rows, dof);
+  for (Eigen::Index i = 0; i < rows; ++i) {
+    const auto k = static_cast<std::size_t>(i);
+    out.joint_fractions.row(i) = fractions[k].transpose();
+    out.link_linear.row(i) = linear[k].transpose();
+    out.link_angular.row(i) = angular[k].transpose();
+  }
   return out;
 }
 

@@ -140,6 +140,25 @@ void RobotModel::attach_tcp(const Eigen::Isometry3d& tip_T_tcp) {
       KDL::Segment("tcp", KDL::Joint("tcp_joint", KDL::Joint::None), to_kdl(tip_T_tcp)));
 }
 
+void RobotModel::joint_child_frames(const Eigen::VectorXd& q,
+                                    std::vector<Eigen::Isometry3d>& base_T_links) const {
+  base_T_links.resize(joint_names_.size());
+  KDL::Frame base_T_segment;  // the base frame to the current segment's tip
+  std::size_t j = 0;
+  for (unsigned int s = 0; s < chain_.getNrOfSegments() && j < joint_names_.size(); ++s) {
+    const KDL::Segment& segment = chain_.getSegment(s);
+    const bool movable = segment.getJoint().getType() != KDL::Joint::None;
+    base_T_segment = base_T_segment * segment.pose(movable ? q[static_cast<Eigen::Index>(j)] : 0.0);
+    if (!movable) continue;
+    Eigen::Isometry3d& X = base_T_links[j++];
+    X.setIdentity();
+    for (int r = 0; r < 3; ++r) {
+      X.translation()[r] = base_T_segment.p[r];
+      for (int c = 0; c < 3; ++c) X.linear()(r, c) = base_T_segment.M(r, c);
+    }
+  }
+}
+
 bool RobotModel::within_limits(const Eigen::VectorXd& q, double tol) const {
   if (q.size() != dof()) return false;
   for (int i = 0; i < dof(); ++i) {

@@ -405,6 +405,50 @@ TEST(Motion, MinTicksToEndBoundsTheMotionsEnd) {
   }
 }
 
+TEST(Motion, LinkSpeedsBoundEveryPointOfEachLink) {
+  const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
+  MotionLimits lim;
+  lim.max_tcp_speed = 0.5;
+  MotionGenerator g(m, base_r1(), 1.0 / 240.0, lim);
+  ASSERT_TRUE(g.reset_to_pose(Eigen::Vector3d(0.35, 0.30, 0.35), 0.0));
+  MoveCommand c = move_to(-0.05, 0.10, 0.05, 90);
+  c.approach_height = 0.05;
+  ASSERT_EQ(g.move(c), MotionStatus::Moving) << g.state().detail;
+  const MotionGenerator::SpeedForecast f = g.speed_forecast(240 * 20);
+  ASSERT_TRUE(f.complete);
+  ASSERT_EQ(f.link_linear.rows(), f.joint_fractions.rows());
+  ASSERT_EQ(f.link_angular.cols(), m.dof());
+  // Points of each link (its frame's origin and 0.3 m away along each axis) move by at most
+  // (linear + angular r) dt from one real step to the next.
+  std::vector<Eigen::Isometry3d> X0, X1;
+  m.joint_child_frames(g.state().q, X0);
+  double fastest = 0.0;
+  for (Eigen::Index i = 0; i < f.link_linear.rows(); ++i) {
+    g.step();
+    m.joint_child_frames(g.state().q, X1);
+    for (int j = 0; j < m.dof(); ++j) {
+      const auto k = static_cast<std::size_t>(j);
+      for (const Eigen::Vector3d& r : std::vector<Eigen::Vector3d>{
+               Eigen::Vector3d::Zero(), Eigen::Vector3d(0.3, 0, 0), Eigen::Vector3d(0, 0.3, 0),
+               Eigen::Vector3d(0, 0, 0.3), Eigen::Vector3d(-0.2, 0.2, -0.2)}) {
+        const double moved = (X1[k] * r - X0[k] * r).norm() / g.dt();
+        fastest = std::max(fastest, moved);
+        ASSERT_LE(moved, f.link_linear(i, j) + f.link_angular(i, j) * r.norm() + 1e-9)
+            << "step " << i << " joint " << j;
+      }
+    }
+    std::swap(X0, X1);
+  }
+  EXPECT_EQ(g.state().status, MotionStatus::Reached);
+  // the bound is tight: the arm's fastest point is near the TCP's speed limit, far below what
+  // the joints' velocity limits would allow
+  EXPECT_GT(fastest, 0.2);
+  EXPECT_LT(f.link_linear.maxCoeff(), 1.0);
+  // the first joint's child frame has its origin on that joint's axis: it turns, never moves
+  EXPECT_LT(f.link_linear.col(0).maxCoeff(), 1e-9);
+  EXPECT_GT(f.link_angular.col(0).maxCoeff(), 0.01);
+}
+
 TEST(Motion, JointSpeedFractionsAreWhatTheStepsDo) {
   const RobotModel m = RobotModel::from_urdf_file(kDir + "/arm5.urdf");
   MotionLimits lim;

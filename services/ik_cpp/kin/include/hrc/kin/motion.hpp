@@ -116,6 +116,17 @@ class MotionGenerator {
   // generator, so it is exactly what step() will do. Stops where the motion ends (nothing moves
   // after that: `complete` true) or after max_ticks steps (`complete` false: the rest unknown).
   Eigen::MatrixXd joint_speed_fractions(std::size_t max_ticks, bool& complete) const;
+  // The same steps, with how fast each movable joint's child link moves in each of them
+  // (RobotModel::joint_child_frames): `link_linear` m/s of its frame's origin, `link_angular`
+  // rad/s of its turn, from one tick's pose to the next. Any point of that link (and of what is
+  // rigidly fixed to it) at distance r from the origin moves at most link_linear + link_angular r.
+  struct SpeedForecast {
+    Eigen::MatrixXd joint_fractions;  // as joint_speed_fractions
+    Eigen::MatrixXd link_linear;      // steps x dof, m/s
+    Eigen::MatrixXd link_angular;     // steps x dof, rad/s
+    bool complete = false;
+  };
+  SpeedForecast speed_forecast(std::size_t max_ticks) const;
 
   const MotionState& state() const { return state_; }
   double dt() const { return dt_; }

@@ -51,6 +51,12 @@ class RobotModel {
   };
   std::optional<JointLimit> joint_limit(const std::string& name) const;
 
+  // base_T_links[j]: the frame of movable joint j's child link (joint_names' order) in the chain's
+  // base frame at q, the URDF's link frame (its origin on the joint's axis). How fast these move
+  // bounds how fast any point of the arm moves (RobotState.link_*_speed_bounds).
+  void joint_child_frames(const Eigen::VectorXd& q,
+                          std::vector<Eigen::Isometry3d>& base_T_links) const;
+
   bool within_limits(const Eigen::VectorXd& q, double tol = 1e-9) const;
   Eigen::VectorXd clamp(const Eigen::VectorXd& q) const;
   // Middle of each joint range (0 for unbounded joints): the benchmark's seed.
