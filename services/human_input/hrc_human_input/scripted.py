@@ -19,7 +19,9 @@ Around that:
   where robots are heading from their lit target cues (and that a robot showing "Waiting.." is not
   coming); without, it only sees where the TCPs are and extrapolates their motion over
   0.5 + caution s. It goes when the way is clear: it waits for a moving robot as long as it
-  moves there, and for one standing still in the way at most `max_hold_back_s`.
+  moves there, and for one standing still in the way at most `max_hold_back_s`. It looks when
+  it would start (go_t) and, while it holds back, every LOOK_S: at ticks it declares
+  (next_look_s), so long exchanges never change what it sees.
 - Once hit, it lets that robot pass (whatever its caution): after a collision with a robot its
   next reach or carry waits while that robot is on a move (its state's status, which changes at
   declared events only, so the timing of one-tick exchanges holds), until it has moved and come
@@ -145,6 +147,7 @@ class ScriptedParticipant:
         self.hold_expired = False
         self.still_since: float | None = None  # the robot holding it back stands still since
         self.next_look: float | None = None  # holding back or provoking: its next look at robots
+        self.held_by_hitter = False  # held back by the robot that hit it (watched every step)
         self.hold_backs: list[tuple[float, str]] = []  # (time, robot) whenever caution held back
         # the robot that last hit a hand, let pass before the next action: (robot, seen moving)
         self.bitten: tuple[str, bool] | None = None
@@ -180,14 +183,18 @@ class ScriptedParticipant:
         dwell, its way back from where it waited) comes when the hand is free: from a lower
         bound of that time on, every tick (the next step's declaration is nearer). A look at
         go_t is a timer (next_timer_s)."""
-        looking = self.hold_since is not None or self.phase == Phase.PROVOKE
-        due = self.next_look if looking else self.go_t if self.phase == Phase.HOLD else None
+        holding = self.hold_since is not None
+        period = self.look_ticks
+        if self.phase == Phase.HOLD and self.hand.busy and (holding or self.go_t is not None):
+            # _hold decides only once the hand is free (e.g. back from where it waited)
+            due = self.go_t if not holding else self.t if self.held_by_hitter else self.next_look
+            due, period = max(due or self.t, self.hand.free_not_before(self.t)), 1
+        elif (holding and not self.held_by_hitter) or self.phase == Phase.PROVOKE:
+            due = self.next_look  # (held by its hitter it watches a status: no look needed)
+        else:
+            return None
         if due is None:
             return None
-        period = self.look_ticks
-        if self.phase == Phase.HOLD and self.hand.busy:
-            # _hold looks only once the hand is free (e.g. back from where it waited)
-            due, period = max(due, self.hand.free_not_before(self.t)), 1
         # (a look already due comes at the next step)
         return max(due, self.t + 0.5 / self.facts.tick_hz), period
 
@@ -315,17 +322,23 @@ class ScriptedParticipant:
     def caution_radius(self) -> float:
         return 0.08 + 0.17 * self.caution
 
+    def hitter_in_way(self, view: TaskView) -> str | None:
+        """The robot that last hit it, until it has passed (moved and come to rest). From its
+        state's status, which changes only where exchanges end: watched every step."""
+        if self.bitten is None or self.in_collision:
+            return None
+        hitter, seen_moving = self.bitten
+        if self._under_way(view, hitter):
+            self.bitten = (hitter, True)
+            return hitter
+        if not seen_moving:
+            return hitter  # not yet on its way again: a still robot is waited for a while
+        self.bitten = None  # it moved and came to rest: passed
+        return None
+
     def danger(self, view: TaskView, goal: Vec3) -> str | None:
-        """The robot heading into the region around ``goal``, as this participant can tell; or
-        the robot that last hit it, until it has passed."""
-        if self.bitten is not None and not self.in_collision:
-            hitter, seen_moving = self.bitten
-            if self._under_way(view, hitter):
-                self.bitten = (hitter, True)
-                return hitter
-            if not seen_moving:
-                return hitter  # not yet on its way again: a still robot is waited for a while
-            self.bitten = None  # it moved and came to rest: passed
+        """The robot heading into the region around ``goal``, as this participant can tell at a
+        look (caution: the robots' positions and motion, their lit target cues)."""
         if self.caution <= 0.0:
             return None
         radius = self.caution_radius()
@@ -375,15 +388,18 @@ class ScriptedParticipant:
         is what one-tick exchanges would show it."""
         if self.hold_expired:  # a robot stood still in the way long enough: go anyway
             return False
-        if self.hold_since is None:
-            if self.go_t is None or t < self.go_t:
-                return False  # not deciding yet (the caller waits for go_t)
-        else:
-            wait_over = self.still_since is not None and t - self.still_since >= self.max_hold
-            if self.next_look is not None and t < self.next_look and not wait_over:
-                return True
-        self.next_look = self._look_after(t)
-        robot = self.danger(view, goal)
+        robot = self.hitter_in_way(view)
+        if robot is None:
+            if self.hold_since is None:
+                if self.go_t is None or t < self.go_t:
+                    return False  # not deciding yet (the caller waits for go_t)
+            elif not self.held_by_hitter:
+                wait_over = self.still_since is not None and t - self.still_since >= self.max_hold
+                if self.next_look is not None and t < self.next_look and not wait_over:
+                    return True
+            self.next_look = self._look_after(t)
+            robot = self.danger(view, goal)
+        self.held_by_hitter = robot is not None and self.bitten is not None
         if robot is not None:
             if self.hold_since is None:
                 self.hold_since = t
@@ -418,6 +434,7 @@ class ScriptedParticipant:
         self.still_since = None
         self.hold_expired = False
         self.next_look = None
+        self.held_by_hitter = False
 
     # ------------------------------------------------------------------ the tick
     def step(self, t: float, view: TaskView) -> Sample:
