@@ -105,10 +105,18 @@ def test_a_folder_with_too_little_room_is_refused_before_the_start(tmp_path: Pat
 
 
 def test_a_trial_that_fills_its_disk_is_stopped_with_whole_records(tmp_path: Path) -> None:
-    """Lockstep: the thesis trial writes about 2.2 MB; on 2.6 MiB (0.5 kept aside, a 1 MiB
-    margin) it reaches the margin about half way through."""
+    """Lockstep: the thesis trial with its robots at 0.2 m/s (twice as long: about 4 MB);
+    on 2.6 MiB (0.5 kept aside, a 1 MiB margin) it reaches the margin at about a quarter of
+    its run. (The plain thesis trial writes 2.2 MB and its logger may catch up after the run:
+    on a loaded machine the run could end before the margin, then everything fits.)"""
+    text = THESIS.read_text()
+    assert text.count("max_tcp_speed = 0.5") == 2
+    (tmp_path / "scenario").mkdir()
+    (tmp_path / "scenario" / "robots").symlink_to(ROOT / "robots")
+    slow = tmp_path / "scenario" / "thesis-slow.toml"
+    slow.write_text(text.replace("max_tcp_speed = 0.5", "max_tcp_speed = 0.2"))
     small, copy = tmp_path / "small", tmp_path / "copy"
-    proc = _in_tmpfs(small, copy, 2.6, f"{HRC} run {THESIS} --out {small}/t")
+    proc = _in_tmpfs(small, copy, 2.6, f"{HRC} run {slow} --out {small}/t")
     assert proc.returncode == 3, proc.stderr[-3000:]
     assert f"no space left on {small}/t" in _failed_line(proc.stderr)
     metrics = _whole_records(copy, small)
