@@ -49,3 +49,20 @@ def test_past_events_are_forgotten() -> None:
     assert events.limit(28, 8) == 3  # ends at 30
     assert events.limit(200, 8) == 8
     assert events.limit(28, 8) == 8  # all forgotten: the clock only goes forward
+
+
+def test_declared_looks_start_exchanges_on_their_grid_without_a_reaction_chain() -> None:
+    events = DeclaredEvents()
+    events.set_samples("human_input", 20, 8)
+    spans = _spans(events, 60, 32)
+    # after tick 0's chain (0, 1, 2, then 3): exchanges start at 20, 28, 36, ..., with no
+    # one-tick chain after them
+    assert [k for k, _n in spans if k > 3] == [20, 28, 36, 44, 52]
+    assert all(n == 8 for k, n in spans if 20 <= k < 52)
+    # a later declaration replaces it; none clears it
+    events = DeclaredEvents()
+    events.set_samples("human_input", 10, 8)
+    events.set_samples("human_input", 40)
+    assert [k for k, _n in _spans(events, 60, 32) if k > 3] == [35, 40]
+    events.set_samples("human_input", 0)
+    assert [k for k, _n in _spans(events, 60, 32) if k > 3] == [32]  # (tick 0 is past now)
