@@ -277,19 +277,6 @@ std::optional<Eigen::VectorXd> IkEngine::speed_row(std::size_t index) const {
   return Eigen::VectorXd::Zero(3 * arm.model->dof());
 }
 
-std::optional<Eigen::VectorXd> IkEngine::joint_speed_fraction_bounds(std::size_t index) const {
-  const std::optional<Eigen::VectorXd> row = speed_row(index);
-  if (!row) return std::nullopt;
-  return Eigen::VectorXd(row->head(arms_.at(index).model->dof()));
-}
-
-std::optional<IkEngine::LinkSpeeds> IkEngine::link_speed_bounds(std::size_t index) const {
-  const std::optional<Eigen::VectorXd> row = speed_row(index);
-  if (!row) return std::nullopt;
-  const int dof = arms_.at(index).model->dof();
-  return LinkSpeeds{row->segment(dof, dof), row->segment(2 * dof, dof)};
-}
-
 const kin::MotionState& IkEngine::state(std::size_t index) const {
   return arms_.at(index).motion->state();
 }

@@ -84,20 +84,12 @@ class IkEngine {
   /// Ticks, at least, until arm `index`'s motion in progress ends; 0 if none
   /// (kin::MotionGenerator::min_ticks_to_end).
   uint64_t min_ticks_to_end(std::size_t index) const;
-  /// Per joint of arm `index`, the most it moves, as a fraction of its velocity limit, on any
-  /// tick from the next one until a new command reaches the arm
-  /// (RobotState.joint_speed_fraction_bounds); empty if not known (under a speed scale < 1, or a
-  /// motion longer than the lookahead).
-  std::optional<Eigen::VectorXd> joint_speed_fraction_bounds(std::size_t index) const;
-  /// Per joint of arm `index`, on the same ticks: the most its child link's frame origin moves
-  /// (m/s) and the link turns (rad/s) (RobotState.link_linear_speed_bounds and
-  /// link_angular_speed_bounds); empty when the fractions are.
-  struct LinkSpeeds {
-    Eigen::VectorXd linear, angular;
-  };
-  std::optional<LinkSpeeds> link_speed_bounds(std::size_t index) const;
-  /// The bounds above hold for the next `ticks` ticks (the longest exchange: the scenario's
-  /// max_exchange_ticks); 0 (the default): until the motion ends. Set before any command.
+  /// fill_state declares, per joint, the most it moves as a fraction of its velocity limit
+  /// (RobotState.joint_speed_fraction_bounds) and the most its child link's frame moves and
+  /// turns (link_linear_speed_bounds, link_angular_speed_bounds) on the next `ticks` ticks (the
+  /// longest exchange: the scenario's max_exchange_ticks; 0, the default: until the motion
+  /// ends) unless a new command reaches the arm; nothing when not known (under a speed scale
+  /// < 1, or a motion longer than the lookahead). Set before any command.
   void set_speed_window(uint32_t ticks) { speed_window_ = ticks; }
   uint32_t speed_window() const { return speed_window_; }
   /// Whether commands get the lookahead at all (default on). Realtime exchanges are one tick,
@@ -133,7 +125,8 @@ class IkEngine {
   };
   // Recomputes arm's speed_table for the motion just commanded (kin::speed_forecast).
   void plan_speed_bound(Arm& arm) const;
-  // The speed_table's row for the next step (zeros past its end: nothing moves), if known.
+  // The speed_table's row for the next step (zeros past its end: nothing moves), if known:
+  // what fill_state declares.
   std::optional<Eigen::VectorXd> speed_row(std::size_t index) const;
 
   double dt_;
