@@ -110,20 +110,15 @@ class Hand:
     def _grip_rate(self, target: float, grip: float) -> float:
         return 1.0 / (self.motor.grip_close_s if target > grip else self.motor.grip_open_s)
 
-    def grip_crossing_not_before(self, t: float, threshold: float) -> float | None:
-        """A time before which the grip does not cross ``threshold`` (either way) as the hand
-        goes through its plan from time ``t`` (after its advance to ``t``); None if the plan
-        never crosses it. A lower bound: moves not started yet count at their shortest
-        (the peak speed cap), the rest at their planned length."""
+    def _plan_ahead(self, t: float) -> tuple[list[tuple[float, float, float]], float]:
+        """The hand's plan from time ``t`` (after its advance to ``t``): its grip ramps in order
+        as (start, grip from, grip to), and when it is done. Lower bounds: moves not started
+        yet count at their shortest (the peak speed cap), the rest at their planned length."""
+        ramps: list[tuple[float, float, float]] = []
         g, at, pos = self.grip, t, self.pos
-
-        def crosses(v: float) -> bool:
-            return (g < threshold) != (v < threshold)
-
         if self._grip_target is not None:
             v = self._grip_target
-            if crosses(v):
-                return at + abs(threshold - g) / self._grip_rate(v, g)
+            ramps.append((at, g, v))
             at, g = at + abs(v - g) / self._grip_rate(v, g), v
         if self.segment is not None:
             at, pos = max(at, self.segment.t_end), self.segment.p1
@@ -141,40 +136,24 @@ class Hand:
                 at += max(0.0, step.seconds)
             else:
                 v = min(1.0, max(0.0, step.value))
-                rate = self._grip_rate(v, g)
-                if crosses(v):
-                    return at + abs(threshold - g) / rate
-                at, g = at + abs(v - g) / rate, v
+                ramps.append((at, g, v))
+                at, g = at + abs(v - g) / self._grip_rate(v, g), v
+        return ramps, at
+
+    def grip_crossing_not_before(self, t: float, threshold: float) -> float | None:
+        """A time before which the grip does not cross ``threshold`` (either way) as the hand
+        goes through its plan from time ``t`` (after its advance to ``t``); None if the plan
+        never crosses it. A lower bound (:meth:`_plan_ahead`)."""
+        for at, g, v in self._plan_ahead(t)[0]:
+            if (g < threshold) != (v < threshold):
+                return at + abs(threshold - g) / self._grip_rate(v, g)
         return None
 
     def free_not_before(self, t: float) -> float:
         """A time before which the hand stays busy as it goes through its plan from time ``t``
-        (after its advance to ``t``); ``t`` if it is not busy. A lower bound, as
-        :meth:`grip_crossing_not_before`: moves not started yet count at their shortest."""
-        at, g, pos = t, self.grip, self.pos
-        if self._grip_target is not None:
-            at, g = (
-                at + abs(self._grip_target - g) / self._grip_rate(self._grip_target, g),
-                (self._grip_target),
-            )
-        if self.segment is not None:
-            at, pos = max(at, self.segment.t_end), self.segment.p1
-        if self._dwell_until is not None:
-            at = max(at, self._dwell_until)
-        for step in self.plan:
-            if isinstance(step, Move):
-                d = distance(pos, step.goal)
-                if d >= 1e-6:
-                    at += max(
-                        MIN_MOVEMENT_TIME_S, MIN_JERK_PEAK_FACTOR * d / self.motor.peak_hand_speed
-                    )
-                pos = step.goal
-            elif isinstance(step, Dwell):
-                at += max(0.0, step.seconds)
-            else:
-                v = min(1.0, max(0.0, step.value))
-                at, g = at + abs(v - g) / self._grip_rate(v, g), v
-        return at
+        (after its advance to ``t``); ``t`` if it is not busy. A lower bound
+        (:meth:`_plan_ahead`)."""
+        return self._plan_ahead(t)[1]
 
     # ------------------------------------------------------------------ time
     def advance(self, t: float) -> None:
