@@ -39,6 +39,7 @@ import math
 from collections import Counter
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import pybullet as p
 
@@ -61,6 +62,39 @@ def _aabb_radius(origin: tuple[float, ...], box: tuple[tuple[float, ...], ...]) 
     )
 
 
+@dataclass(frozen=True)
+class _ArmAtStart:
+    """What the speed bounds read of an arm, in its pose at start: each joint's pybullet info,
+    each link's parent, each link frame's origin (-1: the base), each collider's AABB."""
+
+    info: list[tuple[Any, ...]]
+    parent: dict[int, int]
+    origin: dict[int, tuple[float, ...]]
+    boxes: dict[int, tuple[Any, ...]]  # link -> AABB, links with a collider
+
+    @classmethod
+    def of(cls, robot: KinematicRobot) -> _ArmAtStart:
+        c, body = robot._c, robot.body
+        n = p.getNumJoints(body, physicsClientId=c)
+        info = [p.getJointInfo(body, j, physicsClientId=c) for j in range(n)]
+        origin: dict[int, tuple[float, ...]] = {
+            -1: tuple(p.getBasePositionAndOrientation(body, c)[0])
+        }
+        for j in range(n):
+            origin[j] = tuple(p.getLinkState(body, j, physicsClientId=c)[4])
+        boxes = {
+            link: p.getAABB(body, link, physicsClientId=c)
+            for link in range(n)
+            if p.getCollisionShapeData(body, link, physicsClientId=c)
+        }
+        return cls(info, {j: info[j][16] for j in range(n)}, origin, boxes)
+
+    def v_max(self, j: int) -> float:
+        """Joint j's URDF velocity limit (rad/s, m/s when prismatic); 2 pi where none."""
+        v = self.info[j][11]
+        return float(v) if v > 0 else 2 * math.pi
+
+
 def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
     """Per movable joint j, v_j * r_j in m/s: the speed it alone can give any point of the arm's
     colliders (the arm's bound is their sum, at most sum_j |qdot_j| * r_j); v_j for a prismatic
@@ -70,30 +104,18 @@ def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
     plus the link's own radius (link frame to its collider's AABB corners), so it holds in any
     pose. A joint without a velocity limit counts as 2 pi rad/s.
     """
-    c, body = robot._c, robot.body
-    n = p.getNumJoints(body, physicsClientId=c)
-    parent: dict[int, int] = {}
-    vmax: dict[int, float] = {}
-    names: dict[int, str] = {}
-    prismatic: set[int] = set()
-    origin: dict[int, tuple[float, ...]] = {-1: tuple(p.getBasePositionAndOrientation(body, c)[0])}
-    for j in range(n):
-        info = p.getJointInfo(body, j, physicsClientId=c)
-        parent[j] = info[16]
-        if info[2] != p.JOINT_FIXED:
-            vmax[j] = info[11] if info[11] > 0 else 2 * math.pi
-            names[j] = info[1].decode()
-            if info[2] == p.JOINT_PRISMATIC:
-                prismatic.add(j)
-        origin[j] = tuple(p.getLinkState(body, j, physicsClientId=c)[4])
-    radius: dict[int, float] = {}
-    for link in range(n):
-        shapes = p.getCollisionShapeData(body, link, physicsClientId=c)
-        box = p.getAABB(body, link, physicsClientId=c)
-        radius[link] = _aabb_radius(origin[link], box) if shapes else 0.0
+    arm = _ArmAtStart.of(robot)
+    info, parent, origin = arm.info, arm.parent, arm.origin
+    n = len(info)
+    movable = [j for j in range(n) if info[j][2] != p.JOINT_FIXED]
+    radius = {
+        link: _aabb_radius(origin[link], arm.boxes[link]) if link in arm.boxes else 0.0
+        for link in range(n)
+    }
     offset = {j: math.dist(origin[j], origin[parent[j]]) for j in range(n)}
     terms: dict[str, float] = {}
-    for j, v in vmax.items():
+    for j in movable:
+        v = arm.v_max(j)
         reach = 0.0
         for link in range(n):
             # path length from joint j down to link (link must lie below j)
@@ -104,7 +126,7 @@ def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
             if at == j:
                 reach = max(reach, length + radius[link])
         # a sliding joint (a gripper's finger) moves every point below it at its own speed
-        terms[names[j]] = v if j in prismatic else v * reach
+        terms[info[j][1].decode()] = v if info[j][2] == p.JOINT_PRISMATIC else v * reach
     return terms
 
 
@@ -128,18 +150,10 @@ def arm_levers(robot: KinematicRobot) -> list[tuple[Lever, ...]]:
     nearest one's reach is the collider's farthest AABB corner from its frame (the two move as
     one); a farther one's is the path of link offsets down to it plus that radius, each sliding
     joint on the way adding its travel."""
-    c, body = robot._c, robot.body
-    n = p.getNumJoints(body, physicsClientId=c)
-    info = [p.getJointInfo(body, j, physicsClientId=c) for j in range(n)]
-    parent = {j: info[j][16] for j in range(n)}
-    origin: dict[int, tuple[float, ...]] = {-1: tuple(p.getBasePositionAndOrientation(body, c)[0])}
-    for j in range(n):
-        origin[j] = tuple(p.getLinkState(body, j, physicsClientId=c)[4])
+    arm = _ArmAtStart.of(robot)
+    info, parent, origin = arm.info, arm.parent, arm.origin
     out: list[tuple[Lever, ...]] = []
-    for link in range(n):
-        if not p.getCollisionShapeData(body, link, physicsClientId=c):
-            continue
-        box = p.getAABB(body, link, physicsClientId=c)
+    for link, box in arm.boxes.items():
         radius = _aabb_radius(origin[link], box)
         levers: list[Lever] = []
         path, at = 0.0, link
@@ -147,9 +161,8 @@ def arm_levers(robot: KinematicRobot) -> list[tuple[Lever, ...]]:
             kind = info[at][2]
             if kind != p.JOINT_FIXED:
                 prismatic = kind == p.JOINT_PRISMATIC
-                v = info[at][11] if info[at][11] > 0 else 2 * math.pi
                 reach = _aabb_radius(origin[at], box) if not levers else path + radius
-                levers.append(Lever(info[at][1].decode(), v, prismatic, reach))
+                levers.append(Lever(info[at][1].decode(), arm.v_max(at), prismatic, reach))
             path += math.dist(origin[at], origin[parent[at]])
             if kind == p.JOINT_PRISMATIC:
                 path += abs(info[at][9] - info[at][8])  # its travel: the offset varies by it
