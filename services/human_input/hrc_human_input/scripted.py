@@ -388,7 +388,7 @@ class ScriptedParticipant:
         is what one-tick exchanges would show it."""
         if self.hold_expired:  # a robot stood still in the way long enough: go anyway
             return False
-        robot = self.hitter_in_way(view)
+        robot = hitter = self.hitter_in_way(view)
         if robot is None:
             if self.hold_since is None:
                 if self.go_t is None or t < self.go_t:
@@ -399,7 +399,7 @@ class ScriptedParticipant:
                     return True
             self.next_look = self._look_after(t)
             robot = self.danger(view, goal)
-        self.held_by_hitter = robot is not None and self.bitten is not None
+        self.held_by_hitter = hitter is not None
         if robot is not None:
             if self.hold_since is None:
                 self.hold_since = t
