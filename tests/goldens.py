@@ -45,6 +45,16 @@ def scenario_file(name: str, tmp: Path) -> Path:
     return path
 
 
+def with_robot_speed(scenario: Path, folder: Path, mps: float) -> Path:
+    """``scenario`` (two robots at 0.5 m/s) with both robots at ``mps``, written into
+    ``folder`` (its relative paths resolve from the project as from the scenario's folder)."""
+    text = scenario.read_text()
+    assert text.count("max_tcp_speed = 0.5") == 2, f"{scenario.name}: two robots at 0.5 m/s?"
+    path = folder / f"{scenario.stem}-{mps:g}-mps.toml"
+    path.write_text(text.replace("max_tcp_speed = 0.5", f"max_tcp_speed = {mps}"))
+    return path
+
+
 def strip_wall(obj: Any) -> Any:
     if isinstance(obj, dict):
         return {k: strip_wall(v) for k, v in obj.items() if k not in WALL}

@@ -24,6 +24,7 @@ import pytest
 from hrc import diskspace
 
 from .conftest import HRC, ROOT
+from .goldens import with_robot_speed
 
 pytestmark = [pytest.mark.e2e]
 THESIS = ROOT / "scenarios" / "thesis.toml"
@@ -109,12 +110,7 @@ def test_a_trial_that_fills_its_disk_is_stopped_with_whole_records(tmp_path: Pat
     on 2.6 MiB (0.5 kept aside, a 1 MiB margin) it reaches the margin at about a quarter of
     its run. (The plain thesis trial writes 2.2 MB and its logger may catch up after the run:
     on a loaded machine the run could end before the margin, then everything fits.)"""
-    text = THESIS.read_text()
-    assert text.count("max_tcp_speed = 0.5") == 2
-    (tmp_path / "scenario").mkdir()
-    (tmp_path / "scenario" / "robots").symlink_to(ROOT / "robots")
-    slow = tmp_path / "scenario" / "thesis-slow.toml"
-    slow.write_text(text.replace("max_tcp_speed = 0.5", "max_tcp_speed = 0.2"))
+    slow = with_robot_speed(THESIS, tmp_path, 0.2)
     small, copy = tmp_path / "small", tmp_path / "copy"
     proc = _in_tmpfs(small, copy, 2.6, f"{HRC} run {slow} --out {small}/t")
     assert proc.returncode == 3, proc.stderr[-3000:]

@@ -25,6 +25,7 @@ from typing import Any
 import pytest
 
 from .conftest import wait_until
+from .goldens import with_robot_speed
 from .participant_page import (
     THESIS,
     VIEWPORT,
@@ -130,25 +131,16 @@ def check_draw_calls(page: Page, view: str) -> None:
     assert 0 < per_view <= MAX_DRAW_CALLS_PER_VIEW, f"{view}: {d}"
 
 
-def slow_thesis(tmp_path: Path) -> Path:
-    """The thesis board with robots at 0.15 m/s: r1's carry of RA1 lasts seconds, so a page
-    that runs seconds behind on a loaded machine (the bridge drops frames for a slow client)
-    still gets frames in which r1 holds it."""
-    text = THESIS.read_text().replace("max_tcp_speed = 0.5", "max_tcp_speed = 0.15")
-    assert text.count("max_tcp_speed = 0.15") == 2
-    path = tmp_path / "thesis-slow.toml"
-    path.write_text(text)
-    return path
-
-
 @pytest.mark.timeout(900)  # six views, ten pictures each, in software WebGL
 def test_every_view_shows_the_whole_scene(
     browser: Any,  # noqa: F811
     live: Callable[..., Live],  # noqa: F811
     tmp_path: Path,
 ) -> None:
+    # robots at 0.15 m/s: r1's carry of RA1 lasts seconds, so a page that runs seconds behind on
+    # a loaded machine (the bridge drops frames for a slow client) still gets frames of it;
     # 20 minutes of ticks: the test never meets the end
-    run = live(slow_thesis(tmp_path), max_ticks=240 * 1200)
+    run = live(with_robot_speed(THESIS, tmp_path, 0.15), max_ticks=240 * 1200)
     desk = open_page(browser, run.url + "&mode=desktop")
     watcher = open_page(browser, run.spectator_url + "?mode=desktop")
     headset = open_page(browser, run.spectator_url + "?test=iwer")

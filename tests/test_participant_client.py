@@ -25,6 +25,7 @@ from typing import Any
 import pytest
 
 from .conftest import wait_until
+from .goldens import with_robot_speed
 from .participant_page import (
     MINIMAL,
     PAGE_FPS,
@@ -158,21 +159,12 @@ def found_near(img: Any, xy: tuple[float, float], color: str, radius: int) -> bo
     )
 
 
-def slow_minimal(tmp_path: Path) -> Path:
-    """minimal.toml with slower robots, so a carry lasts long enough for several pictures."""
-    text = MINIMAL.read_text().replace("max_tcp_speed = 0.5", "max_tcp_speed = 0.15")
-    assert "max_tcp_speed = 0.15" in text
-    path = tmp_path / "minimal-slow.toml"
-    path.write_text(text)
-    return path
-
-
 def test_pictures_while_a_robot_carries_with_anticipation(
     browser: Any,  # noqa: F811
     live: Callable[..., Live],  # noqa: F811
     tmp_path: Path,
 ) -> None:
-    run = live(slow_minimal(tmp_path))
+    run = live(with_robot_speed(MINIMAL, tmp_path, 0.15))  # a carry long enough for pictures
     desk = Page(browser, run.url + "&mode=desktop")
     # a second client: a spectator, in an emulated headset looking down at the board
     xr = Page(browser, run.spectator_url + "?test=iwer")
