@@ -64,7 +64,7 @@ NEW_FOLDER_S = 60.0  # a folder without its pid file this young may be a run sta
 
 # Zenoh says a link it refused at authentication only in a debug line of its accept step. A router
 # (physics, `hrc router`) turns on just that target, on its standard output (the service's log),
-# and nothing else of Zenoh's log unless RUST_LOG asks for more. hrc run counts the lines after
+# beside Zenoh's errors (or what RUST_LOG asks for). hrc run counts the lines after
 # the run (count_refusals).
 REFUSAL_LOG_TARGET = "zenoh_transport::unicast::establishment::accept=debug"
 # The reasons of Zenoh 1.10's user-password check (zenoh-transport, ext/auth/usrpwd.rs), by the
@@ -77,13 +77,28 @@ REFUSALS = {
 _ANSI = re.compile(rb"\x1b\[[0-9;]*m")  # Zenoh colours its log lines even into a file
 
 
+# What every process writes of Zenoh's own log when RUST_LOG says nothing: its errors only (a
+# transport it closed because a message could not be queued for 5 s, and with it the messages
+# still queued, is said only there); quiet in a trial that goes well.
+ZENOH_LOG_DEFAULT = "error"
+
+
+def init_zenoh_log(router: bool = False) -> None:
+    """Has Zenoh write what RUST_LOG asks for (default: its errors) to standard output (the
+    service's log), and a router each link it refuses (once a process: later calls change
+    nothing)."""
+    directives = os.environ.get("RUST_LOG") or ZENOH_LOG_DEFAULT
+    if router:
+        # the later directive wins for its target: the refusals are counted whatever RUST_LOG says
+        directives = f"{directives},{REFUSAL_LOG_TARGET}"
+    os.environ["RUST_LOG"] = directives
+    zenoh.init_log_from_env_or(directives)
+
+
 def log_refusals() -> None:
     """Has Zenoh write each link this process refuses to its standard output, beside what
-    RUST_LOG asks for (once a process: later calls change nothing)."""
-    if asked := os.environ.get("RUST_LOG"):
-        # the later directive wins for its target: the refusals are counted whatever RUST_LOG says
-        os.environ["RUST_LOG"] = f"{asked},{REFUSAL_LOG_TARGET}"
-    zenoh.init_log_from_env_or(f"off,{REFUSAL_LOG_TARGET}")
+    RUST_LOG asks for (default: Zenoh's errors)."""
+    init_zenoh_log(router=True)
 
 
 def count_refusals(router_log: Path) -> dict[str, int] | None:
@@ -213,6 +228,7 @@ def answerers(keys: Keys) -> dict[str, frozenset[str]]:
     }
     for name in service_names():
         table[keys.stats(name)] = frozenset({name})
+        table[keys.replay(name)] = frozenset({name})
     return table
 
 

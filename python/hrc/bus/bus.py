@@ -11,7 +11,7 @@ import contextlib
 import logging
 import threading
 import time
-from collections import Counter
+from collections import Counter, deque
 from collections.abc import Callable
 from typing import Any, Generic, TypeVar
 
@@ -35,6 +35,10 @@ BATCH_SUFFIX = b"+batch"
 # transport fragments; a cap still keeps one put from flooding every receiver.
 MAX_LOWLATENCY_BYTES = 63 * 1024
 MAX_STANDARD_BYTES = 16 * 1024 * 1024
+# What a publisher holds of what it sent, to answer a replay (docs/ARCHITECTURE.md, "Lost
+# messages"): a receiver asks only for what the last ack or clock tick vouched for, so two
+# exchanges of the longest span suffice; this is several times that.
+REPLAY_KEEP = 2048
 
 
 class MessageTooLarge(ValueError):
@@ -87,6 +91,7 @@ class Publisher(Generic[M]):
         self.reported = 0  # the seq last listed by Bus.new_marks
         self._lock = threading.Lock()
         self._held: list[bytes] = []  # serialized messages held back while the bus batches
+        self._recent: deque[tuple[int, bytes]] = deque(maxlen=REPLAY_KEEP)  # (seq, message)
         self._pub = bus.session.declare_publisher(
             key,
             congestion_control=zenoh.CongestionControl.BLOCK
@@ -108,11 +113,20 @@ class Publisher(Generic[M]):
             data = msg.SerializeToString()
             self._check_size(len(data))
             self.seq += 1
+            self._recent.append((self.seq, data))
             if self._bus.batching:
                 self._held.append(data)
             else:
                 self._pub.put(data, attachment=self._bus.sender_bytes)
             return self.seq
+
+    def sent_after(self, seq: int) -> list[bytes]:
+        """The messages after ``seq``, oldest first; none unless it still holds seq + 1 (a
+        replay with a hole would not help)."""
+        with self._lock:
+            if not self._recent or self._recent[0][0] > seq + 1:
+                return []
+            return [data for n, data in self._recent if n > seq]
 
     def _check_size(self, size: int) -> None:
         limit = self._bus.max_message_bytes
@@ -153,6 +167,8 @@ class Publisher(Generic[M]):
 
 
 Validator = Callable[[Message], "str | None"]
+# Hands a serialized message of a subscription's key (key, payload, sender) to its handler.
+Feed = Callable[[str, "zenoh.Sample | str", bytes], None]
 
 
 class Bus:
@@ -172,8 +188,8 @@ class Bus:
         self._declared: list[object] = []
         self._publishers: dict[str, Publisher[Any]] = {}
         self.max_message_bytes = MAX_LOWLATENCY_BYTES if config.lowlatency else MAX_STANDARD_BYTES
-        if config.mode == "router":  # links it refuses go into its log, to be counted
-            access.log_refusals()
+        # Zenoh's errors into the service's log; a router's refused links too, to be counted
+        access.init_zenoh_log(router=config.mode == "router")
         self.session = zenoh.open(config.to_zenoh())
 
     # ------------------------------------------------------------------ lifecycle
@@ -248,17 +264,19 @@ class Bus:
         msg_type: type[M],
         callback: Callable[[str, M], None],
         validate: Callable[[M], str | None] | None = None,
-    ) -> None:
+    ) -> Feed:
         """Calls ``callback(key, msg)`` for each well-formed message on ``key``.
 
         A payload is malformed when it does not decode as ``msg_type``, carries another session's
         header, or fails ``validate``; it is counted, logged with key and sender, and dropped.
-        Exceptions raised by the callback are logged, never propagated into Zenoh.
+        Exceptions raised by the callback are logged, never propagated into Zenoh. Returns
+        ``feed(key, payload, sender)``, which handles a serialized message got another way (a
+        replay) as one that came on the subscription.
         """
         self.stats.subscribed.append(key)
         session = self.keys.session
 
-        def one(k: str, sample: zenoh.Sample, payload: bytes) -> None:
+        def one(k: str, sample: zenoh.Sample | str, payload: bytes) -> None:
             try:
                 msg = msg_type()
                 msg.ParseFromString(payload)
@@ -301,8 +319,12 @@ class Bus:
                 one(k, sample, item)
 
         self._declared.append(self.session.declare_subscriber(key, on_sample))
+        return one
 
-    def _malformed(self, key: str, sample: zenoh.Sample, problem: str) -> None:
+    def _malformed(self, key: str, sample: zenoh.Sample | str, problem: str) -> None:
+        if isinstance(sample, str):  # a replayed message: its sender is the one asked
+            self.reject(key, sample, problem)
+            return
         att = sample.attachment
         raw = att.to_bytes().removesuffix(BATCH_SUFFIX) if att is not None else b"?"
         self.reject(key, raw.decode(errors="replace"), problem)
@@ -443,6 +465,24 @@ class Bus:
                 raise TimeoutError(f"no reply on {key} within {timeout:g} s")
             attempt_s = min(1.0, attempt_s * 2)
             time.sleep(retry_every)
+
+    def serve_replay(self) -> None:
+        """``replay/<service>``: the messages this service published on a key after a seq, as
+        far as it still holds them (docs/ARCHITECTURE.md, "Lost messages")."""
+
+        def answer(req: pb.ReplayRequest | None) -> pb.ExchangeBatch:
+            pub = self._publishers.get(req.key) if req is not None else None
+            items = pub.sent_after(req.after_seq) if pub is not None and req is not None else []
+            return pb.ExchangeBatch(items=items)
+
+        self.queryable(self.keys.replay(self.sender), pb.ReplayRequest, answer)
+
+    def replay(self, key: str, sender: str, after_seq: int, timeout: float) -> list[bytes]:
+        """What ``sender`` still holds of its messages on ``key`` after ``after_seq`` (empty if
+        it does not answer within ``timeout``)."""
+        request = pb.ReplayRequest(key=key, after_seq=after_seq)
+        replies = self.get(self.keys.replay(sender), pb.ExchangeBatch, request, timeout=timeout)
+        return list(replies[0].items) if replies else []
 
     def serve_stats(self) -> None:
         """``stats/<service>``: what this service subscribed to and how much garbage it saw."""

@@ -170,7 +170,7 @@ class ClockMaster:
         self.bus = bus
         self.settings = settings
         self.dt = 1.0 / settings.tick_hz
-        self.inbox = Inbox(bus)
+        self.inbox = Inbox(bus, gapless=True)
         self._cond = threading.Condition(threading.Lock())
         self._acked: dict[str, int] = {p: -1 for p in settings.participants}
         # observer -> the newest clock tick it has acknowledged receiving (lockstep's window)
@@ -231,6 +231,7 @@ class ClockMaster:
         self.bus.subscribe(keys.run_controls(), pb.RunControl, self._on_abort)
         self.bus.watch_liveliness(self._on_liveliness)
         self.bus.serve_stats()
+        self.bus.serve_replay()
         self.bus.declare_token()
 
     # ------------------------------------------------------------------ zenoh threads
@@ -375,7 +376,7 @@ class ClockMaster:
             marks = self._fresh_marks()
             self._consume_fresh()
         if deadline is None:
-            missing = self.inbox.wait_for(marks, self.settings.barrier_timeout_s)
+            missing = self.inbox.wait_for(marks, self.settings.barrier_timeout_s, replay=True)
             if missing:
                 m = missing[0]
                 got = self.inbox.last_seq(m.key, m.sender)

@@ -10,6 +10,7 @@ order on any machine at any load.
 from __future__ import annotations
 
 import heapq
+import logging
 import threading
 import time
 from collections.abc import Callable
@@ -20,10 +21,17 @@ from typing import cast
 import zenoh
 from google.protobuf.message import Message
 
-from hrc.bus.bus import Bus, M
+from hrc.bus.bus import Bus, Feed, M
 from hrc.wire import pb
 
+log = logging.getLogger(__name__)
+
 Handler = Callable[[str, Message], None]
+
+# How long a lockstep wait lets a vouched-for message be late before it asks the sender for it
+# again, and how long each such ask may take (docs/ARCHITECTURE.md, "Lost messages").
+REPLAY_AFTER_S = 2.0
+REPLAY_ASK_S = 2.0
 
 
 @dataclass(slots=True)
@@ -44,8 +52,16 @@ _ORDER = attrgetter("tick", "index", "key", "sender", "seq")
 class Inbox:
     """Buffers typed inputs and releases them tick by tick."""
 
-    def __init__(self, bus: Bus) -> None:
+    def __init__(self, bus: Bus, gapless: bool = False) -> None:
+        """``gapless`` (lockstep services): a (key, sender)'s messages count as received up to
+        the last one with none missing before it, and a message had already is dropped. A lost
+        message is then seen as missing even when later ones from the same sender came first
+        (a participant's output of the next tick may overtake the tick that lists the lost
+        one), and a replay's originals, should they still come, are not handed over twice.
+        Without it (observers, whose router may drop what they cannot take), the highest seq
+        received counts."""
         self._bus = bus
+        self.gapless = gapless
         # One lock; the condition only for wait_for, notified only while someone waits
         # (per message: a Condition's Python-level enter and notify cost more than the rest).
         self._lock = threading.Lock()
@@ -58,6 +74,10 @@ class Inbox:
         self._pending: dict[int, list[_Pending]] = {}
         self._pending_ticks: list[int] = []
         self._received: dict[tuple[str, str], int] = {}
+        self._ahead: dict[tuple[str, str], set[int]] = {}  # gapless: seqs got past a hole
+        self._feeds: list[Feed] = []  # per subscription, as _exprs
+        self.recovered = 0  # messages got by a replay
+        self.duplicates = 0  # messages dropped as had already (gapless)
         self.arrived = 0  # messages received so far (delivered or not)
         self._matches: dict[str, bool] = {}
 
@@ -80,22 +100,35 @@ class Inbox:
             # it (and says so in its marks), so nobody may wait for it forever.
             problem = validate(msg) if validate is not None else None
             with self._lock:
+                mark = (k, sender)
+                got = self._received.get(mark, 0)
+                if not self.gapless:
+                    if seq > got:
+                        self._received[mark] = seq
+                elif seq == got + 1:
+                    ahead = self._ahead.get(mark)
+                    while ahead and seq + 1 in ahead:
+                        ahead.remove(seq + 1)
+                        seq += 1
+                    self._received[mark] = seq
+                elif seq <= got or seq in self._ahead.get(mark, ()):
+                    self.duplicates += 1
+                    return
+                else:  # past a hole: a message before it is late, or lost
+                    self._ahead.setdefault(mark, set()).add(seq)
                 if problem is None:
                     bucket = self._pending.get(tick)
                     if bucket is None:
                         bucket = self._pending[tick] = []
                         heapq.heappush(self._pending_ticks, tick)
-                    bucket.append(_Pending(tick, index, k, sender, seq, msg))
+                    bucket.append(_Pending(tick, index, k, sender, h.seq, msg))
                 self.arrived += 1
-                mark = (k, sender)
-                if seq > self._received.get(mark, 0):
-                    self._received[mark] = seq
                 if self._waiting:
                     self._cond.notify_all()
             if problem is not None:
                 self._bus.reject(k, sender, problem)
 
-        self._bus.subscribe(key, msg_type, on_msg)
+        self._feeds.append(self._bus.subscribe(key, msg_type, on_msg))
 
     def _subscribed(self, key: str) -> bool:
         hit = self._matches.get(key)
@@ -119,23 +152,68 @@ class Inbox:
         with self._lock:
             return self._received.get((key, sender), 0)
 
-    def wait_for(self, marks: list[pb.PublishedMark], timeout: float) -> list[pb.PublishedMark]:
-        """Waits until every mark is satisfied; returns what is still missing at the timeout."""
+    def wait_for(
+        self, marks: list[pb.PublishedMark], timeout: float, replay: bool = False
+    ) -> list[pb.PublishedMark]:
+        """Waits until every mark is satisfied; returns what is still missing at the timeout.
+        With ``replay``, what is still missing after REPLAY_AFTER_S (and again each
+        REPLAY_AFTER_S) is asked of its sender (:meth:`recover`)."""
         wanted = [m for m in marks if self._subscribed(m.key)]
         if not wanted:
             return []
-        deadline = time.monotonic() + timeout
-        with self._cond:
-            while True:
-                missing = [m for m in wanted if self._received.get((m.key, m.sender), 0) < m.seq]
-                left = deadline - time.monotonic()
-                if not missing or left <= 0:
-                    return missing
-                self._waiting += 1
-                try:
-                    self._cond.wait(left)
-                finally:
-                    self._waiting -= 1
+        start = time.monotonic()
+        deadline = start + timeout
+        ask_at = start + REPLAY_AFTER_S if replay else deadline
+        while True:
+            with self._cond:
+                while True:
+                    missing = [
+                        m for m in wanted if self._received.get((m.key, m.sender), 0) < m.seq
+                    ]
+                    now = time.monotonic()
+                    if not missing or now >= deadline:
+                        return missing
+                    if now >= ask_at:
+                        break
+                    self._waiting += 1
+                    try:
+                        self._cond.wait(min(deadline, ask_at) - now)
+                    finally:
+                        self._waiting -= 1
+            for m in missing:
+                self.recover(m, min(REPLAY_ASK_S, max(0.05, deadline - time.monotonic())))
+            ask_at = time.monotonic() + REPLAY_AFTER_S
+
+    def recover(self, mark: pb.PublishedMark, timeout: float) -> int:
+        """Asks ``mark``'s sender for its messages on the key after the last one received and
+        hands them over as if they had come (duplicates of them that still come are dropped).
+        Returns how many came that way; each is a message the bus lost, or one very late."""
+        key, sender = mark.key, mark.sender
+        ke = zenoh.KeyExpr(key)
+        feed = next(
+            (f for e, f in zip(self._exprs, self._feeds, strict=True) if e.intersects(ke)), None
+        )
+        if feed is None:
+            return 0
+        got = self.last_seq(key, sender)
+        items = self._bus.replay(key, sender, got, timeout)
+        if not items:
+            log.warning(
+                "%s #%d from '%s' is late (received up to #%d) and its sender did not replay it",
+                key, mark.seq, sender, got,
+            )  # fmt: skip
+            return 0
+        before = self.duplicates
+        for item in items:
+            feed(key, sender, item)
+        new = len(items) - (self.duplicates - before)
+        self.recovered += new
+        log.warning(
+            "%s #%d from '%s' did not come within %g s (received up to #%d): its sender sent "
+            "#%d-#%d again, %d of them new (a message the bus lost, or one very late)",
+            key, mark.seq, sender, REPLAY_AFTER_S, got, got + 1, got + len(items), new,
+        )  # fmt: skip
+        return new
 
     def deliver(self, upto_tick: int, master: str | None = None) -> int:
         """Hands every message of ticks < ``upto_tick`` to its handler (plus the clock master's of

@@ -63,6 +63,10 @@ class Keys:
     def stats(self, service: str) -> str:
         return self._k("stats", check_name("service", service))
 
+    def replay(self, service: str) -> str:
+        """Where ``service`` answers for messages it published that a receiver lacks."""
+        return self._k("replay", check_name("service", service))
+
     def scenario(self) -> str:
         return self._k("scenario")
 

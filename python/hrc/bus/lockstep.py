@@ -113,6 +113,9 @@ class ClockFollower:
 
     # A tick may be computed on the Zenoh thread that delivered it (saves a thread hand-off).
     inline = False
+    # Ask a sender again for a message a tick vouches for that is long late (participants; an
+    # observer records what it lost instead: docs/ARCHITECTURE.md, "Lost messages").
+    replay = False
     # How long the clock master may be gone before the run is over for us (see
     # watch_clock_master); a participant's link that closed has failed the run already.
     master_grace_s = 0.0
@@ -121,7 +124,7 @@ class ClockFollower:
         self.bus = bus
         self.name = bus.sender
         self.input_timeout_s = input_timeout_s
-        self.inbox = Inbox(bus)
+        self.inbox = Inbox(bus, gapless=self.replay)
         self._step: Callable[[pb.ClockTick], None] | None = None
         self._cond = threading.Condition(threading.Lock())
         self._ticks: deque[tuple[pb.ClockTick, float]] = deque()  # (tick, perf_counter at arrival)
@@ -164,6 +167,7 @@ class ClockFollower:
         self.bus.subscribe(keys.run_end(), pb.RunEnd, self._on_run_end)
         watch_clock_master(self.bus, self._on_master_lost, self.master_grace_s)
         self.bus.serve_stats()
+        self.bus.serve_replay()
         self.bus.declare_token()
 
     # ------------------------------------------------------------------ zenoh threads
@@ -297,7 +301,9 @@ class ClockFollower:
         tw = time.perf_counter()
         self._lag_s += tw - arrived
         if tick.mode == pb.CLOCK_MODE_LOCKSTEP and not inputs_ready:
-            missing = self.inbox.wait_for(list(tick.published), self._input_wait_s())
+            missing = self.inbox.wait_for(
+                list(tick.published), self._input_wait_s(), replay=self.replay
+            )
             if missing and not self._inputs_missing(k, missing):
                 return
         # TickAck.compute_us starts here: every input of tick k is at hand.
@@ -356,6 +362,7 @@ class LockstepParticipant(ClockFollower):
     """A member of the clock barrier: acks every tick after its step's outputs."""
 
     inline = True
+    replay = True
 
     def __init__(self, bus: Bus, *, input_timeout_s: float = 10.0) -> None:
         super().__init__(bus, input_timeout_s=input_timeout_s)

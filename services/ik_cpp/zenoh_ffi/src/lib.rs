@@ -73,6 +73,13 @@ fn guarded<T>(
     }
 }
 
+/// Zenoh's own log on standard output (the service's log): what RUST_LOG asks for, by default
+/// its errors, as in the Python services (a transport it closes because a message could not be
+/// queued, and the messages lost with it, are said only there). Later calls change nothing.
+fn init_log() {
+    zenoh::init_log_from_env_or("error");
+}
+
 /// Borrow a C string argument as UTF-8, naming the argument in the error.
 unsafe fn cstr<'a>(p: *const c_char, what: &str) -> Result<&'a str, String> {
     if p.is_null() {
@@ -152,8 +159,7 @@ pub unsafe extern "C" fn hrcz_open(
 ) -> *mut HrczSession {
     guarded(err, err_cap, std::ptr::null_mut(), || {
         let text = cstr(config_json5, "config_json5")?;
-        // Zenoh's own logs only when RUST_LOG asks for them.
-        zenoh::try_init_log_from_env();
+        init_log();
         let config = Config::from_json5(text).map_err(|e| format!("invalid zenoh config: {e}"))?;
         let session = zenoh::open(config)
             .wait()
@@ -180,7 +186,7 @@ pub unsafe extern "C" fn hrcz_open_ex(
     err_cap: usize,
 ) -> *mut HrczSession {
     guarded(err, err_cap, std::ptr::null_mut(), || {
-        zenoh::try_init_log_from_env();
+        init_log();
         let mut config = if base_file.is_null() || *base_file == 0 {
             Config::default()
         } else {
