@@ -9,8 +9,20 @@ namespace hrc {
 void Inbox::push(Pending p) {
   {
     const std::lock_guard<std::mutex> lock(mutex_);
-    uint64_t& got = received_[{p.key, p.sender}];
-    if (p.seq > got) got = p.seq;
+    const std::pair<std::string, std::string> from{p.key, p.sender};
+    uint64_t& got = received_[from];
+    const auto ahead = ahead_.find(from);
+    if (p.seq <= got || (ahead != ahead_.end() && ahead->second.count(p.seq) > 0)) {
+      ++duplicates_;  // had already: handed over once only
+      return;
+    }
+    if (p.seq == got + 1) {
+      got = p.seq;
+      // the messages that came past the hole this one closes
+      while (ahead != ahead_.end() && ahead->second.erase(got + 1) > 0) ++got;
+    } else {
+      ahead_[from].insert(p.seq);  // past a hole: one before it is late, or lost
+    }
     pending_.push_back(std::move(p));
   }
   cond_.notify_all();
@@ -103,6 +115,11 @@ std::size_t Inbox::deliver(uint64_t upto_tick, const std::string& master) {
 std::size_t Inbox::pending() const {
   const std::lock_guard<std::mutex> lock(mutex_);
   return pending_.size();
+}
+
+std::size_t Inbox::duplicates() const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  return duplicates_;
 }
 
 }  // namespace hrc

@@ -86,4 +86,33 @@ TEST(Inbox, WaitForReportsWhatNeverArrived) {
   EXPECT_EQ(missing[0].sender(), "human_input");
 }
 
+TEST(Inbox, ALaterMessageDoesNotHideALostOneAndADuplicateIsDroppedOnce) {
+  hrc::Bus bus(hrc::BusConfig{}, "inbox", "ik_cpp");
+  hrc::Inbox inbox(bus);
+  std::vector<uint64_t> seqs;
+  const auto& k = bus.keys();
+  inbox.add<hrc::v2::RobotCommand>(k.robot_commands(),
+                                   [&](const std::string&, const hrc::v2::RobotCommand& m) {
+                                     seqs.push_back(m.header().seq());
+                                   });
+  auto& r1 = bus.publisher(k.robot_command("r1"));
+  ASSERT_TRUE(wait_until([&] { return r1.has_subscribers(); }));
+  r1.put_raw(with_header(hrc::v2::RobotCommand{}, "orchestrator", 1, 0));
+  r1.put_raw(with_header(hrc::v2::RobotCommand{}, "orchestrator", 3, 2));  // #2 lost so far
+  const auto m2 = mark(k.robot_command("r1"), "orchestrator", 2);
+  const auto m3 = mark(k.robot_command("r1"), "orchestrator", 3);
+  ASSERT_TRUE(wait_until([&] { return inbox.pending() == 2; }));
+  // #3 is here, but #2 is not: both marks are missing
+  EXPECT_EQ(inbox.wait_for({m2}, 0.05).size(), 1u);
+  EXPECT_EQ(inbox.wait_for({m3}, 0.05).size(), 1u);
+  r1.put_raw(with_header(hrc::v2::RobotCommand{}, "orchestrator", 2, 1));  // late after all
+  EXPECT_TRUE(inbox.wait_for({m2, m3}, 5.0).empty());
+  r1.put_raw(with_header(hrc::v2::RobotCommand{}, "orchestrator", 3, 2));  // again
+  r1.put_raw(with_header(hrc::v2::RobotCommand{}, "orchestrator", 4, 3));
+  EXPECT_TRUE(inbox.wait_for({mark(k.robot_command("r1"), "orchestrator", 4)}, 5.0).empty());
+  EXPECT_EQ(inbox.deliver_through(3), 4u);
+  EXPECT_EQ(seqs, (std::vector<uint64_t>{1, 2, 3, 4}));
+  EXPECT_EQ(inbox.duplicates(), 1u);
+}
+
 }  // namespace

@@ -11,6 +11,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <utility>
 #include <vector>
@@ -61,6 +62,8 @@ class Inbox {
   std::size_t deliver_through(uint64_t tick) { return deliver(tick + 1); }
   /// Messages received but not yet delivered.
   std::size_t pending() const;
+  /// Messages dropped because one with their key, sender and seq had come already.
+  std::size_t duplicates() const;
 
  private:
   struct Pending {
@@ -83,8 +86,12 @@ class Inbox {
   std::vector<ErasedHandler> handlers_;
   std::vector<std::string> exprs_;
   std::vector<Pending> pending_;
-  std::map<std::pair<std::string, std::string>, uint64_t> received_;  // (key, sender) -> max seq
-  std::map<std::string, bool> matches_;                               // key -> subscribed?
+  // (key, sender) -> the last seq with none missing before it: a later message that comes
+  // first does not hide a lost one (docs/ARCHITECTURE.md, "Lost messages")
+  std::map<std::pair<std::string, std::string>, uint64_t> received_;
+  std::map<std::pair<std::string, std::string>, std::set<uint64_t>> ahead_;  // seqs past a hole
+  std::size_t duplicates_ = 0;
+  std::map<std::string, bool> matches_;  // key -> subscribed?
 };
 
 }  // namespace hrc
