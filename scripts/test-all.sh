@@ -52,6 +52,7 @@ ctest --test-dir build/ik_cpp --output-on-failure --no-tests=error -j "$JOBS" 2>
 # every pytest process rewrote and compiled them all again (collection 5.0 -> 2.4 CPU-s each).
 unset PYTHONDONTWRITEBYTECODE
 : >"$LOG_DIR/pytest.log"
+PYTEST_TMP="${TMPDIR:-/tmp}/pytest-of-$(id -un)"  # where the trials' folders go (pytest's tmp_path)
 # run_pytest NAME ARGS...: one pytest run, its output on the terminal and appended to the log; a
 # run that selected no test (exit 5) is no failure here, as long as the whole command ran some.
 run_pytest() {
@@ -68,6 +69,7 @@ run_pytest() {
   return 0
 }
 ran_tests=0
+touch "$LOG_DIR/pytest.log.start"
 if [ "$WORKERS" -gt 0 ]; then
   HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" \
     --junitxml="$LOG_DIR/pytest-alone.xml" "$@"
@@ -101,6 +103,12 @@ echo "  lint  : ${lint_line:-no summary line (exit $lint_rc)}"
 echo "  ctest : ${ctest_line:-no summary line (exit $ctest_rc)}"
 echo "  pytest: ${pytest_lines:-no summary line}" | sed '2,$s/^/          /'
 echo "total: $((c_passed + p_passed)) passed, $((c_failed + p_failed)) failed, $p_skipped skipped"
+# Messages a lockstep service had to ask its sender for again (docs/ARCHITECTURE.md, "Lost
+# messages"): none in a run where the bus lost nothing; each is a line in a trial's service log.
+replays="$(find "$PYTEST_TMP" -name '*.log' -newer "$LOG_DIR/pytest.log.start" -print0 2>/dev/null \
+  | xargs -0 -r grep -h "did not come within" 2>/dev/null || true)"
+echo "  replays: $(grep -c . <<<"$replays" || true) (a lockstep wait asked a sender again for what the bus lost)"
+[ -z "$replays" ] || head -n 5 <<<"$replays" | sed 's/^/    /'
 if [ "${#failed[@]}" -gt 0 ]; then
   printf '[test-all] FAILED: %s\n' "${failed[@]}" >&2
   exit 1
