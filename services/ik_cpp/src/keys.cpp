@@ -57,6 +57,9 @@ std::string Keys::run_end() const { return k("run", "end"); }
 std::string Keys::alive(const std::string& s) const { return k("alive", check_name("service", s)); }
 std::string Keys::alive_all() const { return k("alive", "*"); }
 std::string Keys::stats(const std::string& s) const { return k("stats", check_name("service", s)); }
+std::string Keys::replay(const std::string& s) const {
+  return k("replay", check_name("service", s));
+}
 std::string Keys::scenario() const { return k("scenario"); }
 std::string Keys::robot_command(const std::string& r) const {
   return k("robot", check_name("robot id", r), "command");

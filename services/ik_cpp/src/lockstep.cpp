@@ -41,6 +41,7 @@ void LockstepParticipant::start() {
   bus_.watch_liveliness(
       [this](const std::string& service, bool alive) { on_liveliness(service, alive); });
   bus_.serve_stats();
+  bus_.serve_replay();
   // Last: the token means "ready, nothing will be missed".
   bus_.declare_token();
 }

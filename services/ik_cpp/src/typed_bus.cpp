@@ -125,6 +125,21 @@ void TypedPublisher::put_raw(std::string_view payload) {
   publisher_.put(payload, bus_.sender());
 }
 
+void TypedPublisher::remember_locked(const uint64_t seq, std::string bytes) {
+  recent_.emplace_back(seq, std::move(bytes));
+  if (recent_.size() > kReplayKeep) recent_.pop_front();
+}
+
+std::vector<std::string> TypedPublisher::sent_after(const uint64_t seq) const {
+  const std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<std::string> out;
+  if (recent_.empty() || recent_.front().first > seq + 1) return out;
+  for (const auto& [n, bytes] : recent_) {
+    if (n > seq) out.push_back(bytes);
+  }
+  return out;
+}
+
 uint64_t TypedPublisher::seq() const {
   const std::lock_guard<std::mutex> lock(mutex_);
   return seq_;
@@ -254,6 +269,24 @@ void Bus::watch_liveliness(std::function<void(const std::string& service, bool a
   };
   add_subscriber(
       session_.declare_liveliness_subscriber(keys_.alive_all(), std::move(handler), true));
+}
+
+void Bus::serve_replay() {
+  queryable<v2::ReplayRequest, v2::ExchangeBatch>(
+      keys_.replay(sender_), [this](const v2::ReplayRequest& req) {
+        v2::ExchangeBatch batch;
+        const TypedPublisher* pub = nullptr;
+        {
+          const std::lock_guard<std::mutex> lock(mutex_);
+          const auto it = publishers_.find(req.key());
+          if (it != publishers_.end()) pub = it->second.get();
+        }
+        if (pub != nullptr) {
+          for (std::string& item : pub->sent_after(req.after_seq()))
+            batch.add_items(std::move(item));
+        }
+        return batch;
+      });
 }
 
 void Bus::serve_stats() {

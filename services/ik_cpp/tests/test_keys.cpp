@@ -18,6 +18,7 @@ TEST(Keys, EveryKeyOfTheArchitectureTable) {
   EXPECT_EQ(k.alive("physics"), "hrc/s1/alive/physics");
   EXPECT_EQ(k.alive_all(), "hrc/s1/alive/*");
   EXPECT_EQ(k.stats("ik_cpp"), "hrc/s1/stats/ik_cpp");
+  EXPECT_EQ(k.replay("ik_cpp"), "hrc/s1/replay/ik_cpp");
   EXPECT_EQ(k.scenario(), "hrc/s1/scenario");
   EXPECT_EQ(k.robot_command("ur5_a"), "hrc/s1/robot/ur5_a/command");
   EXPECT_EQ(k.robot_commands(), "hrc/s1/robot/*/command");

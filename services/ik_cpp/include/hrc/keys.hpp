@@ -31,6 +31,7 @@ class Keys {
   std::string alive(const std::string& service) const;
   std::string alive_all() const;  // alive/*
   std::string stats(const std::string& service) const;
+  std::string replay(const std::string& service) const;  // docs/ARCHITECTURE.md, "Lost messages"
   std::string scenario() const;
   std::string robot_command(const std::string& robot) const;
   std::string robot_commands() const;  // robot/*/command

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
+#include <deque>
 #include <functional>
 #include <map>
 #include <memory>
@@ -69,7 +70,9 @@ class TypedPublisher {
       seq = ++seq_;
       stamp(*msg.mutable_header(), tick, sim_time, seq);
     }
-    put_bytes_locked(msg.SerializeAsString());
+    std::string bytes = msg.SerializeAsString();
+    put_bytes_locked(bytes);
+    if (seq > 0) remember_locked(seq, std::move(bytes));
     return seq;
   }
 
@@ -79,12 +82,16 @@ class TypedPublisher {
   /// ExchangeBatch messages (attachment "<sender>+batch"), as few as the size limit allows.
   void flush();
   uint64_t seq() const;
+  /// The messages after `seq` it still holds, oldest first; none unless it holds seq + 1 (a
+  /// replay with a hole would not help).
+  std::vector<std::string> sent_after(uint64_t seq) const;
   const std::string& key() const { return publisher_.key(); }
   bool has_subscribers() const { return publisher_.has_subscribers(); }
 
  private:
   void stamp(v2::Header& h, uint64_t tick, double sim_time, uint64_t seq) const;
   void put_bytes_locked(const std::string& bytes);
+  void remember_locked(uint64_t seq, std::string bytes);
   /// Throws BusError, sending nothing, for a message above the transport's limit.
   void check_size(std::size_t size) const;
 
@@ -93,7 +100,11 @@ class TypedPublisher {
   mutable std::mutex mutex_;
   uint64_t seq_ = 0;
   std::vector<std::string> held_;  // serialized messages held back while the bus batches
+  std::deque<std::pair<uint64_t, std::string>> recent_;  // (seq, message), for replays
 };
+
+// What a publisher holds of what it sent, to answer a replay (as Python's REPLAY_KEEP).
+inline constexpr std::size_t kReplayKeep = 2048;
 
 /// The attachment suffix that marks an ExchangeBatch (after the sender's name).
 inline constexpr std::string_view kBatchSuffix = "+batch";
@@ -210,6 +221,10 @@ class Bus {
 
   /// stats/<sender>: ServiceStats (subscribed keys, decode errors per key, ticks).
   void serve_stats();
+  /// replay/<sender>: ReplayRequest (key, after_seq) -> ExchangeBatch of what this service
+  /// published on the key after that seq and still holds (docs/ARCHITECTURE.md, "Lost
+  /// messages").
+  void serve_replay();
 
   /// Queries `key`; returns every reply that decodes as R (error replies and undecodable replies
   /// are logged and skipped).
