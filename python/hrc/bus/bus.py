@@ -167,7 +167,8 @@ class Publisher(Generic[M]):
 
 
 Validator = Callable[[Message], "str | None"]
-# Hands a serialized message of a subscription's key (key, payload, sender) to its handler.
+# Hands a serialized message of a subscription's key to its handler: (key, the sample it came in,
+# or for a replay the sender's name, payload).
 Feed = Callable[[str, "zenoh.Sample | str", bytes], None]
 
 
@@ -270,7 +271,7 @@ class Bus:
         A payload is malformed when it does not decode as ``msg_type``, carries another session's
         header, or fails ``validate``; it is counted, logged with key and sender, and dropped.
         Exceptions raised by the callback are logged, never propagated into Zenoh. Returns
-        ``feed(key, payload, sender)``, which handles a serialized message got another way (a
+        ``feed(key, sender, payload)``, which handles a serialized message got another way (a
         replay) as one that came on the subscription.
         """
         self.stats.subscribed.append(key)
