@@ -473,8 +473,9 @@ class Bus:
 
         def answer(req: pb.ReplayRequest | None) -> pb.ExchangeBatch:
             pub = self._publishers.get(req.key) if req is not None else None
-            items = pub.sent_after(req.after_seq) if pub is not None and req is not None else []
-            return pb.ExchangeBatch(items=items)
+            if req is None or pub is None:  # (a key it never published on)
+                return pb.ExchangeBatch()
+            return pb.ExchangeBatch(items=pub.sent_after(req.after_seq))
 
         self.queryable(self.keys.replay(self.sender), pb.ReplayRequest, answer)
 

@@ -141,14 +141,15 @@ class Inbox:
     def missing(self, marks: list[pb.PublishedMark]) -> list[pb.PublishedMark]:
         """The marks (on keys we subscribe to) whose messages have not all arrived yet."""
         with self._lock:
-            return [
-                m
-                for m in marks
-                if self._subscribed(m.key) and self._received.get((m.key, m.sender), 0) < m.seq
-            ]
+            return self._lacking([m for m in marks if self._subscribed(m.key)])
+
+    def _lacking(self, marks: list[pb.PublishedMark]) -> list[pb.PublishedMark]:
+        """The marks whose messages have not all been received. Under the lock."""
+        return [m for m in marks if self._received.get((m.key, m.sender), 0) < m.seq]
 
     def last_seq(self, key: str, sender: str) -> int:
-        """The highest seq received on ``key`` from ``sender`` (0: none yet)."""
+        """The seq received up to on ``key`` from ``sender`` (0: none yet): gapless, the last
+        one with none missing before it; else the highest."""
         with self._lock:
             return self._received.get((key, sender), 0)
 
@@ -167,9 +168,7 @@ class Inbox:
         while True:
             with self._cond:
                 while True:
-                    missing = [
-                        m for m in wanted if self._received.get((m.key, m.sender), 0) < m.seq
-                    ]
+                    missing = self._lacking(wanted)
                     now = time.monotonic()
                     if not missing or now >= deadline:
                         return missing
