@@ -56,6 +56,16 @@ class BusConfig:
             cfg.insert_json5("connect/retry", CONNECT_RETRY)
         if self.listen:
             cfg.insert_json5("listen/endpoints", json.dumps(self.listen))
+        if (
+            self.mode == "router"
+            and not self.connect
+            and not self.multicast_scouting
+            and cfg.get_json("scouting/delay") == "null"
+        ):
+            # A router's open waits scouting/delay (Zenoh's default 500 ms) for the peers it
+            # scouts or connects to: with neither, half a second of every trial's start-up
+            # (physics is the trial's router) for nothing.
+            cfg.insert_json5("scouting/delay", "0")
         if self.mode != "router":
             # Access control is the router's (hrc.bus.access.router_acl, default deny): in the
             # configuration file of a service that is the router in one deployment and a client

@@ -30,3 +30,24 @@ def test_a_client_started_first_connects_soon_after_the_router_listens() -> None
     assert connected, "the client never connected"
     # retries every 50 ms at most (it was 100 ms doubling: the next try came ~0.7 s later here)
     assert connected[0] - listening < 0.3
+
+
+def test_a_router_that_scouts_and_connects_to_nothing_does_not_wait_to_open(tmp_path) -> None:
+    """Zenoh's router waits scouting/delay (500 ms by default) in its open for the peers it
+    scouts or connects to: a trial's physics has neither, and that was half a second of every
+    trial's start. A router that connects somewhere, or a file that sets a delay, keeps it."""
+    alone = BusConfig(mode="router", listen=["tcp/127.0.0.1:0"]).to_zenoh()
+    assert alone.get_json("scouting/delay") == "0"
+    linked = BusConfig(mode="router", connect=["tcp/127.0.0.1:7447"]).to_zenoh()
+    assert linked.get_json("scouting/delay") == "null"
+    peer = BusConfig(mode="peer").to_zenoh()  # (a peer waits only when it has somewhere to go)
+    assert peer.get_json("scouting/delay") == "null"
+    own = tmp_path / "z.json5"
+    own.write_text("{ scouting: { delay: 200 } }")
+    assert (
+        BusConfig(mode="router", config_file=str(own)).to_zenoh().get_json("scouting/delay")
+        == "200"
+    )
+    t0 = time.monotonic()
+    zenoh.open(alone).close()
+    print(f"a lone router opened in {time.monotonic() - t0:.3f} s")
