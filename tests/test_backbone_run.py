@@ -31,6 +31,30 @@ def test_hrc_run_empty_runs_2000_lockstep_ticks_and_writes_metrics(tmp_path, ik_
     assert "2000 ticks" in proc.stdout
 
 
+def test_hrc_run_sees_the_end_of_a_run_of_one_tick(tmp_path, ik_bin) -> None:
+    """physics's first tick waits for hrc run's own session (--watchers), which must see
+    run/end: from it come the run's reason on a failure, the logger's priority lifted at the
+    end, and the phases of services/timing.json. The shortest run ends before anything else
+    could have subscribed."""
+    out = tmp_path / "trial"
+    proc = subprocess.run(
+        [HRC, "run", str(ROOT / "scenarios" / "empty.toml"), "--out", str(out), "--ticks", "1"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    t = json.loads((out / "services" / "timing.json").read_text())
+    assert t["run_s"] is not None and t["start_s"] is not None, t
+    assert set(t["exit_by_service_s"]) == {
+        "physics",
+        "ik_cpp",
+        "orchestrator",
+        "human_input",
+        "logger",
+    }
+
+
 def test_the_five_services_are_separate_processes_that_all_take_part(trial_factory) -> None:
     trial = trial_factory()
     trial.wait_ticking()

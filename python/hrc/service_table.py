@@ -66,6 +66,10 @@ class Settings:
     web_port: str | None = None  # the rerun web viewer's HTTP port (None: the logger's 9090)
     grpc_port: str | None = None  # the port the web viewer reads the data from
     no_view: bool = False  # the logger writes no 3D recording (a study that needs the metrics)
+    # tools the clock master waits for before the first tick (their tokens), as it does for the
+    # services, but which never hold the clock nor end the run by leaving: hrc run's own watch
+    # of the run, which must not miss a short run's end
+    watchers: str | None = None
 
 
 Value = str | bool | tuple[str, ...] | None
@@ -252,6 +256,7 @@ def _role_options(role: Role) -> tuple[Option, ...]:
             router,
             Option("--participants", value=",".join(PARTICIPANTS)),
             Option("--observers", value=",".join(OBSERVERS)),
+            Option("--watchers", "watchers"),
         )
     return (
         *common,

@@ -63,6 +63,8 @@ class ClockSettings:
     # the services whose acks close the barrier, and those that must be there but never ack
     participants: list[str] = field(default_factory=lambda: list(PARTICIPANTS))
     observers: list[str] = field(default_factory=lambda: list(OBSERVERS))
+    # tools the first tick waits for (their tokens) that never hold the clock nor end the run
+    watchers: list[str] = field(default_factory=list)
     barrier_timeout_s: float = 10.0
     start_timeout_s: float = 60.0
 
@@ -344,7 +346,11 @@ class ClockMaster:
         return not self._window or all(t >= k - self._window for t in self._observed.values())
 
     def wait_ready(self) -> None:
-        expected = set(self.settings.participants) | set(self.settings.observers)
+        expected = (
+            set(self.settings.participants)
+            | set(self.settings.observers)
+            | set(self.settings.watchers)
+        )
         deadline = time.monotonic() + self.settings.start_timeout_s
         with self._cond:
             while not expected <= self._alive:

@@ -187,6 +187,8 @@ def trial_settings(
         web_port=str(opts.web_port) if opts.web and opts.web_port else None,
         grpc_port=str(opts.grpc_port) if opts.web and opts.grpc_port else None,
         no_view=not opts.view,
+        # (on a bus of several hosts physics keeps Zenoh's start-up delay, which covers it)
+        watchers=None if opts.connect else service_table.EXPERIMENTER,
     )
 
 

@@ -68,6 +68,9 @@ class _EndWatcher:
         self.bus.subscribe(self.bus.keys.run_end(), pb.RunEnd, self._on_end)
         self._up: set[str] = set()  # the services whose tokens came (the run follows them all)
         self.bus.watch_liveliness(self._on_token)
+        # physics's first tick waits for this token (--watchers): the run's end cannot come
+        # before the subscription above is in place
+        self.bus.declare_token()
 
     def _on_token(self, name: str, alive: bool) -> None:
         if alive:
@@ -210,13 +213,16 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
             argv = service_argv(name, opts, session, port, trial_dir, sock, lowlatency, access)
             group.start(name, argv, service_table.service(name).module)
         guard.watch()  # (a thread: after the forks)
-        time.sleep(0.2)
-        try:
+        try:  # (its client keeps trying until physics listens)
             watcher = _EndWatcher(session, port, access, on_end=group.lift_observers)
             if opts.vr is not None:
                 console = LiveConsole(watcher.bus, opts.participant, opts.parts_total)
-        except Exception as exc:  # the bus is optional for the CLI; process status still works
-            log.debug("no run/end watcher: %s", exc)
+        except Exception as exc:
+            if not opts.connect:  # physics waits for the watcher's token: no run without it
+                group.stop_all(grace_s=service_table.STOP_GRACE_S + 0.5)
+                why = f"hrc run could not join the trial's bus to watch it: {exc}"
+                return TrialResult(False, 3, trial_dir, why, EXPERIMENTER)
+            log.debug("no run/end watcher: %s", exc)  # process status still works
         failed = ""
         failure = ""
         try:

@@ -207,6 +207,42 @@ def test_a_stop_request_ends_the_run_cleanly(session_id: str) -> None:
         s.close()
 
 
+def test_the_first_tick_waits_for_a_watcher_whose_leaving_ends_nothing(session_id: str) -> None:
+    """hrc run's own session (a watcher): the run does not begin before its token, so a run of
+    a few ticks cannot end before it listens; it takes no part in the run after that."""
+    s = Session(
+        session_id,
+        ClockSettings(ticks=0, participants=["ik_cpp"], observers=[], watchers=["experimenter"]),
+        ["ik_cpp", "experimenter"],
+    )
+    try:
+        _run_participants(s, {}, only=["ik_cpp"])
+        ik = s.buses["ik_cpp"]
+        stop = ik.publisher(ik.keys.run_control(ik.sender))
+        world: list[int] = []
+        left_at: list[int] = []
+        s.clock.start()
+        ends: list[Outcome] = []
+        runner = threading.Thread(
+            target=lambda: ends.append(s.clock.run(lambda k, t: world.append(k), lambda k, t: None))
+        )
+        runner.start()
+        assert wait_until(lambda: "ik_cpp" in s.clock._alive, 20), "ik_cpp never came up"
+        time.sleep(0.5)  # (what must not happen: a tick without the watcher)
+        assert world == [], f"ticked before the watcher came: {world[:5]}"
+        watcher = s.buses["experimenter"]
+        watcher.declare_token()
+        assert wait_until(lambda: len(world) >= 10, 20), "no tick after the watcher came"
+        left_at.append(len(world))
+        watcher.close()  # it leaves: the run goes on
+        assert wait_until(lambda: len(world) >= left_at[0] + 200, 30), "the run stopped"
+        stop.put(pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="done"))
+        runner.join(30)
+        assert ends and ends[0].ok and "stopped by ik_cpp: done" in ends[0].reason, ends
+    finally:
+        s.close()
+
+
 def test_the_tick_transition_runs_on_the_ack_thread_when_nothing_is_missing(
     session_id: str,
 ) -> None:

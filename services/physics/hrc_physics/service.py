@@ -104,6 +104,12 @@ class PhysicsService(ClockMasterService):
             "(default: the service table's, %(default)s)",
         )
         p.add_argument(
+            "--watchers",
+            default="",
+            help="comma-separated tools whose tokens the first tick waits for, which never "
+            "hold the clock nor end the run by leaving (hrc run passes its own: experimenter)",
+        )
+        p.add_argument(
             "--barrier-timeout",
             type=float,
             default=10.0,
@@ -153,6 +159,7 @@ class PhysicsService(ClockMasterService):
                 ticks=args.ticks,
                 participants=_names(args.participants),
                 observers=_names(args.observers),
+                watchers=_names(args.watchers),
                 barrier_timeout_s=args.barrier_timeout,
                 start_timeout_s=args.start_timeout,
             )
