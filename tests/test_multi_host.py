@@ -25,6 +25,7 @@ from .netns import Hosts
 from .test_intruders import FORGED, forge, intruder
 
 pytestmark = [pytest.mark.e2e]
+MINIMAL = ROOT / "scenarios" / "minimal.toml"
 BIN = Path(sys.executable).parent
 
 
@@ -121,7 +122,8 @@ def test_a_session_over_a_router_admits_only_its_own_services(tmp_path: Path, ik
         # docs/multi-host.md, step 2: every service a client of the router, with its own file
         common = ["--session", session, "--zenoh-mode", "client", "--connect", router_ep]
         out = tmp_path / "trial"
-        commands = service_commands(ik_bin, ROOT / "scenarios" / "thesis.toml", out)
+        # the two-part board: the run starts only once the logger joins, after the intruders
+        commands = service_commands(ik_bin, MINIMAL, out)
         logger = commands.pop("logger")
         for name, argv in commands.items():
             start(name, [*argv, *common, "--zenoh-config", str(folder / f"{name}.json5")])
@@ -158,7 +160,6 @@ def test_a_session_over_a_router_admits_only_its_own_services(tmp_path: Path, ik
 
 
 # --- two hosts: network namespaces joined by a cable (tests/netns.py) -----------------------
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
 COMPUTE = ("physics", "ik_cpp")  # on the router's host; the others on the second host
 WORKSTATION = ("orchestrator", "human_input", "logger")
 LOG_TIME = "%Y-%m-%d %H:%M:%S,%f"  # hrc.logsetup's asctime
