@@ -220,7 +220,6 @@ def test_the_first_tick_waits_for_a_watcher_whose_leaving_ends_nothing(session_i
         ik = s.buses["ik_cpp"]
         stop = ik.publisher(ik.keys.run_control(ik.sender))
         world: list[int] = []
-        left_at: list[int] = []
         s.clock.start()
         ends: list[Outcome] = []
         runner = threading.Thread(
@@ -233,9 +232,9 @@ def test_the_first_tick_waits_for_a_watcher_whose_leaving_ends_nothing(session_i
         watcher = s.buses["experimenter"]
         watcher.declare_token()
         assert wait_until(lambda: len(world) >= 10, 20), "no tick after the watcher came"
-        left_at.append(len(world))
+        left_at = len(world)
         watcher.close()  # it leaves: the run goes on
-        assert wait_until(lambda: len(world) >= left_at[0] + 200, 30), "the run stopped"
+        assert wait_until(lambda: len(world) >= left_at + 200, 30), "the run stopped"
         stop.put(pb.RunControl(command=pb.RunControl.COMMAND_STOP, reason="done"))
         runner.join(30)
         assert ends and ends[0].ok and "stopped by ik_cpp: done" in ends[0].reason, ends
