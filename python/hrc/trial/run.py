@@ -23,7 +23,13 @@ from hrc.paths import build_dir
 from hrc.ports import free_port, release_port
 from hrc.service_table import EXPERIMENTER
 from hrc.trial.console import LiveConsole
-from hrc.trial.options import TrialOptions, TrialResult, fits_lowlatency, service_argv
+from hrc.trial.options import (
+    TrialOptions,
+    TrialResult,
+    awaits_watcher,
+    fits_lowlatency,
+    service_argv,
+)
 from hrc.trial.processes import (
     INTERRUPT_LEAVE_S,
     SERVICES_ABANDONED_S,
@@ -218,7 +224,7 @@ def _run_trial(opts: TrialOptions, trial_dir: Path, port: int) -> TrialResult:
             if opts.vr is not None:
                 console = LiveConsole(watcher.bus, opts.participant, opts.parts_total)
         except Exception as exc:
-            if not opts.connect:  # physics waits for the watcher's token: no run without it
+            if awaits_watcher(opts):  # physics waits for its token: no run without it
                 group.stop_all(grace_s=service_table.STOP_GRACE_S + 0.5)
                 why = f"hrc run could not join the trial's bus to watch it: {exc}"
                 return TrialResult(False, 3, trial_dir, why, EXPERIMENTER)
