@@ -713,6 +713,15 @@ class ClockMaster:
                 own,
             )
         self.bus.flush_batches()  # a last exchange's world state, if any
+        # What no clock tick listed: the last exchange's outputs (acked, or acked since a
+        # barrier that never closed) and our own last puts. Observers read on until they have
+        # them instead of waiting for the session to go quiet (hrc.bus.observer).
+        with self._cond:
+            last = {**self._announce, **self._fresh}
+        end.published.extend(
+            pb.PublishedMark(key=key, sender=snd, seq=seq) for (key, snd), seq in last.items()
+        )
+        end.published.extend(self.bus.new_marks(exclude=self._clock_pub.key))
         self._end_pub.put(end, k, k * self.dt)
         self._linger()
         return end

@@ -80,6 +80,8 @@ class Inbox:
         self.duplicates = 0  # messages dropped as had already (gapless)
         self.arrived = 0  # messages received so far (delivered or not)
         self._matches: dict[str, bool] = {}
+        # (key, sender) -> the newest tick of its messages received, for those watched (watch())
+        self._newest: dict[tuple[str, str], int] = {}
 
     def add(
         self,
@@ -116,6 +118,8 @@ class Inbox:
                     return
                 else:  # past a hole: a message before it is late, or lost
                     self._ahead.setdefault(mark, set()).add(seq)
+                if self._newest and self._newest.get(mark, tick) < tick:
+                    self._newest[mark] = tick
                 if problem is None:
                     bucket = self._pending.get(tick)
                     if bucket is None:
@@ -182,6 +186,32 @@ class Inbox:
             for m in missing:
                 self.recover(m, min(REPLAY_ASK_S, max(0.05, deadline - time.monotonic())))
             ask_at = time.monotonic() + REPLAY_AFTER_S
+
+    def watch(self, key: str, sender: str) -> None:
+        """Keep the newest tick of the messages from ``sender`` on ``key`` (wait_for_end)."""
+        with self._lock:
+            self._newest.setdefault((key, sender), -1)
+
+    def wait_for_end(
+        self, marks: list[pb.PublishedMark], after: list[tuple[str, str]], tick: int, timeout: float
+    ) -> tuple[list[pb.PublishedMark], list[tuple[str, str]]]:
+        """Waits until every mark is satisfied and a message of tick ``tick`` or later has come
+        from each watched (key, sender) in ``after``; returns what is still missing of each at
+        the timeout."""
+        wanted = [m for m in marks if self._subscribed(m.key)]
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                missing = self._lacking(wanted)
+                late = [ks for ks in after if self._newest.get(ks, -1) < tick]
+                now = time.monotonic()
+                if (not missing and not late) or now >= deadline:
+                    return missing, late
+                self._waiting += 1
+                try:
+                    self._cond.wait(deadline - now)
+                finally:
+                    self._waiting -= 1
 
     def recover(self, mark: pb.PublishedMark, timeout: float) -> int:
         """Asks ``mark``'s sender for its messages on the key after the last one received and

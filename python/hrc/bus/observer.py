@@ -6,8 +6,9 @@ without the inline path: Zenoh callbacks only decode and queue, so a slow observ
 the bus threads; the run() thread works through the ticks in order. On top of it the observer
 checks every message's sequence number (a gap is a lost message), measures its lag behind the
 clock, keeps going when a tick's inputs never arrive (it logs what did arrive), and at the run's
-end works off the queued ticks, then waits for the session to go quiet and hands over whatever
-is left (the last outputs of the final tick are listed by no clock tick).
+end works off the queued ticks, then waits for what came after the last clock tick (listed by
+run/end, or announced with :meth:`Observer.after_end`; in realtime or after a failure, until the
+session goes quiet) and hands over whatever is left.
 
 Every OBSERVER_ACK_TICKS it acks the newest clock tick it has received, from the Zenoh thread
 that received it (what lockstep's window waits for: receiving, not processing, so a slow step
@@ -90,6 +91,8 @@ class Observer(ClockFollower):
         self._acked = -OBSERVER_ACK_TICKS  # the newest tick acknowledged
         self._tail_deadline: float | None = None  # when to stop waiting for the last ticks
         self.mode: int | None = None  # the clock's mode (pb.ClockMode), from the first tick handled
+        self._after_end: list[tuple[str, str]] = []  # see after_end()
+        self._participants: frozenset[str] = frozenset()  # the clock's, from the ticks handled
 
     def input(
         self,
@@ -175,14 +178,27 @@ class Observer(ClockFollower):
 
     def _tick_ready(self, tick: pb.ClockTick, arrived: float) -> None:
         self.mode = tick.mode
+        if not self._participants:
+            self._participants = frozenset(tick.participants)
         with self._cond:
             latest = self._latest_seen
         self.lag.add(latest - tick.header.tick, time.perf_counter() - arrived)
 
+    def after_end(self, key: str, sender: str) -> None:
+        """``sender`` publishes on ``key`` once more after run/end (the orchestrator's final
+        metrics): a good lockstep end waits for that message too, if ``sender`` took part."""
+        self.inbox.watch(key, sender)
+        self._after_end.append((key, sender))
+
     def _wind_up(self) -> None:
-        """Waits until the session is quiet for ``quiet_s``, then hands over everything still
+        """Waits for what came after the last clock tick, then hands over everything still
         held at once (sorted: the last outputs, which no clock tick lists, may come on several
-        keys, and their order must not depend on when each arrived)."""
+        keys, and their order must not depend on when each arrived).
+
+        After a good lockstep end run/end lists those last outputs, and the messages announced
+        with after_end() come with run/end's tick: they are waited for (at most ``drain_max_s``).
+        Otherwise (realtime, where a late output is listed by nobody; a failed run) the session
+        must have been quiet for ``quiet_s``."""
         unseen = self._ticks_unseen()
         if unseen is not None:
             log.error(
@@ -191,6 +207,23 @@ class Observer(ClockFollower):
                 unseen.last_clock_seq,
                 self.drain_max_s,
             )
+        end = self._end.run_end if self._end is not None else None
+        if end is not None and end.ok and not self._hurry and end.mode == pb.CLOCK_MODE_LOCKSTEP:
+            after = [ks for ks in self._after_end if ks[1] in self._participants]
+            missing, late = self.inbox.wait_for_end(
+                list(end.published), after, end.ticks, self.drain_max_s
+            )
+            if missing or late:
+                log.error(
+                    "after run/end, never came within %.1f s: %s",
+                    self.drain_max_s,
+                    "; ".join(
+                        ([describe_marks(missing)] if missing else [])
+                        + [f"{k} from '{snd}'" for k, snd in late]
+                    ),
+                )
+            self.inbox.deliver(2**62)
+            return
         deadline = time.monotonic() + (0.5 if self._hurry else self.drain_max_s)
         quiet_since = time.monotonic()
         seen = self.inbox.arrived

@@ -488,3 +488,50 @@ def test_an_observer_reads_the_ticks_run_end_overtook(session_id: str) -> None:
         assert observer.steps == list(range(60)), observer.steps[-3:]
     finally:
         s.close()
+
+
+def test_an_observer_has_the_last_outputs_and_the_final_report_that_come_after_run_end(
+    session_id: str,
+) -> None:
+    # The orchestrator publishes on its metrics key every tick, and once more after run/end,
+    # 0.6 s later (a busy machine): run/end lists the last tick's outputs, and the logger,
+    # told that a final report comes after the end, waits for it instead of for 0.3 s of quiet.
+    settings = ClockSettings(ticks=30, participants=["orchestrator"], observers=["logger"])
+    s = Session(session_id, settings, ["orchestrator", "logger"])
+    try:
+        key = s.buses["orchestrator"].keys.task_metrics()
+        pub = s.buses["orchestrator"].publisher(key)
+        orch = LockstepParticipant(s.buses["orchestrator"])
+        orch.on_tick(lambda t: pub.put(pb.MetricsReport(), t.header.tick, t.header.sim_time))
+        logger = Observer(s.buses["logger"])
+        got: list[tuple[int, bool]] = []
+        logger.input(key, pb.MetricsReport, lambda _k, m: got.append((m.header.tick, m.final)))
+        logger.after_end(key, "orchestrator")
+        outcomes: dict[str, Outcome] = {}
+
+        def orchestrate() -> None:
+            outcomes["orchestrator"] = out = orch.run(30)
+            assert out.run_end is not None
+            time.sleep(0.6)
+            pub.put(pb.MetricsReport(final=True), out.run_end.ticks, out.run_end.sim_time)
+
+        threads = [
+            threading.Thread(target=orchestrate),
+            threading.Thread(target=lambda: outcomes.__setitem__("logger", logger.run(30))),
+        ]
+        for p in (orch, logger):
+            p.start()
+        for th in threads:
+            th.start()
+        s.clock.start()
+        end = s.clock.run(lambda k, t: None, lambda k, t: None)
+        for th in threads:
+            th.join(10)
+        assert end.ok and end.ticks == 30, end
+        # run/end lists the orchestrator's output of the last tick (no clock tick lists it)
+        listed = {(m.key, m.sender): m.seq for m in end.published}
+        assert listed.get((key, "orchestrator")) == 30, list(end.published)
+        assert outcomes["logger"].ok, outcomes
+        assert got == [(k, False) for k in range(30)] + [(30, True)], got
+    finally:
+        s.close()

@@ -309,6 +309,9 @@ class LoggerService(Service):
         inputs.input(keys.world_contacts(), pb.WorldContacts, g(rec.on_world_contacts))
         inputs.input(keys.robot_states(), pb.RobotState, g(rec.on_robot_state))
         inputs.input(keys.human_state(), pb.HumanState, g(rec.on_human_state))
+        if self.observer is not None:
+            # The orchestrator's final metrics (with the run's figures) come after run/end.
+            self.observer.after_end(keys.task_metrics(), "orchestrator")
 
     def step(self, tick: pb.ClockTick) -> None:
         self._priority()
