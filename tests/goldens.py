@@ -22,6 +22,7 @@ from .warm_cli import hrc
 ROOT = Path(__file__).resolve().parents[1]
 GOLDEN_ROOT = Path(__file__).resolve().parent / "golden"
 THESIS = ROOT / "scenarios" / "thesis.toml"
+MINIMAL = ROOT / "scenarios" / "minimal.toml"  # the two-part board
 WALL = {"wall_time", "wall_s", "realtime_factor", "end_reason"}
 FILES = ("events.jsonl", "log.txt", "metrics.json")
 

@@ -25,11 +25,10 @@ import pytest
 from hrc.browser import headless_chromium, output_dir
 
 from .conftest import ROOT, Trial, free_port, wait_until
+from .goldens import MINIMAL
 
 log = logging.getLogger(__name__)
 
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
-THESIS = ROOT / "scenarios" / "thesis.toml"
 CLIENT_DIST = ROOT / "services" / "human_input" / "client" / "dist" / "index.html"
 VIEWPORT = {"width": 1280, "height": 800}
 # The pages outside a headset draw at most this many frames a second (the client's `fps`): in

@@ -22,7 +22,8 @@ from websockets.sync.client import ClientConnection
 from hrc.bench.client import REST_LEFT, REST_RIGHT, connect_when_up, grab, move
 
 from .conftest import HRC, ROOT, free_port, ignore_sigint, wait_until
-from .participant_page import MINIMAL, Page, grab_part, place_part
+from .goldens import MINIMAL
+from .participant_page import Page, grab_part, place_part
 
 CONSENT = (
     "# Consent\n\nYou take part in a study of **working with robots**.\n\n"

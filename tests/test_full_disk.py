@@ -23,11 +23,10 @@ import pytest
 
 from hrc import diskspace
 
-from .conftest import HRC, ROOT
-from .goldens import with_robot_speed
+from .conftest import HRC
+from .goldens import THESIS, with_robot_speed
 
 pytestmark = [pytest.mark.e2e]
-THESIS = ROOT / "scenarios" / "thesis.toml"
 MIB = 1024 * 1024
 
 

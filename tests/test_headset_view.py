@@ -25,9 +25,8 @@ from typing import Any
 import pytest
 
 from .conftest import wait_until
-from .goldens import with_robot_speed
+from .goldens import THESIS, with_robot_speed
 from .participant_page import (
-    THESIS,
     VIEWPORT,
     Live,
     Page,

@@ -38,11 +38,11 @@ from hrc.ports import free_port
 from hrc.wire import pb
 
 from .conftest import wait_until
+from .goldens import MINIMAL
 
 pytestmark = pytest.mark.slow
 
 ROOT = project_root()
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
 REACH_TOL = 0.005  # m (docs/task-semantics.md#robot-motion)
 SPEED_TOL = 1.02  # measured TCP speed may exceed max_tcp_speed by 2 %
 MAX_TICKS = 240 * 60  # a safety net: the script finishes in a few thousand ticks

@@ -18,11 +18,10 @@ import zenoh
 from hrc.bus import Bus, BusConfig, Keys, access
 from hrc.wire import pb
 
-from .conftest import HRC, ROOT
-from .goldens import with_robot_speed
+from .conftest import HRC
+from .goldens import MINIMAL, with_robot_speed
 
 pytestmark = [pytest.mark.e2e]
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
 # The two-part board in real time with robots 7 times slower (about 30 s): it outlives the
 # intruders' tries (12 s, most of it their links' 2 s timeouts) and costs half the thesis task's
 # 48 s in real time.

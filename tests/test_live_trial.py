@@ -23,9 +23,8 @@ import pytest
 from hrc.wire import pb
 
 from .conftest import wait_until
+from .goldens import MINIMAL, THESIS
 from .participant_page import (
-    MINIMAL,
-    THESIS,
     Live,
     Page,
     browser,  # noqa: F401  (a fixture)

@@ -22,7 +22,7 @@ from hrc.bus import Bus, BusConfig, Publisher
 from hrc.wire import pb
 
 from .conftest import ROOT, free_port, wait_until
-from .goldens import Finished
+from .goldens import THESIS, Finished
 from hrc_logger.rrd import summarize
 
 sys.path.insert(0, str(ROOT / "services" / "logger" / "tests"))
@@ -42,8 +42,6 @@ def read_with_dataframe_api(rrd: Path):  # a pyarrow.Table
 
 
 pytestmark = pytest.mark.slow
-
-THESIS = ROOT / "scenarios" / "thesis.toml"
 
 
 class FakeSession:

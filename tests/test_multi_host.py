@@ -20,12 +20,11 @@ from hrc.bus import Bus, BusConfig, Keys, access
 from hrc.wire import pb
 
 from .conftest import HRC, ROOT, free_port, wait_until
-from .goldens import normalised
+from .goldens import MINIMAL, normalised
 from .netns import Hosts
 from .test_intruders import FORGED, forge, intruder
 
 pytestmark = [pytest.mark.e2e]
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
 BIN = Path(sys.executable).parent
 
 

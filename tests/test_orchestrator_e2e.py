@@ -17,11 +17,10 @@ import pytest
 from hrc.paths import ik_binary
 
 from . import goldens
-from .goldens import Finished
+from .goldens import THESIS, Finished
 
 ROOT = Path(__file__).resolve().parents[1]
 HRC = ROOT / ".venv" / "bin" / "hrc"
-THESIS = ROOT / "scenarios" / "thesis.toml"
 TICK_CAP = 240 * 100  # 100 s of sim time: a stalled policy ends the run instead of hanging
 
 pytestmark = [

@@ -33,10 +33,11 @@ from hrc.scenario.conventions import HAND_SIZE
 from hrc.scenario.models import DEFAULT_MAX_EXCHANGE_TICKS
 from hrc.wire import pb
 
+from .goldens import MINIMAL
+
 pytestmark = pytest.mark.slow
 
 ROOT = project_root()
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
 AWAY = (0.0, -0.8, 0.4)  # outside every envelope box, far from both robots
 
 Step = Callable[[int, float, "Role"], None]

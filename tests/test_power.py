@@ -13,11 +13,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from .conftest import HRC, ROOT
+from .conftest import HRC
+from .goldens import MINIMAL
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
 STUDY = f"""
 [study]
 name = "tiny-power"

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
-from .conftest import HRC, ROOT
+from .conftest import HRC
+from .goldens import MINIMAL
 
 pytestmark = [pytest.mark.e2e]
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
 
 
 def run(out: Path, env: dict[str, str] | None = None) -> subprocess.CompletedProcess[str]:

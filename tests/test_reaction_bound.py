@@ -26,8 +26,9 @@ from hrc.ports import free_port
 from hrc.trial import TrialOptions, TrialResult, run_trial
 from hrc.wire import pb
 
+from .goldens import THESIS
+
 ROOT = Path(__file__).resolve().parents[1]
-THESIS = ROOT / "scenarios" / "thesis.toml"
 TICK_HZ = 240
 THESIS_FRAME_S = 1.0 / 90.0
 WATCHER = "reactionwatch"

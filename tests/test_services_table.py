@@ -17,13 +17,14 @@ from pathlib import Path
 import pytest
 
 from hrc import service_table
-from hrc.paths import build_dir, project_root
+from hrc.paths import build_dir
 from hrc.service import parse_args
 from hrc.service_table import Role, Settings
 from hrc.trial import TrialOptions
 from hrc.trial import options as trial_options
 
-THESIS = project_root() / "scenarios" / "thesis.toml"
+from .goldens import THESIS
+
 PYTHON = [s for s in service_table.SERVICES if s.module is not None]
 CPP = [s for s in service_table.SERVICES if s.binary is not None]
 

@@ -22,8 +22,8 @@ import pandas as pd
 import pytest
 
 from .conftest import HRC, ROOT, wait_until
+from .goldens import MINIMAL
 from .participant_page import (  # noqa: F401  (browser: a fixture)
-    MINIMAL,
     OPEN_PAGES,
     Page,
     browser,

@@ -20,12 +20,12 @@ import pytest
 from hrc.browser import headless_chromium, output_dir
 from hrc.study.sweep import WARM_SAYS
 
-from .conftest import HRC, ROOT, free_port, strip_fields, wait_until
+from .conftest import HRC, free_port, strip_fields, wait_until
+from .goldens import MINIMAL
 from .netns import Hosts
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
 STUDY = f"""
 [study]
 name = "mini-2x2x2"

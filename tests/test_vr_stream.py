@@ -20,9 +20,9 @@ from hrc.bench.client import REST_LEFT, REST_RIGHT, LiveClient, connect_when_up,
 from hrc.ports import free_port
 
 from .conftest import ROOT
+from .goldens import MINIMAL
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
-MINIMAL = ROOT / "scenarios" / "minimal.toml"
 
 
 def live(tmp_path: Path, ik_bin: Path, name: str = "trial"):
