@@ -27,7 +27,6 @@ import pytest
 from hrc import scenario as sc
 from hrc.bus import Bus, BusConfig, LockstepParticipant
 from hrc.geometry import IDENTITY, Pose, pose_to_pb, yaw_quat_deg
-from hrc.paths import project_root
 from hrc.ports import free_port
 from hrc.scenario.conventions import HAND_SIZE
 from hrc.scenario.models import DEFAULT_MAX_EXCHANGE_TICKS
@@ -37,7 +36,6 @@ from .goldens import MINIMAL
 
 pytestmark = pytest.mark.slow
 
-ROOT = project_root()
 AWAY = (0.0, -0.8, 0.4)  # outside every envelope box, far from both robots
 
 Step = Callable[[int, float, "Role"], None]
