@@ -178,11 +178,7 @@ class Inbox:
                         return missing
                     if now >= ask_at:
                         break
-                    self._waiting += 1
-                    try:
-                        self._cond.wait(min(deadline, ask_at) - now)
-                    finally:
-                        self._waiting -= 1
+                    self._await_arrival(min(deadline, ask_at) - now)
             for m in missing:
                 self.recover(m, min(REPLAY_ASK_S, max(0.05, deadline - time.monotonic())))
             ask_at = time.monotonic() + REPLAY_AFTER_S
@@ -207,11 +203,16 @@ class Inbox:
                 now = time.monotonic()
                 if (not missing and not late) or now >= deadline:
                     return missing, late
-                self._waiting += 1
-                try:
-                    self._cond.wait(deadline - now)
-                finally:
-                    self._waiting -= 1
+                self._await_arrival(deadline - now)
+
+    def _await_arrival(self, timeout: float) -> None:
+        """Sleeps until a message arrives or ``timeout`` passes. Under the lock (the
+        condition's); arrivals notify only while someone is counted as waiting."""
+        self._waiting += 1
+        try:
+            self._cond.wait(timeout)
+        finally:
+            self._waiting -= 1
 
     def recover(self, mark: pb.PublishedMark, timeout: float) -> int:
         """Asks ``mark``'s sender for its messages on the key after the last one received and
