@@ -367,7 +367,11 @@ export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
      * gets the CPU (software WebGL); the link to the bridge stays up. */
     pause: (on) => {
       const app = window.hrcApp;
-      app.renderer.setAnimationLoop(on ? null : (t, frame) => app.onFrame(t, frame));
+      const loop = on ? null : (t, frame) => app.onFrame(t, frame);
+      // in a headset only the headset's loop: three.js's renderer.setAnimationLoop would also
+      // start its window loop beside it, and every frame would then be drawn twice
+      if (app.renderer.xr.isPresenting) app.renderer.xr.setAnimationLoop(loop);
+      else app.renderer.setAnimationLoop(loop);
     },
     /** Frames rendered so far (a test waits for new ones after a change). */
     rendered: () => window.hrcApp.rendered,
