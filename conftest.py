@@ -6,8 +6,11 @@
 - Phases: `HRC_TEST_PHASE=alone` keeps only the tests that must not share the machine with
   another test: live trials paced by the wall clock with a browser page in software WebGL (a
   page a few frames a second late, a realtime trial that misses its deadlines, and the test
-  reads a person's view of something else). `HRC_TEST_PHASE=parallel` keeps the rest, which run
-  in parallel workers: lockstep trials give the same results at any load. Unset: every test.
+  reads a person's view of something else). `HRC_TEST_PHASE=beside` keeps the tests that mostly
+  wait for a timeout (a watchdog, a lease, a lost message's deadline): they take little CPU and
+  run at the same time as the `alone` phase, which leaves a core partly idle (in a worker of
+  their own they left it idle too). `HRC_TEST_PHASE=parallel` keeps the rest, which run in
+  parallel workers: lockstep trials give the same results at any load. Unset: every test.
 """
 
 from __future__ import annotations
@@ -41,7 +44,15 @@ ALONE = (
     "tests/test_vr_physics.py",
     "tests/test_human_input_vr.py",
 )
-PHASES = ("alone", "parallel")
+# Tests that mostly wait for a timeout (measured 2026-11-30 in the parallel phase: 250 s of a
+# worker's time at 5-30 % of a core): run beside the alone phase (HRC_TEST_PHASE=beside).
+BESIDE = (
+    "tests/test_faults.py",
+    "python/tests/bus/test_clock.py",
+    "python/tests/bus/test_access.py",
+    "python/tests/bus/test_replay.py",
+)
+PHASES = ("alone", "beside", "parallel")
 
 
 def _module(item: pytest.Item) -> str:
@@ -67,7 +78,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         keep: list[pytest.Item] = []
         dropped: list[pytest.Item] = []
         for it in items:
-            (keep if (_module(it) in ALONE) == (phase == "alone") else dropped).append(it)
+            module = _module(it)
+            its = "alone" if module in ALONE else "beside" if module in BESIDE else "parallel"
+            (keep if its == phase else dropped).append(it)
         if dropped:
             config.hook.pytest_deselected(items=dropped)
         items[:] = keep

@@ -10,12 +10,14 @@
 # test at all (ctest without tests, pytest exit code 5 in both phases). It ends with the
 # closing line of lint and of each runner.
 #
-# pytest runs in two phases (conftest.py): first the live trials with a browser page, one at a
-# time (they must have the machine to themselves), then every other test in HRC_TEST_WORKERS
-# parallel workers (pytest-xdist; default 2, one per core of the CI machine), handed one test at
-# a time, the longest first. HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the
-# same order. Each phase prints its 30 slowest tests; every test's time is in
-# build/test-logs/pytest-*.xml (JUnit XML: `scripts/slow_tests.py` sums them by file).
+# pytest runs in phases (conftest.py): first the live trials with a browser page, one at a
+# time (they must have the machine to themselves) and, at the same time in a pytest process of
+# its own at nice 10, the tests that mostly wait for a timeout (they fill the CPU the live ones
+# leave idle); then every other test in HRC_TEST_WORKERS parallel workers (pytest-xdist;
+# default 2, one per core of the CI machine), handed one test at a time, the longest first.
+# HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the same order. Each phase prints
+# its 30 slowest tests; every test's time is in build/test-logs/pytest-*.xml (JUnit XML:
+# `scripts/slow_tests.py` sums them by file).
 set -euo pipefail
 
 ROOT="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
@@ -61,18 +63,33 @@ run_pytest() {
   echo "[test-all] pytest ($name)"
   "$ROOT/.venv/bin/python" -m pytest --durations=30 "$@" 2>&1 | tee -a "$LOG_DIR/pytest.log" \
     || rc=$?
-  case "$rc" in
+  pytest_ended "$name" "$rc"
+}
+# pytest_ended NAME RC: a pytest run's exit code into the summary
+pytest_ended() {
+  case "$2" in
     0 | 5) ;;
-    *) failed+=("pytest, $name (exit $rc)") ;;
+    *) failed+=("pytest, $1 (exit $2)") ;;
   esac
-  [ "$rc" -eq 0 ] && ran_tests=1
+  [ "$2" -eq 0 ] && ran_tests=1
   return 0
 }
 ran_tests=0
 touch "$LOG_DIR/pytest.log.start"
 if [ "$WORKERS" -gt 0 ]; then
+  beside_name="tests that wait for a timeout, beside the live trials"
+  beside_log="$LOG_DIR/pytest-beside.log"
+  echo "[test-all] pytest ($beside_name): started, its output after the live trials'"
+  HRC_TEST_PHASE=beside nice -n 10 "$ROOT/.venv/bin/python" -m pytest --durations=30 \
+    --junitxml="$LOG_DIR/pytest-beside.xml" "$@" >"$beside_log" 2>&1 &
+  beside_pid=$!
   HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" \
     --junitxml="$LOG_DIR/pytest-alone.xml" "$@"
+  beside_rc=0
+  wait "$beside_pid" || beside_rc=$?
+  echo "[test-all] pytest ($beside_name)"
+  tee -a "$LOG_DIR/pytest.log" <"$beside_log"
+  pytest_ended "$beside_name" "$beside_rc"
   HRC_TEST_PHASE=parallel run_pytest "the rest, $WORKERS workers" \
     -n "$WORKERS" --dist load --maxschedchunk 1 --junitxml="$LOG_DIR/pytest-parallel.xml" "$@"
 else
