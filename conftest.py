@@ -44,13 +44,16 @@ ALONE = (
     "tests/test_vr_physics.py",
     "tests/test_human_input_vr.py",
 )
-# Tests that mostly wait for a timeout (measured 2026-11-30 in the parallel phase: 250 s of a
-# worker's time at 5-30 % of a core): run beside the alone phase (HRC_TEST_PHASE=beside).
+# Tests that mostly wait for a timeout or for real time (measured 2026-11-30 in the parallel
+# phase: 300 s of a worker's time at 5-30 % of a core): run beside the alone phase
+# (HRC_TEST_PHASE=beside).
 BESIDE = (
     "tests/test_faults.py",
     "python/tests/bus/test_clock.py",
     "python/tests/bus/test_access.py",
     "python/tests/bus/test_replay.py",
+    "tests/test_intruders.py",
+    "services/human_input/tests/test_vr_bridge.py",
 )
 PHASES = ("alone", "beside", "parallel")
 
