@@ -14,8 +14,9 @@ the variants this file's docs named to run again), plus
 one fresh variant drawn from a new generator seed at each run (its seed and index are printed:
 `HRC_FUZZ_SEED=S HRC_FUZZ_ONLY=I` runs it again). `HRC_FUZZ_N=32` (or more) runs the first N
 variants instead, as the test did before; `HRC_FUZZ_SEED` sets the generator's seed,
-`HRC_FUZZ_ONLY` (e.g. "6,16") runs only those variants. Two variants run at a time. The summary
-line gives finished / refused / stalled / failed counts.
+`HRC_FUZZ_ONLY` (e.g. "6,16") runs only those variants. Each variant is a test of its own
+(`test_a_variant_is_refused_or_finishes[v06]`, `[fresh]`), so that parallel workers share them;
+each prints its verdict (finished / refused / stalled / failed) and why.
 """
 
 from __future__ import annotations
@@ -28,7 +29,6 @@ import random
 import re
 import subprocess
 import tomllib
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -165,18 +165,23 @@ def variants(n: int, seed: int) -> list[tuple[str, dict[str, Any]]]:
     return out
 
 
-def chosen_variants() -> list[tuple[str, dict[str, Any]]]:
-    """What the test runs: HRC_FUZZ_ONLY's variants, or HRC_FUZZ_N's first N, or the fixed set
-    and one fresh variant (named with the seed and index that give it again)."""
+def chosen_variants() -> list[tuple[str, str, dict[str, Any]]]:
+    """What the tests run, as (test id, name, scenario): HRC_FUZZ_ONLY's variants, or
+    HRC_FUZZ_N's first N, or the fixed set and one fresh variant (named with the seed and index
+    that give it again; its test id is `fresh`, the same in every worker that collects it)."""
     if ONLY or N_VARIANTS:
         made = variants(max([N_VARIANTS, *(i + 1 for i in ONLY)]), GENERATOR_SEED)
-        return [made[i] for i in ONLY] if ONLY else made
+        picked = [made[i] for i in ONLY] if ONLY else made
+        return [(name.split(":")[0], name, doc) for name, doc in picked]
     made = variants(GENERATED, GENERATOR_SEED)
     fresh_seed = random.SystemRandom().randrange(10**6)
     fresh_i = fresh_seed % GENERATED
     name, doc = variants(GENERATED, fresh_seed)[fresh_i]
-    fresh = (f"fresh (HRC_FUZZ_SEED={fresh_seed} HRC_FUZZ_ONLY={fresh_i}) {name}", doc)
-    return [*(made[i] for i in FIXED), fresh]
+    fresh = ("fresh", f"fresh (HRC_FUZZ_SEED={fresh_seed} HRC_FUZZ_ONLY={fresh_i}) {name}", doc)
+    return [*((f"v{i:02d}", *made[i]) for i in FIXED), fresh]
+
+
+CHOSEN = chosen_variants()
 
 
 # ---------------------------------------------------------------- running one
@@ -224,35 +229,25 @@ def run_variant(name: str, doc: dict[str, Any], folder: Path) -> Outcome:
     return Outcome(name, "finished", f"{metrics['task']['completion_s']:.1f} s task time")
 
 
+@pytest.mark.skipif(bool(ONLY), reason="HRC_FUZZ_ONLY runs the variants it names")
+def test_the_variants_vary_every_policy_and_base() -> None:
+    assert len({doc["conditions"]["safety_policy"] for _i, _n, doc in CHOSEN}) == len(POLICIES)
+    assert len({n.split(":")[1].split(";")[0].strip() for _i, n, _d in CHOSEN}) == len(BASES)
+
+
 @pytest.mark.slow
 @pytest.mark.e2e
-@pytest.mark.timeout(7200)
-def test_every_variant_is_rejected_or_finishes(tmp_path: Path, ik_bin: Path) -> None:
-    todo = chosen_variants()
-    assert len({doc["conditions"]["safety_policy"] for _n, doc in todo}) == len(POLICIES)
-    assert len({n.split(":")[1].split(";")[0].strip() for n, _d in todo}) == len(BASES)
-
-    def one(i: int) -> Outcome:
-        o = run_variant(todo[i][0], todo[i][1], tmp_path / f"t{i:02d}")
-        print(f"[{o.verdict}] {o.name}: {o.detail}", flush=True)  # progress, with -s
-        return o
-
-    with ThreadPoolExecutor(max_workers=2) as pool:  # two cores: two trials at a time
-        outcomes = list(pool.map(one, range(len(todo))))
-    counts = {k: sum(o.verdict == k for o in outcomes) for k in VERDICTS}
-    for o in outcomes:
-        print(f"{o.verdict:<9} {o.name}\n          {o.detail}")
-    print(
-        f"fuzz: {len(outcomes)} variants: {counts['finished']} finished, {counts['refused']} "
-        f"refused by hrc validate, {counts['stalled']} stalled, {counts['failed']} failed"
-    )
-    bad = [o for o in outcomes if o.verdict in ("stalled", "failed")]
-    assert not bad, "\n".join(f"{o.verdict}: {o.name}: {o.detail}" for o in bad)
+@pytest.mark.timeout(RUN_TIMEOUT_S + 300)
+@pytest.mark.parametrize("index", range(len(CHOSEN)), ids=[c[0] for c in CHOSEN])
+def test_a_variant_is_refused_or_finishes(index: int, tmp_path: Path, ik_bin: Path) -> None:
+    _id, name, doc = CHOSEN[index]
+    o = run_variant(name, doc, tmp_path / "variant")
+    print(f"{o.verdict:<9} {o.name}\n          {o.detail}")
+    assert o.verdict in ("finished", "refused"), f"{o.verdict}: {o.name}: {o.detail}"
     # a deadlocking order is refused naming its cycle ("H5 before RA6 (RA6.after); RA6 before
     # RA3 (sequence.r1); ...; so none of H5, RA6, RA3 can ever be done"); only a new order can
     # deadlock the shipped layouts
-    for o in outcomes:
-        if o.verdict == "refused" and "deadlock" in o.detail:
-            assert "orders" in o.name, o.name
-            assert re.search(r"\w+ before \w+ \(", o.detail), o.detail
-            assert "can ever be done" in o.detail, o.detail
+    if o.verdict == "refused" and "deadlock" in o.detail:
+        assert "orders" in o.name, o.name
+        assert re.search(r"\w+ before \w+ \(", o.detail), o.detail
+        assert "can ever be done" in o.detail, o.detail
