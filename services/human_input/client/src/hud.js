@@ -190,9 +190,6 @@ export class Hud {
         new THREE.PlaneGeometry(1, 1),
         new THREE.MeshBasicMaterial({ map: tex, transparent: true }),
       );
-      // after the labels (renderOrder 10, which write no depth): a robot's "Waiting for you"
-      // hid the panel's first words; an arm in front still hides the panel, never the reverse
-      this.sprite.renderOrder = 11;
       this.sprite.name = 'panel';
       this.sprite.visible = false;
       root.parent.add(this.sprite);

@@ -43,9 +43,7 @@ export function textTexture(lines, { fg = '#111', bg = 'rgba(255,255,255,0.85)',
 /** A sprite `height` metres tall showing `lines`, always facing the viewer. */
 export function labelSprite(lines, height, opts) {
   const { tex, aspect, emFraction } = textTexture(lines, opts);
-  // drawn over the world (no depth test) and leaving no depth: the headset's panel, drawn after
-  // the labels, is then hidden by the arms in front of it but not by a label
-  const mat = new THREE.SpriteMaterial({ map: tex, depthTest: false, depthWrite: false, transparent: true });
+  const mat = new THREE.SpriteMaterial({ map: tex, depthTest: false, transparent: true });
   const s = new THREE.Sprite(mat);
   s.scale.set(height * aspect, height, 1);
   s.renderOrder = 10;
