@@ -7,7 +7,7 @@
 #
 # Lint and both runners always run; the script exits non-zero when setup fails,
 # when lint finds anything, when either runner fails, or when a runner ran no
-# test at all (ctest without tests, pytest exit code 5 in both phases). It ends with the
+# test at all (ctest without tests, pytest exit code 5 in every phase). It ends with the
 # closing line of lint and of each runner.
 #
 # pytest runs in phases (conftest.py): first the live trials with a browser page, one at a
