@@ -80,13 +80,31 @@ if [ "$WORKERS" -gt 0 ]; then
   beside_name="tests that wait for a timeout, beside the live trials"
   beside_log="$LOG_DIR/pytest-beside.log"
   echo "[test-all] pytest ($beside_name): started, its output after the live trials'"
-  HRC_TEST_PHASE=beside nice -n 10 "$ROOT/.venv/bin/python" -m pytest --durations=30 \
-    --junitxml="$LOG_DIR/pytest-beside.xml" "$@" >"$beside_log" 2>&1 &
+  # (a script's background command ignores SIGINT, and bash cannot undo that when the script
+  # itself started with it ignored: pytest takes Ctrl-C again itself)
+  HRC_TEST_PHASE=beside nice -n 10 "$ROOT/.venv/bin/python" -c \
+    'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler)
+sys.exit(pytest.main(sys.argv[1:]))' \
+    --durations=30 --junitxml="$LOG_DIR/pytest-beside.xml" "$@" >"$beside_log" 2>&1 &
   beside_pid=$!
+  # however this script ends (an error, Ctrl-C, SIGTERM), the beside tests end with it, through
+  # their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
+  stop_beside() {
+    kill -INT "$beside_pid" 2>/dev/null || return 0
+    for _ in $(seq 120); do
+      kill -0 "$beside_pid" 2>/dev/null || return 0
+      sleep 0.5
+    done
+    kill -KILL "$beside_pid" 2>/dev/null || true
+  }
+  trap stop_beside EXIT
+  trap 'exit 130' INT
+  trap 'exit 143' TERM
   HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" \
     --junitxml="$LOG_DIR/pytest-alone.xml" "$@"
   beside_rc=0
   wait "$beside_pid" || beside_rc=$?
+  trap - EXIT INT TERM
   echo "[test-all] pytest ($beside_name)"
   tee -a "$LOG_DIR/pytest.log" <"$beside_log"
   pytest_ended "$beside_name" "$beside_rc"
