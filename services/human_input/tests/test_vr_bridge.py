@@ -268,12 +268,17 @@ def test_a_client_that_never_reads_loses_frames_then_is_dropped_when_events_pile
         )
         t0 = time.monotonic()
         k = 0
+        slowest_s = 0.0
         while time.monotonic() - t0 < 3.0:  # publishing never waits on the client
             k += 1
             before = time.perf_counter()
             _publish(bridge, mirror, k, objects=20)
-            assert time.perf_counter() - before < 0.05
+            slowest_s = max(slowest_s, time.perf_counter() - before)
             time.sleep(1 / 240)
+        # A publish that waited on this client would wait until it is dropped (it never reads):
+        # seconds at least. The bound is wide because a loaded CI machine stalls any thread for
+        # tens of milliseconds (64 ms seen beside the live trials).
+        assert slowest_s < 1.0, f"a publish took {slowest_s:.3f} s: it waited on the client"
         assert bridge.stats.frames_dropped > 50, bridge.stats
         assert bridge.stats.too_slow == 0
         for i in range(EVENT_QUEUE + 10):  # events are never dropped: beyond the queue, 1013
