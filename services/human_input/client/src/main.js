@@ -16,7 +16,9 @@ import { DEFAULT_STAND, DEFAULT_TABLE_HEIGHT, placeRoot } from './frames.js';
 import { FormView, FORM_H, FORM_W } from './form.js';
 import { FormXr } from './form-xr.js';
 import { SessionLink } from './session.js';
-import { overlaps, pageBoxes, spriteRect } from './screen-rect.js';
+import {
+  ndcRect, overlaps, pageBoxes, planeCorners, spriteCorners, spriteRect,
+} from './screen-rect.js';
 
 const params = new URLSearchParams(window.location.search);
 
@@ -48,7 +50,8 @@ function standParam() {
 const MAX_FPS = numberParam('fps', 0, 1, 240);
 const KEEPALIVE_MS = 500; // an unchanged sample is still sent this often
 // A "Waiting.." label comes down at most this far (m), in these steps, to keep clear of the
-// desktop's status panel (from 0.6 m above its robot's base: still above the arm's elbow).
+// desktop's status panel or the headset's (from 0.6 m above its robot's base: still above the
+// arm's elbow).
 const LABEL_DROP_M = 0.3;
 const LABEL_STEP_M = 0.03;
 const OVER = new Set(['finished', 'stopped', 'failed']); // the trial is over
@@ -466,20 +469,30 @@ class App {
     this.hud.refresh(this.root);
   }
 
-  /** On the desktop a "Waiting.." label that a box of the page (the status panel, a message)
-   * would cover comes down over its robot, a few centimetres at a time, until it is clear: the
-   * labels stand high above the robots, where the panel is (a headset has no such boxes). */
+  /** A "Waiting.." label that something drawn over the scene would cover comes down over its
+   * robot, a few centimetres at a time, until it is clear: the labels stand high above the
+   * robots, where the desktop's boxes (the status panel, a message) are, and where the
+   * headset's panel hangs when the person looks up (it is farther than the labels, but the
+   * labels are drawn over everything: "run: running" read "n: running" under one). In a headset
+   * the label must be clear of the panel in both eyes' views. */
   keepLabelsClear() {
     const inXr = this.xr.active();
-    const boxes = inXr ? [] : Object.values(pageBoxes(['status', 'message']));
+    let covered;
+    if (inXr) {
+      const panel = this.hud.sprite;
+      const eyes = this.renderer.xr.getCamera().cameras;
+      const panels = panel?.visible ? eyes.map((eye) => ndcRect(eye, planeCorners(panel))) : [];
+      covered = (obj) => panels.some((p, i) => overlaps(ndcRect(eyes[i], spriteCorners(eyes[i], obj)), p));
+    } else {
+      const boxes = Object.values(pageBoxes(['status', 'message']));
+      covered = (obj) => boxes.some((b) => overlaps(spriteRect(this.camera, this.renderer.domElement, obj), b));
+    }
     for (const cue of this.world.cues.values()) {
       if (cue.spec.kind !== 'waiting' || !cue.on) continue;
       const [x, y, z] = cue.obj.userData.anchor;
-      // (in a headset: where the scene puts it, however low the desktop had it)
-      for (let dz = 0; dz <= (inXr ? 0 : LABEL_DROP_M + 1e-9); dz += LABEL_STEP_M) {
+      for (let dz = 0; dz <= LABEL_DROP_M + 1e-9; dz += LABEL_STEP_M) {
         cue.obj.position.set(x, y, z - dz);
-        const r = spriteRect(this.camera, this.renderer.domElement, cue.obj);
-        if (!boxes.some((b) => overlaps(r, b))) break;
+        if (!covered(cue.obj)) break;
       }
     }
   }

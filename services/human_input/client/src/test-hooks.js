@@ -3,7 +3,7 @@
 // ?test=... in the page's URL (main.js imports this chunk then): a participant's page has none.
 import * as THREE from 'three';
 import { FORM_H, FORM_W } from './form.js';
-import { pageBoxes, spriteRect } from './screen-rect.js';
+import { pageBoxes, spriteCorners } from './screen-rect.js';
 
 /** The things a test can hide (and probe) by name: board, furniture, markings, parts, labels,
  * robot:<id>, hands, cue:<id>, panel (the headset's panel and the page's status box). */
@@ -120,8 +120,12 @@ function textSizes(app) {
   return out;
 }
 function projectWith(app, xyz) {
-  const v = new THREE.Vector3(...xyz);
-  app.root.localToWorld(v);
+  return pagePoint(app, app.root.localToWorld(new THREE.Vector3(...xyz)));
+}
+
+/** A world point on the page (CSS pixels), as the eye of the pictures sees it. */
+function pagePoint(app, world) {
+  const v = world.clone();
   const canvas = app.renderer.domElement;
   const rect = canvas.getBoundingClientRect();
   if (app.renderer.xr.isPresenting) {
@@ -273,10 +277,16 @@ export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
       window.hrcApp.frozen = on === 'scene' ? 'scene' : !!on;
     },
     /** The labels on screen (CSS pixels): the parts' [{part, text, x0, y0, x1, y1}] and the
-     * robots' lit "Waiting.." labels [{cue, text, x0, y0, x1, y1}] (desktop). */
+     * robots' lit "Waiting.." labels [{cue, text, x0, y0, x1, y1}] (in a headset as its first
+     * eye sees them, like the pictures). */
     labels: () => {
       const app = window.hrcApp;
-      const rect = (l) => spriteRect(app.camera, app.renderer.domElement, l);
+      const rect = (l) => {
+        const pts = spriteCorners(eyeCamera(app), l).map((w) => pagePoint(app, w));
+        const xs = pts.map((q) => q.x);
+        const ys = pts.map((q) => q.y);
+        return { x0: Math.min(...xs), y0: Math.min(...ys), x1: Math.max(...xs), y1: Math.max(...ys) };
+      };
       const out = [];
       for (const [id, p] of app.world.parts) {
         if (p.label.visible) out.push({ part: id, text: p.spec.kind || id, ...rect(p.label) });
