@@ -140,6 +140,11 @@ def effect_test(
     key = next(k for k, v in m.names.items() if v == effect)
     if m.problem or f"C({key})" not in m.formula:
         return None
+    # statsmodels' first import puts its own "always" filter for its convergence warnings in
+    # front of the filters: imported inside the block below (the report's fit imports it late),
+    # it would print them through the "ignore" of the first fit (`hrc power`'s output, a test's)
+    import statsmodels.formula.api  # noqa: F401
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # boundary fits and the like: counted, not printed
         try:
