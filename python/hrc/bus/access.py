@@ -184,9 +184,18 @@ def sweep(root: Path) -> list[Path]:
 
 
 def _write_private(path: Path, text: str) -> None:
-    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
-    with os.fdopen(fd, "w", encoding="utf-8") as f:
-        f.write(text)
+    """``text`` in a file only this user may read, renamed into place whole: a tool or a test
+    that waits for the file (:func:`join`) opened the experimenter's configuration once while
+    ``hrc run`` was still writing it, and Zenoh refused it as empty."""
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+        os.replace(tmp, path)
+    except OSError:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def publishers(keys: Keys) -> dict[str, frozenset[str]]:

@@ -68,6 +68,41 @@ def start_router(
     return router, endpoint, users
 
 
+def test_a_credentials_file_appears_only_whole(tmp_path: Path, monkeypatch: Any) -> None:
+    """A tool or a test waits for the experimenter's configuration, then opens it: once it read
+    it while `hrc run` was still writing it (Zenoh: "Empty config file"). Every file of the
+    folder appears under its name only whole (written aside, renamed), readable by this user
+    alone, and nothing is left aside."""
+    folder = tmp_path / "s1"
+    access.make_private(folder)
+    visible: list[tuple[str, int]] = []  # what a reader could open while a file is written
+    real_fdopen = os.fdopen
+
+    def spying_fdopen(fd: int, *args: Any, **kwargs: Any) -> Any:
+        f = real_fdopen(fd, *args, **kwargs)
+        write = f.write
+
+        def spying_write(text: str) -> int:
+            visible.extend(
+                (p.name, p.stat().st_size) for p in folder.iterdir() if not p.name.startswith(".")
+            )
+            return write(text)
+
+        f.write = spying_write
+        return f
+
+    monkeypatch.setattr(os, "fdopen", spying_fdopen)
+    access.write_credentials(folder, "s1", service_table.names(), router=True)
+    monkeypatch.undo()
+    assert visible, "no file was written through the spy"
+    assert not [v for v in visible if v[1] == 0], f"seen empty while being written: {visible}"
+    names = sorted(p.name for p in folder.iterdir())
+    assert f"{access.EXPERIMENTER}.json5" in names and access.USERS in names, names
+    assert not [n for n in names if n.startswith(".")], f"left aside: {names}"
+    for n in names:
+        assert (folder / n).stat().st_mode & 0o777 == 0o600, n
+
+
 @pytest.mark.parametrize("rust_log", [None, "error", "zenoh_transport=warn"])
 def test_a_router_refuses_and_counts_each_link_without_the_credentials(
     tmp_path: Path, rust_log: str | None
