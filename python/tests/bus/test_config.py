@@ -28,8 +28,10 @@ def test_a_client_started_first_connects_soon_after_the_router_listens() -> None
     t.join(10)
     router.close()
     assert connected, "the client never connected"
-    # retries every 50 ms at most (it was 100 ms doubling: the next try came ~0.7 s later here)
-    assert connected[0] - listening < 0.3
+    # retries every 50 ms at most (it was 100 ms doubling: the next try came ~0.7 s later here);
+    # the router's own open is inside the figure, and a loaded machine stretches it
+    took = connected[0] - listening
+    assert took < 0.5, f"the client connected {took:.2f} s after the router began to listen"
 
 
 def test_a_router_that_scouts_and_connects_to_nothing_does_not_wait_to_open(tmp_path) -> None:
