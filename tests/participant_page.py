@@ -403,6 +403,11 @@ PROBE_MIN_PIXELS = 5  # of its 49 pixels that must change for the thing to count
 PIXEL_DIFF = 30  # |dR| + |dG| + |dB| above this: the pixel changed (grey on grey: ~40)
 
 
+def overlap(a: dict[str, Any], b: dict[str, Any]) -> bool:
+    """Two rectangles {x0, y0, x1, y1} (page pixels) overlap."""
+    return a["x0"] < b["x1"] and b["x0"] < a["x1"] and a["y0"] < b["y1"] and b["y0"] < a["y1"]
+
+
 def rendered_frames(page: Page, n: int = 2) -> None:
     """Waits until the page has rendered ``n`` more frames (a change is then on screen)."""
     n0 = page.page.evaluate("window.hrcTest.rendered()")

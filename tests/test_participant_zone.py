@@ -36,6 +36,7 @@ from .participant_page import (
     grab_part,
     live,
     metrics,
+    overlap,
     place_part,
     rendered_frames,
 )
@@ -225,10 +226,6 @@ def test_the_page_draws_r1s_zone_red_when_the_hand_stops_it(
     assert "COLLISION" not in kinds, "the hand touched r1"
     assert not page.errors, page.errors
     assert (output_dir("client") / "ssm-zone.png").is_file()
-
-
-def overlap(a: dict[str, Any], b: dict[str, Any]) -> bool:
-    return a["x0"] < b["x1"] and b["x0"] < a["x1"] and a["y0"] < b["y1"] and b["y0"] < a["y1"]
 
 
 @pytest.mark.slow
