@@ -11,7 +11,15 @@ from pathlib import Path
 
 import pytest
 
+from hrc.service_table import STOP_GRACE_S
+
 from .conftest import HRC, ROOT, wait_until
+
+# Once hrc run has ended (or died), its services are gone within this: each has STOP_GRACE_S
+# to write its files after the SIGTERM it gets, and a loaded machine adds seconds (3 s after a
+# SIGKILL the orchestrator was once still there). Had they not been stopped they would run on
+# (the trials' 10^9 ticks; physics's lease, 10 s, is the soonest the others would leave).
+GONE_S = STOP_GRACE_S + 4
 
 
 def _alive(pid: int) -> bool:
@@ -34,7 +42,7 @@ def test_hrc_run_stopped_by_a_signal_leaves_no_service(trial_factory, sig: int) 
     code, _out, err = trial.communicate(timeout=10)
     # SIGKILL cannot be caught: the services go by themselves (they die with their parent)
     assert code == (-sig if sig == signal.SIGKILL else 128 + sig), err
-    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), 3.0), {
+    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), GONE_S), {
         n: p for n, p in pids.items() if _alive(p)
     }
     if sig != signal.SIGKILL:
@@ -56,7 +64,7 @@ def test_ctrl_c_ends_hrc_run_even_when_it_was_started_with_sigint_ignored(trial_
     assert "trial interrupted" in err, err[-2000:]
     metrics = json.loads((trial.out / "metrics.json").read_text())
     assert "interrupted (Ctrl-C)" in metrics["run"]["end_reason"], metrics["run"]
-    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), 3.0), {
+    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), GONE_S), {
         n: p for n, p in pids.items() if _alive(p)
     }
 
@@ -128,7 +136,7 @@ def test_a_live_trial_whose_terminal_closes_ends_with_its_records(trial_factory)
     except subprocess.TimeoutExpired:
         pytest.fail("hrc run did not end after its terminal closed")
     assert code == 128 + signal.SIGHUP
-    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), 3.0), {
+    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), GONE_S), {
         n: p for n, p in pids.items() if _alive(p)
     }
     m = json.loads((trial.out / "metrics.json").read_text())
