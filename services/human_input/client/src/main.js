@@ -482,10 +482,12 @@ class App {
       const panel = this.hud.sprite;
       const eyes = this.renderer.xr.getCamera().cameras;
       const panels = panel?.visible ? eyes.map((eye) => ndcRect(eye, planeCorners(panel))) : [];
-      covered = (obj) => panels.some((p, i) => overlaps(ndcRect(eyes[i], spriteCorners(eyes[i], obj)), p));
+      covered = (obj) =>
+        panels.some((p, i) => overlaps(ndcRect(eyes[i], spriteCorners(eyes[i], obj)), p));
     } else {
       const boxes = Object.values(pageBoxes(['status', 'message']));
-      covered = (obj) => boxes.some((b) => overlaps(spriteRect(this.camera, this.renderer.domElement, obj), b));
+      const canvas = this.renderer.domElement;
+      covered = (obj) => boxes.some((b) => overlaps(spriteRect(this.camera, canvas, obj), b));
     }
     for (const cue of this.world.cues.values()) {
       if (cue.spec.kind !== 'waiting' || !cue.on) continue;
