@@ -104,6 +104,9 @@ def test_process_compose_file_says_what_the_table_says() -> None:
     procs = pc["processes"]
     assert list(procs) == ["access", *service_table.names()]
     assert procs["access"]["command"].split()[:2] == [".venv/bin/hrc", "deploy-access"]
+    # one machine: Zenoh's lease, as hrc run's links, unless HRC_LEASE_S says otherwise
+    assert procs["access"]["command"].split()[-2:] == ["--lease-s", "{{.LEASE_S}}"]
+    assert pc["vars"]["LEASE_S"] == f"${{HRC_LEASE_S:-{deploy_files.LEASE_S:g}}}"
     for svc in service_table.SERVICES:
         p = procs[svc.name]
         program = f".venv/bin/{svc.script}" if svc.module else f"build/{svc.binary}"
@@ -124,7 +127,9 @@ def test_compose_file_says_what_the_table_says() -> None:
     compose = yaml.safe_load(COMPOSE_FILE.read_text())
     got = {n: s for n, s in compose["services"].items() if "profiles" not in s}  # not the router
     assert list(got) == ["access", *service_table.names()]
-    assert got.pop("access")["command"][:1] == ["deploy-access"]
+    access = got.pop("access")["command"]
+    assert access[0] == "deploy-access"
+    assert access[-2:] == ["--lease-s", f"${{HRC_LEASE_S:-{deploy_files.LEASE_S:g}}}"]
     for svc in service_table.SERVICES:
         c = got[svc.name]
         assert c["entrypoint"] == [svc.script]
@@ -235,6 +240,7 @@ def test_process_compose_starts_every_service_with_session_settings(tmp_path: Pa
         HRC_TICKS="123",
         HRC_SCENARIO="scenarios/x.toml",
         HRC_OUT="runs/x",
+        HRC_LEASE_S="2.5",
         FAKE_SLEEP="3",
     )
     assert code == 0
@@ -259,6 +265,8 @@ def test_process_compose_starts_every_service_with_session_settings(tmp_path: Pa
         "s7",
         "--out",
         "runs/.access/s7",
+        "--lease-s",
+        "2.5",
     ]
     # star: physics routes for all
     assert argv["hrc-physics"][:9] == [
@@ -307,6 +315,8 @@ def test_process_compose_defaults(tmp_path: Path) -> None:
             zenoh_config="runs/.access/pc/{service}.json5",
         )
     )
+    access = (out / "access").read_text().split()
+    assert access[-2:] == ["--lease-s", f"{deploy_files.LEASE_S:g}"]
 
 
 def test_process_compose_one_failing_service_ends_the_session(tmp_path: Path) -> None:

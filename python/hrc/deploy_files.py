@@ -19,6 +19,17 @@ GENERATED = (
     "# edit that, then rerun it (a test fails while this file is out of date).\n#\n"
 )
 WIDTH = 100
+# The link lease the files give `hrc deploy-access` unless HRC_LEASE_S says otherwise: Zenoh's own,
+# as `hrc run`'s links have. `hrc deploy-access`'s own default (0.5 s) is for several hosts, where a
+# cable pulled must end the run soon; on one busy machine a service starved for half a second
+# lost its link, and the run with it (the deployed session's test beside other tests' trials
+# failed 14 runs of 18 with 0.5 s, none of 6 with 10 s).
+LEASE_S = 10
+
+
+def _with_lease(header: str) -> str:
+    return header.replace("%LEASE%", f"{LEASE_S:g}")
+
 
 # ----------------------------------------------------------------------- process-compose
 
@@ -42,6 +53,8 @@ PC_HEADER = """\
 #   HRC_ZENOH_LOWLATENCY  1: Zenoh's low-latency transport, as `hrc run --lowlatency` uses it
 #                 (faster; no message above 64 KiB, so scenarios up to ~100 parts)  (unset)
 #   HRC_ACCESS    where each session's credentials go: <HRC_ACCESS>/<session>/  (runs/.access)
+#   HRC_LEASE_S   how long a silent link stays open, s (Zenoh's lease, as in `hrc run`; 0.5 finds a
+#                 frozen service sooner, but on a busy machine it can end a run)  (%LEASE%)
 # Two sessions at once need a different HRC_SESSION and HRC_PORT each.
 #
 # Credentials: `access` runs first (`hrc deploy-access`) and writes, in a folder only this user
@@ -78,12 +91,15 @@ vars:
   TICKS: "${HRC_TICKS:-0}"
   MODE: "${HRC_MODE:-lockstep}"
   ACCESS: "${HRC_ACCESS:-runs/.access}"
+  LEASE_S: "${HRC_LEASE_S:-%LEASE%}"
 
 processes:
   access:
     description: "the session's Zenoh credentials (hrc deploy-access; docs/access.md)"
     working_dir: "${HRC_ROOT:-.}"
-    command: .venv/bin/hrc deploy-access --session {{.SESSION}} --out {{.ACCESS}}/{{.SESSION}}
+    command: >-
+      .venv/bin/hrc deploy-access --session {{.SESSION}} --out {{.ACCESS}}/{{.SESSION}}
+      --lease-s {{.LEASE_S}}
     availability:
       restart: exit_on_failure
 
@@ -170,7 +186,8 @@ def _pc_process(svc: Service) -> str:
 
 
 def render_process_compose() -> str:
-    return GENERATED + PC_HEADER + "\n".join(_pc_process(s) for s in service_table.SERVICES)
+    processes = "\n".join(_pc_process(s) for s in service_table.SERVICES)
+    return GENERATED + _with_lease(PC_HEADER) + processes
 
 
 # ----------------------------------------------------------------------- compose
@@ -185,8 +202,9 @@ COMPOSE_HEADER = """\
 #
 # Settings as in deploy/process-compose.yaml: HRC_SESSION (compose), HRC_SCENARIO
 # (scenarios/thesis.toml), HRC_OUT (runs/compose), HRC_PORT (7460), HRC_TICKS (0 = until
-# the task is finished), HRC_MODE (lockstep | realtime). Trial files land in ../runs on the host;
-# ../scenarios is mounted read-only, so scenarios can be edited without rebuilding.
+# the task is finished), HRC_MODE (lockstep | realtime), HRC_LEASE_S (%LEASE%). Trial files land
+# in ../runs on the host; ../scenarios is mounted read-only, so scenarios can be edited without
+# rebuilding.
 #
 # Network: host networking, so the containers meet exactly as the local processes do (physics
 # listens on 127.0.0.1:$HRC_PORT, the others connect to it and to each other's loopback
@@ -233,7 +251,8 @@ services:
   access:
     <<: *service
     entrypoint: ["hrc"]
-    command: ["deploy-access", "--session", "${HRC_SESSION:-compose}", "--out", "/opt/hrc/access"]
+    command: ["deploy-access", "--session", "${HRC_SESSION:-compose}", "--out", "/opt/hrc/access",
+              "--lease-s", "${HRC_LEASE_S:-%LEASE%}"]
     healthcheck:
       disable: true
 
@@ -326,7 +345,7 @@ def _compose_service(svc: Service) -> str:
 
 def render_compose() -> str:
     body = "\n".join(_compose_service(s) for s in service_table.SERVICES)
-    return GENERATED + COMPOSE_HEADER + body + COMPOSE_FOOTER
+    return GENERATED + _with_lease(COMPOSE_HEADER) + body + COMPOSE_FOOTER
 
 
 # ----------------------------------------------------------------------- command
