@@ -21,6 +21,18 @@ CONNECT_TIMEOUT_S = 60.0  # as long as the clock master waits for every service 
 CONNECT_RETRY = "{ period_init_ms: 10, period_max_ms: 50, period_increase_factor: 2 }"
 
 
+def without_shared_memory(cfg: zenoh.Config) -> zenoh.Config:
+    """Zenoh's shared memory off: every message goes over the link itself. Zenoh puts a message
+    of 3 KiB or more (the 32-tick state batches, replays) into shared memory when both ends allow
+    it, and each process maps the other's segments. The segments stayed in /dev/shm after the
+    processes ended (8 files, 49 MB of memory, per thesis trial: a study of a thousand trials
+    would fill the machine's memory), and the messages the bus lost on loaded machines
+    (docs/ARCHITECTURE.md, "Lost messages") were such batches, at Python receivers, their
+    replays lost too, while ik_cpp (built without shared memory) received every one."""
+    cfg.insert_json5("transport/shared_memory/enabled", "false")
+    return cfg
+
+
 @dataclass
 class BusConfig:
     """Where a service meets the others.
@@ -74,7 +86,7 @@ class BusConfig:
         if self.lowlatency:
             cfg.insert_json5("transport/unicast/lowlatency", "true")
             cfg.insert_json5("transport/unicast/qos/enabled", "false")  # required by lowlatency
-        return cfg
+        return without_shared_memory(cfg)
 
 
 def add_bus_arguments(parser: argparse.ArgumentParser) -> None:

@@ -408,9 +408,12 @@ def _cmd_router(args: argparse.Namespace) -> int:
     import zenoh
 
     from hrc.bus.access import log_refusals
+    from hrc.bus.config import without_shared_memory
 
     log_refusals()  # a link refused for want of credentials: a line on standard output
-    cfg = zenoh.Config.from_file(args.config) if args.config else zenoh.Config()
+    cfg = without_shared_memory(
+        zenoh.Config.from_file(args.config) if args.config else zenoh.Config()
+    )
     cfg.insert_json5("mode", '"router"')
     if args.listen:
         cfg.insert_json5("listen/endpoints", json.dumps(args.listen))
