@@ -27,8 +27,8 @@ def without_shared_memory(cfg: zenoh.Config) -> zenoh.Config:
     it, and each process maps the other's segments. The segments stayed in /dev/shm after the
     processes ended (8 files, 49 MB of memory, per thesis trial: a study of a thousand trials
     would fill the machine's memory), and the messages the bus lost on loaded machines
-    (docs/ARCHITECTURE.md, "Lost messages") were such batches, at Python receivers, their
-    replays lost too, while ik_cpp (built without shared memory) received every one."""
+    (docs/ARCHITECTURE.md, "Lost messages") were such batches, at Python receivers, and their
+    replays were lost too. (ik_cpp is built without it.)"""
     cfg.insert_json5("transport/shared_memory/enabled", "false")
     return cfg
 

@@ -1,4 +1,5 @@
-"""How fast sessions come up at a trial's start: the router and the clients that wait for it."""
+"""How fast sessions come up at a trial's start (the router and the clients that wait for it),
+and how their large messages travel."""
 
 from __future__ import annotations
 
