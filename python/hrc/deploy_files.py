@@ -23,7 +23,7 @@ WIDTH = 100
 # as `hrc run`'s links have. `hrc deploy-access`'s own default (0.5 s) is for several hosts, where a
 # cable pulled must end the run soon; on one busy machine a service starved for half a second
 # lost its link, and the run with it (the deployed session's test beside other tests' trials
-# failed 14 runs of 18 with 0.5 s, none of 6 with 10 s).
+# failed 14 runs of 18 with 0.5 s, none of 10 with 10 s).
 LEASE_S = 10
 
 
