@@ -31,6 +31,13 @@ def _alive(pid: int) -> bool:
         return False
 
 
+def _assert_gone(pids: dict[str, int]) -> None:
+    """Every service of the trial is gone within GONE_S; the ones left are named."""
+    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), GONE_S), {
+        n: p for n, p in pids.items() if _alive(p)
+    }
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP, signal.SIGKILL])
 def test_hrc_run_stopped_by_a_signal_leaves_no_service(trial_factory, sig: int) -> None:
@@ -42,9 +49,7 @@ def test_hrc_run_stopped_by_a_signal_leaves_no_service(trial_factory, sig: int) 
     code, _out, err = trial.communicate(timeout=10)
     # SIGKILL cannot be caught: the services go by themselves (they die with their parent)
     assert code == (-sig if sig == signal.SIGKILL else 128 + sig), err
-    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), GONE_S), {
-        n: p for n, p in pids.items() if _alive(p)
-    }
+    _assert_gone(pids)
     if sig != signal.SIGKILL:
         assert f"stopped by {signal.Signals(sig).name}" in err
 
@@ -64,9 +69,7 @@ def test_ctrl_c_ends_hrc_run_even_when_it_was_started_with_sigint_ignored(trial_
     assert "trial interrupted" in err, err[-2000:]
     metrics = json.loads((trial.out / "metrics.json").read_text())
     assert "interrupted (Ctrl-C)" in metrics["run"]["end_reason"], metrics["run"]
-    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), GONE_S), {
-        n: p for n, p in pids.items() if _alive(p)
-    }
+    _assert_gone(pids)
 
 
 @pytest.mark.slow
@@ -136,8 +139,6 @@ def test_a_live_trial_whose_terminal_closes_ends_with_its_records(trial_factory)
     except subprocess.TimeoutExpired:
         pytest.fail("hrc run did not end after its terminal closed")
     assert code == 128 + signal.SIGHUP
-    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), GONE_S), {
-        n: p for n, p in pids.items() if _alive(p)
-    }
+    _assert_gone(pids)
     m = json.loads((trial.out / "metrics.json").read_text())
     assert "interrupted (SIGHUP)" in m["run"]["end_reason"], m["run"]
