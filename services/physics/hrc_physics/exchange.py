@@ -46,6 +46,7 @@ import pybullet as p
 from hrc.geometry import Vec3
 from hrc.scenario.models import DEFAULT_MAX_EXCHANGE_TICKS
 
+from hrc_physics.closest import nearest
 from hrc_physics.hands import Hand
 from hrc_physics.robots import KinematicRobot
 
@@ -305,7 +306,7 @@ class SpanPlanner:
                 need = n * per_tick  # the gap a span of n needs
                 if _box_gap(hand_box, boxes[rid]) > need:
                     continue  # the boxes are farther apart than that: so are the bodies
-                pts = p.getClosestPoints(hand.body, robot.body, need, physicsClientId=client)
+                pts = nearest(client, hand.body, robot.body, need, per_tick)
                 if not pts:
                     continue  # farther apart than need
                 n = _fit(n, min(pt[8] for pt in pts), per_tick)
@@ -330,8 +331,8 @@ class SpanPlanner:
             need = n * per_tick
             if _box_gap(boxes[ra], boxes[rb]) > margin + need:
                 continue
-            pts = p.getClosestPoints(
-                robots[ra].body, robots[rb].body, margin + need, physicsClientId=client
+            pts = nearest(
+                client, robots[ra].body, robots[rb].body, margin + need, margin + per_tick
             )
             if not pts:
                 continue  # farther apart than margin + need
