@@ -1,45 +1,60 @@
-"""Closest-point queries that ask pybullet for no more than the answer needs.
+"""The nearest pair of colliders of two bodies, asking pybullet for no more than that.
 
-A query's cost grows with the pairs of colliders its distance threshold reaches: between the two
-UR5e arms (mesh hulls) 140 us at 1 cm, 960 us at 3.5 m (2026-12-01, one core); a hand against one
-UR5e 3 us when nothing is within the threshold, 30 us at 2 m. Every pair nearer than a threshold
-is among that query's points, so the first of growing thresholds that gives any point gives the
-same nearest points as one query at the largest, and the near, cheap ones usually answer.
+One closest-point query between two bodies tests every pair of their colliders, and its cost
+grows with its distance threshold: between the two UR5e arms (mesh hulls, 8 colliders each)
+140 us at 1 cm, 960 us at 3.5 m (2026-12-01, one core). The colliders' world AABBs bound each
+pair's distance from below, so :func:`nearest` asks pair by pair, nearest boxes first, each up to
+the nearest distance found so far, and stops at the first pair whose boxes are farther apart than
+that: the same nearest pair for 150 us on average over random poses of the two arms (and one
+query's 620 us at thresholds of 0.27, 0.93 and 3.57 m).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+import math
+from collections.abc import Sequence
 from typing import Any
 
 import pybullet as p
 
-GROWTH = 4.0  # each threshold this many times the one before (the last one: the limit)
+from hrc.geometry import Vec3
 
-Point = tuple[Any, ...]  # one of pybullet's closest points (pt[8]: the distance)
+Box = tuple[Vec3, Vec3]  # a world AABB: (lo, hi)
+Point = tuple[Any, ...]  # one of pybullet's closest points (pt[8]: the distance, < 0: inside)
 
 
-def thresholds(start: float, limit: float) -> Iterator[float]:
-    """start, GROWTH * start, ... (each below ``limit``), then ``limit``."""
-    t = start
-    while 0.0 < t < limit:
-        yield t
-        t *= GROWTH
-    yield limit
+def box_gap(a: Box, b: Box) -> float:
+    """Euclidean distance between two AABBs; 0 if they overlap."""
+    d2 = 0.0
+    for i in range(3):
+        d = max(a[0][i] - b[1][i], b[0][i] - a[1][i], 0.0)
+        d2 += d * d
+    return math.sqrt(d2)
 
 
 def nearest(
     client: int,
     a: int,
+    links_a: Sequence[tuple[int, Box]],
     b: int,
+    links_b: Sequence[tuple[int, Box]],
     limit: float,
-    start: float,
-) -> list[Point]:
-    """The points of ``getClosestPoints(a, b, t)`` for the smallest t of :func:`thresholds`
-    that gives any: they hold the pair nearest of all, as one query at ``limit`` would (empty:
-    none nearer than ``limit``)."""
-    for t in thresholds(start, limit):
-        pts = p.getClosestPoints(a, b, t, physicsClientId=client)
-        if pts:
-            return pts
-    return []
+) -> Point | None:
+    """pybullet's closest point of the nearest pair of colliders (link of ``a`` from
+    ``links_a``, link of ``b`` from ``links_b``, each with its world AABB) if nearer than
+    ``limit``, else None. Pairs whose boxes overlap are always asked (their colliders may
+    interpenetrate, where the boxes bound nothing); on a tie, the pair first by box gap, then
+    link indices."""
+    pairs = sorted((box_gap(x, y), la, lb) for la, x in links_a for lb, y in links_b)
+    best: Point | None = None
+    for gap, la, lb in pairs:
+        bound = limit if best is None else min(limit, best[8])
+        if gap > 0.0 and gap >= bound:
+            break  # this pair and every one after it are at least that far apart
+        pts = p.getClosestPoints(
+            a, b, max(bound, 0.0), linkIndexA=la, linkIndexB=lb, physicsClientId=client
+        )
+        for pt in pts:
+            if best is None or pt[8] < best[8]:
+                best = pt
+    return best

@@ -46,7 +46,7 @@ import pybullet as p
 from hrc.geometry import Vec3
 from hrc.scenario.models import DEFAULT_MAX_EXCHANGE_TICKS
 
-from hrc_physics.closest import nearest
+from hrc_physics.closest import box_gap, nearest
 from hrc_physics.hands import Hand
 from hrc_physics.robots import KinematicRobot
 
@@ -304,12 +304,14 @@ class SpanPlanner:
             for rid, robot in robots.items():
                 per_tick = self.dt * (self.hand_bound + bounds[rid])
                 need = n * per_tick  # the gap a span of n needs
-                if _box_gap(hand_box, boxes[rid]) > need:
+                if box_gap(hand_box, boxes[rid]) > need:
                     continue  # the boxes are farther apart than that: so are the bodies
-                pts = nearest(client, hand.body, robot.body, need, per_tick)
-                if not pts:
+                pt = nearest(
+                    client, hand.body, [(-1, hand_box)], robot.body, robot.link_boxes(), need
+                )
+                if pt is None:
                     continue  # farther apart than need
-                n = _fit(n, min(pt[8] for pt in pts), per_tick)
+                n = _fit(n, pt[8], per_tick)
                 if n == 1:
                     return 1
         return n
@@ -329,14 +331,13 @@ class SpanPlanner:
                 return 1
             per_tick = self.dt * (bounds[ra] + bounds[rb])
             need = n * per_tick
-            if _box_gap(boxes[ra], boxes[rb]) > margin + need:
+            if box_gap(boxes[ra], boxes[rb]) > margin + need:
                 continue
-            pts = nearest(
-                client, robots[ra].body, robots[rb].body, margin + need, margin + per_tick
-            )
-            if not pts:
+            a, b = robots[ra], robots[rb]
+            pt = nearest(client, a.body, a.link_boxes(), b.body, b.link_boxes(), margin + need)
+            if pt is None:
                 continue  # farther apart than margin + need
-            n = _fit(n, abs(min(pt[8] for pt in pts) - margin), per_tick)
+            n = _fit(n, abs(pt[8] - margin), per_tick)
         return n
 
 
@@ -345,12 +346,3 @@ def _fit(n: int, gap: float, per_tick: float) -> int:
     if per_tick <= 0 or n * per_tick < gap:
         return n
     return max(1, min(n, math.ceil(gap / per_tick) - 1))
-
-
-def _box_gap(a: tuple, b: tuple) -> float:
-    """Euclidean distance between two AABBs ((lo), (hi)); 0 if they overlap."""
-    d2 = 0.0
-    for i in range(3):
-        d = max(a[0][i] - b[1][i], b[0][i] - a[1][i], 0.0)
-        d2 += d * d
-    return math.sqrt(d2)

@@ -9,9 +9,11 @@ from typing import cast
 
 import pybullet as p
 
-from hrc.geometry import IDENTITY, Pose, Quat, Vec3, compose, relative, vec3, yaw_quat_deg
+from hrc.geometry import IDENTITY, Pose, Quat, compose, relative, vec3, yaw_quat_deg
 from hrc.scenario.models import DEFAULT_BASE_LINK, DEFAULT_TIP_LINK
 from hrc.validate import all_finite
+
+from hrc_physics.closest import Box
 
 BASE = -1  # pybullet's link index of a body's base
 
@@ -100,7 +102,8 @@ class KinematicRobot:
         self._applied: list[float] | None = None
         # The links' AABB until they move (a joint reset here, or a world step: the first step
         # after a reset still nudges the links): contacts and span planning ask for it per tick.
-        self._aabb: tuple[Vec3, Vec3] | None = None
+        self._aabb: Box | None = None
+        self._boxes: list[tuple[int, Box]] | None = None
         self._order_cache: dict[tuple[str, ...], list[int] | str] = {}
 
     def _indices(self, names: Sequence[str]) -> list[int] | str:
@@ -149,17 +152,28 @@ class KinematicRobot:
         )
         self._applied = list(self.positions)
         self._aabb = None
+        self._boxes = None
         return True
 
     def stepped(self) -> None:
-        """The world stepped: the links may have moved (see ``_aabb``)."""
+        """The world stepped: the links may have moved (see ``_boxes``)."""
         self._aabb = None
+        self._boxes = None
 
-    def aabb(self) -> tuple[Vec3, Vec3]:
+    def link_boxes(self) -> list[tuple[int, Box]]:
+        """(link, world AABB) of each link with a collider (the closest-point queries' bounds)."""
+        if self._boxes is None:
+            self._boxes = [
+                (link, cast(Box, p.getAABB(self.body, link, physicsClientId=self._c)))
+                for link in self._links
+            ]
+        return self._boxes
+
+    def aabb(self) -> Box:
         """World AABB of all link colliders (cheap prefilter for the distance queries)."""
         if self._aabb is not None:
             return self._aabb
-        boxes = [p.getAABB(self.body, link, physicsClientId=self._c) for link in self._links]
+        boxes = [b for _, b in self.link_boxes()]
         lo = tuple(map(min, zip(*(b[0] for b in boxes), strict=True)))
         hi = tuple(map(max, zip(*(b[1] for b in boxes), strict=True)))
         self._aabb = (vec3(lo), vec3(hi))

@@ -11,18 +11,19 @@ ones.
 
 from __future__ import annotations
 
+from typing import cast
+
 import pybullet as p
 
 from hrc.geometry import IDENTITY, Vec3, vec3
 from hrc.wire import pb
 
-from hrc_physics.closest import thresholds
+from hrc_physics.closest import Box, nearest
 from hrc_physics.hands import PARKED, Hand
 from hrc_physics.robots import BASE, KinematicRobot
 
 HEAD = "head"
 HEAD_RADIUS = 0.1  # m: a sphere standing in for the head (about 0.2 m across)
-NEAR_M = 0.05  # the first closest-point threshold (then x4 up to the sensing range)
 DIGITS = 6  # distances and points are rounded to the micrometre: no change for float noise
 
 
@@ -69,19 +70,16 @@ class SeparationMonitor:
         bodies = self._bodies()
         for rid, robot in self.robots.items():
             reach = self.ranges[rid]
+            # the robot's moving links: the base does not move, being near it is no hazard
+            links = [(link, box) for link, box in robot.link_boxes() if link != BASE]
             best: tuple[float, str, int, Vec3, Vec3] | None = None
-            # the nearest point of all is within the first threshold that finds any
-            # (hrc_physics.closest): the far ones are asked only while nothing is near
-            for t in thresholds(NEAR_M, reach):
-                for name, body in bodies:
-                    for pt in p.getClosestPoints(body, robot.body, t, physicsClientId=c):
-                        # The base does not move: being near it is no hazard.
-                        if pt[4] == BASE or pt[8] > reach:
-                            continue
-                        if best is None or pt[8] < best[0]:
-                            best = (pt[8], name, pt[4], vec3(pt[5]), vec3(pt[6]))
-                if best is not None:
-                    break
+            for name, body in bodies:
+                box = cast(Box, p.getAABB(body, -1, physicsClientId=c))
+                # (up to the nearest so far: a farther body gives nothing)
+                bound = reach if best is None else best[0]
+                pt = nearest(c, body, [(-1, box)], robot.body, links, bound)
+                if pt is not None and pt[8] <= reach and (best is None or pt[8] < best[0]):
+                    best = (pt[8], name, pt[4], vec3(pt[5]), vec3(pt[6]))
             if best is None:
                 out.append(pb.Separation(robot=rid, distance_m=reach))
                 continue

@@ -55,6 +55,7 @@ from hrc.validate import check_pose
 from hrc.wire import pb
 
 from hrc_physics import objects as ob
+from hrc_physics.closest import nearest
 from hrc_physics.contacts import ContactKey, ContactTracker, Touch
 from hrc_physics.hands import Hand, create_hand, pose_hand
 from hrc_physics.objects import WorldObject
@@ -538,11 +539,9 @@ class World:
             for rid, robot in self.robots.items():
                 if not _overlap(hand_boxes[hand.name], boxes[rid], 0.0):
                     continue
-                deepest = None
-                for pt in p.getClosestPoints(hand.body, robot.body, 0.0, physicsClientId=c):
-                    if pt[8] <= 0.0 and (deepest is None or pt[8] < deepest[8]):
-                        deepest = pt
-                if deepest is not None:
+                hand_links = [(-1, hand_boxes[hand.name])]
+                deepest = nearest(c, hand.body, hand_links, robot.body, robot.link_boxes(), 0.0)
+                if deepest is not None and deepest[8] <= 0.0:
                     out[ContactKey(HAND_ROBOT, hand.name, rid)] = Touch(
                         robot.link_name(deepest[4]), tuple(deepest[6]), deepest[8]
                     )
@@ -553,14 +552,11 @@ class World:
             reach = a.near_margin + b.near_margin
             if not _overlap(boxes[ra], boxes[rb], reach):
                 continue
-            nearest = None
-            for pt in p.getClosestPoints(a.body, b.body, reach, physicsClientId=c):
-                if pt[8] <= reach and (nearest is None or pt[8] < nearest[8]):
-                    nearest = pt
-            if nearest is not None:
-                mid = vec3([0.5 * (u + v) for u, v in zip(nearest[5], nearest[6], strict=True)])
+            near = nearest(c, a.body, a.link_boxes(), b.body, b.link_boxes(), reach)
+            if near is not None and near[8] <= reach:
+                mid = vec3([0.5 * (u + v) for u, v in zip(near[5], near[6], strict=True)])
                 out[ContactKey(ROBOT_ROBOT, ra, rb)] = Touch(
-                    f"{a.link_name(nearest[3])}/{b.link_name(nearest[4])}", mid, nearest[8]
+                    f"{a.link_name(near[3])}/{b.link_name(near[4])}", mid, near[8]
                 )
         for hand in hands:
             x, y, z = hand.pos
