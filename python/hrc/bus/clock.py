@@ -432,15 +432,22 @@ class ClockMaster:
             if p not in late:
                 del self._late_since[p]
         for p in late:
-            since = self._late_since.setdefault(p, now)
-            if now - since >= self.settings.barrier_timeout_s:
-                raise RunFailed(
-                    f"participant '{p}' not responding: missed every barrier for "
-                    f"{now - since:.1f} s up to tick {k} (realtime; last ack: tick "
-                    f"{self._acked[p]}; barrier timeout "
-                    f"{self.settings.barrier_timeout_s:g} s)",
-                    p,
-                )
+            self._late_since.setdefault(p, now)
+        over = [p for p in late if now - self._late_since[p] >= self.settings.barrier_timeout_s]
+        if not over:
+            return
+        # Several can be over at one check (the clock thread itself was held up, or the others'
+        # acks queue behind a router that cannot deliver to the stopped one): the one at fault
+        # is the one that stopped answering first, not the first in the participants' list.
+        p = min(over, key=lambda q: (self._acked[q], self._late_since[q]))
+        since = self._late_since[p]
+        raise RunFailed(
+            f"participant '{p}' not responding: missed every barrier for "
+            f"{now - since:.1f} s up to tick {k} (realtime; last ack: tick "
+            f"{self._acked[p]}; barrier timeout "
+            f"{self.settings.barrier_timeout_s:g} s)",
+            p,
+        )
 
     def _await_acks(self, k: int, deadline: float | None) -> None:
         parts = self.settings.participants

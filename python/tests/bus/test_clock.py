@@ -134,6 +134,33 @@ def test_realtime_a_participant_that_stops_answering_ends_the_run_naming_it(
         s.close()
 
 
+def test_realtime_names_the_participant_that_stopped_first_when_several_are_over_at_once(
+    session_id: str,
+) -> None:
+    """human_input never answers; ik_cpp is held up 2 s from tick 5 and the clock itself 1 s at
+    tick 6 (a loaded machine; in a deployment, the acks of the others queue behind a router that
+    cannot deliver to the stopped one). At the next barrier both are over the timeout: the one
+    named is human_input, which stopped first, not ik_cpp, first in the participants' list."""
+    s = Session(
+        session_id,
+        ClockSettings(mode="realtime", tick_hz=100, ticks=0, barrier_timeout_s=0.5, observers=[]),
+        ["ik_cpp", "orchestrator", "human_input"],
+    )
+    try:
+        _run_participants(s, {}, only=["orchestrator"])
+        held = LockstepParticipant(s.buses["ik_cpp"])
+        held.on_tick(lambda t: time.sleep(2.0) if t.header.tick == 5 else None)
+        held.start()
+        threading.Thread(target=held.run, args=(30,), daemon=True).start()
+        s.buses["human_input"].declare_token()  # alive, never acks
+        s.clock.start()
+        end = s.clock.run(lambda k, t: None, lambda k, t: time.sleep(1.0) if k == 6 else None)
+        assert not end.ok and end.failed_participant == "human_input", end.reason
+        assert "last ack: tick -1" in end.reason
+    finally:
+        s.close()
+
+
 def test_a_vanished_participant_ends_the_run_naming_it(session_id: str) -> None:
     s = Session(
         session_id,
