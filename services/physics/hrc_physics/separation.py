@@ -67,17 +67,20 @@ class SeparationMonitor:
         """One entry per robot, in the world's robot order."""
         c = self._c
         out: list[pb.Separation] = []
-        bodies = self._bodies()
+        # each human body with its box, once for all robots
+        bodies = [
+            (name, body, [(-1, cast(Box, p.getAABB(body, -1, physicsClientId=c)))])
+            for name, body in self._bodies()
+        ]
         for rid, robot in self.robots.items():
             reach = self.ranges[rid]
             # the robot's moving links: the base does not move, being near it is no hazard
             links = [(link, box) for link, box in robot.link_boxes() if link != BASE]
             best: tuple[float, str, int, Vec3, Vec3] | None = None
-            for name, body in bodies:
-                box = cast(Box, p.getAABB(body, -1, physicsClientId=c))
+            for name, body, body_links in bodies:
                 # (up to the nearest so far: a farther body gives nothing)
                 bound = reach if best is None else best[0]
-                pt = nearest(c, body, [(-1, box)], robot.body, links, bound)
+                pt = nearest(c, body, body_links, robot.body, links, bound)
                 if pt is not None and pt[8] <= reach and (best is None or pt[8] < best[0]):
                     best = (pt[8], name, pt[4], vec3(pt[5]), vec3(pt[6]))
             if best is None:
