@@ -20,8 +20,10 @@ from hrc.paths import project_root
 if TYPE_CHECKING:
     from playwright.sync_api import Browser
 
-# Software WebGL; no sandbox (CI runs as root, where the sandbox cannot start); and none of
-# chromium's own connections (the network is closed here: they fail, many at a time).
+# Software WebGL; the page's layers composited in software too (SwiftShader's compositing cost
+# about a third more CPU per frame: `hrc bench client`); no sandbox (CI runs as root, where the
+# sandbox cannot start); and none of chromium's own connections (the network is closed here:
+# they fail, many at a time).
 CHROMIUM_ARGS = (
     "--no-sandbox",
     "--disable-quic",
@@ -32,6 +34,7 @@ CHROMIUM_ARGS = (
     "--use-angle=swiftshader",
     "--enable-unsafe-swiftshader",
     "--ignore-gpu-blocklist",
+    "--disable-gpu-compositing",
     "--autoplay-policy=no-user-gesture-required",
 )
 
