@@ -11,9 +11,9 @@
 # closing line of lint and of each runner.
 #
 # pytest runs in phases (conftest.py): first the live trials with a browser page, one at a
-# time (they must have the machine to themselves) and, at the same time in a pytest process of
-# its own at nice 10, the tests that mostly wait for a timeout (they fill the CPU the live ones
-# leave idle); then every other test in HRC_TEST_WORKERS parallel workers (pytest-xdist;
+# time (they must have the machine to themselves) and, at the same time at nice 10, lint and in
+# a pytest process of its own the tests that mostly wait for a timeout (they fill the CPU the
+# live ones leave idle); then every other test in HRC_TEST_WORKERS parallel workers (pytest-xdist;
 # default 2, one per core of the CI machine), handed one test at a time, the longest first.
 # HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the same order. Each phase prints
 # its 30 slowest tests; every test's time is in build/test-logs/pytest-*.xml (JUnit XML:
@@ -37,10 +37,22 @@ mkdir -p "$LOG_DIR"
 failed=()
 
 # --- linters and formatters (check mode) ---------------------------------------
-echo "[test-all] lint"
+# With parallel workers, lint runs at nice 10 beside the live trials (about a minute of CPU the
+# live phase leaves idle), its output shown after theirs; otherwise first, on its own.
 lint_rc=0
-"$ROOT/scripts/lint.sh" 2>&1 | tee "$LOG_DIR/lint.log" || lint_rc=$?
-[ "$lint_rc" -eq 0 ] || failed+=("lint (exit $lint_rc: scripts/lint.sh; --fix applies the formatters)")
+lint_pid=""
+lint_ended() {
+  [ "$lint_rc" -eq 0 ] || failed+=("lint (exit $lint_rc: scripts/lint.sh; --fix applies the formatters)")
+}
+if [ "$WORKERS" -gt 0 ]; then
+  echo "[test-all] lint: started, its output after the live trials'"
+  nice -n 10 "$ROOT/scripts/lint.sh" >"$LOG_DIR/lint.log" 2>&1 &
+  lint_pid=$!
+else
+  echo "[test-all] lint"
+  "$ROOT/scripts/lint.sh" 2>&1 | tee "$LOG_DIR/lint.log" || lint_rc=$?
+  lint_ended
+fi
 
 # --- C++ ---------------------------------------------------------------------
 echo "[test-all] ctest (build/ik_cpp)"
@@ -90,6 +102,7 @@ sys.exit(pytest.main(sys.argv[1:]))' \
   # however this script ends (an error, Ctrl-C, SIGTERM), the beside tests end with it, through
   # their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
   stop_beside() {
+    [ -z "$lint_pid" ] || kill -TERM -- "$lint_pid" 2>/dev/null || true
     kill -INT "$beside_pid" 2>/dev/null || return 0
     for _ in $(seq 120); do
       kill -0 "$beside_pid" 2>/dev/null || return 0
@@ -102,6 +115,11 @@ sys.exit(pytest.main(sys.argv[1:]))' \
   trap 'exit 143' TERM
   HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" \
     --junitxml="$LOG_DIR/pytest-alone.xml" "$@"
+  wait "$lint_pid" || lint_rc=$?
+  lint_pid=""
+  echo "[test-all] lint"
+  cat "$LOG_DIR/lint.log"
+  lint_ended
   beside_rc=0
   wait "$beside_pid" || beside_rc=$?
   trap - EXIT INT TERM
