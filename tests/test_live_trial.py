@@ -42,6 +42,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 WATCHDOG_S = 15.0
 NOTICE_S = PARTICIPANT_WAIT_NOTICE_S
 PAUSE_S = NOTICE_S + WATCHDOG_S  # 25 s
+LOST_MS = 1200  # the page's link: quiet this long (and three heartbeats), it is lost (net.js)
 
 
 def enter_headset(page: Page) -> Page:
@@ -195,8 +196,25 @@ def test_the_page_says_when_the_link_is_lost_and_how_the_trial_ended(
         p.context.set_offline(True)
     off_ms = page.page.evaluate("performance.now()")
     page.wait_text("lost", lambda t: "connection: lost" in t["status"], 10)
-    lost_ms = page.page.evaluate("window.hrcApp.bridge.lostAtMs")
-    assert lost_ms - off_ms <= 2000, f"'lost' shown {lost_ms - off_ms:.0f} ms after the link went"
+    b = page.page.evaluate(
+        "(({lostAtMs, heardBeforeLostMs, beatsBeforeLostMs}) =>"
+        " ({lostAtMs, heardBeforeLostMs, beatsBeforeLostMs}))(window.hrcApp.bridge)"
+    )
+    lost_ms, heard_ms = b["lostAtMs"], b["heardBeforeLostMs"]
+    beats = b["beatsBeforeLostMs"]  # the last ones, the beat that found the link lost last
+    when = (
+        f"'lost' shown {lost_ms - off_ms:.0f} ms after the link went (the last message heard "
+        f"{heard_ms - off_ms:.0f} ms after it; the beats at "
+        f"{[round(t - off_ms) for t in beats]} ms)"
+    )
+    # The page beats every 0.4 s and finds the link lost at the first beat that is the third
+    # silent one and comes LOST_MS after the last message: 1.2-1.6 s after it, later only by as
+    # much as a busy page (software rendering on a loaded machine) runs its beats late.
+    # (a late beat's timer comes late and the next one soon after: 0.4 s on average)
+    assert (beats[-1] - beats[0]) / (len(beats) - 1) <= 600, f"no beat every 0.4 s: {when}"
+    g = max([t1 - t0 for t0, t1 in zip(beats, beats[1:], strict=False) if t1 > heard_ms])
+    assert lost_ms - heard_ms <= max(3 * g, LOST_MS + g) + 50, f"a chance missed: {when}"
+    assert lost_ms - off_ms <= 3000, when
     assert page.text()["message"].startswith("Connection to the trial lost"), page.text()
     page.screenshot("live-connection-lost.png")
     assert wait_until(

@@ -6,8 +6,8 @@
 const MAX_BUFFERED = 64 * 1024;
 const RETRY_MS = [500, 1000, 2000, 4000];
 // The 4th beat after the last message finds the link lost (three silent beats spanning LOST_MS):
-// 1.2-1.6 s after it went quiet, which leaves a page whose timers run late (software rendering
-// on a loaded machine) room within the 2 s promised. At 500 ms it was 1.5-2.0 s: no room.
+// 1.2-1.6 s after it went quiet, later by as much as a busy page runs its timers late (software
+// rendering on a loaded machine). At 500 ms it was 1.5-2.0 s.
 export const HEARTBEAT_MS = 400;
 export const LOST_MS = 1200;
 const SILENT_BEATS = 3; // beats in a row that heard nothing (with LOST_MS): the link is lost
@@ -49,7 +49,11 @@ export class Bridge {
   }
 
   setState(s, detail = '') {
-    if (s === 'lost' && this.state !== 'lost') this.lostAtMs = performance.now();
+    if (s === 'lost' && this.state !== 'lost') {
+      this.lostAtMs = performance.now();
+      this.heardBeforeLostMs = this.lastHeardMs; // when the link went quiet, as the page saw it
+      this.beatsBeforeLostMs = [...(this.beatsMs || [])];
+    }
     this.state = s;
     this.onStatus?.(s, detail);
   }
@@ -105,6 +109,7 @@ export class Bridge {
    * LOST_MS, make a lost link. */
   heartbeat() {
     const now = performance.now();
+    this.beatsMs = [...(this.beatsMs || []).slice(-7), now]; // the last beats (how late they run)
     this.silentBeats = this.heardSinceBeat ? 0 : (this.silentBeats || 0) + 1;
     this.heardSinceBeat = false;
     const quiet = this.silentBeats >= SILENT_BEATS && now - this.lastHeardMs > LOST_MS;
