@@ -458,7 +458,9 @@ def what_is_seen(
     """For each thing the page names (board, each robot's links, parts, hands, lit cues, the
     status panel): a picture with everything, then one with that thing hidden
     (window.hrcTest.hide); the thing is seen at a probe point where the two pictures differ.
-    Colours play no part, so a part in its robot's colour cannot stand in for the robot.
+    Colours play no part, so a part in its robot's colour cannot stand in for the robot. A
+    point of a thing to be seen at every point (EVERY_POINT) that lies under a label (drawn
+    over everything) is left out and counted in ``Seen.under_labels``.
 
     The picture is held still meanwhile (frames frozen, cues held lit); the ``others`` pages
     stop rendering meanwhile (software WebGL: the CPU goes to the page looked at). Pictures are
