@@ -9,7 +9,6 @@ mouse, the keys, what it shows (which part may be grabbed, which parts are place
 
 from __future__ import annotations
 
-import itertools
 import json
 import os
 import re
@@ -44,6 +43,8 @@ WATCHDOG_S = 15.0
 NOTICE_S = PARTICIPANT_WAIT_NOTICE_S
 PAUSE_S = NOTICE_S + WATCHDOG_S  # 25 s
 LOST_MS = 1200  # the page's link: quiet this long (and three heartbeats), it is lost (net.js)
+SILENT_BEATS = 3
+WARNING_MS = 4000  # a warning (a collision) stays at least this long on the page (hud.js)
 
 
 def enter_headset(page: Page) -> Page:
@@ -208,14 +209,17 @@ def test_the_page_says_when_the_link_is_lost_and_how_the_trial_ended(
         f"{heard_ms - off_ms:.0f} ms after it; the beats at "
         f"{[round(t - off_ms) for t in beats]} ms)"
     )
-    # The page beats every 0.4 s and finds the link lost at the first beat that is the third
-    # silent one and comes LOST_MS after the last message: 1.2-1.6 s after it, later only by as
-    # much as a busy page (software rendering on a loaded machine) runs its beats late.
-    # (a late beat's timer comes late and the next one soon after: 0.4 s on average)
-    assert (beats[-1] - beats[0]) / (len(beats) - 1) <= 600, f"no beat every 0.4 s: {when}"
-    g = max((t1 - t0 for t0, t1 in itertools.pairwise(beats) if t1 > heard_ms), default=0)
-    assert lost_ms - heard_ms <= max(3 * g, LOST_MS + g) + 50, f"a chance missed: {when}"
-    assert lost_ms - off_ms <= 3000, when
+    # The page finds the link lost at the first beat that is the third silent one (the first
+    # beat after the last message heard it) and comes LOST_MS after that message: 1.2-1.6 s
+    # after it on a page whose beats come every 0.4 s, later only by as much as a busy page
+    # (software rendering on a loaded machine) runs its beats late. That beat, from the beats:
+    after = [t for t in beats if t > heard_ms]
+    assert len(after) < len(beats), f"'lost' more than {len(beats) - 1} beats after: {when}"
+    due = next(
+        (t for k, t in enumerate(after) if k >= SILENT_BEATS and t - heard_ms > LOST_MS), None
+    )
+    assert due is not None and abs(lost_ms - due) <= 50, f"not at the beat due ({due}): {when}"
+    assert lost_ms - off_ms <= 4000, when
     assert page.text()["message"].startswith("Connection to the trial lost"), page.text()
     page.screenshot("live-connection-lost.png")
     assert wait_until(
@@ -396,13 +400,15 @@ def test_a_collision_is_explained_until_the_robot_goes_on(
         page.page.evaluate("window.hrcTest.goal()")
     )
     page.keys("r")  # the person withdraws at once; the warning stays long enough to read
-    shown_at = time.monotonic()
-    seen: list[str] = []
-    while time.monotonic() < shown_at + 3.0:
-        seen.append(page.text()["message"])
-        time.sleep(0.1)
-    # 3 s after it came, whatever happened meanwhile (the robot going on), still the warning
-    assert all("Collision with r1" in m for m in seen), sorted(set(seen))
+    # 4 s of the page's time after it came (a test reading a busy page comes late: the page's
+    # own record says when each message came), whatever happened meanwhile (the robot going on),
+    # it was still the warning
+    said = page.page.evaluate("window.hrcTest.messages()")
+    came = [m["atMs"] for m in said if "Collision with r1" in m["text"]][-1]
+    page.page.wait_for_function(f"performance.now() >= {came + WARNING_MS}", timeout=60_000)
+    after = [m for m in page.page.evaluate("window.hrcTest.messages()") if m["atMs"] > came]
+    early = [m for m in after if m["atMs"] < came + WARNING_MS - 20]
+    assert not early, (f"within {WARNING_MS} ms of the collision's warning", early)
     page.screenshot("live-collision.png")
     xr.wait("the spectator's collision", lambda s: "collision" in s["events"], 30)
 
