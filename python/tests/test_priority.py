@@ -53,3 +53,26 @@ def test_at_niceness_0_nothing_changes() -> None:
             assert path.read_text().strip().endswith("nice 0")
     finally:
         child.kill()
+
+
+# As the sweep (hrc.study.trial.start) and the tests' `hrc` (tests/warm_cli.py) start a trial.
+SWEEP_STARTER = """
+from hrc.study.trial import start, stop_process
+proc = start(["sleep", "30"], None)
+try:
+    print(open(f"/proc/{proc.pid}/autogroup").read().strip())
+finally:
+    stop_process(proc, grace_s=5)
+"""
+
+
+@pytest.mark.skipif(not Path("/proc/self/autogroup").exists(), reason="no autogroups here")
+def test_a_sweeps_trial_gets_the_niceness_of_the_sweep() -> None:
+    out = subprocess.run(
+        ["nice", "-n", "7", sys.executable, "-c", SWEEP_STARTER],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    ).stdout.strip()
+    assert out.endswith("nice 7"), out

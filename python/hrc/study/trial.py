@@ -122,19 +122,23 @@ def stop_process(proc: subprocess.Popen[Any] | TrialProcess, grace_s: float = 10
 def start(argv: list[str], starter: WarmStarter | None) -> TrialProcess:
     """``argv`` (``python -m hrc.cli.main run ...``) in a session of its own: forked from the
     sweep's warm worker where there is one that works, else a new interpreter."""
+    proc: TrialProcess | None = None
     if starter is not None and starter.alive():
         try:
-            return starter.popen(argv)
+            proc = starter.popen(argv)
         except WarmError as exc:
             log.warning("%s: this trial starts as a new interpreter", exc)
-    return subprocess.Popen(
-        argv,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        stdin=subprocess.DEVNULL,
-        text=True,
-        start_new_session=True,
-    )
+    if proc is None:
+        proc = subprocess.Popen(
+            argv,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            stdin=subprocess.DEVNULL,
+            text=True,
+            start_new_session=True,
+        )
+    carry_niceness(proc.pid)  # `nice hrc sweep` (or a nice test run): its trials are nice too
+    return proc
 
 
 def run_job(job: Job, starter: WarmStarter | None = None) -> Record:
@@ -168,7 +172,6 @@ def run_job(job: Job, starter: WarmStarter | None = None) -> Record:
     host = os.uname().nodename
     # own process group: a timeout stops hrc run and everything it started
     proc = start(argv, starter)
-    carry_niceness(proc.pid)  # `nice hrc sweep`: its trials are nice too
     with _LOCK:
         _RUNNING.add(proc)
         stopping = _STOPPING.is_set()
