@@ -10,13 +10,11 @@
 # test at all (ctest without tests, pytest exit code 5 in every phase). It ends with the
 # closing line of lint and of each runner.
 #
-# pytest runs in phases (conftest.py): in the foreground the live trials with a browser page,
-# one at a time (they must have the machine to themselves); at the same time, in the background,
-# lint at nice 10, then in a pytest process of their own at nice 10 the tests that mostly wait
-# for a timeout (they fill the CPU the live ones leave idle), then at nice 19 every other test in
-# HRC_TEST_WORKERS parallel workers (pytest-xdist; default 2, one per core of the CI machine),
-# handed one test at a time, the longest first: these take what the live trials leave, and the
-# whole machine once they are over. Each phase's output comes after the live trials'.
+# pytest runs in phases (conftest.py): first the live trials with a browser page, one at a
+# time (they must have the machine to themselves) and, at the same time at nice 10, lint and in
+# a pytest process of its own the tests that mostly wait for a timeout (they fill the CPU the
+# live ones leave idle); then every other test in HRC_TEST_WORKERS parallel workers (pytest-xdist;
+# default 2, one per core of the CI machine), handed one test at a time, the longest first.
 # HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the same order. Each phase prints
 # its 30 slowest tests; every test's time is in build/test-logs/pytest-*.xml (JUnit XML:
 # `scripts/slow_tests.py` sums them by file).
@@ -92,51 +90,27 @@ ran_tests=0
 touch "$LOG_DIR/pytest.log.start"
 if [ "$WORKERS" -gt 0 ]; then
   beside_name="tests that wait for a timeout, beside the live trials"
-  parallel_name="the rest, $WORKERS workers"
   beside_log="$LOG_DIR/pytest-beside.log"
-  parallel_log="$LOG_DIR/pytest-parallel.log"
-  chain_dir="$(mktemp -d)"  # the background chain's exit codes and its running pytest's pid
-  : >"$parallel_log"
-  # bg_pytest PHASE NICE LOG ARGS...: a pytest of the background chain, Ctrl-C-able (a script's
-  # background command ignores SIGINT, and bash cannot undo that when the script itself started
-  # with it ignored: pytest takes Ctrl-C again itself); its exit code in $chain_dir/PHASE
-  bg_pytest() {
-    local phase="$1" niceness="$2" log="$3" rc=0
-    shift 3
-    [ ! -e "$chain_dir/stop" ] || { echo 130 >"$chain_dir/$phase"; return 0; }
-    HRC_TEST_PHASE="$phase" nice -n "$niceness" "$ROOT/.venv/bin/python" -c \
-      'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler)
-sys.exit(pytest.main(sys.argv[1:]))' \
-      --durations=30 --junitxml="$LOG_DIR/pytest-$phase.xml" "$@" >"$log" 2>&1 &
-    echo $! >"$chain_dir/pid"
-    wait $! || rc=$?
-    echo "$rc" >"$chain_dir/$phase"
-  }
   echo "[test-all] pytest ($beside_name): started, its output after the live trials'"
-  echo "[test-all] pytest ($parallel_name): started when those end, at nice 19 while the live" \
-    "trials run (it takes the CPU they leave idle), its output after theirs"
-  # The tests beside the live trials, then the parallel phase: at nice 19 it takes what the live
-  # trials leave (a browser's page and a realtime trial use under one core of the two), and the
-  # whole machine once they are over (a niceness counts against others only); each trial it
-  # starts keeps the niceness (hrc.priority.carry_niceness).
-  (
-    bg_pytest beside 10 "$beside_log" "$@"
-    bg_pytest parallel 19 "$parallel_log" -n "$WORKERS" --dist load --maxschedchunk 1 "$@"
-  ) &
-  chain_pid=$!
-  # however this script ends (an error, Ctrl-C, SIGTERM), the background tests end with it,
-  # through their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
-  stop_chain() {
+  # (a script's background command ignores SIGINT, and bash cannot undo that when the script
+  # itself started with it ignored: pytest takes Ctrl-C again itself)
+  HRC_TEST_PHASE=beside nice -n 10 "$ROOT/.venv/bin/python" -c \
+    'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler)
+sys.exit(pytest.main(sys.argv[1:]))' \
+    --durations=30 --junitxml="$LOG_DIR/pytest-beside.xml" "$@" >"$beside_log" 2>&1 &
+  beside_pid=$!
+  # however this script ends (an error, Ctrl-C, SIGTERM), the beside tests end with it, through
+  # their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
+  stop_beside() {
     [ -z "$lint_pid" ] || kill -TERM -- "$lint_pid" 2>/dev/null || true
-    touch "$chain_dir/stop"
+    kill -INT "$beside_pid" 2>/dev/null || return 0
     for _ in $(seq 120); do
-      kill -0 "$chain_pid" 2>/dev/null || return 0
-      kill -INT "$(cat "$chain_dir/pid" 2>/dev/null)" 2>/dev/null || true
+      kill -0 "$beside_pid" 2>/dev/null || return 0
       sleep 0.5
     done
-    kill -KILL "$(cat "$chain_dir/pid" 2>/dev/null)" 2>/dev/null || true
+    kill -KILL "$beside_pid" 2>/dev/null || true
   }
-  trap stop_chain EXIT
+  trap stop_beside EXIT
   trap 'exit 130' INT
   trap 'exit 143' TERM
   HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" \
@@ -146,17 +120,14 @@ sys.exit(pytest.main(sys.argv[1:]))' \
   echo "[test-all] lint"
   cat "$LOG_DIR/lint.log"
   lint_ended
-  echo "[test-all] pytest ($beside_name)"
-  while [ ! -e "$chain_dir/beside" ] && kill -0 "$chain_pid" 2>/dev/null; do sleep 1; done
-  tee -a "$LOG_DIR/pytest.log" <"$beside_log"
-  pytest_ended "$beside_name" "$(cat "$chain_dir/beside" 2>/dev/null || echo 1)"
-  echo "[test-all] pytest ($parallel_name)"
-  # what it wrote so far, then the rest as it comes, until the chain ends
-  tail -n +1 -f --pid="$chain_pid" "$parallel_log" | tee -a "$LOG_DIR/pytest.log"
-  wait "$chain_pid" || true
+  beside_rc=0
+  wait "$beside_pid" || beside_rc=$?
   trap - EXIT INT TERM
-  pytest_ended "$parallel_name" "$(cat "$chain_dir/parallel" 2>/dev/null || echo 1)"
-  rm -rf "$chain_dir"
+  echo "[test-all] pytest ($beside_name)"
+  tee -a "$LOG_DIR/pytest.log" <"$beside_log"
+  pytest_ended "$beside_name" "$beside_rc"
+  HRC_TEST_PHASE=parallel run_pytest "the rest, $WORKERS workers" \
+    -n "$WORKERS" --dist load --maxschedchunk 1 --junitxml="$LOG_DIR/pytest-parallel.xml" "$@"
 else
   run_pytest "one process" --junitxml="$LOG_DIR/pytest.xml" "$@"
 fi

@@ -29,6 +29,10 @@ finally:
 """
 
 
+# `nice -n 7` from this process's niceness (the whole test run may be nice already)
+NICE = min(19, os.getpriority(os.PRIO_PROCESS, 0) + 7)
+
+
 @pytest.mark.skipif(not Path("/proc/self/autogroup").exists(), reason="no autogroups here")
 def test_a_trials_session_gets_the_niceness_of_whoever_started_it() -> None:
     out = subprocess.run(
@@ -41,7 +45,7 @@ def test_a_trials_session_gets_the_niceness_of_whoever_started_it() -> None:
     # a new session's autogroup starts at nice 0 whatever its leader's niceness: the CPU is
     # shared out between sessions first, so the niceness alone would count for nothing
     assert out[0].endswith("nice 0"), out
-    assert out[1].endswith("nice 7"), out
+    assert out[1].endswith(f"nice {NICE}"), out
 
 
 def test_at_niceness_0_nothing_changes() -> None:
@@ -75,4 +79,4 @@ def test_a_sweeps_trial_gets_the_niceness_of_the_sweep() -> None:
         timeout=60,
         check=True,
     ).stdout.strip()
-    assert out.endswith("nice 7"), out
+    assert out.endswith(f"nice {NICE}"), out
