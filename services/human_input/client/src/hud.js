@@ -15,7 +15,7 @@ const RUN_TEXT = {
   stopped: 'stopped by the experimenter',
   failed: 'ended by an error',
 };
-const MESSAGE_MIN_MS = 4000; // a warning stays at least this long: long enough to read
+export const MESSAGE_MIN_MS = 4000; // a warning stays at least this long: long enough to read
 const PANEL_COLUMNS = 30; // the headset's panel wraps its lines here (it stays narrow)
 const PANEL_DIST_M = 2.4; // beyond the robots from where the person stands
 const PANEL_UP_DEG = 27; // its centre above the gaze it follows

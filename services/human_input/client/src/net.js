@@ -10,7 +10,7 @@ const RETRY_MS = [500, 1000, 2000, 4000];
 // rendering on a loaded machine). At 500 ms it was 1.5-2.0 s.
 export const HEARTBEAT_MS = 400;
 export const LOST_MS = 1200;
-const SILENT_BEATS = 3; // beats in a row that heard nothing (with LOST_MS): the link is lost
+export const SILENT_BEATS = 3; // beats in a row that heard nothing (with LOST_MS): the link is lost
 const DIAL_MS = 3000;
 const DIAL_BEATS = 6;
 
@@ -35,6 +35,9 @@ export class Bridge {
     this.pings = new Map();
     this.rttMs = null;
     this.pingId = 0;
+    this.beatsMs = []; // when the last heartbeats ran (a busy page runs them late)
+    this.silentBeats = 0;
+    this.heardSinceBeat = false;
     this.connect();
   }
 
@@ -52,7 +55,7 @@ export class Bridge {
     if (s === 'lost' && this.state !== 'lost') {
       this.lostAtMs = performance.now();
       this.heardBeforeLostMs = this.lastHeardMs; // when the link went quiet, as the page saw it
-      this.beatsBeforeLostMs = [...(this.beatsMs || [])];
+      this.beatsBeforeLostMs = [...this.beatsMs];
     }
     this.state = s;
     this.onStatus?.(s, detail);
@@ -109,8 +112,8 @@ export class Bridge {
    * LOST_MS, make a lost link. */
   heartbeat() {
     const now = performance.now();
-    this.beatsMs = [...(this.beatsMs || []).slice(-7), now]; // the last beats (how late they run)
-    this.silentBeats = this.heardSinceBeat ? 0 : (this.silentBeats || 0) + 1;
+    this.beatsMs = [...this.beatsMs.slice(-7), now];
+    this.silentBeats = this.heardSinceBeat ? 0 : this.silentBeats + 1;
     this.heardSinceBeat = false;
     const quiet = this.silentBeats >= SILENT_BEATS && now - this.lastHeardMs > LOST_MS;
     if (this.resting) {
@@ -124,7 +127,7 @@ export class Bridge {
       this.setState('lost', 'reconnecting');
       this.redial();
     } else if (this.state !== 'connected' && !this.open()) {
-      this.dialBeats = (this.dialBeats || 0) + 1;
+      this.dialBeats += 1;
       if (this.dialBeats >= DIAL_BEATS && now - this.dialedMs > DIAL_MS) this.redial();
     }
   }

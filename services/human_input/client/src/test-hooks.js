@@ -3,6 +3,8 @@
 // ?test=... in the page's URL (main.js imports this chunk then): a participant's page has none.
 import * as THREE from 'three';
 import { FORM_H, FORM_W } from './form.js';
+import { MESSAGE_MIN_MS } from './hud.js';
+import { HEARTBEAT_MS, LOST_MS, SILENT_BEATS } from './net.js';
 import { pageBoxes, spriteCorners } from './screen-rect.js';
 
 /** The things a test can hide (and probe) by name: board, furniture, markings, parts, labels,
@@ -221,6 +223,15 @@ export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
   window.hrcTest = {
     /** The scene has arrived and every robot's URDF is loaded. */
     ready: () => !!window.hrcApp?.sceneMsg && window.hrcApp.robots.allLoaded() && window.hrcApp.frames > 0,
+    /** The page's rules as numbers, so that a test states none of them again: the link is lost
+     * after `silentBeats` heartbeats (every `heartbeatMs`) heard nothing, spanning `lostMs`;
+     * a warning stays at least `messageMinMs` (net.js, hud.js). */
+    constants: () => ({
+      heartbeatMs: HEARTBEAT_MS,
+      lostMs: LOST_MS,
+      silentBeats: SILENT_BEATS,
+      messageMinMs: MESSAGE_MIN_MS,
+    }),
     /** Every message the page has shown, oldest first: [{text, kind, atMs}] (the last 50). */
     messages: () => window.hrcApp.hud.shown.map((m) => ({ ...m })),
     /** A world point [x, y, z] as CSS pixels of the page {x, y, visible}. */
