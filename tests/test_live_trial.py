@@ -39,9 +39,9 @@ pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 # A person reading, putting on the headset, asking the experimenter: each pause outlasts the stall
 # watchdog (given WATCHDOG_S here instead of the scenario's 60 s, so the test need not wait 90 s
 # twice) and the notice of a wait on the participant (10 s of quiet).
-WATCHDOG_S = 15.0
+WATCHDOG_S = 10.0
 NOTICE_S = PARTICIPANT_WAIT_NOTICE_S
-PAUSE_S = NOTICE_S + WATCHDOG_S  # 25 s
+PAUSE_S = NOTICE_S + WATCHDOG_S  # 20 s
 HINT = "a message of the test's own"  # what asks for the screen while a warning holds it
 
 
