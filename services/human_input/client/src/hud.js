@@ -15,6 +15,7 @@ const RUN_TEXT = {
   stopped: 'stopped by the experimenter',
   failed: 'ended by an error',
 };
+const MESSAGE_GAP_PX = 8; // between the page's message and its status box
 export const MESSAGE_MIN_MS = 4000; // a warning stays at least this long: long enough to read
 const PANEL_COLUMNS = 30; // the headset's panel wraps its lines here (it stays narrow)
 const PANEL_DIST_M = 2.4; // beyond the robots from where the person stands
@@ -79,6 +80,7 @@ export class Hud {
     this.msg.textContent = text;
     this.msg.className = cls;
     this.msg.style.display = text ? 'block' : 'none';
+    this.placeMessage();
     this.shownText = text;
     if (text) {
       this.shown.push({ text, kind: cls, atMs: now });
@@ -123,6 +125,7 @@ export class Hud {
     }
     const lines = this.lines();
     if (this.panel) this.panel.textContent = lines.join('\n');
+    this.placeMessage();
     // the headset has no page overlay: its panel carries the message too
     const panelLines = this.lines(true);
     const all = this.shownText ? [...panelLines, '', this.shownText] : panelLines;
@@ -132,6 +135,28 @@ export class Hud {
     if (text === this.lastText) return;
     this.lastText = text;
     if (root) this.updateSprite(root, inWorld);
+  }
+
+  /** The page's message (centred at the top) never lies over the status box (top left, as
+   * wide as its longest line): it moves right of it where the page is wide enough, else below
+   * it. The end's message (centred lower) stays where it is. */
+  placeMessage() {
+    const m = this.msg;
+    if (!m) return;
+    m.style.left = '';
+    m.style.top = '';
+    m.style.transform = '';
+    if (!this.panel || m.style.display !== 'block' || m.className === 'over') return;
+    const s = this.panel.getBoundingClientRect();
+    const r = m.getBoundingClientRect();
+    const over = r.left < s.right && s.left < r.right && r.top < s.bottom && s.top < r.bottom;
+    if (!over || s.width === 0) return;
+    if (s.right + MESSAGE_GAP_PX + r.width <= window.innerWidth - MESSAGE_GAP_PX) {
+      m.style.left = `${s.right + MESSAGE_GAP_PX}px`;
+      m.style.transform = 'none';
+    } else {
+      m.style.top = `${s.bottom + MESSAGE_GAP_PX}px`;
+    }
   }
 
   /** Per XR frame: the panel follows the gaze of `eye` (a camera) lazily. */
