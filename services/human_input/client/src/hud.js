@@ -7,6 +7,7 @@
 // where it was put. Its text's em is PANEL_EM_DEG tall.
 import * as THREE from 'three';
 import { textTexture } from './scene.js';
+import { overlaps, pageBoxes } from './screen-rect.js';
 
 const RUN_TEXT = {
   waiting_first_grab: 'ready: the task starts at your first grab',
@@ -146,16 +147,15 @@ export class Hud {
     m.style.left = '';
     m.style.top = '';
     m.style.transform = '';
-    if (!this.panel || m.style.display !== 'block' || m.className === 'over') return;
-    const s = this.panel.getBoundingClientRect();
-    const r = m.getBoundingClientRect();
-    const over = r.left < s.right && s.left < r.right && r.top < s.bottom && s.top < r.bottom;
-    if (!over || s.width === 0) return;
-    if (s.right + MESSAGE_GAP_PX + r.width <= window.innerWidth - MESSAGE_GAP_PX) {
-      m.style.left = `${s.right + MESSAGE_GAP_PX}px`;
+    if (m.className === 'over') return;
+    const { status: s, message: r } = pageBoxes(['status', 'message']); // those showing
+    if (!s || !r || !overlaps(s, r)) return;
+    const width = r.x1 - r.x0;
+    if (s.x1 + MESSAGE_GAP_PX + width <= window.innerWidth - MESSAGE_GAP_PX) {
+      m.style.left = `${s.x1 + MESSAGE_GAP_PX}px`;
       m.style.transform = 'none';
     } else {
-      m.style.top = `${s.bottom + MESSAGE_GAP_PX}px`;
+      m.style.top = `${s.y1 + MESSAGE_GAP_PX}px`;
     }
   }
 

@@ -36,8 +36,7 @@ export class Bridge {
     this.rttMs = null;
     this.pingId = 0;
     this.beatsMs = []; // when the last heartbeats ran (a busy page runs them late)
-    this.silentBeats = 0;
-    this.heardSinceBeat = false;
+    this.heardSinceBeat = false; // (connect() starts the count of silent beats)
     this.connect();
   }
 
