@@ -59,3 +59,11 @@ def test_two_runs_of_the_thesis_trial_are_identical(tmp_path: Path, ik_bin: Path
     assert m1 == m2
     # log.txt in full but for the dated start line
     assert normalised(tmp_path / "a")["log.txt"] == normalised(tmp_path / "b")["log.txt"]
+    # Without the view the logger takes no world state from the bus (a robot's state every tick
+    # it moves: most of the session's messages), only what its files hold.
+    seen = {
+        run: json.loads((tmp_path / run / "logger_stats.json").read_text())["messages"]
+        for run in ("a", "b")
+    }
+    ticks = m1["run"]["ticks"]
+    assert seen["a"] > ticks and seen["b"] < ticks / 4, (seen, ticks)

@@ -305,10 +305,14 @@ class LoggerService(Service):
         inputs.input(keys.task_events(), pb.TaskEvent, g(rec.on_event))
         inputs.input(keys.task_indicators(), pb.Indicators, g(rec.on_indicators))
         inputs.input(keys.task_metrics(), pb.MetricsReport, g(rec.on_metrics))
-        inputs.input(keys.world_objects(), pb.WorldObjects, g(rec.on_world_objects))
-        inputs.input(keys.world_contacts(), pb.WorldContacts, g(rec.on_world_contacts))
-        inputs.input(keys.robot_states(), pb.RobotState, g(rec.on_robot_state))
-        inputs.input(keys.human_state(), pb.HumanState, g(rec.on_human_state))
+        if not self.args.no_view:
+            # The world's state is the view's alone: without one the logger does not subscribe
+            # to it (most of the session's messages: a robot's state every tick it moves), so
+            # nobody routes, sends or decodes them for it.
+            inputs.input(keys.world_objects(), pb.WorldObjects, g(rec.on_world_objects))
+            inputs.input(keys.world_contacts(), pb.WorldContacts, g(rec.on_world_contacts))
+            inputs.input(keys.robot_states(), pb.RobotState, g(rec.on_robot_state))
+            inputs.input(keys.human_state(), pb.HumanState, g(rec.on_human_state))
         if self.observer is not None:
             # The orchestrator's final metrics (with the run's figures) come after run/end.
             self.observer.after_end(keys.task_metrics(), "orchestrator")
