@@ -100,7 +100,9 @@ def approach_trial(folder: Path) -> Path:
     (folder / "robots").symlink_to(ROOT / "robots")
     write_replay(folder / "approach.jsonl")
     out = folder / "trial"
-    result = run_trial(TrialOptions(scenario=scenario, out=out, max_ticks=240 * 60), out)
+    result = run_trial(
+        TrialOptions(scenario=scenario, out=out, max_ticks=240 * 60, view=False), out
+    )
     assert result.ok, result.message
     return out
 
@@ -134,7 +136,9 @@ def test_thesis_with_ssm_and_provoked_collisions_finishes(tmp_path: Path) -> Non
     scenario.write_text(text)
     (tmp_path / "robots").symlink_to(ROOT / "robots")  # the file's robots/arm5.urdf
     out = tmp_path / "trial"
-    result = run_trial(TrialOptions(scenario=scenario, out=out, max_ticks=240 * 400), out)
+    result = run_trial(
+        TrialOptions(scenario=scenario, out=out, max_ticks=240 * 400, view=False), out
+    )
     assert result.ok, result.message
     assert result.run_end is not None and result.run_end.reason.startswith("stopped")
     evs = [e for e in events(out) if "kind" in e]
