@@ -98,7 +98,8 @@ def study_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="module")
 def local_sweep(study_file: Path) -> tuple[Path, subprocess.CompletedProcess[str]]:
     out = study_file.parent / "local"
-    proc = _sweep(str(study_file), "--out", str(out), "--workers", "2")
+    # without the 3D recordings: the cluster's sweep below keeps them, and gives the same table
+    proc = _sweep(str(study_file), "--out", str(out), "--workers", "2", "--no-view")
     assert proc.returncode == 0, proc.stderr
     return out, proc
 
@@ -126,6 +127,7 @@ def test_a_2x2x2_study_gives_8_rows_with_factors_participants_and_metrics(local_
     assert r1[1.0] < r1[0.5]
     for trial in df["trial"]:
         assert (out / "trials" / trial / "metrics.json").is_file()
+        assert not (out / "trials" / trial / "recording.rrd").exists(), f"{trial}: --no-view"
     assert (out / "study.toml").read_text() == STUDY
     assert "8 trials, 0 done before (kept), 8 to run" in proc.stderr
     assert proc.stderr.count("ETA") == 8
@@ -171,6 +173,8 @@ def test_a_stalled_trial_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> No
     assert "stalled for 1 s" in stalled["reason"]
     assert stalled["exit_code"] != 0 and not stalled["task.finished"]
     assert df.loc["rt0.4_stall60_P01_r1", "outcome"] == "ok"
+    # by default each trial keeps its 3D recording
+    assert (out / "trials" / "rt0.4_stall60_P01_r1" / "recording.rrd").stat().st_size > 10_000
     assert "rt10_stall1_P01_r1: stalled" in proc.stdout
     assert WARM_SAYS in proc.stderr, proc.stderr
     assert_as_a_fresh_run(out, "rt10_stall1_P01_r1", tmp_path)  # a trial that fails, too
@@ -250,7 +254,8 @@ def test_the_cluster_gives_the_same_table_as_the_local_run(
     assert proc.returncode == 0, proc.stderr
     manifest = json.loads((out / "manifest.json").read_text())["trials"]
     assert all(r["host"] for r in manifest.values())
-    assert_same_table(local, out)
+    assert_same_table(local, out)  # (the local sweep's trials ran without their views)
+    assert all((out / "trials" / t / "recording.rrd").is_file() for t in manifest), manifest
 
 
 def test_the_report_has_every_section_and_reads_well(local_sweep) -> None:
