@@ -30,6 +30,10 @@ worker's CPU with all its trials', its own start-up shared by them), ``us_per_ex
 (the services' mean over the trials) and, under ``thesis``, ``study_cpu_ratio``: that CPU per
 simulated second over raw physics's, as ``cpu_ratio`` is for a lone ``hrc run``.
 
+And, under ``thesis``, ``no_view_cpu_s`` and ``no_view_cpu_ratio``: the same lone trial with
+``hrc run --no-view`` (no 3D recording: ``hrc power``'s pool, ``hrc sweep --no-view``), over the
+same raw physics.
+
 And ``busy``: the thesis trial again beside one busy process per core (a build, another trial):
 its run phase (``run_wall_s``, ``realtime_factor``) and ``slowdown``, its run-phase wall over the
 quiet run's. An observer that got no CPU at all there (the logger under SCHED_IDLE in lockstep)
@@ -274,6 +278,11 @@ def run(args: argparse.Namespace) -> int:
         figures["floor"] = floor
         figures["study"] = measure_study(root / THESIS, tmpdir, thesis)
         thesis["study_cpu_ratio"] = figures["study"]["study_cpu_ratio"]
+        _wall, no_view = hrc_run(root / THESIS, tmpdir / "thesis-no-view", ["--no-view"])
+        thesis["no_view_cpu_s"] = round(no_view, 3)
+        thesis["no_view_cpu_ratio"] = round(
+            no_view / thesis["sim_s"] / thesis["raw_physics_cpu_s_per_sim_s"], 2
+        )
         figures["busy"] = measure_busy(root / THESIS, tmpdir / "thesis-busy", thesis)
     if getattr(args, "json", False):
         print(json.dumps(figures))
@@ -310,6 +319,11 @@ def run(args: argparse.Namespace) -> int:
             f"{f['raw_physics_cpu_s_per_sim_s']}; CPU ratio {f['cpu_ratio']} (floor "
             f"{f['floor_cpu_ratio']}: start-up and bare exchanges only)"
         )
+        if "no_view_cpu_ratio" in f:
+            print(
+                f"  without the view (--no-view): CPU {f['no_view_cpu_s']} s, CPU ratio "
+                f"{f['no_view_cpu_ratio']}"
+            )
         print(f"  CPU us per exchange: {f['us_per_exchange_by_service']}")
         print(
             f"  co-simulated tick {f['cosim_us_per_tick']} us, raw physics tick "
