@@ -206,10 +206,16 @@ def _stop_on_signals(role: ClockFollower) -> None:
     never outlives the trial (hrc run sends SIGTERM when it stops, and when it dies)."""
 
     def on_signal(signum: int, _frame: FrameType | None) -> None:
-        role.stop(f"terminated by {signal.Signals(signum).name}")
+        # The handler runs on the main thread between two of its bytecodes, possibly while that
+        # thread holds the role's lock (a plain Lock): stopping from here would wait for it
+        # forever, before any timer (a logger SIGTERMed mid-trial hung so, 2026-12-01). So the
+        # grace timer first, and the stop on a thread of its own, which gets the lock once the
+        # main thread lets go of it.
         timer = threading.Timer(service_table.STOP_GRACE_S, _exit_now)
         timer.daemon = True
         timer.start()
+        reason = f"terminated by {signal.Signals(signum).name}"
+        threading.Thread(target=role.stop, args=(reason,), name="stop", daemon=True).start()
 
     signal.signal(signal.SIGTERM, on_signal)
     signal.signal(signal.SIGINT, on_signal)

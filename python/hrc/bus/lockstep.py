@@ -225,7 +225,9 @@ class ClockFollower:
             self._cond.notify_all()
 
     def stop(self, reason: str = "stopped") -> None:
-        """Ends the run (first outcome wins); safe from any thread or a signal handler."""
+        """Ends the run (first outcome wins); safe from any thread, but not from a signal
+        handler (it takes the role's lock, which the interrupted thread may hold: start a
+        thread that calls it, as hrc.service does)."""
         self._finish(Outcome(False, reason))
 
     # ------------------------------------------------------------------ run() thread

@@ -131,7 +131,7 @@ class Observer(ClockFollower):
         # A failed end (a stop, a lost clock master, run/end not ok): don't wait for inputs.
         # Only the end that counts (the first): the clock master leaving after a good run/end
         # must not hurry the work still queued (the view, the last ticks).
-        # (No lock: stop() may come from a signal handler; one attribute read is atomic.)
+        # (No lock needed: one attribute read is atomic.)
         if self._end is None and not outcome.ok:
             self._hurry = True
         super()._finish(outcome)
