@@ -41,6 +41,7 @@ import time
 from pathlib import Path
 from typing import IO
 
+from hrc.priority import carry_niceness
 from hrc.trial.prefork import START_ENV as SERVICE_START_ENV
 
 log = logging.getLogger(__name__)
@@ -161,6 +162,7 @@ class WarmStarter:
             env=env,
             start_new_session=True,
         )
+        carry_niceness(self._proc.pid)  # `nice hrc sweep`: its trials' `hrc run` are nice too
         self.cpu_s = 0.0  # the worker's CPU with its trials' (after close)
         assert self._proc.stdout is not None
         line = _first_line(self._proc.stdout, START_TIMEOUT_S)
