@@ -9,12 +9,8 @@
   reads a person's view of something else). `HRC_TEST_PHASE=beside` keeps the tests that mostly
   wait for a timeout (a watchdog, a lease, a lost message's deadline): they take little CPU and
   run at the same time as the `alone` phase, which leaves a core partly idle (in a worker of
-  their own they left it idle too). `HRC_TEST_PHASE=fill` keeps lockstep trials that only
-  compute (every process of theirs at the niceness of the pytest that started them, nothing
-  paced by the wall clock): they run at nice 19 in two workers of their own beside the two
-  phases before, on the CPU those leave idle. `HRC_TEST_PHASE=parallel` keeps the rest, which
-  run in parallel workers: lockstep trials give the same results at any load. Unset: every
-  test.
+  their own they left it idle too). `HRC_TEST_PHASE=parallel` keeps the rest, which run in
+  parallel workers: lockstep trials give the same results at any load. Unset: every test.
 """
 
 from __future__ import annotations
@@ -59,31 +55,7 @@ BESIDE = (
     "tests/test_intruders.py",
     "services/human_input/tests/test_vr_bridge.py",
 )
-# Lockstep trials that only compute, started by `hrc run` or `hrc sweep` (whose every service
-# takes their niceness: hrc.priority.carry_niceness), with no bound on wall time shorter than
-# minutes: run at nice 19 beside the alone and beside phases (HRC_TEST_PHASE=fill). No module
-# here may start a process in a session of its own without carrying its niceness, pace anything
-# by the wall clock, or read the session's shared trial (`thesis_trial`: it would run twice).
-FILL = (
-    "tests/test_real_robots.py",
-    "tests/test_every_trial_finishes.py",
-    "tests/test_fuzz.py",
-    "tests/test_fit_recovery.py",
-    "tests/test_power.py",
-    "tests/test_robot_add.py",
-    "tests/test_ssm_run.py",
-    "tests/test_event_aligned.py",
-)
-PHASES = ("alone", "beside", "fill", "parallel")
-
-
-def phase_of(module: str) -> str:
-    """The phase a test module runs in."""
-    if module in ALONE:
-        return "alone"
-    if module in BESIDE:
-        return "beside"
-    return "fill" if module in FILL else "parallel"
+PHASES = ("alone", "beside", "parallel")
 
 
 def _module(item: pytest.Item) -> str:
@@ -109,7 +81,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         keep: list[pytest.Item] = []
         dropped: list[pytest.Item] = []
         for it in items:
-            (keep if phase_of(_module(it)) == phase else dropped).append(it)
+            module = _module(it)
+            its = "alone" if module in ALONE else "beside" if module in BESIDE else "parallel"
+            (keep if its == phase else dropped).append(it)
         if dropped:
             config.hook.pytest_deselected(items=dropped)
         items[:] = keep

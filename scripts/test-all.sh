@@ -12,9 +12,8 @@
 #
 # pytest runs in phases (conftest.py): first the live trials with a browser page, one at a
 # time (they must have the machine to themselves) and, at the same time at nice 10, lint and in
-# a pytest process of its own the tests that mostly wait for a timeout, and at nice 19 in
-# HRC_TEST_WORKERS workers lockstep trials that only compute (both fill the CPU the live ones
-# leave idle); then every other test in HRC_TEST_WORKERS parallel workers (pytest-xdist;
+# a pytest process of its own the tests that mostly wait for a timeout (they fill the CPU the
+# live ones leave idle); then every other test in HRC_TEST_WORKERS parallel workers (pytest-xdist;
 # default 2, one per core of the CI machine), handed one test at a time, the longest first.
 # HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the same order. Each phase prints
 # its 30 slowest tests; every test's time is in build/test-logs/pytest-*.xml (JUnit XML:
@@ -91,35 +90,25 @@ ran_tests=0
 touch "$LOG_DIR/pytest.log.start"
 if [ "$WORKERS" -gt 0 ]; then
   beside_name="tests that wait for a timeout, beside the live trials"
-  fill_name="lockstep trials that only compute, at nice 19 beside both, $WORKERS workers"
-  # start_beside PHASE NICE LOG ARGS...: a pytest phase in the background, its output in LOG
+  beside_log="$LOG_DIR/pytest-beside.log"
+  echo "[test-all] pytest ($beside_name): started, its output after the live trials'"
   # (a script's background command ignores SIGINT, and bash cannot undo that when the script
   # itself started with it ignored: pytest takes Ctrl-C again itself)
-  start_beside() {
-    local phase="$1" niceness="$2" log="$3"
-    shift 3
-    HRC_TEST_PHASE="$phase" nice -n "$niceness" "$ROOT/.venv/bin/python" -c \
-      'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler)
+  HRC_TEST_PHASE=beside nice -n 10 "$ROOT/.venv/bin/python" -c \
+    'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler)
 sys.exit(pytest.main(sys.argv[1:]))' \
-      --durations=30 --junitxml="$LOG_DIR/pytest-$phase.xml" "$@" >"$log" 2>&1 &
-  }
-  echo "[test-all] pytest ($beside_name): started, its output after the live trials'"
-  start_beside beside 10 "$LOG_DIR/pytest-beside.log" "$@"
+    --durations=30 --junitxml="$LOG_DIR/pytest-beside.xml" "$@" >"$beside_log" 2>&1 &
   beside_pid=$!
-  echo "[test-all] pytest ($fill_name): started, its output after the live trials'"
-  start_beside fill 19 "$LOG_DIR/pytest-fill.log" \
-    -n "$WORKERS" --dist load --maxschedchunk 1 "$@"
-  fill_pid=$!
-  # however this script ends (an error, Ctrl-C, SIGTERM), the background tests end with it,
-  # through their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
+  # however this script ends (an error, Ctrl-C, SIGTERM), the beside tests end with it, through
+  # their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
   stop_beside() {
     [ -z "$lint_pid" ] || kill -TERM -- "$lint_pid" 2>/dev/null || true
-    kill -INT "$beside_pid" "$fill_pid" 2>/dev/null || true
+    kill -INT "$beside_pid" 2>/dev/null || return 0
     for _ in $(seq 120); do
-      kill -0 "$beside_pid" 2>/dev/null || kill -0 "$fill_pid" 2>/dev/null || return 0
+      kill -0 "$beside_pid" 2>/dev/null || return 0
       sleep 0.5
     done
-    kill -KILL "$beside_pid" "$fill_pid" 2>/dev/null || true
+    kill -KILL "$beside_pid" 2>/dev/null || true
   }
   trap stop_beside EXIT
   trap 'exit 130' INT
@@ -133,15 +122,10 @@ sys.exit(pytest.main(sys.argv[1:]))' \
   lint_ended
   beside_rc=0
   wait "$beside_pid" || beside_rc=$?
-  echo "[test-all] pytest ($beside_name)"
-  tee -a "$LOG_DIR/pytest.log" <"$LOG_DIR/pytest-beside.log"
-  pytest_ended "$beside_name" "$beside_rc"
-  fill_rc=0
-  wait "$fill_pid" || fill_rc=$?
   trap - EXIT INT TERM
-  echo "[test-all] pytest ($fill_name)"
-  tee -a "$LOG_DIR/pytest.log" <"$LOG_DIR/pytest-fill.log"
-  pytest_ended "$fill_name" "$fill_rc"
+  echo "[test-all] pytest ($beside_name)"
+  tee -a "$LOG_DIR/pytest.log" <"$beside_log"
+  pytest_ended "$beside_name" "$beside_rc"
   HRC_TEST_PHASE=parallel run_pytest "the rest, $WORKERS workers" \
     -n "$WORKERS" --dist load --maxschedchunk 1 --junitxml="$LOG_DIR/pytest-parallel.xml" "$@"
 else
