@@ -47,11 +47,16 @@ DASK = str(Path(sys.executable).with_name("dask"))
 WALL = {"wall_s", "run.wall_s", "run.realtime_factor"}
 
 
+# every CPU of the machine (a test worker may be held to one: conftest.py)
+ALL_CPUS = f"0-{(os.cpu_count() or 1) - 1}"
+
+
 def _sweep(*args: str, timeout: float = 280) -> subprocess.CompletedProcess[str]:
     env = dict(os.environ, CI="1")  # plain progress lines
     return subprocess.run(
-        [HRC, "sweep", *args], capture_output=True, text=True, timeout=timeout, env=env
-    )
+        ["taskset", "-c", ALL_CPUS, HRC, "sweep", *args],
+        capture_output=True, text=True, timeout=timeout, env=env,
+    )  # fmt: skip
 
 
 # a trial's wall-clock fields (events' wall_time, the run's wall_s and real-time factor); the
@@ -131,6 +136,25 @@ def test_a_2x2x2_study_gives_8_rows_with_factors_participants_and_metrics(local_
     assert (out / "study.toml").read_text() == STUDY
     assert "8 trials, 0 done before (kept), 8 to run" in proc.stderr
     assert proc.stderr.count("ETA") == 8
+
+
+def test_each_of_two_parallel_trials_runs_on_a_cpu_of_its_own(local_sweep) -> None:
+    # (the outputs are those of a fresh run all the same: the test below)
+    if (os.cpu_count() or 1) < 2:
+        pytest.skip("one CPU: nothing to share out")
+    out, _ = local_sweep
+    on: dict[str, str] = {}
+    for trial in sorted((out / "trials").iterdir()):
+        first = (trial / "hrc-run.log").read_text().splitlines()[0]
+        found = re.search(r", on CPUs ([\d,-]+)\)", first)
+        assert found, f"{trial.name}: not held to CPUs of its own: {first}"
+        on[trial.name] = found.group(1)
+    # two workers on a machine of n CPUs: n / 2 each, the first two trials (at once) on both
+    assert len(set(on.values())) == 2, on
+    half = (os.cpu_count() or 1) // 2
+    for trial, cpus in on.items():  # "a-b,c": (b - a + 1) + 1
+        n = sum(int(r.split("-")[-1]) - int(r.split("-")[0]) + 1 for r in cpus.split(","))
+        assert n == half, (trial, cpus)
 
 
 def test_a_trial_from_the_warm_worker_gives_a_fresh_runs_files(local_sweep, tmp_path) -> None:

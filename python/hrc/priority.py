@@ -53,3 +53,55 @@ def carry_niceness(pid: int) -> None:
             f.write(str(nice))
     except OSError as exc:  # no autogroups, or the process already gone
         log.debug("session of %d keeps its niceness: %s", pid, exc)
+
+
+class CpuListError(ValueError):
+    """A CPU list that names no CPU this process may use, or is not a list."""
+
+
+def parse_cpus(text: str) -> set[int]:
+    """The CPUs of a list as taskset and /proc/*/status write it ("0", "0-3", "0,2,5-7"), each
+    one this process may run on (os.sched_getaffinity)."""
+    cpus: set[int] = set()
+    for part in text.split(","):
+        lo, sep, hi = part.strip().partition("-")
+        try:
+            first, last = int(lo), int(hi) if sep else int(lo)
+        except ValueError:
+            raise CpuListError(f"--cpus {text!r}: not a CPU list (e.g. 0, 0-3 or 0,2)") from None
+        if first < 0 or last < first:
+            raise CpuListError(f"--cpus {text!r}: {part.strip()!r} is not a CPU range")
+        cpus.update(range(first, last + 1))
+    allowed = os.sched_getaffinity(0)
+    if not cpus <= allowed:
+        raise CpuListError(
+            f"--cpus {text!r}: CPU {min(cpus - allowed)} is not one this process may use "
+            f"(it may use {format_cpus(allowed)})"
+        )
+    return cpus
+
+
+def format_cpus(cpus: Collection[int]) -> str:
+    """The list form parse_cpus reads ("0-3,6")."""
+    out: list[str] = []
+    for c in sorted(cpus):
+        if out and out[-1].split("-")[-1] == str(c - 1):
+            out[-1] = f"{out[-1].split('-')[0]}-{c}"
+        else:
+            out.append(str(c))
+    return ",".join(out)
+
+
+def cpu_slots(workers: int) -> list[set[int]] | None:
+    """The CPUs this process may use, cut into ``workers`` sets as even as they go, one for
+    each of a study's parallel trials; None where there is nothing to cut (one worker, or more
+    workers than CPUs). A lockstep trial mostly hands the turn from process to process: on one
+    CPU each hand-over is a local wake-up, while spread over all, its processes wake each
+    other across CPUs (an interrupt between the CPUs each time, a VM exit on a virtual machine)
+    and the two trials' processes crowd each other's caches (bench/README.md, "Trials on
+    their own CPUs": two thesis trials at once on 2 cores, a fifth less wall time)."""
+    cpus = sorted(os.sched_getaffinity(0))
+    if workers < 2 or workers > len(cpus):
+        return None
+    n = len(cpus)
+    return [set(cpus[i * n // workers : (i + 1) * n // workers]) for i in range(workers)]

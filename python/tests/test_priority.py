@@ -10,13 +10,13 @@ from pathlib import Path
 
 import pytest
 
-from hrc.priority import carry_niceness
+from hrc.priority import CpuListError, carry_niceness, cpu_slots, format_cpus, parse_cpus
 
 # The starter runs at niceness 7, starts `sleep` in a session of its own (as hrc sweep starts
 # each trial) and prints that session's autogroup line before and after carry_niceness.
 STARTER = """
 import subprocess
-from hrc.priority import carry_niceness
+from hrc.priority import CpuListError, carry_niceness, cpu_slots, format_cpus, parse_cpus
 child = subprocess.Popen(["sleep", "30"], start_new_session=True)
 try:
     path = f"/proc/{child.pid}/autogroup"
@@ -80,3 +80,51 @@ def test_a_sweeps_trial_gets_the_niceness_of_the_sweep() -> None:
         check=True,
     ).stdout.strip()
     assert out.endswith(f"nice {NICE}"), out
+
+
+# ------------------------------------------------------------------ CPUs (hrc run --cpus)
+def test_a_cpu_list_reads_as_taskset_writes_it_and_back() -> None:
+    allowed = os.sched_getaffinity(0)
+    one = min(allowed)
+    assert parse_cpus(str(one)) == {one}
+    assert parse_cpus(format_cpus(allowed)) == allowed
+    assert format_cpus({0, 1, 2, 5, 7, 8}) == "0-2,5,7-8"
+
+
+@pytest.mark.parametrize(
+    ("text", "says"),
+    [
+        ("x", "not a CPU list"),
+        ("", "not a CPU list"),
+        ("1-0", "'1-0' is not a CPU range"),
+        ("4096", "CPU 4096 is not one this process may use"),
+    ],
+)
+def test_a_bad_cpu_list_is_refused_naming_what_is_wrong(text: str, says: str) -> None:
+    with pytest.raises(CpuListError, match=says):
+        parse_cpus(text)
+
+
+def test_the_cpus_are_cut_into_one_set_per_worker_when_there_are_enough() -> None:
+    cpus = sorted(os.sched_getaffinity(0))
+    assert cpu_slots(1) is None  # a lone trial keeps them all
+    assert cpu_slots(len(cpus) + 1) is None  # more trials than CPUs: they share
+    if len(cpus) < 2:
+        pytest.skip("one CPU")
+    slots = cpu_slots(2)
+    assert slots is not None and len(slots) == 2
+    assert slots[0].isdisjoint(slots[1]) and slots[0] | slots[1] == set(cpus)
+    assert abs(len(slots[0]) - len(slots[1])) <= 1
+
+
+def test_hrc_run_refuses_cpus_it_may_not_use_and_starts_nothing(tmp_path: Path) -> None:
+    out = tmp_path / "trial"
+    run = subprocess.run(
+        [sys.executable, "-m", "hrc.cli.main", "run", "scenarios/minimal.toml", "--out", str(out),
+         "--cpus", "4096"],
+        capture_output=True, text=True, timeout=60, cwd=Path(__file__).resolve().parents[2],
+    )  # fmt: skip
+    assert run.returncode == 2, run.stderr
+    assert "--cpus '4096': CPU 4096 is not one this process may use" in run.stderr
+    assert "nothing was started" in run.stderr
+    assert not out.exists()

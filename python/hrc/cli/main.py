@@ -86,6 +86,14 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # ~30 ms of CPU per import, and a trial's small matrices never use it (its five processes
     # share the cores anyway).
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    if args.cpus is not None:
+        from hrc.priority import CpuListError, parse_cpus
+
+        try:  # before any service starts: each inherits it
+            os.sched_setaffinity(0, parse_cpus(args.cpus))
+        except CpuListError as exc:
+            print(f"{exc}; nothing was started", file=sys.stderr)
+            return 2
     from hrc import scenario as sc
     from hrc.cli.summary import print_summary
     from hrc.ports import free_port
@@ -202,7 +210,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"--web-port must be a port number, got {args.web_port}", file=sys.stderr)
             return 2
         opts.web_port, opts.grpc_port = args.web_port, free_port()
-    print(f"trial {s.scenario.name!r} ({mode}) -> {trial_dir}", flush=True)
+    on = ""
+    if args.cpus is not None:
+        from hrc.priority import format_cpus
+
+        on = f", on CPUs {format_cpus(os.sched_getaffinity(0))}"
+    print(f"trial {s.scenario.name!r} ({mode}{on}) -> {trial_dir}", flush=True)
     if args.web:
         print(f"rerun web viewer: {web_viewer_url(opts)}", flush=True)
     try:
@@ -582,6 +595,13 @@ def build_parser() -> argparse.ArgumentParser:
     )
     r.add_argument(
         "--replay", default=None, help="replay a recording instead of the scenario's input"
+    )
+    r.add_argument(
+        "--cpus",
+        default=None,
+        metavar="LIST",
+        help="run the trial's processes on these CPUs only (e.g. 0, 0-3 or 0,2): "
+        "`hrc sweep` gives each of its parallel trials CPUs of its own",
     )
     r.add_argument("--session", default=None, help="session id (default: random)")
     r.add_argument("--port", type=int, default=0, help="loopback port physics listens on (0: free)")

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import queue
 import shutil
 import sys
 import time
@@ -15,6 +16,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from hrc.diskspace import SIMULATED_TRIAL_MB, low_space
+from hrc.priority import cpu_slots
 from hrc.study.live import SLOTS
 from hrc.study.spec import Study
 from hrc.study.table import write_table
@@ -90,9 +92,22 @@ def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
     starter = start_worker()  # (None: each trial a new interpreter)
     if starter is not None:
         print(f"sweep: {WARM_SAYS}", file=sys.stderr, flush=True)
+    # each parallel trial on CPUs of its own where there are enough (hrc.priority.cpu_slots)
+    slots: queue.SimpleQueue[set[int] | None] = queue.SimpleQueue()
+    cut = cpu_slots(workers)
+    for i in range(workers):
+        slots.put(cut[i] if cut else None)
+
+    def run_on_free_cpus(job: Job) -> Record:
+        cpus = slots.get()  # never waits: a pool thread runs one trial at a time
+        try:
+            return run_job(job, starter, cpus)
+        finally:
+            slots.put(cpus)
+
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="trial")
     try:
-        futures = [pool.submit(run_job, job, starter) for job in jobs]
+        futures = [pool.submit(run_on_free_cpus, job) for job in jobs]
         for fut in as_completed(futures):
             yield fut.result()
     except BaseException:  # Ctrl-C, or the caller stopped: no new trial, stop those running

@@ -16,12 +16,13 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Collection
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Protocol
 
 from hrc import privacy
-from hrc.priority import carry_niceness
+from hrc.priority import carry_niceness, format_cpus
 from hrc.study.warm import WarmError, WarmStarter
 
 if TYPE_CHECKING:
@@ -141,9 +142,12 @@ def start(argv: list[str], starter: WarmStarter | None) -> TrialProcess:
     return proc
 
 
-def run_job(job: Job, starter: WarmStarter | None = None) -> Record:
+def run_job(
+    job: Job, starter: WarmStarter | None = None, cpus: Collection[int] | None = None
+) -> Record:
     """Run one trial to its end (bounded by ``job.timeout_s`` of wall time), through the warm
-    worker ``starter`` if given (the same outputs, less start-up)."""
+    worker ``starter`` if given (the same outputs, less start-up), on ``cpus`` if given (the
+    same outputs, `hrc run --cpus`)."""
     privacy.apply()  # a Dask worker's process too: what it writes here is participant data
     out = Path(job.out)
     scen = out / "resolved" / f"{job.trial}.toml"
@@ -168,6 +172,8 @@ def run_job(job: Job, starter: WarmStarter | None = None) -> Record:
         argv += ["--record", str(trial_dir / RECORDING_FILE)]
     if not job.view:
         argv.append("--no-view")
+    if cpus:
+        argv += ["--cpus", format_cpus(cpus)]
     t0 = time.monotonic()
     host = os.uname().nodename
     # own process group: a timeout stops hrc run and everything it started
