@@ -11,9 +11,6 @@
   run at the same time as the `alone` phase, which leaves a core partly idle (in a worker of
   their own they left it idle too). `HRC_TEST_PHASE=parallel` keeps the rest, which run in
   parallel workers: lockstep trials give the same results at any load. Unset: every test.
-- CPUs: in the parallel phase each worker (pytest-xdist) and all it starts keep to CPUs of
-  their own, as `hrc sweep`'s parallel trials do (hrc.priority.cpu_slots): a trial's processes
-  then wake each other on one CPU instead of across two.
 """
 
 from __future__ import annotations
@@ -59,17 +56,6 @@ BESIDE = (
     "services/human_input/tests/test_vr_bridge.py",
 )
 PHASES = ("alone", "beside", "parallel")
-
-
-def pytest_configure(config: pytest.Config) -> None:
-    worker = os.environ.get("PYTEST_XDIST_WORKER", "")  # gw0, gw1, ...
-    if os.environ.get("HRC_TEST_PHASE") != "parallel" or not worker.startswith("gw"):
-        return
-    from hrc.priority import cpu_slots
-
-    slots = cpu_slots(int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1")))
-    if slots:
-        os.sched_setaffinity(0, slots[int(worker[2:]) % len(slots)])
 
 
 def _module(item: pytest.Item) -> str:
