@@ -99,7 +99,8 @@ def study_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def local_sweep(study_file: Path) -> tuple[Path, subprocess.CompletedProcess[str]]:
     out = study_file.parent / "local"
     # without the 3D recordings: the cluster's sweep below keeps them, and gives the same table
-    proc = _sweep(str(study_file), "--out", str(out), "--workers", "2", "--no-view")
+    # each trial on a CPU of its own (--pin; the comparison with a fresh run covers it too)
+    proc = _sweep(str(study_file), "--out", str(out), "--workers", "2", "--no-view", "--pin")
     assert proc.returncode == 0, proc.stderr
     return out, proc
 

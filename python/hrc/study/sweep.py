@@ -87,14 +87,14 @@ def _clock(seconds: float) -> str:
 WARM_SAYS = "each trial starts as a fork of a warm worker (no interpreter start per trial)"
 
 
-def _local(jobs: list[Job], workers: int) -> Iterator[Record]:
+def _local(jobs: list[Job], workers: int, pin: bool = False) -> Iterator[Record]:
     allow_trials()
     starter = start_worker()  # (None: each trial a new interpreter)
     if starter is not None:
         print(f"sweep: {WARM_SAYS}", file=sys.stderr, flush=True)
-    # each parallel trial on CPUs of its own where there are enough (hrc.priority.cpu_slots)
+    # pin: each parallel trial on CPUs of its own where there are enough (hrc.priority.cpu_slots)
     slots: queue.SimpleQueue[set[int] | None] = queue.SimpleQueue()
-    cut = cpu_slots(workers)
+    cut = cpu_slots(workers) if pin else None
     for i in range(workers):
         slots.put(cut[i] if cut else None)
 
@@ -157,10 +157,13 @@ def sweep(
     timeout_s: float = 900.0,
     progress: Callable[[Record], None] | None = None,
     view: bool = True,
+    pin: bool = False,
 ) -> list[Record]:
     """Run the trials of `study` not already done in `out`; write the manifest, the tables and
     a copy of the study; return every trial's record (in the study's order). `view=False`: the
-    trials keep no 3D recording (`hrc power`'s pool, whose trials only give their metrics)."""
+    trials keep no 3D recording (`hrc power`'s pool, whose trials only give their metrics).
+    `pin`: each parallel trial on CPUs of its own (`hrc sweep --pin`), faster on a machine that
+    runs nothing else, far slower beside other work (docs/studies.md)."""
     write_study_files(study, out)
     manifest = Manifest(out / MANIFEST)
     todo = [t for t in study.trials if not manifest.done(t)]
@@ -183,7 +186,7 @@ def sweep(
         for t in todo
     ]
     if jobs:
-        stream = _cluster(jobs, cluster) if cluster else _local(jobs, workers or _cores())
+        stream = _cluster(jobs, cluster) if cluster else _local(jobs, workers or _cores(), pin)
         for rec in stream:
             manifest.put(rec)
             bar.update(rec)
