@@ -99,7 +99,9 @@ def cpu_slots(workers: int) -> list[set[int]] | None:
     CPU each hand-over is a local wake-up, while spread over all, its processes wake each
     other across CPUs (an interrupt between the CPUs each time, a VM exit on a virtual machine)
     and the two trials' processes crowd each other's caches (bench/README.md, "Trials on
-    their own CPUs": two thesis trials at once on 2 cores, a fifth less wall time)."""
+    their own CPUs": two thesis trials at once on 2 cores, a fifth less wall time). Only on a
+    machine that runs nothing else: beside other work a trial held to one CPU waits for it
+    (`hrc sweep --pin` is not the default)."""
     cpus = sorted(os.sched_getaffinity(0))
     if workers < 2 or workers > len(cpus):
         return None
