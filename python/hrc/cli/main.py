@@ -602,7 +602,7 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="LIST",
         help="run the trial's processes on these CPUs only (e.g. 0, 0-3 or 0,2): "
-        "`hrc sweep` gives each of its parallel trials CPUs of its own",
+        "`hrc sweep --pin` gives each of its parallel trials CPUs of its own",
     )
     r.add_argument("--session", default=None, help="session id (default: random)")
     r.add_argument("--port", type=int, default=0, help="loopback port physics listens on (0: free)")
