@@ -18,6 +18,7 @@ import pandas as pd
 import pytest
 
 from hrc.browser import headless_chromium, output_dir
+from hrc.priority import parse_cpus
 from hrc.study.sweep import WARM_SAYS
 
 from .conftest import HRC, free_port, strip_fields, wait_until
@@ -134,11 +135,6 @@ def test_a_2x2x2_study_gives_8_rows_with_factors_participants_and_metrics(local_
     assert proc.stderr.count("ETA") == 8
 
 
-def _count(cpus: str) -> int:
-    """The CPUs in a list such as "0-3,6"."""
-    return sum(int(r.split("-")[-1]) - int(r.split("-")[0]) + 1 for r in cpus.split(","))
-
-
 def test_each_of_two_parallel_trials_runs_on_a_cpu_of_its_own(local_sweep) -> None:
     # (the outputs are those of a fresh run all the same: the test below)
     n = len(os.sched_getaffinity(0))  # the sweep's, as it inherits them
@@ -153,7 +149,7 @@ def test_each_of_two_parallel_trials_runs_on_a_cpu_of_its_own(local_sweep) -> No
         on[trial.name] = found.group(1)
     # two workers: the CPUs cut in two, the first two trials (at once) on both halves
     assert len(set(on.values())) == 2, on
-    assert all(_count(c) in (n // 2, n - n // 2) for c in on.values()), on
+    assert all(len(parse_cpus(c)) in (n // 2, n - n // 2) for c in on.values()), on
 
 
 def test_a_trial_from_the_warm_worker_gives_a_fresh_runs_files(local_sweep, tmp_path) -> None:

@@ -16,7 +16,7 @@ from hrc.priority import CpuListError, carry_niceness, cpu_slots, format_cpus, p
 # each trial) and prints that session's autogroup line before and after carry_niceness.
 STARTER = """
 import subprocess
-from hrc.priority import CpuListError, carry_niceness, cpu_slots, format_cpus, parse_cpus
+from hrc.priority import carry_niceness
 child = subprocess.Popen(["sleep", "30"], start_new_session=True)
 try:
     path = f"/proc/{child.pid}/autogroup"

@@ -86,14 +86,17 @@ def _cmd_run(args: argparse.Namespace) -> int:
     # ~30 ms of CPU per import, and a trial's small matrices never use it (its five processes
     # share the cores anyway).
     os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    on = ""  # the CPUs it keeps to, in its first line
     if args.cpus is not None:
-        from hrc.priority import CpuListError, parse_cpus
+        from hrc.priority import CpuListError, format_cpus, parse_cpus
 
         try:  # before any service starts: each inherits it
-            os.sched_setaffinity(0, parse_cpus(args.cpus))
+            cpus = parse_cpus(args.cpus)
         except CpuListError as exc:
             print(f"{exc}; nothing was started", file=sys.stderr)
             return 2
+        os.sched_setaffinity(0, cpus)
+        on = f", on CPUs {format_cpus(cpus)}"
     from hrc import scenario as sc
     from hrc.cli.summary import print_summary
     from hrc.ports import free_port
@@ -210,11 +213,6 @@ def _cmd_run(args: argparse.Namespace) -> int:
             print(f"--web-port must be a port number, got {args.web_port}", file=sys.stderr)
             return 2
         opts.web_port, opts.grpc_port = args.web_port, free_port()
-    on = ""
-    if args.cpus is not None:
-        from hrc.priority import format_cpus
-
-        on = f", on CPUs {format_cpus(os.sched_getaffinity(0))}"
     print(f"trial {s.scenario.name!r} ({mode}{on}) -> {trial_dir}", flush=True)
     if args.web:
         print(f"rerun web viewer: {web_viewer_url(opts)}", flush=True)
