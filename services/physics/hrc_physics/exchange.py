@@ -43,10 +43,9 @@ from typing import Any
 
 import pybullet as p
 
-from hrc.geometry import Vec3
 from hrc.scenario.models import DEFAULT_MAX_EXCHANGE_TICKS
 
-from hrc_physics.closest import box_gap, nearest
+from hrc_physics.closest import Box, box_gap, nearest
 from hrc_physics.hands import Hand
 from hrc_physics.robots import KinematicRobot
 
@@ -96,14 +95,13 @@ class _ArmAtStart:
         return float(v) if v > 0 else 2 * math.pi
 
 
-def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
-    """Per movable joint j, v_j * r_j in m/s: the speed it alone can give any point of the arm's
-    colliders (the arm's bound is their sum, at most sum_j |qdot_j| * r_j); v_j for a prismatic
-    joint.
+def joint_reaches(robot: KinematicRobot) -> dict[str, tuple[float, bool]]:
+    """Per movable joint j: (r_j in m, prismatic). Turning joint j by d rad moves no point of the
+    colliders beyond it by more than d * r_j; sliding it by d m moves them by d.
 
     Each link's reach from joint j is bounded by the chain of joint offsets from j to the link
     plus the link's own radius (link frame to its collider's AABB corners), so it holds in any
-    pose. A joint without a velocity limit counts as 2 pi rad/s.
+    pose.
     """
     arm = _ArmAtStart.of(robot)
     info, parent, origin = arm.info, arm.parent, arm.origin
@@ -114,9 +112,8 @@ def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
         for link in range(n)
     }
     offset = {j: math.dist(origin[j], origin[parent[j]]) for j in range(n)}
-    terms: dict[str, float] = {}
+    out: dict[str, tuple[float, bool]] = {}
     for j in movable:
-        v = arm.v_max(j)
         reach = 0.0
         for link in range(n):
             # path length from joint j down to link (link must lie below j)
@@ -126,9 +123,23 @@ def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
                 at = parent[at]
             if at == j:
                 reach = max(reach, length + radius[link])
-        # a sliding joint (a gripper's finger) moves every point below it at its own speed
-        terms[info[j][1].decode()] = v if info[j][2] == p.JOINT_PRISMATIC else v * reach
-    return terms
+        out[info[j][1].decode()] = (reach, info[j][2] == p.JOINT_PRISMATIC)
+    return out
+
+
+def arm_speed_terms(robot: KinematicRobot) -> dict[str, float]:
+    """Per movable joint j, v_j * r_j in m/s: the speed it alone can give any point of the arm's
+    colliders (the arm's bound is their sum, at most sum_j |qdot_j| * r_j, r_j from
+    :func:`joint_reaches`); v_j for a prismatic joint. A joint without a velocity limit counts
+    as 2 pi rad/s.
+    """
+    arm = _ArmAtStart.of(robot)
+    v_max = {arm.info[j][1].decode(): arm.v_max(j) for j in range(len(arm.info))}
+    # a sliding joint (a gripper's finger) moves every point below it at its own speed
+    return {
+        name: v_max[name] if prismatic else v_max[name] * reach
+        for name, (reach, prismatic) in joint_reaches(robot).items()
+    }
 
 
 @dataclass(frozen=True)
@@ -273,14 +284,13 @@ class SpanPlanner:
         ``max_span``) and what the gaps allow."""
         n = min(self.max_span, self.max_span if limit is None else limit)
         if n > 1:
-            boxes = {rid: r.aabb() for rid, r in robots.items()}
             bounds: dict[str, float] = {}
             for rid in robots:
                 bounds[rid], window = self.bound(rid)
                 if window:
                     n = min(n, window)
-            n = self._hands(client, hands, robots, boxes, bounds, n)
-            n = self._arms(client, robots, boxes, bounds, n)
+            n = self._hands(client, hands, robots, bounds, n)
+            n = self._arms(client, robots, bounds, n)
         self._commanded.clear()
         n = max(1, n)
         self.histogram[n] += 1
@@ -291,7 +301,6 @@ class SpanPlanner:
         client: int,
         hands: list[Hand],
         robots: dict[str, KinematicRobot],
-        boxes: dict[str, tuple[Vec3, Vec3]],
         bounds: dict[str, float],
         n: int,
     ) -> int:
@@ -304,8 +313,10 @@ class SpanPlanner:
             for rid, robot in robots.items():
                 per_tick = self.dt * (self.hand_bound + bounds[rid])
                 need = n * per_tick  # the gap a span of n needs
-                if box_gap(hand_box, boxes[rid]) > need:
+                if _apart((hand_box, 0.0), robot.bounds(), need):
                     continue  # the boxes are farther apart than that: so are the bodies
+                if box_gap(hand_box, robot.aabb()) > need:
+                    continue
                 pt = nearest(
                     client, hand.body, [(-1, hand_box)], robot.body, robot.link_boxes(), need
                 )
@@ -320,7 +331,6 @@ class SpanPlanner:
         self,
         client: int,
         robots: dict[str, KinematicRobot],
-        boxes: dict[str, tuple[Vec3, Vec3]],
         bounds: dict[str, float],
         n: int,
     ) -> int:
@@ -331,14 +341,29 @@ class SpanPlanner:
                 return 1
             per_tick = self.dt * (bounds[ra] + bounds[rb])
             need = n * per_tick
-            if box_gap(boxes[ra], boxes[rb]) > margin + need:
-                continue
             a, b = robots[ra], robots[rb]
+            if _apart(a.bounds(), b.bounds(), margin + need):
+                continue
+            if box_gap(a.aabb(), b.aabb()) > margin + need:
+                continue
             pt = nearest(client, a.body, a.link_boxes(), b.body, b.link_boxes(), margin + need)
             if pt is None:
                 continue  # farther apart than margin + need
             n = _fit(n, abs(pt[8] - margin), per_tick)
         return n
+
+
+def _apart(a: tuple[Box, float] | None, b: tuple[Box, float] | None, gap: float) -> bool:
+    """Are two boxes, each known as (box, d: grown by up to d m on each side;
+    KinematicRobot.bounds), surely more than ``gap`` apart? Never where a bound is unknown."""
+    if a is None or b is None:
+        return False
+    return box_gap(_grown(a), _grown(b)) > gap
+
+
+def _grown(known: tuple[Box, float]) -> Box:
+    (lo, hi), d = known
+    return (lo[0] - d, lo[1] - d, lo[2] - d), (hi[0] + d, hi[1] + d, hi[2] + d)
 
 
 def _fit(n: int, gap: float, per_tick: float) -> int:

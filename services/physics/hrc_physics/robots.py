@@ -16,6 +16,9 @@ from hrc.validate import all_finite
 from hrc_physics.closest import Box
 
 BASE = -1  # pybullet's link index of a body's base
+# m added to the bound on how far the colliders moved (KinematicRobot.bounds): covers the
+# AABBs' floating-point rounding many times over.
+ROUNDING_M = 1e-4
 
 
 @dataclass(frozen=True)
@@ -104,6 +107,12 @@ class KinematicRobot:
         # after a reset still nudges the links): contacts and span planning ask for it per tick.
         self._aabb: Box | None = None
         self._boxes: list[tuple[int, Box]] | None = None
+        # The last measured AABB and how far any collider may have moved since (m): what the
+        # contact checks need to skip an arm that cannot have come near (see ``bounds``). The
+        # per-joint levers (m per rad, 1 for a sliding joint) come with ``bound_motion``.
+        self._loose: Box | None = None
+        self._drift = 0.0
+        self._levers: list[float] | None = None
         self._order_cache: dict[tuple[str, ...], list[int] | str] = {}
 
     def _indices(self, names: Sequence[str]) -> list[int] | str:
@@ -142,11 +151,26 @@ class KinematicRobot:
         self.positions = new
         return None
 
+    def bound_motion(self, reaches: dict[str, tuple[float, bool]]) -> None:
+        """Lets the arm bound how far its colliders move from how far its joints do
+        (``reaches``: joint -> (m per rad, sliding), hrc_physics.exchange.joint_reaches)."""
+        by_index = {j: name for name, j in self.joint_index.items()}
+        self._levers = [
+            1.0 if reaches[by_index[j]][1] else reaches[by_index[j]][0] for j in self.movable
+        ]
+
     def apply(self) -> bool:
         """Puts the links where the recorded joint positions say (zero velocities); True if
         they moved."""
         if self.positions == self._applied:
             return False  # the arm stands still: nothing to move
+        if self._levers is None or self._applied is None:
+            self._loose = None  # no bound: the next measurement starts one
+        else:
+            self._drift += sum(
+                lever * abs(a - b)
+                for lever, a, b in zip(self._levers, self.positions, self._applied, strict=True)
+            )
         p.resetJointStatesMultiDof(
             self.body, self.movable, [[v] for v in self.positions], physicsClientId=self._c
         )
@@ -176,8 +200,21 @@ class KinematicRobot:
         boxes = [b for _, b in self.link_boxes()]
         lo = tuple(map(min, zip(*(b[0] for b in boxes), strict=True)))
         hi = tuple(map(max, zip(*(b[1] for b in boxes), strict=True)))
-        self._aabb = (vec3(lo), vec3(hi))
+        self._aabb = self._loose = (vec3(lo), vec3(hi))
+        self._drift = 0.0
         return self._aabb
+
+    def bounds(self) -> tuple[Box, float] | None:
+        """(box, d): every collider lies within ``box`` grown by ``d`` m on each side, without
+        a query if the links moved since it was measured (each joint's travel times its lever:
+        a rigid point turned by a rad at r m from the axis moves at most a * r; plus
+        ``ROUNDING_M``); None when the arm has no such bound yet. The AABB of a collider is
+        that of its local box's corners, rigid points, so it moves no farther than they do."""
+        if self._aabb is not None:
+            return self._aabb, 0.0
+        if self._loose is None:
+            return None
+        return self._loose, self._drift + ROUNDING_M
 
     def _place_base(
         self, base_link: str, base_xyz: Sequence[float], base_yaw_deg: float, urdf: Path

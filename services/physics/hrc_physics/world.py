@@ -55,8 +55,9 @@ from hrc.validate import check_pose
 from hrc.wire import pb
 
 from hrc_physics import objects as ob
-from hrc_physics.closest import nearest
+from hrc_physics.closest import Box, nearest
 from hrc_physics.contacts import ContactKey, ContactTracker, Touch
+from hrc_physics.exchange import joint_reaches
 from hrc_physics.hands import Hand, create_hand, pose_hand
 from hrc_physics.objects import WorldObject
 from hrc_physics.robots import Chain, KinematicRobot
@@ -183,6 +184,7 @@ class World:
             )
         for r in self.robots.values():
             r.apply()  # zero pose until the first RobotState
+            r.bound_motion(joint_reaches(r))
         ids = list(self.robots)
         self.robot_pairs = [
             (ids[i], ids[j]) for i in range(len(ids)) for j in range(i + 1, len(ids))
@@ -533,11 +535,15 @@ class World:
         c = self.c
         out: dict[ContactKey, Touch] = {}
         hands = [h for h in self.hands.values() if h.active]
-        boxes = {rid: r.aabb() for rid, r in self.robots.items()}
         hand_boxes = {h.name: p.getAABB(h.body, -1, physicsClientId=c) for h in hands}
+        # An arm's AABB costs a query per link: an arm that cannot have come near since its
+        # last one was measured is skipped without it (the result is the same).
         for hand in hands:
+            hand_box = hand_boxes[hand.name]
             for rid, robot in self.robots.items():
-                if not _overlap(hand_boxes[hand.name], boxes[rid], 0.0):
+                if not _may_overlap((hand_box, 0.0), robot.bounds(), 0.0):
+                    continue
+                if not _overlap(hand_box, robot.aabb(), 0.0):
                     continue
                 hand_links = [(-1, hand_boxes[hand.name])]
                 deepest = nearest(c, hand.body, hand_links, robot.body, robot.link_boxes(), 0.0)
@@ -550,7 +556,9 @@ class World:
             # Each arm's volume is its link colliders inflated by its own margin: the two
             # volumes touch when the links are no farther apart than the sum of the margins.
             reach = a.near_margin + b.near_margin
-            if not _overlap(boxes[ra], boxes[rb], reach):
+            if not _may_overlap(a.bounds(), b.bounds(), reach):
+                continue
+            if not _overlap(a.aabb(), b.aabb(), reach):
                 continue
             near = nearest(c, a.body, a.link_boxes(), b.body, b.link_boxes(), reach)
             if near is not None and near[8] <= reach:
@@ -598,6 +606,14 @@ def _rests_on(client: int, body: int, support: int, gap: float = 0.002) -> bool:
         if (pt[7][2] < -0.9 or pt[7][2] > 0.9) and pt[5][2] >= pt[6][2] - 1e-6:
             return True
     return False
+
+
+def _may_overlap(a: tuple[Box, float] | None, b: tuple[Box, float] | None, margin: float) -> bool:
+    """Can two AABBs, each known as (box, d: grown by up to d m; KinematicRobot.bounds), come
+    within ``margin`` of each other? Always where a bound is unknown (None)."""
+    if a is None or b is None:
+        return True
+    return _overlap(a[0], b[0], margin + a[1] + b[1])
 
 
 def _overlap(a: tuple, b: tuple, margin: float) -> bool:
