@@ -20,7 +20,7 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from .conftest import HRC, ROOT, wait_until
+from .conftest import HRC, ROOT, _children, _cmdline, wait_until
 from .session_page import Session, page_link, screen, write_study
 
 pytestmark = pytest.mark.slow
@@ -30,6 +30,15 @@ participants = ["L01", "L02"]
 consent = "consent.md"
 instructions = "instructions.md"
 """
+
+
+def _gone(pid: int) -> bool:
+    """The process has ended (a zombie nobody reaped yet counts as ended)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
 
 
 @pytest.fixture
@@ -152,9 +161,10 @@ def test_a_bad_study_or_participant_is_named_and_nothing_runs(tmp_path: Path) ->
 def test_a_session_killed_mid_trial_goes_on_with_the_same_link_and_names_the_cut_attempt(
     sessions: list[Session], tmp_path: Path
 ) -> None:
-    """kill -9 of `hrc session` during a trial, then the same command: the participant's link
-    (its key) is the same, so the page that was open redials and gets the trial's screen again;
-    the attempt the kill cut short is recorded as failed, with why. The same command while the
+    """kill -9 of `hrc session` during a trial, then the same command: the trial the kill cut
+    short ends; the participant's link (its key) is the same, so the page that was open redials
+    and gets the trial's screen again; the attempt the kill cut short is recorded as failed,
+    with why. The same command while the
     session's port is taken says so, and leaves session.json as stopped, not running."""
     study = write_study(tmp_path / "study", LIVE, simulated=0)
     out = tmp_path / "out"
@@ -172,8 +182,13 @@ def test_a_session_killed_mid_trial_goes_on_with_the_same_link_and_names_the_cut
         screen(ws, "starting")  # the trial runs (nobody drives it)
         running = json.loads(path.read_text())
         assert running["trials"][0]["attempts"][0]["outcome"] == "", running["trials"][0]
+        trial = [p for p in _children(s.proc.pid) if " run " in _cmdline(p)]
+        assert len(trial) == 1, [_cmdline(p) for p in _children(s.proc.pid)]
         os.kill(s.proc.pid, signal.SIGKILL)
         assert s.wait(30) == -signal.SIGKILL
+    # The trial the kill cut short ends too (it waited for a page that redials the next session
+    # process, holding the trial port that one needs), its services with it.
+    assert wait_until(lambda: _gone(trial[0]), 60, 0.2), _cmdline(trial[0])
 
     with socket.socket() as busy:  # the same command, its port taken: refused, in words
         busy.bind(("127.0.0.1", 0))

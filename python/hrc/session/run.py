@@ -17,12 +17,14 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import functools
 import json
 import logging
 import os
 import queue
 import secrets
 import shutil
+import signal
 import subprocess
 import sys
 import threading
@@ -39,6 +41,7 @@ from hrc.study.live import LiveSpec
 from hrc.study.questionnaires import Questionnaire
 from hrc.study.spec import LiveTrial, Study
 from hrc.study.trial import RECORDING_FILE, judge, read_metrics, stop_process
+from hrc.trial.processes import die_with_parent
 
 log = logging.getLogger(__name__)
 
@@ -556,9 +559,13 @@ class Session:
         st.save(self.state, self.path)
         t0 = time.monotonic()
         with open(log_path, "w", encoding="utf-8") as logf:
+            # The trial ends (as on Ctrl-C: its records written) if the session process dies,
+            # even by kill -9: else it waited up to VR_WAIT_S for a page that redials the next
+            # session process, holding the trial port that one needs.
             proc = subprocess.Popen(
                 argv, stdout=logf, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
                 env=env, start_new_session=True,
+                preexec_fn=functools.partial(die_with_parent, signal.SIGTERM),
             )  # fmt: skip
             carry_niceness(proc.pid)
             threading.Thread(
