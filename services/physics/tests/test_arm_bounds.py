@@ -1,6 +1,7 @@
-"""The contact checks skip an arm that cannot have come near since its AABB was last measured
-(KinematicRobot.bounds): the bound holds for every arm the project ships, and the contacts found
-are those of a world that checks every arm at every tick."""
+"""The contact checks and the exchange-step planner skip an arm that cannot have come near since
+its AABB was last measured (KinematicRobot.bounds): the bound holds for the arms of the
+project's scenarios (the thesis arm, the UR5e, the Panda), and the contacts and spans are those
+of a world that measures every arm at every tick."""
 
 from __future__ import annotations
 
