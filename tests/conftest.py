@@ -62,6 +62,15 @@ def ik_bin() -> Path:
     return path
 
 
+def gone(pid: int) -> bool:
+    """The process has ended (a zombie, reaped by nobody yet, counts as ended)."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except OSError:
+        return True
+
+
 def _children(pid: int) -> list[int]:
     out: list[int] = []
     try:

@@ -25,21 +25,13 @@ import pytest
 from hrc.ports import free_port
 from hrc.service_table import OBSERVERS, PARTICIPANTS
 
-from .conftest import Trial, wait_until
+from .conftest import Trial, gone, wait_until
 
 FREEZE_S = 20.0  # how long a service stays stopped (the figure)
 RETURN_S = 15.0  # hrc run returns within this of the fault
 # ... of a failure before the first tick (it took 8-13 s; 1.5 s on a quiet machine now)
 START_FAILURE_S = 5.0
 SERVICES = ["physics", *PARTICIPANTS, *OBSERVERS]
-
-
-def _gone(pid: int) -> bool:
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
-    except FileNotFoundError:
-        return True
 
 
 def _records(out: Path) -> dict[str, str]:
@@ -74,8 +66,8 @@ def _fault(trial: Trial, victim: str, sig: signal.Signals) -> tuple[dict[str, in
     elapsed = time.monotonic() - t0
     print(f"{victim} {sig.name}: hrc run returned {elapsed:.1f} s after, code {code}")
     assert code != 0, err[-3000:]
-    assert wait_until(lambda: all(_gone(p) for p in pids.values()), 10, 0.1), (
-        f"processes left: {[n for n, p in pids.items() if not _gone(p)]}"
+    assert wait_until(lambda: all(gone(p) for p in pids.values()), 10, 0.1), (
+        f"processes left: {[n for n, p in pids.items() if not gone(p)]}"
     )
     return pids, elapsed, err
 
@@ -216,8 +208,8 @@ def test_a_frozen_service_is_named_and_hrc_run_returns_while_it_is_frozen(
     # loaded machine (13.5-16.8 s measured beside a full test run)
     limit = RETURN_S + 3.0 if victim == "physics" else RETURN_S
     assert elapsed < limit, f"hrc run took {elapsed:.1f} s"
-    assert wait_until(lambda: all(_gone(p) for p in pids.values()), 10, 0.1), (
-        f"processes left after the thaw: {[n for n, p in pids.items() if not _gone(p)]}"
+    assert wait_until(lambda: all(gone(p) for p in pids.values()), 10, 0.1), (
+        f"processes left after the thaw: {[n for n, p in pids.items() if not gone(p)]}"
     )
 
 

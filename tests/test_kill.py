@@ -17,7 +17,7 @@ import pytest
 
 from hrc.bus import access
 
-from .conftest import wait_until
+from .conftest import gone, wait_until
 
 
 @pytest.mark.parametrize("victim", ["physics", "orchestrator", "ik_cpp", "human_input", "logger"])
@@ -55,13 +55,6 @@ def test_killing_hrc_run_itself_ends_every_service_keeping_metrics_and_its_folde
     assert (folder / access.SOCKET).exists(), sorted(folder.iterdir())
     os.kill(trial.proc.pid, signal.SIGKILL)
     trial.proc.wait(timeout=10)
-
-    def gone(pid: int) -> bool:
-        try:
-            with open(f"/proc/{pid}/stat") as f:
-                return f.read().split(") ")[1].split()[0] == "Z"  # a zombie has left
-        except FileNotFoundError:
-            return True
 
     assert wait_until(lambda: all(gone(p) for p in pids.values()), 15, 0.1), pids
     metrics = json.loads((trial.out / "metrics.json").read_text())

@@ -13,7 +13,7 @@ import pytest
 
 from hrc.service_table import STOP_GRACE_S
 
-from .conftest import HRC, ROOT, wait_until
+from .conftest import HRC, ROOT, gone, wait_until
 
 # Once hrc run has ended (or died), its services are gone within this: each has STOP_GRACE_S
 # to write its files after the SIGTERM it gets, and a loaded machine adds seconds (3 s after a
@@ -22,19 +22,10 @@ from .conftest import HRC, ROOT, wait_until
 GONE_S = STOP_GRACE_S + 4
 
 
-def _alive(pid: int) -> bool:
-    """Running (a zombie, reaped by nobody yet, counts as gone)."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
-    except OSError:
-        return False
-
-
 def _assert_gone(pids: dict[str, int]) -> None:
     """Every service of the trial is gone within GONE_S; the ones left are named."""
-    assert wait_until(lambda: not any(_alive(p) for p in pids.values()), GONE_S), {
-        n: p for n, p in pids.items() if _alive(p)
+    assert wait_until(lambda: all(gone(p) for p in pids.values()), GONE_S), {
+        n: p for n, p in pids.items() if not gone(p)
     }
 
 

@@ -20,7 +20,7 @@ import pytest
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import connect
 
-from .conftest import HRC, ROOT, _children, _cmdline, wait_until
+from .conftest import HRC, ROOT, _children, _cmdline, gone, wait_until
 from .session_page import Session, page_link, screen, write_study
 
 pytestmark = pytest.mark.slow
@@ -30,15 +30,6 @@ participants = ["L01", "L02"]
 consent = "consent.md"
 instructions = "instructions.md"
 """
-
-
-def _gone(pid: int) -> bool:
-    """The process has ended (a zombie nobody reaped yet counts as ended)."""
-    try:
-        with open(f"/proc/{pid}/stat") as f:
-            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
-    except OSError:
-        return True
 
 
 @pytest.fixture
@@ -164,8 +155,8 @@ def test_a_session_killed_mid_trial_goes_on_with_the_same_link_and_names_the_cut
     """kill -9 of `hrc session` during a trial, then the same command: the trial the kill cut
     short ends; the participant's link (its key) is the same, so the page that was open redials
     and gets the trial's screen again; the attempt the kill cut short is recorded as failed,
-    with why. The same command while the
-    session's port is taken says so, and leaves session.json as stopped, not running."""
+    with why. The same command while the session's port is taken says so, and leaves
+    session.json as stopped, not running."""
     study = write_study(tmp_path / "study", LIVE, simulated=0)
     out = tmp_path / "out"
     path = out / "sessions" / "L01" / "session.json"
@@ -188,7 +179,7 @@ def test_a_session_killed_mid_trial_goes_on_with_the_same_link_and_names_the_cut
         assert s.wait(30) == -signal.SIGKILL
     # The trial the kill cut short ends too (it waited for a page that redials the next session
     # process, holding the trial port that one needs), its services with it.
-    assert wait_until(lambda: _gone(trial[0]), 60, 0.2), _cmdline(trial[0])
+    assert wait_until(lambda: gone(trial[0]), 60, 0.2), _cmdline(trial[0])
 
     with socket.socket() as busy:  # the same command, its port taken: refused, in words
         busy.bind(("127.0.0.1", 0))

@@ -545,7 +545,7 @@ class World:
                     continue
                 if not _overlap(hand_box, robot.aabb(), 0.0):
                     continue
-                hand_links = [(-1, hand_boxes[hand.name])]
+                hand_links = [(-1, hand_box)]
                 deepest = nearest(c, hand.body, hand_links, robot.body, robot.link_boxes(), 0.0)
                 if deepest is not None and deepest[8] <= 0.0:
                     out[ContactKey(HAND_ROBOT, hand.name, rid)] = Touch(
