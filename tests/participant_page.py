@@ -414,6 +414,33 @@ def under_a_label(px: tuple[float, float], labels: list[dict[str, Any]]) -> bool
     return any(overlap(win, lab) for lab in labels)
 
 
+def names_over_targets(page: Page) -> list[str]:
+    """The participant's target names (hrcTest.labels()) that lie over their own target: its
+    cue's footprint (1.3 x the part, where a robot's cue on it lies too), its middle, corners
+    and edges' middles as the page draws them. A name is drawn over everything."""
+    names = [lab for lab in page.page.evaluate("window.hrcTest.labels()") if "target" in lab]
+    parts = {p["id"]: p for p in page.scene()["parts"]}
+    points = []  # (label, world xy)
+    for lab in names:
+        part = parts[lab["target"]]
+        (x, y, _), yaw = part["target"]["xyz"], math.radians(part["target"].get("yaw_deg", 0))
+        hx, hy = 0.65 * part["size"][0], 0.65 * part["size"][1]
+        c, s = math.cos(yaw), math.sin(yaw)
+        for a, b in ((a, b) for a in (-1, 0, 1) for b in (-1, 0, 1)):
+            dx, dy = a * hx, b * hy
+            points.append((lab, [x + dx * c - dy * s, y + dx * s + dy * c]))
+    # in one page call: a call a point costs seconds on a headset's page busy rendering
+    pixels = page.page.evaluate(
+        "(ps) => ps.map((p) => { const q = window.hrcTest.project(p); return [q.x, q.y]; })",
+        [[*xy, 0.003] for _, xy in points],
+    )
+    return [
+        f"{lab['target']}'s name over its target at {xy} (px {px})"
+        for (lab, xy), px in zip(points, pixels, strict=True)
+        if lab["x0"] < px[0] < lab["x1"] and lab["y0"] < px[1] < lab["y1"]
+    ]
+
+
 def overlap(a: dict[str, Any], b: dict[str, Any]) -> bool:
     """Two rectangles {x0, y0, x1, y1} (page pixels) overlap."""
     return a["x0"] < b["x1"] and b["x0"] < a["x1"] and a["y0"] < b["y1"] and b["y0"] < a["y1"]

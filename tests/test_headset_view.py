@@ -38,6 +38,7 @@ from .participant_page import (
     freeze_at_ra1_carry,
     grab_part,
     live,  # noqa: F401  (a fixture)
+    names_over_targets,
     overlap,
     what_is_seen,
 )
@@ -195,6 +196,7 @@ def test_every_view_shows_the_whole_scene(
         seen = what_is_seen(page, view, others=others, hold_scene=page is headset)
         assert "cue:target:RA1" in seen, f"{view}: r1's target cue is not lit: {sorted(seen)}"
         assert_whole_scene(seen, view, ROBOTS)
+        assert not names_over_targets(page), view
         check_draw_calls(page, view)
     check_headset_comfort(headset, "headset-spectator-standing")
 
@@ -202,6 +204,8 @@ def test_every_view_shows_the_whole_scene(
     assert carrying_ra1_lit(headset.state()), "the headset's picture moved on"
     seen = what_is_seen(headset, "headset-spectator-sitting", others=(desk, watcher))
     assert_whole_scene(seen, "headset-spectator-sitting", ROBOTS)
+    # (a name drawn over its target once hid r2's cue on H1's screw hole from a seated eye)
+    assert not names_over_targets(headset), "headset-spectator-sitting"
     check_headset_comfort(headset, "headset-spectator-sitting")
 
     # the participant puts the headset on: the same link, now in immersive mode

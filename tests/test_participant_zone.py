@@ -36,6 +36,7 @@ from .participant_page import (
     grab_part,
     live,
     metrics,
+    names_over_targets,
     overlap,
     place_part,
     rendered_frames,
@@ -238,9 +239,13 @@ def test_the_thesis_scene_on_the_desktop_has_readable_part_labels(
     rendered_frames(page)  # (labels show or hide with the frames drawn after the state came)
     labels = page.page.evaluate("window.hrcTest.labels()")
     page.screenshot("thesis-desktop.png")
-    shown = {lab.get("part") for lab in labels}
+    shown = {lab["part"] for lab in labels if "part" in lab}
     # the participant's next part is labelled; the others lie on tables, unlabelled (yet)
     assert shown == {"H1"}, labels
+    # each of the participant's targets is named (none placed yet), clear of its outline
+    named = {lab["target"] for lab in labels if "target" in lab}
+    assert named == {"H1", "H2", "H3", "H4", "H5", "H6"}, labels
+    assert not names_over_targets(page)
     clashes = [
         (a["text"], b["text"])
         for i, a in enumerate(labels)
@@ -282,5 +287,5 @@ def test_the_thesis_scene_on_the_desktop_has_readable_part_labels(
     page.page.evaluate("window.hrcTest.freeze(true)")
     labels = page.page.evaluate("window.hrcTest.labels()")
     page.screenshot("thesis-desktop-carry.png")
-    assert {"H1", "RA1"} <= {lab["part"] for lab in labels}, labels
+    assert {"H1", "RA1"} <= {lab.get("part") for lab in labels}, labels
     assert not page.errors, page.errors

@@ -262,7 +262,12 @@ export class World {
     if (p.owner === 'human' && p.target) {
       // the part's name at its target (the outline is one of the markings)
       const name = labelSprite([p.id], 0.03, { px: 40, bg: 'rgba(30,30,30,0.75)', fg: '#f4f4f4' });
-      name.position.set(p.target.xyz[0], p.target.xyz[1] - p.size[1] / 2 - 0.02, 0.01);
+      // hung from just before the near edge of the target's cue (1.3 x the part), on the
+      // board, downwards on screen: a name drawn over everything must not cover its target nor
+      // a robot's cue on it (a screw hole), whatever the eye's height (a centred name, or one
+      // hung from above the board, covered the hole from a seated eye)
+      name.center.set(0.5, 1);
+      name.position.set(p.target.xyz[0], p.target.xyz[1] - 0.65 * p.size[1] - 0.006, 0.003);
       name.renderOrder = 9;
       name.name = `target-name:${p.id}`;
       this.group.add(name);

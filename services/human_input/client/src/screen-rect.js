@@ -9,8 +9,10 @@ export function spriteCorners(camera, sprite) {
   const up = new THREE.Vector3().setFromMatrixColumn(camera.matrixWorld, 1);
   const c = sprite.getWorldPosition(new THREE.Vector3());
   const s = sprite.getWorldScale(new THREE.Vector3());
-  return [[-1, -1], [1, -1], [1, 1], [-1, 1]].map(([a, b]) =>
-    c.clone().addScaledVector(right, (a * s.x) / 2).addScaledVector(up, (b * s.y) / 2));
+  // the sprite's anchor (`center`, 0..1 of its size) sits at its position
+  const { x: ax, y: ay } = sprite.center;
+  return [[0, 0], [1, 0], [1, 1], [0, 1]].map(([a, b]) =>
+    c.clone().addScaledVector(right, (a - ax) * s.x).addScaledVector(up, (b - ay) * s.y));
 }
 
 /** The world corners of a unit plane (PlaneGeometry(1, 1): the headset's panel). */

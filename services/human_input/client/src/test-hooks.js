@@ -287,9 +287,10 @@ export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
     freeze: (on) => {
       window.hrcApp.frozen = on === 'scene' ? 'scene' : !!on;
     },
-    /** The labels on screen (CSS pixels): the parts' [{part, text, x0, y0, x1, y1}] and the
-     * robots' lit "Waiting.." labels [{cue, text, x0, y0, x1, y1}] (in a headset as its first
-     * eye sees them, like the pictures). */
+    /** The labels on screen (CSS pixels): the parts' [{part, text, x0, y0, x1, y1}], the
+     * names at the participant's targets not yet placed [{target, text, ..}] and the robots'
+     * lit "Waiting.." labels [{cue, text, ..}] (in a headset as its first eye sees them, like
+     * the pictures). */
     labels: () => {
       const app = window.hrcApp;
       const rect = (l) => {
@@ -301,6 +302,9 @@ export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
       const out = [];
       for (const [id, p] of app.world.parts) {
         if (p.label.visible) out.push({ part: id, text: p.spec.kind || id, ...rect(p.label) });
+      }
+      for (const [id, name] of app.world.targetNames) {
+        if (name.visible) out.push({ target: id, text: id, ...rect(name) });
       }
       for (const [id, c] of app.world.cues) {
         if (c.spec.kind === 'waiting' && c.obj.visible) {
