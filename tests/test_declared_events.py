@@ -12,6 +12,7 @@ def _spans(events: DeclaredEvents, ticks: int, longest: int) -> list[tuple[int, 
     out, k = [], 0
     while k < ticks:
         n = events.limit(k, longest)
+        events.planned(k, n)
         out.append((k, n))
         k += n
     return out
@@ -43,12 +44,42 @@ def test_nothing_declared_gives_the_longest_exchanges_and_zero_is_no_event() -> 
 
 def test_past_events_are_forgotten() -> None:
     events = DeclaredEvents()
-    for e in (5, 6, 30):
-        events.add(e)
+    for e, who in ((5, "ik_cpp"), (6, "orchestrator"), (30, "human_input")):
+        events.add(e, who)
+    events.planned(0, 7)  # over 5 and 6: reached
+    assert events.limit(7, 8) == 1 and events.limit(8, 8) == 1  # 6's chain
     assert events.limit(20, 8) == 8
     assert events.limit(28, 8) == 3  # ends at 30
+    events.planned(28, 3)
     assert events.limit(200, 8) == 8
     assert events.limit(28, 8) == 8  # all forgotten: the clock only goes forward
+
+
+def test_a_participants_next_ack_replaces_its_declaration() -> None:
+    """An arm slowed by a speed scale declares its motion's end later at each ack: only the
+    latest counts, so the earlier ones end no exchange and start no reaction chain."""
+    events = DeclaredEvents()
+    events.planned(0, 1)
+    k = 3  # (after tick 0's chain)
+    for _ in range(20):  # the end stays 10 ticks ahead of every ack
+        events.add(k + 10, "ik_cpp")
+        n = events.limit(k, 8)
+        assert n == 8, k
+        events.planned(k, n)
+        k += n
+    # another participant's declaration stands beside it; a 0 clears only the sender's own
+    events.add(k + 4, "orchestrator")
+    events.add(0, "ik_cpp")
+    assert events.limit(k, 8) == 5
+    events.add(0, "orchestrator")
+    assert events.limit(k, 8) == 8
+    # one reached: its chain follows, whatever comes after
+    events.add(k + 2, "ik_cpp")
+    assert events.limit(k, 8) == 3
+    events.planned(k, 3)
+    events.add(k + 40, "ik_cpp")
+    assert [events.limit(t, 8) for t in (k + 3, k + 4)] == [1, 1]
+    assert events.limit(k + 5, 8) == 8
 
 
 def test_declared_looks_start_exchanges_on_their_grid_without_a_reaction_chain() -> None:

@@ -6,6 +6,7 @@ finishes, with protective stops and resumes in its events."""
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -92,11 +93,15 @@ def events(trial_dir: Path) -> list[dict[str, Any]]:
     return [json.loads(line) for line in (trial_dir / "events.jsonl").read_text().splitlines()]
 
 
-def approach_trial(folder: Path) -> Path:
+def approach_trial(folder: Path, max_exchange_ticks: int | None = None) -> Path:
     """Runs the approach scenario with the 1 m/s replay in `folder`; the trial folder."""
     folder.mkdir(parents=True, exist_ok=True)
     scenario = folder / "ssm-approach.toml"
-    scenario.write_text(SCENARIO)
+    text = SCENARIO
+    if max_exchange_ticks is not None:
+        text = text.replace("seed = 1\n", f"seed = 1\nmax_exchange_ticks = {max_exchange_ticks}\n")
+        assert "max_exchange_ticks" in text
+    scenario.write_text(text)
     (folder / "robots").symlink_to(ROOT / "robots")
     write_replay(folder / "approach.jsonl")
     out = folder / "trial"
@@ -168,11 +173,32 @@ def test_thesis_with_ssm_and_provoked_collisions_finishes(tmp_path: Path) -> Non
     assert "PROTECTIVE STOP 1" in log_txt and "resumes after protective stop 1" in log_txt
 
 
-def test_ssm_trials_are_deterministic(tmp_path: Path) -> None:
+def exchanges(trial_dir: Path) -> tuple[int, int]:
+    """(ticks, exchanges) of a trial, as physics logs them at its end."""
+    log = (trial_dir / "services" / "physics.log").read_text()
+    found = re.search(r"(\d+) ticks in (\d+) exchanges", log)
+    assert found, "physics logs its exchanges at the end"
+    return int(found[1]), int(found[2])
+
+
+def test_ssm_trials_are_deterministic_and_decide_as_with_one_tick_exchanges(
+    tmp_path: Path,
+) -> None:
+    """Twice the same events and metrics; and those of one-tick exchanges (docs/safety-ssm.md,
+    step 2: the monitor decides at its scans, which start exchanges, and what it decides
+    reaches the arm at the next scan). A monitor deciding at every tick from the separation of
+    the exchange's first tick stopped r1 a tick early here."""
     wall = {"wall_time", "wall_s", "realtime_factor"}
     runs = []
-    for name in ("a", "b"):
-        out = approach_trial(tmp_path / name)
+    for name, span in (("a", None), ("b", None), ("one-tick", 1)):
+        out = approach_trial(tmp_path / name, span)
         metrics = json.loads((out / "metrics.json").read_text())
         runs.append(strip_fields([events(out), metrics], wall))
+        ticks, n = exchanges(out)
+        assert n == ticks if span == 1 else n < ticks / 2, (name, ticks, n)
     assert runs[0] == runs[1]
+    got, want = runs[0][0], runs[2][0]
+    for i, (a, b) in enumerate(zip(got, want, strict=False)):
+        assert a == b, f"event {i + 1}: {json.dumps(a)} != {json.dumps(b)} (one-tick exchanges)"
+    assert len(got) == len(want)
+    assert runs[0][1] == runs[2][1], "the metrics differ from those of one-tick exchanges"

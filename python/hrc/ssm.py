@@ -23,6 +23,20 @@ from hrc.scenario import Ssm
 from hrc.wire import pb
 
 
+def scan_ticks(p: Ssm, dt: float) -> int:
+    """The separation sensor's scan period in ticks (at least one): the monitor decides at the
+    ticks that are multiples of it (docs/safety-ssm.md)."""
+    return max(1, round(p.scan_period_s / dt))
+
+
+def loop_ticks(scan: int) -> int:
+    """Ticks from a separation measured at a scan to the arm moving at the speed chosen from
+    it: what the monitor decides at a scan reaches the IK service at the next scan (``scan``
+    ticks later, whatever the exchanges), which computes the tick after it, which physics
+    then applies. With a scan at every tick, 3 (physics -> orchestrator -> IK -> physics)."""
+    return scan + 2
+
+
 def protective_distance(p: Ssm, robot_speed: float) -> float:
     """S_p (m) for a robot moving at `robot_speed` (m/s) towards a person approaching at
     p.human_speed."""

@@ -115,19 +115,32 @@ REACTION_TICKS = 3
 
 class DeclaredEvents:
     """The events the participants declared with their acks, and the longest exchange they
-    allow from a tick on."""
+    allow from a tick on.
+
+    A participant's declaration is its earliest coming event as it knows it at its ack, so its
+    next ack replaces it (an arm slowed by a speed scale declares its motion's end later at each
+    ack: kept, every such declaration would end an exchange and start a reaction chain for
+    nothing). An event is reached when an exchange is planned over it (:meth:`planned`); its
+    reaction chain then follows."""
 
     def __init__(self, reaction_ticks: int = REACTION_TICKS) -> None:
         self.reaction_ticks = reaction_ticks
-        # Tick 0 is everyone's first change: the first states, commands and cues.
-        self._ticks: set[int] = {0}
+        # participant -> the tick of its next event, as its latest ack declared; tick 0 is
+        # everyone's first change: the first states, commands and cues
+        self._next: dict[str, int] = {"(start)": 0}
+        # events an exchange was planned over, until their reaction chains are past
+        self._reached: set[int] = set()
         # participant -> (first tick, period): ticks that start an exchange (no chain), as its
         # latest ack declared (TickAck.next_sample_tick, sample_period_ticks)
         self._samples: dict[str, tuple[int, int]] = {}
 
-    def add(self, tick: int) -> None:
+    def add(self, tick: int, participant: str = "") -> None:
+        """``participant``'s next event is at ``tick`` (0: none). Replaces what it declared
+        before."""
         if tick > 0:
-            self._ticks.add(tick)
+            self._next[participant] = tick
+        else:
+            self._next.pop(participant, None)
 
     def set_samples(self, participant: str, tick: int, period: int = 0) -> None:
         """``participant`` reads its inputs at ``tick`` and every ``period`` ticks after it
@@ -141,13 +154,14 @@ class DeclaredEvents:
         """At most ``n`` ticks from ``k``, ending the exchange at each declared event e and
         starting one at each tick e + 1 .. e + reaction_ticks, and at each declared sample."""
         d = self.reaction_ticks
-        for e in list(self._ticks):
+        for e in list(self._reached):
             if e + d <= k:
-                self._ticks.discard(e)  # its reactions are past
-            elif k <= e:
-                n = min(n, e - k + 1)
-            else:  # e < k < e + d: a tick of the reaction chain
+                self._reached.discard(e)  # its reactions are past
+            elif e < k:  # e < k < e + d: a tick of the reaction chain
                 n = 1
+        for e in self._next.values():
+            if k <= e:
+                n = min(n, e - k + 1)
         for name, (s, period) in list(self._samples.items()):
             if s <= k:
                 if not period:
@@ -156,6 +170,14 @@ class DeclaredEvents:
                 s += -(-(k + 1 - s) // period) * period  # the first of the grid after k
             n = min(n, s - k)
         return max(1, n)
+
+    def planned(self, k: int, n: int) -> None:
+        """The exchange k .. k + n - 1 runs: the events declared in it are reached."""
+        for name, e in list(self._next.items()):
+            if e < k + n:  # (one before k was never planned over: declared too late, dropped)
+                if k <= e:
+                    self._reached.add(e)
+                del self._next[name]
 
 
 class RunFailed(Exception):
@@ -257,7 +279,7 @@ class ClockMaster:
                 self._acked[name] = ack.header.tick
                 self.compute_us[name] = ack.compute_us
                 self._compute_total[name] += ack.compute_us
-                self.events.add(ack.next_event_tick)
+                self.events.add(ack.next_event_tick, name)
                 self.events.set_samples(name, ack.next_sample_tick, ack.sample_period_ticks)
             for m in ack.published:
                 mk = (m.key, m.sender)
@@ -484,7 +506,9 @@ class ClockMaster:
         if self.settings.ticks:
             cap = min(cap, self.settings.ticks - k)
         cap = self.events.limit(k, cap)
-        return max(1, min(cap, int(self._span_of(k, cap))))
+        n = max(1, min(cap, int(self._span_of(k, cap))))
+        self.events.planned(k, n)
+        return n
 
     def _publish_tick(self, k: int) -> None:
         """World state of k, then clock tick k (the participants' cue to compute the ticks of

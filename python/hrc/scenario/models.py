@@ -208,6 +208,8 @@ class Ssm(_Strict):
     min_speed: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.01
     resume_margin_m: Annotated[float, Field(ge=0.0, le=0.5, allow_inf_nan=False)] = 0.05
     sensing_range_m: Annotated[float, Field(gt=0.0, le=10.0, allow_inf_nan=False)] = 2.0
+    # a safety laser scanner's scan cycle (30-40 ms); at least one tick (hrc.ssm.scan_ticks)
+    scan_period_s: Annotated[float, Field(gt=0.0, le=1.0, allow_inf_nan=False)] = 0.03
 
     def merged(self, override: Ssm | None) -> Ssm:
         """These values with the keys `override`'s table sets (a robot's own [ssm] table)."""

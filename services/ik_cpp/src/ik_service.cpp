@@ -195,9 +195,9 @@ std::string IkEngine::apply(const std::string& robot, const v2::RobotCommand& c)
     if (!(c.speed_scale() >= 0.0 && c.speed_scale() <= 1.0))  // also false for NaN
       return "speed_scale " + fmt(c.speed_scale()) + " is outside [0, 1]";
     arm.motion->set_speed_scale(c.speed_scale());
-    // The lookahead assumed scale 1: it holds again only from the next move at scale 1.
-    if (arm.motion->requested_speed_scale() < 1.0 || arm.motion->speed_scale() < 1.0)
-      arm.speed_known = false;
+    // The lookahead again, from here, at the new scale (and the ramp to it): it holds until
+    // the next command, which physics counts with the full bound for the exchange it comes in.
+    plan_speed_bound(arm);
     return {};
   }
   const double nums[] = {c.target().x(),      c.target().y(),    c.target().z(), c.yaw_deg(),
@@ -255,8 +255,7 @@ void IkEngine::plan_speed_bound(Arm& arm) const {
       arm.speed_table.row(i) = steps.middleRows(i, std::min(w, n - i)).colwise().maxCoeff();
   }
   arm.steps_taken = 0;
-  arm.speed_known =
-      complete && arm.motion->speed_scale() == 1.0 && arm.motion->requested_speed_scale() == 1.0;
+  arm.speed_known = complete;
 }
 
 void IkEngine::step() {

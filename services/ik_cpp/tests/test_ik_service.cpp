@@ -580,14 +580,45 @@ TEST_F(Engine, StatesDeclareJointSpeedBoundsThatTheArmKeeps) {
   EXPECT_EQ(st.link_linear_speed_bounds_size(), 0);
   EXPECT_EQ(st.link_angular_speed_bounds_size(), 0);
   engine_.set_declare_speeds(true);
-  // Under a speed scale < 1 the lookahead does not hold: nothing is declared.
-  ASSERT_EQ(engine_.apply("r1", move(0.30, 0.25, 0.25, 4)), "");
-  RobotCommand scale;
-  scale.set_kind(RobotCommand::KIND_SPEED_SCALE);
-  scale.set_speed_scale(0.5);
-  ASSERT_EQ(engine_.apply("r1", scale), "");
-  engine_.step();
+}
+
+TEST_F(Engine, UnderASpeedScaleTheArmKeepsWhatItDeclaresUntilTheNextCommand) {
+  // SSM's scale commands: 0.5, 0 (a protective stop), 1 again. After each, the states declare
+  // again (from the ramp to the new scale on) and the arm keeps every declaration until the
+  // next command (physics counts the exchange a command comes in with the full bound).
+  const hrc::kin::RobotModel& m = engine_.model(0);
+  ASSERT_EQ(engine_.apply("r1", move(0.30, 0.10, 0.25, 4)), "");
+  const std::pair<int, double> commands[] = {{40, 0.5}, {160, 0.0}, {400, 1.0}};
+  std::vector<Eigen::VectorXd> declared;
+  RobotState st;
+  double slow_peak = 0.0, stopped_peak = 1.0;
+  int k = 0;
+  for (; k < 4000; ++k) {
+    for (const auto& [at, value] : commands) {
+      if (k != at) continue;
+      RobotCommand scale;
+      scale.set_kind(RobotCommand::KIND_SPEED_SCALE);
+      scale.set_speed_scale(value);
+      ASSERT_EQ(engine_.apply("r1", scale), "");
+      declared.clear();  // what came before the command no longer binds
+    }
+    engine_.fill_state(0, st);
+    ASSERT_EQ(st.joint_speed_fraction_bounds_size(), m.dof()) << "tick " << k;
+    declared.emplace_back(Eigen::Map<const Eigen::VectorXd>(st.joint_speed_fraction_bounds().data(),
+                                                            st.joint_speed_fraction_bounds_size()));
+    const Eigen::VectorXd q0 = engine_.state(0).q;
+    engine_.step();
+    const Eigen::ArrayXd f =
+        (engine_.state(0).q - q0).array().abs() / (m.max_velocity().array() * kDt);
+    if (k > 100 && k < 160) slow_peak = std::max(slow_peak, f.maxCoeff());
+    if (k == 399) stopped_peak = f.maxCoeff();
+    for (const Eigen::VectorXd& d : declared)
+      for (int j = 0; j < m.dof(); ++j) ASSERT_LE(f[j], d[j]) << "tick " << k << " joint " << j;
+    if (engine_.state(0).status != hrc::kin::MotionStatus::Moving) break;
+  }
+  EXPECT_GT(k, 400);             // it ended after the stop
+  EXPECT_GT(slow_peak, 0.0);     // it moved at half speed ...
+  EXPECT_EQ(stopped_peak, 0.0);  // ... and stood still at 0
   engine_.fill_state(0, st);
-  EXPECT_EQ(st.joint_speed_fraction_bounds_size(), 0);
-  EXPECT_EQ(st.link_linear_speed_bounds_size(), 0);
+  for (const double f : st.joint_speed_fraction_bounds()) EXPECT_EQ(f, 0.0);  // at rest
 }

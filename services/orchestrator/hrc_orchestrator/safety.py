@@ -274,11 +274,12 @@ class Safety:
             if mon is not None:
                 mon.observe(sep.distance_m, sep.body)
 
-    def update_ssm(self, t: float, dt: float, running: bool) -> None:
-        """Each robot's scale, protective stops and resumes for this tick's separations."""
+    def update_ssm(self, t: float, dt: float, running: bool, tick: int) -> None:
+        """Each robot's scale, protective stops and resumes: at its scans, for the separation
+        then; between them, a stop for a touch."""
         for rid, mon in self.ssm.items():
             st = self.agents[rid].state
-            change = mon.update(t, dt, running, st.tcp_speed if st is not None else 0.0)
+            change = mon.update(t, dt, running, st.tcp_speed if st is not None else 0.0, tick)
             if change is not None:
                 self._protective(t, rid, change)
 

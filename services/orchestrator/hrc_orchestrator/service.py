@@ -177,6 +177,9 @@ class OrchestratorService(Service):
     def next_event_tick(self) -> int:
         return self.task.next_event_tick()
 
+    def next_sample_tick(self) -> tuple[int, int]:
+        return self.task.next_scan_tick()
+
     def _publish(self, out: Outputs, k: int, t: float) -> None:
         # Events first: what happened this tick, then what is done about it.
         for event in out.events:

@@ -1,6 +1,7 @@
-"""The ssm safety policy's per-robot monitor (docs/safety-ssm.md): each tick's separation ->
-the robot's speed scale for the IK service, protective stops and resumes (with hysteresis), and
-the ssm metrics. The formula itself is `hrc.ssm`.
+"""The ssm safety policy's per-robot monitor (docs/safety-ssm.md): at each scan of the
+separation sensor, the separation -> the robot's speed scale for the IK service, protective stops
+and resumes (with hysteresis); a touch stops it at once; the ssm metrics. The formula itself is
+`hrc.ssm`.
 """
 
 from __future__ import annotations
@@ -10,14 +11,9 @@ import math
 from dataclasses import dataclass
 
 from hrc.scenario import Ssm
-from hrc.ssm import allowed_speed, protective_distance, resume_distance, stop_distance
+from hrc.ssm import allowed_speed, loop_ticks, protective_distance, resume_distance, stop_distance
 
 SCALE_STEP = 0.02  # the scale sent to the IK service is rounded down to this step
-# Ticks between a separation measured by physics and the arm moving at the speed chosen from it
-# (physics -> orchestrator -> IK service -> physics): the separation the speed is chosen for is
-# what is left after both sides close in for that long, so that the arm's actual speed keeps
-# S >= S_p(actual speed) (the check below) despite the loop.
-LOOP_TICKS = 3
 
 
 class SsmState(enum.StrEnum):
@@ -41,9 +37,17 @@ class Change:
 class SsmMonitor:
     """One robot: its separation, state, scale and figures."""
 
-    def __init__(self, params: Ssm, max_speed: float) -> None:
+    def __init__(self, params: Ssm, max_speed: float, scan: int = 1) -> None:
         self.p = params
         self.max_speed = max_speed
+        self.scan = scan  # ticks between two scans (hrc.ssm.scan_ticks)
+        # Ticks between a separation measured at a scan and the arm moving at the speed chosen
+        # from it (hrc.ssm.loop_ticks): the separation the speed is chosen for is what is left
+        # after both sides close in for that long, so that the arm's actual speed keeps
+        # S >= S_p(actual speed) (the check below) despite the loop.
+        self.loop_ticks = loop_ticks(scan)
+        # a stop for a touch, decided off a scan: sent at once (not at the scan's sending tick)
+        self.urgent = False
         self.state = SsmState.NORMAL
         self.separation = params.sensing_range_m
         self.body = ""
@@ -58,20 +62,27 @@ class SsmMonitor:
     def observe(self, separation: float, body: str) -> None:
         self.separation, self.body = separation, body
 
-    def update(self, t: float, dt: float, running: bool, speed: float = 0.0) -> Change | None:
-        """One tick: the state and scale for the latest separation; the stop or resume if
-        one happens. Time at reduced speed and in stops counts from the previous tick.
-        ``speed``: the arm's actual TCP speed (m/s, its latest state): as ISO/TS 15066 asks, the
-        separation must also be at least S_p at that speed (the scale caps the speed to come,
-        the arm may still be slowing down), else a protective stop."""
+    def update(
+        self, t: float, dt: float, running: bool, speed: float = 0.0, tick: int = 0
+    ) -> Change | None:
+        """One tick: at a scan (``tick`` a multiple of ``scan``), the state and scale for the
+        latest separation, the stop or resume if one happens; between scans only a touch
+        stops the robot (at once). Time at reduced speed and in stops counts from the previous
+        tick. ``speed``: the arm's actual TCP speed (m/s, its latest state): as ISO/TS 15066
+        asks, the separation must also be at least S_p at that speed (the scale caps the speed
+        to come, the arm may still be slowing down), else a protective stop."""
         if running:
             if self.state == SsmState.REDUCED:
                 self.reduced_s += dt
             elif self.state == SsmState.STOPPED:
                 self.stop_s += dt
-            if self.min_separation is None or self.separation < self.min_separation:
-                self.min_separation = self.separation
-        latency_s = LOOP_TICKS * dt
+        if tick % self.scan:
+            if self.touched and running and self.state != SsmState.STOPPED:
+                return self._stop(t, dt, speed, too_fast=False)
+            return None
+        if running and (self.min_separation is None or self.separation < self.min_separation):
+            self.min_separation = self.separation  # (as the sensor saw it, at its scans)
+        latency_s = self.loop_ticks * dt
         allowed = allowed_speed(self.p, self.separation - (self.p.human_speed + speed) * latency_s)
         change: Change | None = None
         if self.state == SsmState.STOPPED:
@@ -91,15 +102,7 @@ class SsmMonitor:
             if self.touched or too_fast or allowed < max(self.p.min_speed, 1e-9):
                 if not running:
                     return None  # before the start the robots stand still anyway
-                self.state, self.scale = SsmState.STOPPED, 0.0
-                self.stops += 1
-                self.stop_since = t
-                s_p = (
-                    protective_distance(self.p, speed)
-                    if too_fast
-                    else stop_distance(self.p) + (self.p.human_speed + speed) * latency_s
-                )
-                return Change(True, self.stops, self.separation, s_p, body=self.body)
+                return self._stop(t, dt, speed, too_fast)
         raw = min(1.0, allowed / self.max_speed)
         # Rounded down to a step (fewer speed messages), except below the first step: an
         # allowed speed of at least min_speed must never round to a standstill that no
@@ -112,3 +115,15 @@ class SsmMonitor:
             self.scale = math.floor(raw / SCALE_STEP) * SCALE_STEP
         self.state = SsmState.NORMAL if self.scale >= 1.0 else SsmState.REDUCED
         return change
+
+    def _stop(self, t: float, dt: float, speed: float, too_fast: bool) -> Change:
+        self.state, self.scale = SsmState.STOPPED, 0.0
+        self.urgent = self.touched  # a touch is acted on at once, scan or not
+        self.stops += 1
+        self.stop_since = t
+        s_p = (
+            protective_distance(self.p, speed)
+            if too_fast
+            else stop_distance(self.p) + (self.p.human_speed + speed) * self.loop_ticks * dt
+        )
+        return Change(True, self.stops, self.separation, s_p, body=self.body)

@@ -26,6 +26,7 @@ from hrc.scenario.conventions import (
     target_cue_id,
     waiting_cue_id,
 )
+from hrc.ssm import scan_ticks
 from hrc.wire import pb
 
 from hrc_orchestrator import events as ev
@@ -66,7 +67,11 @@ class Task:
             for rid, robot in scenario.robots.items()
         }
         monitors = {
-            rid: SsmMonitor(scenario.ssm_of(rid), robot.max_tcp_speed)
+            rid: SsmMonitor(
+                scenario.ssm_of(rid),
+                robot.max_tcp_speed,
+                scan_ticks(scenario.ssm_of(rid), 1.0 / scenario.scenario.tick_hz),
+            )
             for rid, robot in scenario.robots.items()
         }
         self.safety = Safety(scenario.conditions.safety_policy, self.agents, self.board, monitors)
@@ -135,7 +140,7 @@ class Task:
             self.safety.observe_separations(seps)
         t = self.now()
         self.human.update_idle(t, self.running)
-        self.safety.update_ssm(t, self.dt, self.running)
+        self.safety.update_ssm(t, self.dt, self.running, tick)
         if self.running:
             self.safety.update(t)
             for rid, agent in self.agents.items():
@@ -184,6 +189,16 @@ class Task:
         if not wd.announced:
             wd.announced = what
             out.events.append(ev.participant_wait(self.now(), what, quiet))
+
+    def next_scan_tick(self) -> tuple[int, int]:
+        """ssm: the first tick after the last one stepped at which a robot's monitor scans the
+        separation, and the scan period if every robot's is the same (else 0: declared again
+        at the next ack); (0, 0) under the other policies (TickAck.next_sample_tick)."""
+        periods = {mon.scan for mon in self.safety.ssm.values()}
+        if not periods or periods == {1}:
+            return 0, 0  # (a scan at every tick: every exchange starts at one anyway)
+        first = min((self.tick // p + 1) * p for p in periods)
+        return first, periods.pop() if len(periods) == 1 else 0
 
     def next_event_tick(self) -> int:
         """The first tick after the last one stepped at which a timer of the task runs out
@@ -281,7 +296,11 @@ class Task:
             cmds.append(cmd)
         if self.running:
             for rid, mon in self.safety.ssm.items():
-                if mon.scale != self._sent_scale[rid]:
+                # what a scan decided goes out on the tick before the next scan, so that it
+                # reaches the IK service at that scan whatever the exchanges (docs/safety-ssm.md)
+                due = mon.urgent or (self.tick + 1) % mon.scan == 0
+                if due and mon.scale != self._sent_scale[rid]:
+                    mon.urgent = False
                     self._sent_scale[rid] = mon.scale
                     cmds.append(
                         pb.RobotCommand(

@@ -5,11 +5,18 @@ from __future__ import annotations
 import pytest
 
 from hrc.scenario import Ssm
-from hrc.ssm import allowed_speed, protective_distance, resume_distance, stop_distance
+from hrc.ssm import (
+    allowed_speed,
+    loop_ticks,
+    protective_distance,
+    resume_distance,
+    stop_distance,
+)
 
-from hrc_orchestrator.ssm import LOOP_TICKS, SCALE_STEP, SsmMonitor, SsmState
+from hrc_orchestrator.ssm import SCALE_STEP, SsmMonitor, SsmState
 
 DT = 1.0 / 240.0
+LOOP_TICKS = loop_ticks(1)  # a scan at every tick (the monitor's default)
 
 
 def test_far_is_full_speed_near_is_scaled() -> None:
@@ -27,6 +34,39 @@ def test_far_is_full_speed_near_is_scaled() -> None:
     left = sep - p.human_speed * LOOP_TICKS * DT
     assert mon.scale > allowed_speed(p, left) / 0.5 - SCALE_STEP
     assert mon.scale == pytest.approx(0.5, abs=3 * SCALE_STEP)
+
+
+def test_with_a_scan_every_8_ticks_it_decides_at_the_scans_and_a_touch_stops_it_at_once() -> None:
+    p = Ssm()
+    mon = SsmMonitor(p, max_speed=0.5, scan=8)
+    assert mon.loop_ticks == 10  # the decision reaches the arm a scan later
+    mon.observe(2.0, "")
+    mon.update(0.0, DT, True, tick=0)
+    assert mon.scale == 1.0
+    near = protective_distance(p, 0.25)
+    mon.observe(near, "left")  # seen between two scans: nothing changes until the next
+    for k in range(1, 8):
+        assert mon.update(k * DT, DT, True, tick=k) is None
+        assert mon.scale == 1.0 and mon.min_separation == 2.0
+    mon.update(8 * DT, DT, True, tick=8)
+    assert mon.state == SsmState.REDUCED and mon.min_separation == near
+    # for the separation left once the longer loop has passed
+    left = near - p.human_speed * 10 * DT
+    assert mon.scale == pytest.approx(allowed_speed(p, left) / 0.5, abs=SCALE_STEP)
+    assert not mon.urgent
+    # a separation below the stop distance waits for the scan; a touch does not
+    mon.observe(stop_distance(p) - 0.01, "left")
+    assert mon.update(9 * DT, DT, True, tick=9) is None
+    mon.touched = True
+    change = mon.update(10 * DT, DT, True, tick=10)
+    assert change is not None and change.stopped and mon.urgent
+    assert mon.state == SsmState.STOPPED
+    # the hand leaves: it resumes at a scan only
+    mon.touched = False
+    mon.observe(2.0, "")
+    assert mon.update(11 * DT, DT, True, tick=11) is None
+    change = mon.update(16 * DT, DT, True, tick=16)
+    assert change is not None and not change.stopped and mon.scale == 1.0
 
 
 def test_stop_at_the_protective_distance_and_resume_with_hysteresis() -> None:

@@ -186,6 +186,13 @@ MotionGenerator::SpeedForecast MotionGenerator::speed_forecast(std::size_t max_t
     const Eigen::VectorXd q0 = sim.state_.q;
     sim.step();
     fractions.emplace_back((sim.state_.q - q0).array().abs() / max_step);
+    if (sim.scale_ == 0.0 && sim.scale_target_ == 0.0 && sim.state_.q == q0) {
+      // stopped by a speed scale of 0 (SSM's protective stop): nothing moves until a command
+      out.complete = true;
+      linear.emplace_back(Eigen::VectorXd::Zero(dof));
+      angular.emplace_back(Eigen::VectorXd::Zero(dof));
+      break;
+    }
     model_.joint_child_frames(sim.state_.q, X1);
     Eigen::VectorXd v(dof), w(dof);
     for (int j = 0; j < dof; ++j) {

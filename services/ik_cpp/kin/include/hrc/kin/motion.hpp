@@ -114,7 +114,8 @@ class MotionGenerator {
   // changes: row i, column j is the i-th coming step's |dq_j| / (dt v_j), v_j the joint's
   // velocity limit (2 pi rad/s where the URDF gives none). Simulated on a copy of this
   // generator, so it is exactly what step() will do. Stops where the motion ends (nothing moves
-  // after that: `complete` true) or after max_ticks steps (`complete` false: the rest unknown).
+  // after that: `complete` true), where a speed scale of 0 holds it still (likewise, until a
+  // command) or after max_ticks steps (`complete` false: the rest unknown).
   Eigen::MatrixXd joint_speed_fractions(std::size_t max_ticks, bool& complete) const;
   // The same steps, with how fast each movable joint's child link moves in each of them
   // (RobotModel::joint_child_frames): `link_linear` m/s of its frame's origin, `link_angular`
