@@ -196,6 +196,17 @@ def test_a_stalled_trial_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> No
     assert (out / "trials" / "rt0.4_stall60_P01_r1" / "recording.rrd").stat().st_size > 10_000
     assert "rt10_stall1_P01_r1: stalled" in proc.stdout
     assert WARM_SAYS in proc.stderr, proc.stderr
+    # the run ends right after the stall's tick (mid-exchange here: the stall, sent as an abort,
+    # once ended it after the exchange's first tick or after its own tick, by timing)
+    evs = [
+        json.loads(line)
+        for line in (out / "trials" / "rt10_stall1_P01_r1" / "events.jsonl")
+        .read_text()
+        .splitlines()
+    ]
+    stall = next(e for e in evs if e.get("kind") == "STALLED")
+    end = next(e for e in evs if e.get("type") == "run_end")
+    assert end["tick"] == stall["tick"] + 1, (stall["tick"], end["tick"])
     assert_as_a_fresh_run(out, "rt10_stall1_P01_r1", tmp_path)  # a trial that fails, too
     # a resumed sweep keeps it: its inputs have not changed and it ended (deterministically)
     again = _sweep(str(study), "--out", str(out), timeout=60)

@@ -248,9 +248,9 @@ class ClockMaster:
     def start(self) -> None:
         keys = self.bus.keys
         self.bus.subscribe(keys.clock_acks(), pb.TickAck, self._on_ack)
-        # A stop takes effect at a tick boundary fixed by the tick it was sent in (through the
-        # inbox, like any input), so the run's length is the same on every machine. An abort is
-        # also seen at once, so a stuck barrier can be broken.
+        # A stop or a fail takes effect at a tick boundary fixed by the tick it was sent in
+        # (through the inbox, like any input), so the run's length is the same on every
+        # machine. An abort is also seen at once, so a stuck barrier can be broken.
         self.inbox.add(keys.run_controls(), pb.RunControl, self._on_control)
         self.bus.subscribe(keys.run_controls(), pb.RunControl, self._on_abort)
         self.bus.watch_liveliness(self._on_liveliness)
@@ -308,7 +308,7 @@ class ClockMaster:
             return
         with self._cond:
             if self._stop is None:
-                ok = ctl.command != pb.RunControl.COMMAND_ABORT
+                ok = ctl.command not in (pb.RunControl.COMMAND_ABORT, pb.RunControl.COMMAND_FAIL)
                 who = ctl.header.sender
                 if not ok and ctl.failed_service:  # hrc run names a service whose process ended
                     self._stop = (ok, ctl.reason)

@@ -216,8 +216,10 @@ class OrchestratorService(Service):
             self._stop_sent = True
             log.error("%s", out.stalled)
             self.metrics_pub.put(metrics.report(metrics.build(self.task, self.seed), True), k, t)
+            # FAIL, not ABORT: the run ends after this tick on every machine (an abort is
+            # acted on at once, mid-exchange, wherever the clock master then is)
             self.control_pub.put(
-                pb.RunControl(command=pb.RunControl.COMMAND_ABORT, reason=out.stalled), k, t
+                pb.RunControl(command=pb.RunControl.COMMAND_FAIL, reason=out.stalled), k, t
             )
         if out.stop and not self._stop_sent:
             self._stop_sent = True
