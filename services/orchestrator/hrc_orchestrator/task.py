@@ -195,8 +195,8 @@ class Task:
         separation, and the scan period if every robot's is the same (else 0: declared again
         at the next ack); (0, 0) under the other policies (TickAck.next_sample_tick)."""
         periods = {mon.scan for mon in self.safety.ssm.values()}
-        if not periods or periods == {1}:
-            return 0, 0  # (a scan at every tick: every exchange starts at one anyway)
+        if not periods:
+            return 0, 0
         first = min((self.tick // p + 1) * p for p in periods)
         return first, periods.pop() if len(periods) == 1 else 0
 
@@ -299,8 +299,8 @@ class Task:
                 # what a scan decided goes out on the tick before the next scan, so that it
                 # reaches the IK service at that scan whatever the exchanges (docs/safety-ssm.md)
                 due = mon.urgent or (self.tick + 1) % mon.scan == 0
+                mon.urgent = False
                 if due and mon.scale != self._sent_scale[rid]:
-                    mon.urgent = False
                     self._sent_scale[rid] = mon.scale
                     cmds.append(
                         pb.RobotCommand(
