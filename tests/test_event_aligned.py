@@ -13,11 +13,12 @@ an exchange is seen at its end (documented there).
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 from typing import Any
 
 import pytest
+
+from hrc.bus.clock import exchange_counts
 
 from .goldens import GOLDEN_TRIALS, THESIS, normalised, run_trial
 
@@ -53,10 +54,9 @@ def _trial(tmp: Path, max_ticks: int | None) -> tuple[dict[str, Any], int, int]:
     finally:
         scenario.unlink()
     assert proc.returncode == 0, proc.stderr[-3000:]
-    log = (out / "services" / "physics.log").read_text()
-    found = re.search(r"(\d+) ticks in (\d+) exchanges", log)
-    assert found, "physics logs its exchanges at the end"
-    return normalised(out), int(found[1]), int(found[2])
+    counts = exchange_counts((out / "services" / "physics.log").read_text())
+    assert counts, "physics logs its exchanges at the end"
+    return normalised(out), *counts
 
 
 IDLE = ("HUMAN_IDLE_BEGIN", "HUMAN_IDLE_END", "HUMAN_FINISHED")  # they say the idle time

@@ -6,12 +6,12 @@ finishes, with protective stops and resumes in its events."""
 from __future__ import annotations
 
 import json
-import re
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from hrc.bus.clock import exchange_counts
 from hrc.paths import ik_binary, project_root
 from hrc.trial import TrialOptions, run_trial
 
@@ -173,14 +173,6 @@ def test_thesis_with_ssm_and_provoked_collisions_finishes(tmp_path: Path) -> Non
     assert "PROTECTIVE STOP 1" in log_txt and "resumes after protective stop 1" in log_txt
 
 
-def exchanges(trial_dir: Path) -> tuple[int, int]:
-    """(ticks, exchanges) of a trial, as physics logs them at its end."""
-    log = (trial_dir / "services" / "physics.log").read_text()
-    found = re.search(r"(\d+) ticks in (\d+) exchanges", log)
-    assert found, "physics logs its exchanges at the end"
-    return int(found[1]), int(found[2])
-
-
 def test_ssm_trials_are_deterministic_and_decide_as_with_one_tick_exchanges(
     tmp_path: Path,
 ) -> None:
@@ -194,7 +186,9 @@ def test_ssm_trials_are_deterministic_and_decide_as_with_one_tick_exchanges(
         out = approach_trial(tmp_path / name, span)
         metrics = json.loads((out / "metrics.json").read_text())
         runs.append(strip_fields([events(out), metrics], wall))
-        ticks, n = exchanges(out)
+        counts = exchange_counts((out / "services" / "physics.log").read_text())
+        assert counts, "physics logs its exchanges at the end"
+        ticks, n = counts
         assert n == ticks if span == 1 else n < ticks / 2, (name, ticks, n)
     assert runs[0] == runs[1]
     got, want = runs[0][0], runs[2][0]

@@ -59,11 +59,11 @@ from pathlib import Path
 from typing import Any
 
 from hrc import service_table
+from hrc.bus.clock import exchange_counts
 from hrc.paths import project_root
 
 THESIS = "scenarios/thesis.toml"
 SPARE_PARTS = 36  # 18 + 36 = 54 parts: three times the thesis board
-_EXCHANGES = re.compile(r"(\d+) ticks in (\d+) exchanges")
 
 
 def board_3x_toml(thesis: Path) -> str:
@@ -133,8 +133,8 @@ def service_figures(out: Path) -> tuple[dict[str, float], int | None]:
         name: v["user_s"] + v["system_s"]
         for name, v in json.loads((out / "services" / "cpu.json").read_text()).items()
     }
-    found = _EXCHANGES.search((out / "services" / "physics.log").read_text())
-    return by_service, int(found.group(2)) if found else None
+    counts = exchange_counts((out / "services" / "physics.log").read_text())
+    return by_service, counts[1] if counts else None
 
 
 def measure(scenario: Path, out: Path, physics_n: int, max_ticks: int = 0) -> dict[str, Any]:

@@ -21,6 +21,7 @@ on one clock's state within each tick; the protocol is docs/ARCHITECTURE.md, "Ti
 from __future__ import annotations
 
 import logging
+import re
 import threading
 import time
 from collections import Counter, defaultdict
@@ -111,6 +112,18 @@ def left_the_bus(name: str) -> str:
 # next command at e + 1 -> the IK's motion from e + 2 -> what a placement unblocks at e + 3) then
 # keeps the timing of one-tick exchanges (docs/ARCHITECTURE.md, "Exchange step").
 REACTION_TICKS = 3
+
+
+# The clock master's last line of a lockstep run (physics.log) begins so: what
+# :func:`exchange_counts` reads back.
+_EXCHANGES_LINE = re.compile(r"(\d+) ticks in (\d+) exchanges")
+
+
+def exchange_counts(log_text: str) -> tuple[int, int] | None:
+    """(ticks, exchanges) of a run, from the clock master's log (a trial's
+    services/physics.log); None if the run logged none."""
+    found = _EXCHANGES_LINE.search(log_text)
+    return (int(found[1]), int(found[2])) if found else None
 
 
 class DeclaredEvents:
@@ -734,7 +747,7 @@ class ClockMaster:
             n = max(1, self.exchanges)
             parts = ", ".join(f"{p} {self._compute_total[p] / n:.0f}" for p in s.participants)
             own = ", ".join(f"{name} {v / n * 1e6:.0f}" for name, v in self._own_s.items())
-            log.info(
+            log.info(  # (its start is read back by exchange_counts)
                 "%d ticks in %d exchanges (mean span %.2f); mean us per exchange: "
                 "participants' compute %s; physics %s",
                 k,

@@ -66,16 +66,12 @@ class Task:
             rid: RobotAgent(robot, scenario.sequence_of(rid), self.board)
             for rid, robot in scenario.robots.items()
         }
-        monitors = {
-            rid: SsmMonitor(
-                scenario.ssm_of(rid),
-                robot.max_tcp_speed,
-                scan_ticks(scenario.ssm_of(rid), 1.0 / scenario.scenario.tick_hz),
-            )
-            for rid, robot in scenario.robots.items()
-        }
-        self.safety = Safety(scenario.conditions.safety_policy, self.agents, self.board, monitors)
         self.dt = 1.0 / scenario.scenario.tick_hz
+        monitors: dict[str, SsmMonitor] = {}
+        for rid, robot in scenario.robots.items():
+            params = scenario.ssm_of(rid)
+            monitors[rid] = SsmMonitor(params, robot.max_tcp_speed, scan_ticks(params, self.dt))
+        self.safety = Safety(scenario.conditions.safety_policy, self.agents, self.board, monitors)
         self._sent_scale: dict[str, float] = {rid: 1.0 for rid in scenario.robots}
         self.anticipation = scenario.conditions.anticipation
         self.cue_board = CueBoard()
