@@ -129,7 +129,10 @@ def test_realtime_a_participant_that_stops_answering_ends_the_run_naming_it(
         assert not end.ok and end.failed_participant == "human_input"
         assert "human_input" in end.reason and "realtime" in end.reason
         assert time.monotonic() - t0 < 5.0  # not forever: about the barrier timeout
-        assert end.deadline_misses["human_input"] >= 40
+        # Every barrier the run reached was missed: ticks 0 .. end.ticks (the last one unapplied).
+        # (Not a count from the wall time: a loaded machine runs fewer ticks in 0.5 s.)
+        assert end.ticks >= 1
+        assert end.deadline_misses["human_input"] == end.ticks + 1
     finally:
         s.close()
 
