@@ -352,12 +352,12 @@ def controller_places(page: Page, pid: str) -> None:
     controller_to(page, [x, y, top + 0.08])
     page.wait("right hand tracked", lambda s: abs(s["hands"]["right"]["p"][0] - x) < 0.005, 10)
     controller_to(page, [x, y, top])
-    rendered_frames(page, 3)
+    rendered_frames(page, 1)  # the page reads (and sends) the controller at its next frame
     squeeze(page, 1.0)
     page.wait(f"{pid} held", lambda s: s["objects"][pid]["holder"] == "right", 20)
     for xyz in ([x, y, top + 0.08], [tx, ty, ttop + 0.08], [tx, ty, ttop]):
         controller_to(page, xyz)
-        rendered_frames(page, 3)
+        rendered_frames(page, 1)
     squeeze(page, 0.0)
     page.wait(f"{pid} placed", lambda s: f"part_placed:{pid}" in s["events"], 20)
     controller_to(page, [x - 0.4, y - 0.2, top + 0.1])

@@ -285,10 +285,10 @@ class Pointer:
             }""",
             [origin, q],
         )
-        # the page sees the new pose at its next frames
+        # the page reads the controller at its next frame (and acts on it then)
         from .participant_page import rendered_frames
 
-        rendered_frames(self.page, 3)
+        rendered_frames(self.page, 1)
 
     def trigger(self, value: float) -> None:
         self.page.page.evaluate(
@@ -296,7 +296,7 @@ class Pointer:
         )
         from .participant_page import rendered_frames
 
-        rendered_frames(self.page, 3)
+        rendered_frames(self.page, 1)
 
     def press(self, f: dict[str, Any], wid: str) -> None:
         w = widget(f, wid)
