@@ -11,7 +11,8 @@ import subprocess
 import sys
 import time
 import uuid
-from collections.abc import Iterator
+from collections import Counter
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -106,7 +107,7 @@ class Trial:
         scenario: str | Path,
         out: Path,
         ticks: int = 0,
-        extra: list[str] = (),
+        extra: Sequence[str] = (),
         env: dict[str, str] | None = None,
         sigint_ignored: bool = False,
     ) -> None:
@@ -168,7 +169,11 @@ class Trial:
         bus = self.bus()
         return bus.get_one(bus.keys.stats(service), pb.ServiceStats, timeout=timeout)
 
-    def wait_ticking(self, min_tick: int = 20, timeout: float = 60.0) -> None:
+    def wait_ticking(self, min_tick: int = 20, timeout: float = 90.0) -> None:
+        """Until the orchestrator has reached ``min_tick``. The default outlasts the clock
+        master's start timeout (60 s, after hrc run's preparation: 9.5 s once on a loaded
+        machine), so a service that never comes up is named by hrc run itself."""
+
         def ticking() -> bool:
             if self.proc.poll() is not None:
                 raise AssertionError(f"hrc run ended early: {self.communicate()}")
@@ -178,12 +183,38 @@ class Trial:
                 return False
 
         if not wait_until(ticking, timeout, 0.1):
+            where = self.where_services_wait()  # before the stop changes it
             self.proc.send_signal(signal.SIGTERM)  # its output says where it was stuck
             _rc, out, err = self.communicate(timeout=30)
             raise AssertionError(
                 f"the trial never started ticking within {timeout:g} s:\n{out[-2000:]}\n"
-                f"{err[-3000:]}"
+                f"{err[-3000:]}\nwhere each service's threads wait:\n{where}"
             )
+
+    def where_services_wait(self) -> str:
+        """Each service's threads (name, state, kernel wait channel) and its log's last line:
+        what a stuck start-up leaves to read."""
+        lines = []
+        for name, pid in sorted(self.service_pids().items()):
+            threads = []
+            for task in sorted(Path(f"/proc/{pid}/task").glob("*")):
+                try:
+                    comm = (task / "comm").read_text().strip()
+                    state = (task / "stat").read_text().rsplit(")", 1)[1].split()[0]
+                    wchan = (task / "wchan").read_text().strip() or "-"
+                except OSError:
+                    continue
+                threads.append(f"{comm}:{state}:{wchan}")
+            log_file = self.out / "services" / f"{name}.log"
+            try:
+                last = (log_file.read_text(errors="replace").strip().splitlines() or ["(empty)"])[
+                    -1
+                ]
+            except OSError:
+                last = "(no log)"
+            said = " ".join(f"{t} x{n}" if n > 1 else t for t, n in Counter(threads).items())
+            lines.append(f"  {name} (pid {pid}): {said}\n    log: {last[-300:]}")
+        return "\n".join(lines) or "  (no service process)"
 
     def stop(self, reason: str = "test done") -> None:
         bus = self.bus()
@@ -225,7 +256,7 @@ def trial_factory(tmp_path: Path, ik_bin: Path) -> Iterator:
     def make(
         scenario: str | Path = ROOT / "scenarios" / "empty.toml",
         ticks: int = 10**9,
-        extra: list[str] = (),
+        extra: Sequence[str] = (),
         name: str = "trial",
         env: dict[str, str] | None = None,
         sigint_ignored: bool = False,
