@@ -178,11 +178,10 @@ class LoggerService(Service):
         self._view_ready = threading.Event()
         self._view_lock = threading.Lock()
         self._view_abandoned = False
-        self._bus_up = threading.Event()
         # rerun's import and the URDFs on a thread of their own, at the normal priority: they
-        # must not wait for idle CPU while the run goes on.
+        # must not wait for idle CPU while the run goes on. Started once the bus is joined (it
+        # needs the scenario from it): the process joins with one thread, as the others do.
         self._view_thread = threading.Thread(target=self._open_view, name="view-setup", daemon=True)
-        self._view_thread.start()
         self._priority_set = False  # see _priority
         self._lowered = False
         self.out = Path(args.out)
@@ -198,7 +197,7 @@ class LoggerService(Service):
         # The view (scenario, rerun's import, the URDFs: seconds) is built on a thread of its
         # own while the run starts: the clock need not wait for it, the messages wait in the
         # inbox, and the first one handled waits for the view (_view_up).
-        self._bus_up.set()
+        self._view_thread.start()
         log.info("observing session %s; writing %s", bus.keys.session, self.out)
 
     def _open_view(self) -> None:
@@ -206,7 +205,6 @@ class LoggerService(Service):
         try:
             # The scenario before rerun's import (seconds where the logger was not forked ready):
             # a short run is over by then, and the orchestrator that answers with it gone.
-            self._bus_up.wait()
             self.scenario = fetch_scenario(self.bus, args.scenario_timeout)
             # log.txt's first line; events wait for the view (_view_up), so none comes before
             self.recorder.write_settings(self.scenario)
