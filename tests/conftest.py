@@ -207,11 +207,10 @@ class Trial:
                 threads.append(f"{comm}:{state}:{wchan}")
             log_file = self.out / "services" / f"{name}.log"
             try:
-                last = (log_file.read_text(errors="replace").strip().splitlines() or ["(empty)"])[
-                    -1
-                ]
+                said_lines = log_file.read_text(errors="replace").strip().splitlines()
             except OSError:
-                last = "(no log)"
+                said_lines = ["(no log)"]
+            last = said_lines[-1] if said_lines else "(empty)"
             said = " ".join(f"{t} x{n}" if n > 1 else t for t, n in Counter(threads).items())
             lines.append(f"  {name} (pid {pid}): {said}\n    log: {last[-300:]}")
         return "\n".join(lines) or "  (no service process)"
