@@ -1,8 +1,8 @@
 """Faults injected into running trials (real processes): SIGSTOP and SIGKILL of each service, in
 lockstep and realtime. Each ends as designed (docs/ARCHITECTURE.md, "Faults"), names the service
-at fault in every record, leaves no process behind, and ``hrc run`` returns within 15 s of the
-fault. The one fault a trial outlives: a logger stopped during a realtime run (the router drops
-what it cannot take; the logger records the loss and the trial goes on).
+at fault in every record, leaves no process behind, and ``hrc run`` returns within RETURN_S
+(18 s) of the fault. The one fault a trial outlives: a logger stopped during a realtime run (the
+router drops what it cannot take; the logger records the loss and the trial goes on).
 
 SIGKILL in lockstep is test_kill.py's."""
 
@@ -193,7 +193,7 @@ def test_a_frozen_service_is_named_and_hrc_run_returns_while_it_is_frozen(
 ) -> None:
     """The cgroup freezer (the process's state says D or S, not T; cgroup v1 lets not even
     SIGKILL through until it thaws): the frozen service is the one named, and hrc run returns
-    within 15 s of the freeze without waiting for the thaw."""
+    within RETURN_S of the freeze (3 s more for physics) without waiting for the thaw."""
     trial = trial_factory()
     trial.wait_ticking()
     pids = trial.service_pids()
