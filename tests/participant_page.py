@@ -487,7 +487,8 @@ def what_is_seen(
     (window.hrcTest.hide); the thing is seen at a probe point where the two pictures differ.
     Colours play no part, so a part in its robot's colour cannot stand in for the robot. A
     point of a thing to be seen at every point (EVERY_POINT) that lies under a label (drawn
-    over everything) is left out and counted in ``Seen.under_labels``.
+    over everything) is left out and counted in ``Seen.under_labels``; a cue's point not seen is
+    looked at once more with the other cues hidden (one cue may lie on another).
 
     The picture is held still meanwhile (frames frozen, cues held lit); the ``others`` pages
     stop rendering meanwhile (software WebGL: the CPU goes to the page looked at). Pictures are
@@ -554,13 +555,18 @@ def _what_is_seen(
         log.info("%s: %s probed (%.1f s so far)", view, name, time.monotonic() - t0)
         misses = []
         covered = []
+        unseen = []  # (point, px, pixels changed)
         for point, px in zip(points or [None], pixels, strict=True):
             if name.startswith(EVERY_POINT) and under_a_label(px, labels):
                 covered.append(px)
                 continue
             n = changed_pixels(full, without, px)
             if n < PROBE_MIN_PIXELS:
-                misses.append(f"{point} at px ({px[0]:.0f}, {px[1]:.0f}): {n} pixels change")
+                unseen.append((point, px, n))
+        if unseen and name.startswith("cue:"):
+            unseen = _seen_with_other_cues_hidden(page, view, name, probes, unseen)
+        for point, px, n in unseen:
+            misses.append(f"{point} at px ({px[0]:.0f}, {px[1]:.0f}): {n} pixels change")
         if covered:
             log.info("%s: %s: %d point(s) under a label left out", view, name, len(covered))
         total = len(pixels) - len(covered)
@@ -571,6 +577,45 @@ def _what_is_seen(
         hold_scene,
     )
     return out
+
+
+def _seen_with_other_cues_hidden(
+    page: Page,
+    view: str,
+    name: str,
+    probes: dict[str, list[list[float]]],
+    unseen: list[tuple[Any, tuple[float, float], int]],
+) -> list[tuple[Any, tuple[float, float], int]]:
+    """The points of cue ``name`` not seen at first, looked at again with every other cue
+    hidden: cues lie on one another where a part goes onto another (a screw's hole on a part
+    whose own target cue is lit while the person still holds it: S1 on H1), and the one drawn
+    on top hides the other. Returns the points still unseen."""
+    others = [n for n in probes if n.startswith("cue:") and n != name]
+    if not others:
+        return unseen
+    for other in others:
+        page.page.evaluate("(n) => window.hrcTest.hide(n, true)", other)
+    try:
+        rendered_frames(page, 1)
+        alone = page.screenshot(f"{view}-only-{name.replace(':', '-')}.png")
+        page.page.evaluate("(n) => window.hrcTest.hide(n, true)", name)
+        rendered_frames(page, 1)
+        without = page.screenshot(f"{view}-only-{name.replace(':', '-')}-hidden.png")
+        page.page.evaluate("(n) => window.hrcTest.hide(n, false)", name)
+    finally:
+        for other in others:
+            page.page.evaluate("(n) => window.hrcTest.hide(n, false)", other)
+    still = [
+        (pt, px, n) for pt, px, n in unseen if changed_pixels(alone, without, px) < PROBE_MIN_PIXELS
+    ]
+    if len(still) < len(unseen):
+        log.info(
+            "%s: %s: %d point(s) seen once the other cues were hidden",
+            view,
+            name,
+            len(unseen) - len(still),
+        )
+    return still
 
 
 def assert_whole_scene(
