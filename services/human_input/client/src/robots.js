@@ -4,7 +4,7 @@ import * as THREE from 'three';
 import URDFLoader from 'urdf-loader';
 import { OBJLoader } from 'three/addons/loaders/OBJLoader.js';
 import { mergeGeometries } from 'three/addons/utils/BufferGeometryUtils.js';
-import { painted } from './batch.js';
+import { litMaterial, painted } from './batch.js';
 import { setPose } from './frames.js';
 
 // urdf-loader reads STL and COLLADA; OBJ (pybullet's data folder writes its meshes so) here.
@@ -43,7 +43,7 @@ function tint(model, color) {
     if (!o.isMesh) return;
     const mats = Array.isArray(o.material) ? o.material : [o.material];
     o.material = mats.map((m) => {
-      const mat = new THREE.MeshStandardMaterial({ roughness: 0.6, metalness: 0.1 });
+      const mat = litMaterial();
       const base = m?.color ? m.color.clone() : new THREE.Color('#bbb');
       const hsl = base.getHSL({});
       // saturated links (the URDF's accent colour) and white ones (a maker's shells, e.g. the
@@ -88,7 +88,7 @@ function mergePerLink(model) {
     }
     const mesh = new THREE.Mesh(
       merged,
-      new THREE.MeshStandardMaterial({ vertexColors: true, roughness: 0.6, metalness: 0.1 }),
+      litMaterial({ vertexColors: true }),
     );
     mesh.name = `link:${link.name}`;
     link.add(mesh);

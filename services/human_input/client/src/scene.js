@@ -3,7 +3,7 @@
 // colours, positions, texts) comes from the bridge; nothing of a scenario is written here.
 import * as THREE from 'three';
 import { setPose } from './frames.js';
-import { Batch, PartsView, outlineBars } from './batch.js';
+import { Batch, PartsView, litMaterial, outlineBars } from './batch.js';
 import { handGeometry } from './hand-model.js';
 
 const FLASH_HZ = 2; // a lit cue blinks: on for the first half of each period
@@ -54,7 +54,7 @@ export function labelSprite(lines, height, opts) {
 function box(size, color, opts = {}) {
   const m = new THREE.Mesh(
     new THREE.BoxGeometry(size[0], size[1], size[2]),
-    new THREE.MeshStandardMaterial({ color, roughness: 0.8, ...opts }),
+    litMaterial({ color, ...opts }),
   );
   return m;
 }
@@ -165,7 +165,7 @@ export class World {
       const shapes = { open: handGeometry(h, false), closed: handGeometry(h, true) };
       const palm = new THREE.Mesh(
         shapes.open,
-        new THREE.MeshStandardMaterial({ color: handColor, roughness: 0.5 }),
+        litMaterial({ color: handColor }),
       );
       palm.userData.shapes = shapes;
       const hand = new THREE.Group();
@@ -225,7 +225,7 @@ export class World {
           }
       }
     }
-    const furniture = still.mesh(new THREE.MeshStandardMaterial({ roughness: 0.85 }));
+    const furniture = still.mesh(litMaterial());
     furniture.name = 'furniture';
     g.add(furniture);
     if (scene.board) {
@@ -305,7 +305,7 @@ export class World {
       obj = new THREE.Group();
       const base = new THREE.Mesh(
         new THREE.CylinderGeometry(0.045, 0.045, 0.01, 32),
-        new THREE.MeshStandardMaterial({ color: '#444' }),
+        litMaterial({ color: '#444' }),
       );
       base.rotation.x = Math.PI / 2;
       const cap = new THREE.Mesh(
