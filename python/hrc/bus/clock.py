@@ -1,8 +1,9 @@
 """The clock master side of the tick protocol (used by the physics service and the bus bench).
 
 lockstep: publish tick k, wait for every participant's ack of k (the barrier), apply, step, k + 1.
-realtime: the same, paced by the wall clock; the barrier's deadline is the next tick's start and a
-late participant's miss is counted (its last outputs stay in force).
+realtime: the same, paced by the wall clock; the barrier's deadline is the next exchange's start
+and a late participant's miss is counted (its last outputs stay in force). An exchange spans
+several ticks where the service's span allows it (as in lockstep), at most one headset frame.
 A participant that leaves the bus, misses the lockstep barrier timeout, or asks for an abort
 (its step failed), ends the run with an error naming it (``RunEnd.failed_participant``).
 
@@ -89,6 +90,12 @@ LOST_GRACE_S = 1.0
 # Realtime: an observer that left may come back this long after (a frozen logger's link closes
 # when its lease runs out; after a SIGCONT it reconnects, and records what it lost).
 OBSERVER_RETURN_S = 30.0
+# Realtime: an exchange spans at most this long (a headset's frame at 90 Hz, the thesis's frame
+# loop). A live participant's page samples its hands at most this often, so no sample waits for
+# more than one exchange, and the page gets the robots' states at least at its frame rate; two
+# ticks at 240 Hz instead of one halve the services' work per second (each exchange costs them
+# about as much as a tick of their computation several times over).
+REALTIME_EXCHANGE_MAX_S = 1.0 / 90.0
 # An observer acks the arrival of run/end with this tick. At the end the clock master stays
 # until each observer has it (or has left): a slow observer (the logger behind on a loaded
 # machine) reads run/end only after its backlog, and a link closed before that would lose it.
@@ -510,12 +517,17 @@ class ClockMaster:
                 self._wait(wait)
 
     # ------------------------------------------------------------------ one tick's two halves
+    def realtime_max_span(self) -> int:
+        """The longest exchange in realtime, in ticks: those within REALTIME_EXCHANGE_MAX_S
+        (at least 1), and at most the service's ``max_span``."""
+        within = int(REALTIME_EXCHANGE_MAX_S * self.settings.tick_hz + 1e-9)
+        return max(1, min(self.max_span, within))
+
     def _choose_span(self, k: int) -> int:
         """Ticks in the exchange that starts at k: the service's choice (from the simulated
-        state only), 1 in realtime, never past the run's last tick."""
-        if self.settings.mode != "lockstep":
-            return 1
-        cap = self.max_span
+        state only), at most ``max_span`` (realtime: :meth:`realtime_max_span`), never past an
+        event a participant declared nor the run's last tick."""
+        cap = self.max_span if self.settings.mode == "lockstep" else self.realtime_max_span()
         if self.settings.ticks:
             cap = min(cap, self.settings.ticks - k)
         cap = self.events.limit(k, cap)
@@ -668,11 +680,11 @@ class ClockMaster:
     # ------------------------------------------------------------------ realtime
     def _run_realtime(self, t0: float) -> tuple[bool, str]:
         """Paced by the wall clock on the run() thread; the barrier's deadline is the next
-        tick's start."""
+        exchange's start."""
         k = 0
         while True:
             self._publish_tick(k)
-            self._barrier(k, t0 + (k + 1) * self.dt)
+            self._barrier(k, t0 + (k + self._span) * self.dt)
             end = self._apply_tick(k)
             if end is not None:
                 return end

@@ -93,6 +93,50 @@ def test_realtime_never_runs_ahead_of_the_wall_clock(session_id: str) -> None:
         s.close()
 
 
+def test_realtime_exchanges_span_at_most_a_headset_frame_and_every_tick_is_stepped(
+    session_id: str,
+) -> None:
+    """At 240 Hz an exchange spans two ticks (1/90 s holds 2.67) where the service allows 32;
+    one where it allows one (a hand near an arm); the participants step every tick, and the
+    run keeps the wall clock's pace."""
+    s = Session(
+        session_id,
+        ClockSettings(mode="realtime", tick_hz=240, ticks=120, observers=[]),
+        ["ik_cpp", "orchestrator", "human_input"],
+    )
+    try:
+        steps: dict[str, list[int]] = {}
+        _run_participants(s, steps)
+        world: list[int] = []
+        asked: list[tuple[int, int]] = []
+
+        def span(k: int, n: int) -> int:
+            asked.append((k, n))
+            return 1 if 60 <= k < 70 else n  # near an arm for ten ticks
+
+        s.clock.start()
+        t0 = time.monotonic()
+        end = s.clock.run(lambda k, t: world.append(k), lambda k, t: None, span, max_span=32)
+        for th in s._threads:  # type: ignore[attr-defined]
+            th.join(10)
+        assert end.ok and end.ticks == 120, end
+        assert s.clock.realtime_max_span() == 2
+        assert all(n <= 2 for _, n in asked), asked
+        # the exchanges, as the ticks that opened them: two ticks long but near the arm (and
+        # the first ticks' reaction chain, see DeclaredEvents)
+        ends = [*world[1:], 120]
+        spans = {a: b - a for a, b in zip(world, ends, strict=True)}
+        assert set(spans.values()) == {1, 2}, spans
+        assert all(spans.get(k, 1) == 1 for k in range(60, 70)), spans
+        assert sum(n == 2 for n in spans.values()) >= 50, spans
+        assert s.clock.exchanges == len(world)
+        for name in ("ik_cpp", "orchestrator", "human_input"):
+            assert steps[name] == list(range(120)), name
+        assert time.monotonic() - t0 >= 118 / 240
+    finally:
+        s.close()
+
+
 def test_a_silent_participant_is_named_when_the_barrier_times_out(session_id: str) -> None:
     s = Session(
         session_id,

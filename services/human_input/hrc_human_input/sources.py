@@ -181,7 +181,7 @@ class VrSource:
         return rest_sample(t) if latest is None else latest.at(t)
 
     def next_event_s(self, t: float) -> float | None:
-        return None  # a live person: realtime, every exchange one tick
+        return None  # a live person: unknown (realtime exchanges span a headset frame at most)
 
     def next_decision_s(self, t: float) -> float | None:
         return None
