@@ -11,11 +11,19 @@
   run at the same time as the `alone` phase, which leaves a core partly idle (in a worker of
   their own they left it idle too). `HRC_TEST_PHASE=parallel` keeps the rest, which run in
   parallel workers: lockstep trials give the same results at any load. Unset: every test.
+- `HRC_TEST_PHASE=fill` takes the parallel phase's tests from its end (the shortest first), one
+  at a time, while the live trials run (at nice 15: it takes only the CPU they and the waiting
+  tests leave idle), until the file `HRC_TEST_FILL_STOP` names exists: each test it starts is
+  listed in the file `HRC_TEST_FILL_LIST` names (under a lock, so that a test is started here
+  or listed for the parallel phase, never both nor neither), and the parallel phase, given the
+  same `HRC_TEST_FILL_LIST`, leaves those out.
 """
 
 from __future__ import annotations
 
+import fcntl
 import os
+from pathlib import Path
 
 import pytest
 
@@ -55,7 +63,10 @@ BESIDE = (
     "tests/test_intruders.py",
     "services/human_input/tests/test_vr_bridge.py",
 )
-PHASES = ("alone", "beside", "parallel")
+PHASES = ("alone", "beside", "parallel", "fill")
+FILL_STOP = "HRC_TEST_FILL_STOP"  # a file: once it exists, the fill phase starts no more tests
+FILL_LIST = "HRC_TEST_FILL_LIST"  # a file: the tests the fill phase started, a node id a line
+_STOPPED = pytest.StashKey[bool]()  # the fill phase found the stop file: it starts nothing more
 
 
 def _module(item: pytest.Item) -> str:
@@ -78,13 +89,60 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     if phase:
         if phase not in PHASES:
             raise pytest.UsageError(f"HRC_TEST_PHASE: one of {', '.join(PHASES)} (got {phase!r})")
+        if phase == "fill" and not (os.environ.get(FILL_STOP) and os.environ.get(FILL_LIST)):
+            raise pytest.UsageError(f"HRC_TEST_PHASE=fill needs {FILL_STOP} and {FILL_LIST}")
+        filled = _filled() if phase == "parallel" else set()
         keep: list[pytest.Item] = []
         dropped: list[pytest.Item] = []
         for it in items:
             module = _module(it)
             its = "alone" if module in ALONE else "beside" if module in BESIDE else "parallel"
-            (keep if its == phase else dropped).append(it)
+            if its == "parallel" and phase == "fill":
+                its = "fill"
+            ok = its == phase and it.nodeid not in filled
+            (keep if ok else dropped).append(it)
         if dropped:
             config.hook.pytest_deselected(items=dropped)
         items[:] = keep
     items.sort(key=_rank)  # stable: a module's tests keep their order
+    if phase == "fill":
+        items.reverse()  # the shortest first: the one under way when the live trials end is short
+
+
+def _filled() -> set[str]:
+    """The tests the fill phase started (none without HRC_TEST_FILL_LIST)."""
+    path = os.environ.get(FILL_LIST)
+    if not path or not Path(path).exists():
+        return set()
+    return set(Path(path).read_text().splitlines())
+
+
+def _claim(nodeid: str) -> bool:
+    """Fill phase: lists the test as started here, unless the stop file exists (then False)."""
+    with open(os.environ[FILL_LIST], "a") as f:
+        fcntl.flock(f, fcntl.LOCK_EX)  # scripts/test-all.sh creates the stop file under it
+        if os.path.exists(os.environ[FILL_STOP]):
+            return False
+        f.write(nodeid + "\n")
+        f.flush()
+        return True
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> bool | None:
+    """Fill phase: a test not claimed is not run here (nor reported: the parallel phase runs
+    it)."""
+    if os.environ.get("HRC_TEST_PHASE") != "fill":
+        return None
+    if item.config.stash.get(_STOPPED, False) or not _claim(item.nodeid):
+        item.config.stash[_STOPPED] = True
+        return True
+    return None
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    if os.environ.get("HRC_TEST_PHASE") == "fill":
+        n = len(_filled())
+        terminalreporter.write_line(
+            f"fill: {n} tests run here while the live trials ran; the rest in the parallel phase"
+        )

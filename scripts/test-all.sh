@@ -13,8 +13,10 @@
 # pytest runs in phases (conftest.py): first the live trials with a browser page, one at a
 # time (they must have the machine to themselves) and, at the same time at nice 10, lint and in
 # a pytest process of its own the tests that mostly wait for a timeout (they fill the CPU the
-# live ones leave idle); then every other test in HRC_TEST_WORKERS parallel workers (pytest-xdist;
-# default 2, one per core of the CI machine), handed one test at a time, the longest first.
+# live ones leave idle), and at nice 15 in another the shortest of the other tests, one after
+# the other until the live trials end; then every other test in HRC_TEST_WORKERS parallel workers
+# (pytest-xdist; default 2, one per core of the CI machine), handed one test at a time, the
+# longest first.
 # HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the same order. Each phase prints
 # its 30 slowest tests; every test's time is in build/test-logs/pytest-*.xml (JUnit XML:
 # `scripts/slow_tests.py` sums them by file).
@@ -99,22 +101,39 @@ if [ "$WORKERS" -gt 0 ]; then
 sys.exit(pytest.main(sys.argv[1:]))' \
     --durations=30 --junitxml="$LOG_DIR/pytest-beside.xml" "$@" >"$beside_log" 2>&1 &
   beside_pid=$!
-  # however this script ends (an error, Ctrl-C, SIGTERM), the beside tests end with it, through
-  # their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
+  # ... and, at nice 15, the parallel phase's tests from its end (the shortest first) until the
+  # live trials end (conftest.py, HRC_TEST_PHASE=fill): the CPU the live trials leave idle
+  fill_name="the parallel phase's shortest tests, while the live trials ran"
+  fill_log="$LOG_DIR/pytest-fill.log"
+  fill_list="$LOG_DIR/fill.list"
+  fill_stop="$LOG_DIR/fill.stop"
+  rm -f "$fill_stop"
+  : >"$fill_list"
+  echo "[test-all] pytest ($fill_name): started, its output after the parallel phase's"
+  HRC_TEST_PHASE=fill HRC_TEST_FILL_STOP="$fill_stop" HRC_TEST_FILL_LIST="$fill_list" \
+    nice -n 15 "$ROOT/.venv/bin/python" -c \
+    'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler)
+sys.exit(pytest.main(sys.argv[1:]))' \
+    --durations=30 --junitxml="$LOG_DIR/pytest-fill.xml" "$@" >"$fill_log" 2>&1 &
+  fill_pid=$!
+  # however this script ends (an error, Ctrl-C, SIGTERM), the background tests end with it,
+  # through their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
   stop_beside() {
     [ -z "$lint_pid" ] || kill -TERM -- "$lint_pid" 2>/dev/null || true
-    kill -INT "$beside_pid" 2>/dev/null || return 0
+    kill -INT "$beside_pid" "$fill_pid" 2>/dev/null || true
     for _ in $(seq 120); do
-      kill -0 "$beside_pid" 2>/dev/null || return 0
+      kill -0 "$beside_pid" 2>/dev/null || kill -0 "$fill_pid" 2>/dev/null || return 0
       sleep 0.5
     done
-    kill -KILL "$beside_pid" 2>/dev/null || true
+    kill -KILL "$beside_pid" "$fill_pid" 2>/dev/null || true
   }
   trap stop_beside EXIT
   trap 'exit 130' INT
   trap 'exit 143' TERM
   HRC_TEST_PHASE=alone run_pytest "live trials with a browser, one at a time" \
     --junitxml="$LOG_DIR/pytest-alone.xml" "$@"
+  # the fill phase starts no test after this (the list is whole once the lock is ours)
+  flock "$fill_list" touch "$fill_stop"
   wait "$lint_pid" || lint_rc=$?
   lint_pid=""
   echo "[test-all] lint"
@@ -122,12 +141,17 @@ sys.exit(pytest.main(sys.argv[1:]))' \
   lint_ended
   beside_rc=0
   wait "$beside_pid" || beside_rc=$?
-  trap - EXIT INT TERM
   echo "[test-all] pytest ($beside_name)"
   tee -a "$LOG_DIR/pytest.log" <"$beside_log"
   pytest_ended "$beside_name" "$beside_rc"
-  HRC_TEST_PHASE=parallel run_pytest "the rest, $WORKERS workers" \
+  HRC_TEST_PHASE=parallel HRC_TEST_FILL_LIST="$fill_list" run_pytest "the rest, $WORKERS workers" \
     -n "$WORKERS" --dist load --maxschedchunk 1 --junitxml="$LOG_DIR/pytest-parallel.xml" "$@"
+  fill_rc=0
+  wait "$fill_pid" || fill_rc=$?
+  trap - EXIT INT TERM
+  echo "[test-all] pytest ($fill_name)"
+  tee -a "$LOG_DIR/pytest.log" <"$fill_log"
+  pytest_ended "$fill_name" "$fill_rc"
 else
   run_pytest "one process" --junitxml="$LOG_DIR/pytest.xml" "$@"
 fi
