@@ -68,6 +68,8 @@ BESIDE = (
 # ended within 4 s of a kill, 2 s of a cut link) or run a realtime trial or a live session at
 # that niceness (2026-12-02: test_kill took 4.8 s, a session's realtime trial failed)
 NOT_FILL = (
+    "tests/test_abort.py",
+    "tests/test_full_disk.py",
     "tests/test_kill.py",
     "tests/test_multi_host.py",
     "tests/test_nohang_run.py",
