@@ -32,8 +32,10 @@ def _scenario(tmp: Path, max_ticks: int | None) -> Path:
         text = text.replace(old, new)
     if max_ticks is not None:
         text = text.replace("seed = 1\n", f"seed = 1\nmax_exchange_ticks = {max_ticks}\n", 1)
-    # next to thesis.toml, so that its relative paths resolve
-    path = THESIS.parent / f".test-event-aligned-{tmp.name}-{max_ticks}.toml"
+    # in the test's folder: its relative paths (robots/arm5.urdf) resolve against the project
+    # root there. (A copy beside thesis.toml was seen by another pytest process collecting
+    # scenarios/*.toml, and gone when that test ran.)
+    path = tmp / f"thesis-collisions-{max_ticks}.toml"
     path.write_text(text)
     return path
 
@@ -49,10 +51,7 @@ def _flat(obj: Any, prefix: str = "") -> dict[str, Any]:
 def _trial(tmp: Path, max_ticks: int | None) -> tuple[dict[str, Any], int, int]:
     scenario = _scenario(tmp, max_ticks)
     out = tmp / f"span{max_ticks}"
-    try:
-        proc = run_trial(scenario, out, "--no-view")  # the events are compared, not views
-    finally:
-        scenario.unlink()
+    proc = run_trial(scenario, out, "--no-view")  # the events are compared, not views
     assert proc.returncode == 0, proc.stderr[-3000:]
     counts = exchange_counts((out / "services" / "physics.log").read_text())
     assert counts, "physics logs its exchanges at the end"

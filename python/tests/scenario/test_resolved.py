@@ -15,7 +15,7 @@ from hrc.scenario.resolved import resolve
 SCENARIOS = project_root() / "scenarios"
 
 
-@pytest.mark.parametrize("path", sorted(SCENARIOS.glob("*.toml")), ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", sorted(SCENARIOS.glob("[!.]*.toml")), ids=lambda p: p.stem)
 def test_the_copy_loads_back_into_the_same_settings_from_any_folder(
     path: Path, tmp_path: Path
 ) -> None:
