@@ -91,31 +91,43 @@ pytest_ended() {
 ran_tests=0
 touch "$LOG_DIR/pytest.log.start"
 if [ "$WORKERS" -gt 0 ]; then
-  beside_name="tests that wait for a timeout, beside the live trials"
-  beside_log="$LOG_DIR/pytest-beside.log"
-  echo "[test-all] pytest ($beside_name): started, its output after the live trials'"
-  # (a script's background command ignores SIGINT, and bash cannot undo that when the script
-  # itself started with it ignored: pytest takes Ctrl-C again itself)
-  HRC_TEST_PHASE=beside nice -n 10 "$ROOT/.venv/bin/python" -c \
-    'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler)
+  # start_background NICE PHASE ARGS...: pytest in the background at niceness NICE (the phase's
+  # environment from the caller), its output in $LOG_DIR/pytest-PHASE.log; its pid in bg_pid.
+  # (A script's background command ignores SIGINT, and bash cannot undo that when the script
+  # itself started with it ignored: pytest takes Ctrl-C again itself.)
+  start_background() {
+    local nice="$1" phase="$2"
+    shift 2
+    nice -n "$nice" "$ROOT/.venv/bin/python" -c \
+      'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler)
 sys.exit(pytest.main(sys.argv[1:]))' \
-    --durations=30 --junitxml="$LOG_DIR/pytest-beside.xml" "$@" >"$beside_log" 2>&1 &
-  beside_pid=$!
+      --durations=30 --junitxml="$LOG_DIR/pytest-$phase.xml" "$@" \
+      >"$LOG_DIR/pytest-$phase.log" 2>&1 &
+    bg_pid=$!
+  }
+  # background_ended NAME PHASE PID: waits for it, shows its output, counts its result
+  background_ended() {
+    local rc=0
+    wait "$3" || rc=$?
+    echo "[test-all] pytest ($1)"
+    tee -a "$LOG_DIR/pytest.log" <"$LOG_DIR/pytest-$2.log"
+    pytest_ended "$1" "$rc"
+  }
+  beside_name="tests that wait for a timeout, beside the live trials"
+  echo "[test-all] pytest ($beside_name): started, its output after the live trials'"
+  HRC_TEST_PHASE=beside start_background 10 beside "$@"
+  beside_pid=$bg_pid
   # ... and, at nice 15, the parallel phase's tests from its end (the shortest first) until the
   # live trials end (conftest.py, HRC_TEST_PHASE=fill): the CPU the live trials leave idle
   fill_name="the parallel phase's shortest tests, while the live trials ran"
-  fill_log="$LOG_DIR/pytest-fill.log"
   fill_list="$LOG_DIR/fill.list"
   fill_stop="$LOG_DIR/fill.stop"
   rm -f "$fill_stop"
   : >"$fill_list"
   echo "[test-all] pytest ($fill_name): started, its output after the parallel phase's"
   HRC_TEST_PHASE=fill HRC_TEST_FILL_STOP="$fill_stop" HRC_TEST_FILL_LIST="$fill_list" \
-    nice -n 15 "$ROOT/.venv/bin/python" -c \
-    'import signal, sys, pytest; signal.signal(signal.SIGINT, signal.default_int_handler)
-sys.exit(pytest.main(sys.argv[1:]))' \
-    --durations=30 --junitxml="$LOG_DIR/pytest-fill.xml" "$@" >"$fill_log" 2>&1 &
-  fill_pid=$!
+    start_background 15 fill "$@"
+  fill_pid=$bg_pid
   # however this script ends (an error, Ctrl-C, SIGTERM), the background tests end with it,
   # through their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
   stop_beside() {
@@ -139,19 +151,11 @@ sys.exit(pytest.main(sys.argv[1:]))' \
   echo "[test-all] lint"
   cat "$LOG_DIR/lint.log"
   lint_ended
-  beside_rc=0
-  wait "$beside_pid" || beside_rc=$?
-  echo "[test-all] pytest ($beside_name)"
-  tee -a "$LOG_DIR/pytest.log" <"$beside_log"
-  pytest_ended "$beside_name" "$beside_rc"
+  background_ended "$beside_name" beside "$beside_pid"
   HRC_TEST_PHASE=parallel HRC_TEST_FILL_LIST="$fill_list" run_pytest "the rest, $WORKERS workers" \
     -n "$WORKERS" --dist load --maxschedchunk 1 --junitxml="$LOG_DIR/pytest-parallel.xml" "$@"
-  fill_rc=0
-  wait "$fill_pid" || fill_rc=$?
+  background_ended "$fill_name" fill "$fill_pid"
   trap - EXIT INT TERM
-  echo "[test-all] pytest ($fill_name)"
-  tee -a "$LOG_DIR/pytest.log" <"$fill_log"
-  pytest_ended "$fill_name" "$fill_rc"
 else
   run_pytest "one process" --junitxml="$LOG_DIR/pytest.xml" "$@"
 fi

@@ -544,14 +544,14 @@ def _what_is_seen(
         pixels = [(px[0], px[1]) for px in projected.get(name, [])]
         if name == "panel" and not in_xr:
             pixels = [(status_box[0], status_box[1])]
-        page.page.evaluate("(n) => window.hrcTest.hide(n, true)", name)
+        hide(page, [name], True)
         # One frame: the page draws on the thread that ran the hide, so the next frame drawn is
         # without the thing, and a screenshot shows the last one drawn (in an emulated headset
         # too: IWER draws its layer onto the page within the frame). Waiting for two took the
         # headset view test 98 s instead of 54. (A stale picture would fail the thing as unseen.)
         rendered_frames(page, 1)
         without = page.screenshot(f"{view}-without-{name.replace(':', '-')}.png")
-        page.page.evaluate("(n) => window.hrcTest.hide(n, false)", name)
+        hide(page, [name], False)
         log.info("%s: %s probed (%.1f s so far)", view, name, time.monotonic() - t0)
         misses = []
         covered = []
@@ -579,6 +579,12 @@ def _what_is_seen(
     return out
 
 
+def hide(page: Page, names: list[str], on: bool) -> None:
+    """Hides (or shows again) the named things for a picture (window.hrcTest.hide), in one page
+    call: each call waits for a page busy rendering."""
+    page.page.evaluate("([ns, on]) => ns.forEach((n) => window.hrcTest.hide(n, on))", [names, on])
+
+
 def _seen_with_other_cues_hidden(
     page: Page,
     view: str,
@@ -593,18 +599,16 @@ def _seen_with_other_cues_hidden(
     others = [n for n in probes if n.startswith("cue:") and n != name]
     if not others:
         return unseen
-    for other in others:
-        page.page.evaluate("(n) => window.hrcTest.hide(n, true)", other)
+    hide(page, others, True)
     try:
         rendered_frames(page, 1)
         alone = page.screenshot(f"{view}-only-{name.replace(':', '-')}.png")
-        page.page.evaluate("(n) => window.hrcTest.hide(n, true)", name)
+        hide(page, [name], True)
         rendered_frames(page, 1)
         without = page.screenshot(f"{view}-only-{name.replace(':', '-')}-hidden.png")
-        page.page.evaluate("(n) => window.hrcTest.hide(n, false)", name)
+        hide(page, [name], False)
     finally:
-        for other in others:
-            page.page.evaluate("(n) => window.hrcTest.hide(n, false)", other)
+        hide(page, others, False)
     still = [
         (pt, px, n) for pt, px, n in unseen if changed_pixels(alone, without, px) < PROBE_MIN_PIXELS
     ]
