@@ -487,8 +487,8 @@ def what_is_seen(
     (window.hrcTest.hide); the thing is seen at a probe point where the two pictures differ.
     Colours play no part, so a part in its robot's colour cannot stand in for the robot. A
     point of a thing to be seen at every point (EVERY_POINT) that lies under a label (drawn
-    over everything) is left out and counted in ``Seen.under_labels``; a cue's point not seen is
-    looked at once more with the other cues hidden (one cue may lie on another).
+    over everything) is left out and counted in ``Seen.under_labels``; a cue's or a robot's point
+    not seen is looked at once more with what moves in front of it hidden (_may_lie_in_front).
 
     The picture is held still meanwhile (frames frozen, cues held lit); the ``others`` pages
     stop rendering meanwhile (software WebGL: the CPU goes to the page looked at). Pictures are
@@ -563,8 +563,9 @@ def _what_is_seen(
             n = changed_pixels(full, without, px)
             if n < PROBE_MIN_PIXELS:
                 unseen.append((point, px, n))
-        if unseen and name.startswith("cue:"):
-            unseen = _seen_with_other_cues_hidden(page, view, name, probes, unseen)
+        in_front = _may_lie_in_front(name, probes)
+        if unseen and in_front:
+            unseen = _seen_with_hidden(page, view, name, in_front, unseen)
         for point, px, n in unseen:
             misses.append(f"{point} at px ({px[0]:.0f}, {px[1]:.0f}): {n} pixels change")
         if covered:
@@ -585,21 +586,31 @@ def hide(page: Page, names: list[str], on: bool) -> None:
     page.page.evaluate("([ns, on]) => ns.forEach((n) => window.hrcTest.hide(n, on))", [names, on])
 
 
-def _seen_with_other_cues_hidden(
+def _may_lie_in_front(name: str, probes: dict[str, list[list[float]]]) -> list[str]:
+    """The things that move and may lie between the eye and thing ``name`` at the moment of the
+    picture: for a cue, the other cues (cues lie on one another where a part goes onto another:
+    a screw's hole on a part whose own target cue is lit while the person still holds it, S1 on
+    H1); for a robot, the parts (a part it carries passes between the participant's eye and its
+    base: r1's base unseen once, 0 pixels changing, in a driver's view on a loaded machine).
+    Still things (board, panel, furniture) are never hidden for a second look: one of them in
+    front of a thing is what the check is for."""
+    if name.startswith("cue:"):
+        return [n for n in probes if n.startswith("cue:") and n != name]
+    if name.startswith("robot:"):
+        return ["parts"]
+    return []
+
+
+def _seen_with_hidden(
     page: Page,
     view: str,
     name: str,
-    probes: dict[str, list[list[float]]],
+    hidden: list[str],
     unseen: list[tuple[Any, tuple[float, float], int]],
 ) -> list[tuple[Any, tuple[float, float], int]]:
-    """The points of cue ``name`` not seen at first, looked at again with every other cue
-    hidden: cues lie on one another where a part goes onto another (a screw's hole on a part
-    whose own target cue is lit while the person still holds it: S1 on H1), and the one drawn
-    on top hides the other. Returns the points still unseen."""
-    others = [n for n in probes if n.startswith("cue:") and n != name]
-    if not others:
-        return unseen
-    hide(page, others, True)
+    """The points of ``name`` not seen at first, looked at again with the things ``hidden``
+    hidden (_may_lie_in_front). Returns the points still unseen."""
+    hide(page, hidden, True)
     try:
         rendered_frames(page, 1)
         alone = page.screenshot(f"{view}-only-{name.replace(':', '-')}.png")
@@ -608,16 +619,17 @@ def _seen_with_other_cues_hidden(
         without = page.screenshot(f"{view}-only-{name.replace(':', '-')}-hidden.png")
         hide(page, [name], False)
     finally:
-        hide(page, others, False)
+        hide(page, hidden, False)
     still = [
         (pt, px, n) for pt, px, n in unseen if changed_pixels(alone, without, px) < PROBE_MIN_PIXELS
     ]
     if len(still) < len(unseen):
         log.info(
-            "%s: %s: %d point(s) seen once the other cues were hidden",
+            "%s: %s: %d point(s) seen once %s were hidden",
             view,
             name,
             len(unseen) - len(still),
+            ", ".join(hidden),
         )
     return still
 
