@@ -65,6 +65,30 @@ r1 = ["RA1"]
 envelope = [{ min = [-0.35, -0.25, -0.05], max = [0.35, 0.25, 0.50] }]
 """
 
+# A second transport arm, r1's mirror on the left, whose separation sensor scans every 0.05 s
+# (12 ticks at 240 Hz) while r1's scans every 0.03 s (7 ticks): the two monitors' scans make no
+# grid. The hand never comes nearer to r2 than 0.6 m, so r2 only slows down.
+SECOND_ROBOT = """
+[robots.r2]
+role = "transport"
+urdf = "robots/arm5.urdf"
+base = { xyz = [-0.45, 0.55, 0.0], yaw = 180 }
+max_tcp_speed = 0.5
+home = [-0.35, 0.30, 0.35]
+intermediate = [-0.20, 0.25, 0.25]
+retreat = [-0.45, 0.45, 0.40]
+
+[robots.r2.ssm]
+scan_period_s = 0.05
+
+[[parts]]
+id = "RA2"
+owner = "r2"
+size = [0.04, 0.04, 0.06]
+start = { xyz = [-0.66, 0.30, 0.03], yaw = 0 }
+target = { xyz = [-0.04, 0.16, 0.03], yaw = 0 }
+"""
+
 HAND_SPEED = 1.0  # m/s
 # A point of r1's first move (home -> above the pick, 60 % of the way): the hand comes along +y
 # from 0.6 m in front of it, stays on r1's path until LEAVE_S, then goes back the same way.
@@ -93,11 +117,18 @@ def events(trial_dir: Path) -> list[dict[str, Any]]:
     return [json.loads(line) for line in (trial_dir / "events.jsonl").read_text().splitlines()]
 
 
-def approach_trial(folder: Path, max_exchange_ticks: int | None = None) -> Path:
-    """Runs the approach scenario with the 1 m/s replay in `folder`; the trial folder."""
+def approach_trial(
+    folder: Path, max_exchange_ticks: int | None = None, second_robot: bool = False
+) -> Path:
+    """Runs the approach scenario with the 1 m/s replay in `folder` (with ``second_robot``,
+    SECOND_ROBOT too); the trial folder."""
     folder.mkdir(parents=True, exist_ok=True)
     scenario = folder / "ssm-approach.toml"
     text = SCENARIO
+    if second_robot:
+        text = text.replace('\n[[parts]]\nid = "RA1"', SECOND_ROBOT + '\n[[parts]]\nid = "RA1"', 1)
+        text = text.replace('r1 = ["RA1"]', 'r1 = ["RA1"]\nr2 = ["RA2"]')
+        assert "RA2" in text and 'r2 = ["RA2"]' in text
     if max_exchange_ticks is not None:
         text = text.replace("seed = 1\n", f"seed = 1\nmax_exchange_ticks = {max_exchange_ticks}\n")
         assert "max_exchange_ticks" in text
@@ -196,3 +227,29 @@ def test_ssm_trials_are_deterministic_and_decide_as_with_one_tick_exchanges(
         assert a == b, f"event {i + 1}: {json.dumps(a)} != {json.dumps(b)} (one-tick exchanges)"
     assert len(got) == len(want)
     assert runs[0][1] == runs[2][1], "the metrics differ from those of one-tick exchanges"
+
+
+def test_robots_whose_sensors_scan_at_other_periods_decide_as_with_one_tick_exchanges(
+    tmp_path: Path,
+) -> None:
+    """r1's sensor scans every 7 ticks, r2's every 12 (SECOND_ROBOT): each monitor decides at
+    its own scans, and the events and metrics are those of one-tick exchanges. (When the
+    orchestrator declared only the first coming scan, the exchange that began there ran past
+    the other robot's next scan, whose monitor then decided from the separation of that
+    exchange's first tick: r1 stopped 21 ticks early, 18 of the 25 events at other ticks.)"""
+    wall = {"wall_time", "wall_s", "realtime_factor"}
+    runs = []
+    for name, span in (("default", None), ("one-tick", 1)):
+        out = approach_trial(tmp_path / name, span, second_robot=True)
+        metrics = json.loads((out / "metrics.json").read_text())
+        runs.append(strip_fields([events(out), metrics], wall))
+    evs, metrics = runs[0]
+    # both monitors decided: r1 stopped for the hand on its path, r2 slowed for it
+    assert any(e.get("kind") == "PROTECTIVE_STOP" and e["robot"] == "r1" for e in evs)
+    assert metrics["robots"]["r2"]["ssm"]["reduced_speed_s"] > 0
+    assert metrics["robots"]["r2"]["ssm"]["protective_stop_count"] == 0
+    got, want = runs[0][0], runs[1][0]
+    for i, (a, b) in enumerate(zip(got, want, strict=False)):
+        assert a == b, f"event {i + 1}: {json.dumps(a)} != {json.dumps(b)} (one-tick exchanges)"
+    assert len(got) == len(want)
+    assert runs[0][1] == runs[1][1], "the metrics differ from those of one-tick exchanges"

@@ -188,13 +188,21 @@ class Task:
 
     def next_scan_tick(self) -> tuple[int, int]:
         """ssm: the first tick after the last one stepped at which a robot's monitor scans the
-        separation, and the scan period if every robot's is the same (else 0: declared again
-        at the next ack); (0, 0) under the other policies (TickAck.next_sample_tick)."""
+        separation, and the ticks from it to the next scan of any robot (the scan period where
+        every robot's is the same); (0, 0) under the other policies (TickAck.next_sample_tick,
+        sample_period_ticks).
+
+        Where the robots' periods differ, the scans are no grid, and a declared first scan
+        alone let the exchange that starts there run past the next one (another robot's), whose
+        monitor then decided from the separation of that exchange's first tick. The gap to the
+        next scan ends that exchange before it; the grid it implies further on holds only until
+        the next ack, which declares the scans after."""
         periods = {mon.scan for mon in self.safety.ssm.values()}
         if not periods:
             return 0, 0
         first = min((self.tick // p + 1) * p for p in periods)
-        return first, periods.pop() if len(periods) == 1 else 0
+        second = min((first // p + 1) * p for p in periods)
+        return first, second - first
 
     def next_event_tick(self) -> int:
         """The first tick after the last one stepped at which a timer of the task runs out

@@ -6,8 +6,11 @@ import pytest
 from orch_fakes import K, Sim, load
 
 from hrc.geometry import vec3
+from hrc.scenario import Ssm
 from hrc.scenario.conventions import CONTINUE_BUTTON_CUE
 from hrc.wire import pb
+
+from hrc_orchestrator.task import Task
 
 HR = pb.CONTACT_KIND_HAND_ROBOT
 RR = pb.CONTACT_KIND_ROBOT_ROBOT
@@ -237,3 +240,25 @@ def test_contacts_before_the_start_are_not_collisions() -> None:
     sim.contact(RR, True, "r1", "r2")
     sim.step()
     assert sim.events == [] and sim.commands == []
+
+
+@pytest.mark.parametrize("r2_period_s", [0.03, 0.05])
+def test_ssm_declares_every_robots_next_scan(r2_period_s: float) -> None:
+    """The scans the orchestrator declares (TickAck.next_sample_tick, sample_period_ticks) are
+    each robot's: the first coming one, and how far the one after it is, whoever's it is. With
+    r1 every 7 ticks and r2 every 12, a declared first scan alone let the exchange that began
+    there run past the other robot's next one."""
+    s = load("thesis.toml", conditions={"safety_policy": "ssm"})
+    s.robots["r2"].ssm = Ssm(scan_period_s=r2_period_s)
+    task = Task(s)
+    periods = {rid: mon.scan for rid, mon in task.safety.ssm.items()}
+    assert periods["r1"] == 7 and periods["r2"] == round(r2_period_s * 240)
+    scans = sorted({k for p in periods.values() for k in range(p, 200, p)})
+    for last in range(0, 150):
+        task.tick = last  # the last tick stepped
+        first, gap = task.next_scan_tick()
+        coming = [k for k in scans if k > last]
+        assert first == coming[0], last
+        assert first + gap == coming[1], last  # the exchange from `first` ends before the next
+        if r2_period_s == 0.03:
+            assert gap == 7  # one period for all: the grid of every scan
