@@ -20,8 +20,9 @@ touches the second robot also stops that one (it would be unsafe to let it carry
 Near collisions: when the inflated volumes of two arms touch, the arm farther from its own current
 target holds (tie: the one whose id sorts last, i.e. r2) until the volumes separate. Only an arm
 that can move can part the volumes, so the rule never halts the only arm that can move: when one
-of the two cannot (it waits at its intermediate pose, is finished, is halted by a hand,
-has arrived at its retreat pose, or reports its target unreachable), that one holds instead; and
+of the two cannot (it waits at its intermediate pose, is finished, is halted by a hand, is in
+a protective stop as sent to it, has arrived at its retreat pose, or reports its target
+unreachable), that one holds instead; and
 when the arm left moving comes to a stop while the other one holds, they swap.
 """
 
@@ -219,7 +220,7 @@ class Safety:
         st = agent.state
         if (
             robot in self.halted
-            or self.protective_stop(robot)
+            or self.stopped_at_arm(robot)
             or (
                 st is not None
                 and st.command_id == agent.sent_id
@@ -268,6 +269,11 @@ class Safety:
         mon = self.ssm.get(robot)
         return mon is not None and mon.state == SsmState.STOPPED
 
+    def stopped_at_arm(self, robot: str) -> bool:
+        """The robot's protective stop as sent to it (SsmMonitor.stopped_at_arm)."""
+        mon = self.ssm.get(robot)
+        return mon is not None and mon.stopped_at_arm
+
     def observe_separations(self, msg: pb.Separations) -> None:
         for sep in msg.separations:
             mon = self.ssm.get(sep.robot)
@@ -282,6 +288,8 @@ class Safety:
             change = mon.update(t, dt, running, st.tcp_speed if st is not None else 0.0, tick)
             if change is not None:
                 self._protective(t, rid, change)
+            if mon.due(tick):
+                mon.stopped_at_arm = mon.state == SsmState.STOPPED
 
     def _protective(self, t: float, robot: str, change: Change) -> None:
         if change.stopped:

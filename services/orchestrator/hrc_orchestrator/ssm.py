@@ -49,6 +49,11 @@ class SsmMonitor:
         # a stop for a touch, decided off a scan: sent at once (not at the scan's sending tick)
         self.urgent = False
         self.state = SsmState.NORMAL
+        # The stop as the arm gets it: STOPPED from the tick its scale goes out (:meth:`due`)
+        # until a resume goes out. What the task does about a stopped arm (the near-collision
+        # hold passing to its partner) waits for it, so that it too goes out on a sending tick,
+        # which every exchange ends at, never on a scan's own tick (inside an exchange).
+        self.stopped_at_arm = False
         self.separation = params.sensing_range_m
         self.body = ""
         self.scale = 1.0  # what the IK service should apply (rounded down to SCALE_STEP)
@@ -58,6 +63,12 @@ class SsmMonitor:
         self.stop_s = 0.0
         self.reduced_s = 0.0
         self.min_separation: float | None = None
+
+    def due(self, tick: int) -> bool:
+        """What the scans decided goes out at ``tick``: the tick before the next scan, so
+        that it reaches the IK service at that scan whatever the exchanges
+        (docs/safety-ssm.md), or at once for a touch."""
+        return self.urgent or (tick + 1) % self.scan == 0
 
     def observe(self, separation: float, body: str) -> None:
         self.separation, self.body = separation, body

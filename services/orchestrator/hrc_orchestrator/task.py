@@ -300,9 +300,7 @@ class Task:
             cmds.append(cmd)
         if self.running:
             for rid, mon in self.safety.ssm.items():
-                # what a scan decided goes out on the tick before the next scan, so that it
-                # reaches the IK service at that scan whatever the exchanges (docs/safety-ssm.md)
-                due = mon.urgent or (self.tick + 1) % mon.scan == 0
+                due = mon.due(self.tick)
                 mon.urgent = False
                 if due and mon.scale != self._sent_scale[rid]:
                     self._sent_scale[rid] = mon.scale

@@ -126,6 +126,7 @@ class Sim:
         self.stop = ""
         self._contacts: list[pb.Contact] = []
         self._object_events: list[pb.ObjectEvent] = []
+        self._separations: list[pb.Separation] = []
         if self.hands_in_envelope:
             self.contact(pb.CONTACT_KIND_HAND_ENVELOPE, True, "right", "0")
         self.hooks: list[Callable[[Sim], None]] = []
@@ -133,6 +134,10 @@ class Sim:
     # ---------------------------------------------------------------- injection
     def contact(self, kind: int, begin: bool, a: str, b: str, link: str = "") -> None:
         self._contacts.append(pb.Contact(kind=kind, begin=begin, a=a, b=b, link=link))
+
+    def separation(self, robot: str, distance_m: float, body: str = "right") -> None:
+        """The separation sensor's reading for ``robot`` in the next step's inputs (ssm)."""
+        self._separations.append(pb.Separation(robot=robot, distance_m=distance_m, body=body))
 
     def object_event(
         self,
@@ -167,7 +172,9 @@ class Sim:
             inputs.objects.append(pb.WorldObjects(events=self._object_events))
         if self._contacts:
             inputs.contacts.append(pb.WorldContacts(contacts=self._contacts))
-        self._object_events, self._contacts = [], []
+        if self._separations:
+            inputs.separations.append(pb.Separations(separations=self._separations))
+        self._object_events, self._contacts, self._separations = [], [], []
         out = self.task.step(self.k, self.k * self.dt, inputs)
         self.events.extend(out.events)
         self.commands.extend(out.robot_commands)

@@ -233,6 +233,47 @@ def test_near_collision_tie_halts_r2() -> None:
     assert last_cmd(sim, "r2").kind == pb.RobotCommand.KIND_HOLD
 
 
+def test_ssm_a_stopped_arm_hands_its_near_collision_hold_over_when_its_stop_goes_out() -> None:
+    """Under ssm an arm in a protective stop cannot move, so a near-collision hold passes to its
+    partner (Safety.swap_stuck_yields). That happens on the tick the stop goes out to the arm (the
+    tick before the next scan, as every scan's decision), not on the scan that decided it: a
+    command sent on a scan's tick lies inside an exchange, and reached the IK service later than
+    with one-tick exchanges (dense-4x4 under ssm, 2026-12-02: 36 events moved)."""
+    sim = started("ssm")
+    sim.contact(RR, True, "r2", "r1")
+    sim.step()
+    near = sim.kinds(K.TASK_EVENT_KIND_NEAR_COLLISION)
+    assert len(near) == 1
+    held = near[0].robot
+    mover = "r1" if held == "r2" else "r2"
+    assert last_cmd(sim, held).kind == pb.RobotCommand.KIND_HOLD
+    scan = sim.task.safety.ssm[mover].scan
+    stop_at = hold_at = -1
+    sim.separation(mover, 0.05)  # a hand 5 cm from the moving arm: stopped at its next scan
+    for _ in range(4 * scan):
+        k = sim.k
+        n_cmds = len(sim.commands)
+        sim.step()
+        if stop_at < 0 and sim.has(K.TASK_EVENT_KIND_PROTECTIVE_STOP, robot=mover):
+            stop_at = k
+        new = [c for c in sim.commands[n_cmds:] if c.robot == held]
+        if hold_at < 0 and any(c.kind == pb.RobotCommand.KIND_MOVE for c in new):
+            hold_at = k
+            assert any(
+                c.robot == mover
+                and c.kind == pb.RobotCommand.KIND_SPEED_SCALE
+                and c.speed_scale == 0.0
+                for c in sim.commands[n_cmds:]
+            ), "the hold passes over with the stop going out"
+            break
+    assert stop_at >= 0 and stop_at % scan == 0, (stop_at, scan)
+    assert hold_at == stop_at + scan - 1, (stop_at, hold_at)  # not at the scan itself
+    assert any(
+        "is the only arm that can move: it goes on" in e.text
+        for e in sim.kinds(K.TASK_EVENT_KIND_ROBOT_HALTED)
+    )
+
+
 def test_contacts_before_the_start_are_not_collisions() -> None:
     sim = Sim(load("thesis.toml"), human=None)
     sim.step()
