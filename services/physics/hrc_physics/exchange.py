@@ -217,6 +217,9 @@ class SpanPlanner:
     arm_pairs: list[tuple[str, str, float]] = field(default_factory=list)
     # robot id -> its colliders' levers (arm_levers), for declared link speeds
     arm_levers: dict[str, list[tuple[Lever, ...]]] = field(default_factory=dict)
+    # the continue button's body and world AABB where a press is acted on (retreat_button):
+    # a press may then begin only where an exchange ends, as a hand-arm contact
+    button: tuple[int, Box] | None = None
 
     def __post_init__(self) -> None:
         self.histogram: Counter[int] = Counter()  # exchanges planned, by span
@@ -291,6 +294,7 @@ class SpanPlanner:
                     n = min(n, window)
             n = self._hands(client, hands, robots, bounds, n)
             n = self._arms(client, robots, bounds, n)
+            n = self._button(client, hands, n)
         self._commanded.clear()
         n = max(1, n)
         self.histogram[n] += 1
@@ -325,6 +329,29 @@ class SpanPlanner:
                 n = _fit(n, pt[8], per_tick)
                 if n == 1:
                     return 1
+        return n
+
+    def _button(self, client: int, hands: list[Hand], n: int) -> int:
+        """Hand-button gaps: the button stands still, so only the hand closes them. Only a
+        press (a contact's begin) is acted on, so a hand already on the button sets no bound:
+        its press has begun (were it to leave and press again within the exchange, that second
+        press would be seen at the exchange's end; the scripted participant never does)."""
+        if self.button is None:
+            return n
+        body, box = self.button
+        per_tick = self.dt * self.hand_bound
+        for hand in hands:
+            if n <= 1:
+                return 1
+            if not hand.active:
+                continue
+            hand_box = p.getAABB(hand.body, -1, physicsClientId=client)
+            need = n * per_tick
+            if box_gap(hand_box, box) > need:
+                continue
+            pt = nearest(client, hand.body, [(-1, hand_box)], body, [(-1, box)], need)
+            if pt is not None and pt[8] > 0.0:
+                n = _fit(n, pt[8], per_tick)
         return n
 
     def _arms(

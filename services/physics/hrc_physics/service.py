@@ -12,6 +12,7 @@ import logging
 
 from hrc import scenario as sc
 from hrc.bus import Bus, ClockSettings, Outcome
+from hrc.bus.clock import REACTION_TICKS
 from hrc.service import EXIT_BAD_INPUT, ClockMasterService, Inputs, ServiceExit, fetch_scenario
 from hrc.service_table import OBSERVERS, PARTICIPANTS
 from hrc.validate import all_finite, check_pose
@@ -182,7 +183,11 @@ class PhysicsService(ClockMasterService):
                 (a, b, self.world.robots[a].near_margin + self.world.robots[b].near_margin)
                 for a, b in self.world.robot_pairs
             ],
+            button=self.world.button_bounds()
+            if typed.conditions.safety_policy == sc.SafetyPolicy.RETREAT_BUTTON
+            else None,
         )
+        self._reacting_until = 0  # exchanges of one tick before it: a button press's reactions
         keys = bus.keys
         self._commands_key = keys.world_commands()
         self._objects_pub = bus.publisher(keys.world_objects())
@@ -271,11 +276,20 @@ class PhysicsService(ClockMasterService):
         contacts = self.world.contact_events()
         if contacts:
             self._contacts_pub.put(pb.WorldContacts(contacts=contacts), tick, sim_time)
+            if self.planner.button is not None and any(
+                c.begin and c.kind == pb.CONTACT_KIND_HAND_BUTTON for c in contacts
+            ):
+                # a press, in the state of this tick: the orchestrator answers it at once
+                # (robots going on), so the reactions keep one-tick exchanges, as after a
+                # declared event (docs/ARCHITECTURE.md, "Exchange step", rule 2)
+                self._reacting_until = tick + REACTION_TICKS
 
     def max_exchange_ticks(self) -> int:
         return self.planner.max_span
 
     def exchange_span(self, tick: int, limit: int) -> int:
+        if tick < self._reacting_until:
+            return 1
         return self.planner.span(
             self.world.c, list(self.world.hands.values()), self.world.robots, limit
         )

@@ -583,6 +583,10 @@ class World:
                     )
         return out
 
+    def button_bounds(self) -> tuple[int, Box] | None:
+        """The continue button's body and world AABB (None without a button)."""
+        return None if self.button is None else (self.button, self._button_box)
+
     def contact_events(self) -> list[pb.Contact]:
         """Begin / end events of the contacts since the last call."""
         if not self._contacts_stale:

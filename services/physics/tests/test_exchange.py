@@ -11,7 +11,7 @@ import pytest
 
 from hrc import scenario as sc
 
-from .conftest import ROOT
+from .conftest import ROOT, human
 from hrc_physics.exchange import Lever, SpanPlanner, arm_levers, arm_speed_terms, link_speed_bound
 from hrc_physics.robots import KinematicRobot
 from hrc_physics.world import World
@@ -143,3 +143,35 @@ def test_declared_link_speeds_lower_the_bound_only_where_they_are_lower() -> Non
     # without levers (another arm model), the fractions alone
     planner.arm_levers = {}
     assert math.isclose(planner.bound("r1")[0], 1.5)
+
+
+def test_a_hand_may_press_the_button_only_where_an_exchange_ends(world: World) -> None:
+    """Under retreat_button a press is acted on (the robots go on): a hand may reach the button
+    only at an exchange's last tick, as it may reach an arm; a hand already on it sets no bound
+    (its press has begun)."""
+    button = world.button_bounds()
+    assert button is not None
+    hand_speed = 1.0  # m/s
+    planner = SpanPlanner(
+        dt=1 / 240, arm_terms={}, max_span=32, hand_bound=hand_speed, button=button
+    )
+    right = world.hands["right"]
+    bx, by, bz = world.scenario.workspace.continue_button
+    left_far = (-0.3, -0.6, 0.3)
+    for gap_m in (0.30, 0.05, 0.02, 0.001):
+        # the hand (a box) straight above the button's top face, its lowest point gap_m above
+        world.set_human(human(left=left_far, right=(bx, by, bz + 0.01 + gap_m + 0.05)))
+        world.step()
+        low = p.getAABB(right.body, -1, physicsClientId=world.c)[0][2]
+        gap = low - (bz + 0.01)
+        n = planner.span(world.c, list(world.hands.values()), {})
+        assert n == 32 or n * hand_speed / 240 < gap, (gap_m, gap, n)  # never reaches it
+        if gap < 32 * hand_speed / 240:
+            assert n < 32, (gap_m, gap, n)  # and is bound where it could
+    world.set_human(human(left=left_far, right=(bx, by, bz)))  # pressing
+    world.step()
+    assert planner.span(world.c, list(world.hands.values()), {}) == 32
+    without = SpanPlanner(dt=1 / 240, arm_terms={}, max_span=32, hand_bound=hand_speed)
+    world.set_human(human(left=left_far, right=(bx, by, bz + 0.06)))
+    world.step()
+    assert without.span(world.c, list(world.hands.values()), {}) == 32  # (no rule without it)
