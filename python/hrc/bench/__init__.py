@@ -13,6 +13,7 @@ _MODULES = {
     "trial": "hrc.bench.trial",
     "participant": "hrc.bench.participant",
     "fit": "hrc.bench.fit",
+    "aligned": "hrc.bench.aligned",
 }
 
 

@@ -869,7 +869,8 @@ def build_parser() -> argparse.ArgumentParser:
 
     b = sub.add_parser("bench", help="benchmarks that print their figures")
     b.add_argument(
-        "what", choices=["bus", "ik", "physics", "client", "trial", "participant", "fit"]
+        "what",
+        choices=["bus", "ik", "physics", "client", "trial", "participant", "fit", "aligned"],
     )
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--n", type=int, default=0, help="samples / ticks (0: the benchmark's default)")
