@@ -8,9 +8,10 @@ The two must give the same events and cues at the same ticks, the same metrics a
 variant: the exchanges and ticks of each run and the first differences; exits 1 if a variant is
 not aligned. ``--n N``: the first N variants only (0: all, about 15 minutes on 2 cores).
 
-A test runs one such pair (tests/test_event_aligned.py); this runs them all. Two misalignments
-it found under ``ssm`` on 2026-12-02 (robots scanning at other periods; a near-collision hold
-passed over on a scan's tick) are fixed, each with a test of its own.
+A test runs one such pair (tests/test_event_aligned.py); this runs them all. The three
+misalignments such runs found on 2026-12-02 (under ``ssm``, robots scanning at other periods and
+a near-collision hold passed over on a scan's tick; under ``retreat_button``, the press seen at
+its exchange's end) are fixed, each with a test of its own (bench/README.md).
 """
 
 from __future__ import annotations

@@ -281,7 +281,7 @@ class PhysicsService(ClockMasterService):
             ):
                 # a press, in the state of this tick: the orchestrator answers it at once
                 # (robots going on), so the reactions keep one-tick exchanges, as after a
-                # declared event (docs/ARCHITECTURE.md, "Exchange step", rule 2)
+                # declared event (docs/ARCHITECTURE.md, "Exchange step")
                 self._reacting_until = tick + REACTION_TICKS
 
     def max_exchange_ticks(self) -> int:
