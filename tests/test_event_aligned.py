@@ -19,7 +19,7 @@ import pytest
 from hrc.bus.clock import exchange_counts
 from hrc.trial.aligned import compare
 
-from .goldens import GOLDEN_TRIALS, THESIS, normalised, run_trial
+from .goldens import GOLDEN_TRIALS, MINIMAL, THESIS, normalised, run_trial
 
 pytestmark = [pytest.mark.e2e, pytest.mark.slow]
 
@@ -60,6 +60,37 @@ def test_event_aligned_exchanges_give_the_events_of_one_tick_exchanges(tmp_path:
     # but for the participant's idle time)
     found = compare(aligned, single)
     assert found.records > 150
+    assert found.aligned, "not as with one-tick exchanges:\n" + "\n".join(
+        str(d) for d in found.differences
+    )
+
+
+def test_a_continue_button_press_is_seen_at_its_tick(tmp_path: Path) -> None:
+    """Under retreat_button (the minimal task, two provoked collisions, each confirmed at the
+    button): a hand may press the button only where an exchange ends, and the robots go on at
+    the ticks of one-tick exchanges. (Before, a press was seen at its exchange's end: both of
+    them here, 1 and 26 ticks late.)"""
+    text = MINIMAL.read_text()
+    assert 'safety_policy = "retreat"' in text and 'input = "scripted"\n' in text
+    text = text.replace('safety_policy = "retreat"', 'safety_policy = "retreat_button"')
+    text = text.replace(
+        'input = "scripted"\n', 'input = "scripted"\nprovoke_collisions = [1.0, 4.0]\n'
+    )
+    outs = []
+    for span in (None, 1):
+        scenario = tmp_path / f"minimal-button-{span}.toml"
+        scenario.write_text(
+            text
+            if span is None
+            else text.replace("seed = 1\n", "seed = 1\nmax_exchange_ticks = 1\n", 1)
+        )
+        out = tmp_path / f"span{span}"
+        proc = run_trial(scenario, out, "--no-view")
+        assert proc.returncode == 0, proc.stderr[-3000:]
+        outs.append(out)
+    kinds = [e.get("kind") for e in normalised(outs[1])["events.jsonl"]]
+    assert kinds.count("COLLISION") == kinds.count("BUTTON_PRESSED") == 2
+    found = compare(*outs)
     assert found.aligned, "not as with one-tick exchanges:\n" + "\n".join(
         str(d) for d in found.differences
     )

@@ -218,8 +218,10 @@ class SpanPlanner:
     # robot id -> its colliders' levers (arm_levers), for declared link speeds
     arm_levers: dict[str, list[tuple[Lever, ...]]] = field(default_factory=dict)
     # the continue button's body and world AABB where a press is acted on (retreat_button):
-    # a press may then begin only where an exchange ends, as a hand-arm contact
+    # a press may then begin only where an exchange ends, as a hand-arm contact; only while
+    # ``button_armed`` (from a hand-arm contact to the next press: the button may be wanted)
     button: tuple[int, Box] | None = None
+    button_armed: bool = False
 
     def __post_init__(self) -> None:
         self.histogram: Counter[int] = Counter()  # exchanges planned, by span
@@ -336,7 +338,7 @@ class SpanPlanner:
         press (a contact's begin) is acted on, so a hand already on the button sets no bound:
         its press has begun (were it to leave and press again within the exchange, that second
         press would be seen at the exchange's end; the scripted participant never does)."""
-        if self.button is None:
+        if self.button is None or not self.button_armed:
             return n
         body, box = self.button
         per_tick = self.dt * self.hand_bound

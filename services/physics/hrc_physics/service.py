@@ -276,12 +276,20 @@ class PhysicsService(ClockMasterService):
         contacts = self.world.contact_events()
         if contacts:
             self._contacts_pub.put(pb.WorldContacts(contacts=contacts), tick, sim_time)
-            if self.planner.button is not None and any(
-                c.begin and c.kind == pb.CONTACT_KIND_HAND_BUTTON for c in contacts
-            ):
-                # a press, in the state of this tick: the orchestrator answers it at once
-                # (robots going on), so the reactions keep one-tick exchanges, as after a
-                # declared event (docs/ARCHITECTURE.md, "Exchange step")
+            if self.planner.button is not None:
+                self._follow_button(tick, contacts)
+
+    def _follow_button(self, tick: int, contacts: list[pb.Contact]) -> None:
+        """retreat_button: the button may be wanted from a hand-arm contact (a collision) to
+        the next press, and only then do the planner's hand-button gaps count; a press, in the
+        state of this tick, the orchestrator answers at once (the robots going on), so its
+        reactions keep one-tick exchanges, as after a declared event (docs/ARCHITECTURE.md,
+        "Exchange step")."""
+        for c in contacts:  # in the order the orchestrator takes them
+            if c.begin and c.kind == pb.CONTACT_KIND_HAND_ROBOT:
+                self.planner.button_armed = True
+            elif c.begin and c.kind == pb.CONTACT_KIND_HAND_BUTTON:
+                self.planner.button_armed = False
                 self._reacting_until = tick + REACTION_TICKS
 
     def max_exchange_ticks(self) -> int:

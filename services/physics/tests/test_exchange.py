@@ -146,17 +146,22 @@ def test_declared_link_speeds_lower_the_bound_only_where_they_are_lower() -> Non
 
 
 def test_a_hand_may_press_the_button_only_where_an_exchange_ends(world: World) -> None:
-    """Under retreat_button a press is acted on (the robots go on): a hand may reach the button
-    only at an exchange's last tick, as it may reach an arm; a hand already on it sets no bound
-    (its press has begun)."""
+    """Under retreat_button a press after a collision is acted on (the robots go on): from a
+    hand-arm contact to the next press (``button_armed``), a hand may reach the button only at
+    an exchange's last tick, as it may reach an arm; a hand already on it sets no bound (its
+    press has begun)."""
     button = world.button_bounds()
     assert button is not None
     hand_speed = 1.0  # m/s
     planner = SpanPlanner(
         dt=1 / 240, arm_terms={}, max_span=32, hand_bound=hand_speed, button=button
     )
-    right = world.hands["right"]
     bx, by, bz = world.scenario.workspace.continue_button
+    world.set_human(human(left=(-0.3, -0.6, 0.3), right=(bx, by, bz + 0.07)))
+    world.step()
+    assert planner.span(world.c, list(world.hands.values()), {}) == 32  # no collision yet
+    planner.button_armed = True
+    right = world.hands["right"]
     left_far = (-0.3, -0.6, 0.3)
     for gap_m in (0.30, 0.05, 0.02, 0.001):
         # the hand (a box) straight above the button's top face, its lowest point gap_m above
@@ -172,6 +177,8 @@ def test_a_hand_may_press_the_button_only_where_an_exchange_ends(world: World) -
     world.step()
     assert planner.span(world.c, list(world.hands.values()), {}) == 32
     without = SpanPlanner(dt=1 / 240, arm_terms={}, max_span=32, hand_bound=hand_speed)
+    without.button_armed = True
     world.set_human(human(left=left_far, right=(bx, by, bz + 0.06)))
     world.step()
+    assert planner.span(world.c, list(world.hands.values()), {}) < 32
     assert without.span(world.c, list(world.hands.values()), {}) == 32  # (no rule without it)
