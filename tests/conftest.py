@@ -5,6 +5,7 @@ from __future__ import annotations
 import contextlib
 import fcntl
 import json
+import logging
 import os
 import signal
 import subprocess
@@ -26,6 +27,8 @@ from hrc.service_table import EXPERIMENTER, SERVICES
 from hrc.wire import pb
 
 from .goldens import THESIS, Finished, run_trial
+
+log = logging.getLogger(__name__)
 
 ROOT = project_root()
 HRC = str(Path(sys.executable).with_name("hrc"))
@@ -99,6 +102,14 @@ def ignore_sigint() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+# what a C++ or a Python service says when its bus connect timed out at start-up
+BUS_UNREACHED = ("cannot open zenoh session", "cannot join the trial's bus")
+
+
+class StartFailed(AssertionError):
+    """A trial's service could not reach its bus at start-up (BUS_UNREACHED)."""
+
+
 class Trial:
     """``hrc run`` in the background, with a test-side Zenoh session into its bus."""
 
@@ -111,15 +122,20 @@ class Trial:
         env: dict[str, str] | None = None,
         sigint_ignored: bool = False,
     ) -> None:
+        self._args = (scenario, ticks, list(extra), env, sigint_ignored)
+        self.out = out
+        self._start()
+
+    def _start(self) -> None:
+        scenario, ticks, extra, env, sigint_ignored = self._args
         self.session = f"it{uuid.uuid4().hex[:8]}"
         self.port = free_port()
-        self.out = out
         argv = [
             HRC,
             "run",
             str(scenario),
             "--out",
-            str(out),
+            str(self.out),
             "--ticks",
             str(ticks),
             "--session",
@@ -165,18 +181,41 @@ class Trial:
                     pids[name] = pid
         return pids
 
-    def stats(self, service: str, timeout: float = 5.0) -> pb.ServiceStats:
+    def stats(self, service: str, timeout: float = 30.0) -> pb.ServiceStats:
+        """The service's ServiceStats; a generous bound by default: ik_cpp, busy refusing a
+        20 MiB message's fragments beside the live trials, answered after more than 5 s once
+        (fresh80)."""
         bus = self.bus()
         return bus.get_one(bus.keys.stats(service), pb.ServiceStats, timeout=timeout)
 
     def wait_ticking(self, min_tick: int = 20, timeout: float = 90.0) -> None:
         """Until the orchestrator has reached ``min_tick``. The default outlasts the clock
         master's start timeout (60 s, after hrc run's preparation: 9.5 s once on a loaded
-        machine), so a service that never comes up is named by hrc run itself."""
+        machine), so a service that never comes up is named by hrc run itself.
 
+        A trial whose service could not reach its bus at start-up is started once more (in a
+        folder of its own, ``<out>-again``): the first test of the tests that wait beside the
+        live trials, at nice 10 while a page and its trial took both cores, saw ik_cpp's
+        connect time out after 60 s (fresh80, 2026-12-02); what these tests check comes after
+        the start."""
+        try:
+            self._wait_ticking(min_tick, timeout)
+        except StartFailed as exc:
+            log.warning("the trial did not start (%s): started once more", exc)
+            self.close()
+            self.out = self.out.with_name(self.out.name + "-again")
+            self._start()
+            self._wait_ticking(min_tick, timeout)
+
+    def _wait_ticking(self, min_tick: int, timeout: float) -> None:
         def ticking() -> bool:
             if self.proc.poll() is not None:
-                raise AssertionError(f"hrc run ended early: {self.communicate()}")
+                rc, out, err = self.communicate()
+                if "at start-up, before the first tick" in err and any(
+                    said in err for said in BUS_UNREACHED
+                ):
+                    raise StartFailed(err.strip().splitlines()[0])
+                raise AssertionError(f"hrc run ended early: {(rc, out, err)}")
             try:
                 return self.stats("orchestrator", timeout=1.0).last_tick >= min_tick
             except TimeoutError:
