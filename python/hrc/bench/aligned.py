@@ -19,15 +19,13 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import re
-import subprocess
-import sys
 import tempfile
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from hrc.bench.trial import hrc_run, one_tick_toml
 from hrc.bus.clock import exchange_counts
 from hrc.paths import project_root
 from hrc.trial.aligned import compare
@@ -83,21 +81,12 @@ def scenario_text(v: Variant, root: Path, one_tick: bool) -> str:
         if old not in text:
             raise ValueError(f"{v.name}: {v.scenario}.toml has no {old!r}")
         text = text.replace(old, new, 1)
-    if one_tick:
-        seed = re.search(r"^seed = \d+\n", text, re.MULTILINE)
-        if seed is None:
-            raise ValueError(f"{v.name}: {v.scenario}.toml has no seed line")
-        text = text.replace(seed.group(0), seed.group(0) + "max_exchange_ticks = 1\n", 1)
-    return text
+    return one_tick_toml(text, f"{v.scenario}.toml") if one_tick else text
 
 
 def _run(scenario: Path, out: Path) -> tuple[int, int]:
     """``hrc run`` of ``scenario`` without the view: (ticks, exchanges)."""
-    argv = [sys.executable, "-m", "hrc.cli.main", "run", str(scenario), "--out", str(out)]
-    argv += ["--no-view", "--max-ticks", str(MAX_TICKS)]
-    proc = subprocess.run(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    if proc.returncode != 0:
-        raise RuntimeError(f"hrc run {scenario.name} failed ({proc.returncode}):\n{proc.stdout}")
+    hrc_run(scenario, out, ["--no-view", "--max-ticks", str(MAX_TICKS)])
     counts = exchange_counts((out / "services" / "physics.log").read_text())
     if counts is None:
         raise RuntimeError(f"{out}: physics.log does not say its exchanges")

@@ -92,11 +92,10 @@ def board_3x_toml(thesis: Path) -> str:
     return text.replace(human.group(0), f"human = [{human.group(1)}, {spares}]")
 
 
-def empty_one_tick_toml(empty: Path) -> str:
-    """``scenarios/empty.toml`` with one-tick exchanges (its idle ones would span many)."""
-    text = empty.read_text()
+def one_tick_toml(text: str, name: str) -> str:
+    """Scenario ``text`` (file ``name``) with one-tick exchanges (``max_exchange_ticks = 1``)."""
     if "\n[scenario]\n" not in text:
-        raise ValueError(f"{empty}: no [scenario] table")
+        raise ValueError(f"{name}: no [scenario] table")
     return text.replace("\n[scenario]\n", "\n[scenario]\nmax_exchange_ticks = 1\n", 1)
 
 
@@ -271,7 +270,10 @@ def run(args: argparse.Namespace) -> int:
             "board_3x": measure(board, tmpdir / "board-3x", n, thesis["ticks"]),
         }
         empty = tmpdir / "empty-one-tick.toml"
-        empty.write_text(empty_one_tick_toml(root / "scenarios" / "empty.toml"))
+        # (its idle exchanges would span many ticks)
+        empty.write_text(
+            one_tick_toml((root / "scenarios" / "empty.toml").read_text(), "empty.toml")
+        )
         floor = measure_floor(empty, tmpdir)
         for f in figures.values():
             f["floor_cpu_ratio"] = floor_ratio(f, floor)

@@ -102,29 +102,27 @@ def _log(folder: Path) -> list[tuple[int, str]]:
     ]
 
 
+def _sequence(
+    file: str, item: str, got: list[tuple[int, Any]], want: list[tuple[int, Any]]
+) -> list[Difference]:
+    """Two numbered sequences of a file, item by item, then their lengths."""
+    bad = [
+        Difference(f"{file} {item} {n}", a, b)
+        for (n, a), (_, b) in zip(got, want, strict=False)
+        if a != b
+    ]
+    if len(got) != len(want):
+        bad.append(Difference(f"{file} length", len(got), len(want)))
+    return bad
+
+
 def compare(got: Path, want: Path, limit: int = 5) -> Comparison:
     """Trial folder ``got`` against ``want`` (its one-tick twin): at most ``limit`` differences
     of each file."""
-    found: list[Difference] = []
-    ev_got, ev_want = records(got), records(want)
-    bad = [
-        Difference(f"events.jsonl record {i + 1}", a, b)
-        for i, (a, b) in enumerate(zip(ev_got, ev_want, strict=False))
-        if a != b
-    ]
-    if len(ev_got) != len(ev_want):
-        bad.append(Difference("events.jsonl length", len(ev_got), len(ev_want)))
-    found += bad[:limit]
+    ev_got, ev_want = (list(enumerate(records(f), 1)) for f in (got, want))
+    found = _sequence("events.jsonl", "record", ev_got, ev_want)[:limit]
     m_got, m_want = _metrics(got), _metrics(want)
     keys = sorted(k for k in m_got.keys() | m_want.keys() if m_got.get(k) != m_want.get(k))
     found += [Difference(f"metrics.json {k}", m_got.get(k), m_want.get(k)) for k in keys[:limit]]
-    log_got, log_want = _log(got), _log(want)
-    lines = [
-        Difference(f"log.txt line {n}", a, b)
-        for (n, a), (_, b) in zip(log_got, log_want, strict=False)
-        if a != b
-    ]
-    if len(log_got) != len(log_want):
-        lines.append(Difference("log.txt length", len(log_got), len(log_want)))
-    found += lines[:limit]
+    found += _sequence("log.txt", "line", _log(got), _log(want))[:limit]
     return Comparison(len(ev_want), found)
