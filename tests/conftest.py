@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+import zenoh
 
 from hrc.bus import Bus, BusConfig, access
 from hrc.paths import ik_binary, project_root
@@ -196,8 +197,9 @@ class Trial:
         A trial whose service could not reach its bus at start-up is started once more (in a
         folder of its own, ``<out>-again``): the first test of the tests that wait beside the
         live trials, at nice 10 while a page and its trial took both cores, saw ik_cpp's
-        connect time out after 60 s (fresh80, 2026-12-02); what these tests check comes after
-        the start."""
+        connect time out after 60 s (fresh80, 2026-12-02), and in fresh82 the test's own
+        session did (the router, physics, at nice 10, accepted no link for 60 s): what these
+        tests check comes after the start."""
         try:
             self._wait_ticking(min_tick, timeout)
         except StartFailed as exc:
@@ -220,6 +222,8 @@ class Trial:
                 return self.stats("orchestrator", timeout=1.0).last_tick >= min_tick
             except TimeoutError:
                 return False
+            except zenoh.ZError as exc:  # the test's own session could not reach the router
+                raise StartFailed(f"the test's session: {str(exc).split(' at /', 1)[0]}") from exc
 
         if not wait_until(ticking, timeout, 0.1):
             where = self.where_services_wait()  # before the stop changes it
