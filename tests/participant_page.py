@@ -116,14 +116,19 @@ def with_query(url: str, query: str) -> str:
 class Page:
     """The page and its test hooks (window.hrcTest), driven like a person would."""
 
-    def __init__(self, browser: Any, url: str, ready: bool = True) -> None:
+    def __init__(self, browser: Any, url: str, ready: bool = True, scale: float = 1.0) -> None:
         """``ready``: wait for the world on the page (a spectator who comes before the
         participant sees it only once the trial runs). The page loads its test hooks only
-        with ``test=`` in its URL (``test=iwer`` too): ``test=hooks`` is added otherwise."""
+        with ``test=`` in its URL (``test=iwer`` too): ``test=hooks`` is added otherwise.
+        ``scale``: the client's ``scale`` (the 3D view's resolution against the window's, outside
+        a headset), for a test that checks no picture of the scene: at 0.25 a page takes half
+        the CPU (software WebGL), and its panel and messages stay as sharp."""
         if "test=" not in url:
             url = with_query(url, "test=hooks")
         if PAGE_FPS and "fps=" not in url:
             url = with_query(url, f"fps={PAGE_FPS}")
+        if scale != 1.0:
+            url = with_query(url, f"scale={scale:g}")
         self.context = browser.new_context(viewport=VIEWPORT)
         self.page = self.context.new_page()
         self.errors: list[str] = []

@@ -25,6 +25,7 @@ from hrc.wire import pb
 from .conftest import wait_until
 from .goldens import MINIMAL, THESIS
 from .participant_page import (
+    VIEWPORT,
     Live,
     Page,
     browser,  # noqa: F401  (a fixture)
@@ -45,6 +46,11 @@ NOTICE_S = PARTICIPANT_WAIT_NOTICE_S
 PAUSE_S = NOTICE_S + WATCHDOG_S  # 20 s
 HINT = "a message of the test's own"  # what asks for the screen while a warning holds it
 HELD_NOT = ("alert", "over")  # kinds a warning's hold does not hold back (hud.js)
+# No picture of the scene is checked here (tests/test_headset_view.py and
+# tests/test_participant_client.py do): the desktop pages draw their 3D view at a quarter of the
+# window's resolution (the client's `scale`), which halves a page's CPU in software WebGL; what
+# they say (the panel, the messages) is the page's own text, as sharp as ever.
+SCALE = 0.25
 
 
 def enter_headset(page: Page) -> Page:
@@ -153,8 +159,11 @@ def test_pauses_never_end_a_live_trial_and_a_withdrawing_hand_meets_no_robot(
     live: Callable[..., Live],  # noqa: F811
 ) -> None:
     run = live(THESIS, max_ticks=240 * 720, extra=["--stall-timeout", str(WATCHDOG_S)])
-    page = Page(browser, run.url + "&mode=desktop")
+    page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
     assert page.state()["role"] == "driver"
+    # the 3D view drawn at SCALE of the window's resolution, the page's text over it as it is
+    view = page.page.evaluate("(c => [c.width, c.clientWidth])(document.getElementById('view'))")
+    assert view == [round(VIEWPORT["width"] * SCALE), VIEWPORT["width"]], view
     pause(run, PAUSE_S)  # (a) no grab for PAUSE_S: the watchdog's WATCHDOG_S pass
     page.wait_text("the wait shown", lambda t: "waiting for you: H1" in t["status"], 10)
     assert page.state()["run"] == "waiting_first_grab"
@@ -192,7 +201,7 @@ def test_the_page_says_when_the_link_is_lost_and_how_the_trial_ended(
     live: Callable[..., Live],  # noqa: F811
 ) -> None:
     run = live()
-    page = Page(browser, run.url + "&mode=desktop")
+    page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
     xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
     console: list[str] = []
     page.page.on("console", lambda m: console.append(f"{m.type}: {m.text}"))
@@ -275,7 +284,7 @@ def test_the_page_says_why_a_trial_failed(
     live: Callable[..., Live],  # noqa: F811
 ) -> None:
     run = live()
-    page = Page(browser, run.url + "&mode=desktop")
+    page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
     xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
     grab_part(page, "H1")
     bus = run.trial.bus()
@@ -309,7 +318,7 @@ def test_ctrl_c_ends_a_live_trial_with_its_records(
     live: Callable[..., Live],  # noqa: F811
 ) -> None:
     run = live(extra=["--participant", "L07"])
-    page = Page(browser, run.url + "&mode=desktop")
+    page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
     xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
     assert page.scene()["participant"] == "L07"
     # a short pause first: the page says the trial waits for the participant
@@ -351,8 +360,8 @@ def test_reopening_the_participants_tab_gives_it_the_driver_role_back(
 ) -> None:
     run = live()
     # the experimenter's page, first: the trial starts when the participant's page comes
-    watcher = Page(browser, run.spectator_url + "?mode=desktop", ready=False)
-    page = Page(browser, run.url + "&mode=desktop")
+    watcher = Page(browser, run.spectator_url + "?mode=desktop", ready=False, scale=SCALE)
+    page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
     watcher.wait_ready()
     assert watcher.state()["role"] == "spectator" and page.state()["role"] == "driver"
     grab_part(page, "H1")
@@ -369,7 +378,7 @@ def test_reopening_the_participants_tab_gives_it_the_driver_role_back(
     h1 = watcher.state()["objects"]["H1"]["p"]
     assert abs(h1[0] - held[0]) < 0.05 and abs(h1[1] - held[1]) < 0.05, (h1, held)
     assert watcher.state()["role"] == "spectator", "a spectator must not take over"
-    again = Page(browser, run.url + "&mode=desktop")
+    again = Page(browser, run.url + "&mode=desktop", scale=SCALE)
     assert again.state()["role"] == "driver"
     assert all(h["grip"] == 0 for h in again.state()["hands"].values()), again.state()["hands"]
     time.sleep(1)  # the watcher's page keeps its role while the participant drives
@@ -394,7 +403,7 @@ def test_a_collision_is_explained_until_the_robot_goes_on(
     scenario = tmp_path / "minimal-slow.toml"
     scenario.write_text(slow)
     run = live(scenario)
-    page = Page(browser, run.url + "&mode=desktop")
+    page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
     xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))  # the experimenter
     # The warning's hold challenged: the moment the page shows the warning, a message of the
     # page's own asks for the screen (from a page timer, so a test that reads the page late

@@ -48,6 +48,10 @@ function standParam() {
 // beside the trial on one machine (the experimenter's spectator view, software WebGL) then
 // leaves the CPU to the trial. In a headset every frame is drawn: the headset shows what it gets.
 const MAX_FPS = numberParam('fps', 0, 1, 240);
+// The 3D view's resolution against the window's, outside a headset (0.1-1): on a machine without a
+// GPU a frame's cost goes with its pixels (software WebGL), and the panel and messages, drawn by the
+// page over the view, stay sharp.
+const RENDER_SCALE = numberParam('scale', 1, 0.1, 1);
 const KEEPALIVE_MS = 500; // an unchanged sample is still sent this often
 // A "Waiting.." label comes down at most this far (m), in these steps, to keep clear of the
 // desktop's status panel or the headset's (from 0.6 m above its robot's base: still above the
@@ -120,7 +124,7 @@ class App {
     const antialias = aa === null ? !softwareWebGl() : aa !== '0';
     // the stencil draws each robot's protective zone (ssm) as one volume
     const renderer = new THREE.WebGLRenderer({ canvas, antialias, stencil: true });
-    renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2));
+    renderer.setPixelRatio(Math.min(window.devicePixelRatio, 2) * RENDER_SCALE);
     renderer.setSize(window.innerWidth, window.innerHeight, false);
     renderer.xr.enabled = true;
     this.renderer = renderer;
