@@ -110,12 +110,18 @@ def next_part(page: Page, scene: dict[str, Any]) -> str | None:
     if state["run"] == "finished":
         return None
     s = state["objects"]
+
+    def placed(pid: str) -> bool:
+        # (a placement's event comes before the frame whose objects say so: place_part goes on
+        # at the event, and the next frame may still offer the part just placed)
+        return bool(s[pid]["placed"]) or f"part_placed:{pid}" in state["events"]
+
     mine = [p for p in scene["parts"] if p["owner"] == "human"]
-    if all(s[p["id"]]["placed"] for p in mine):
+    if all(placed(p["id"]) for p in mine):
         return None
     for p in mine:
         o = s[p["id"]]
-        if not o["placed"] and o.get("grabbable") and all(s[d]["placed"] for d in p["after"]):
+        if not placed(p["id"]) and o.get("grabbable") and all(placed(d) for d in p["after"]):
             return str(p["id"])
     return ""
 
