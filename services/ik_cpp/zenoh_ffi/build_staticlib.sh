@@ -40,6 +40,8 @@ mkdir -p "$target/hrc-ffi"
     mkdir -p "$(dirname "$kept")"
     cp "$target/release/libhrc_zenoh_ffi.a" "$kept.$$"
     mv "$kept.$$" "$kept"
+    # the last few inputs' libraries are kept (75 MB each), the older ones go
+    ls -1dt "$target"/hrc-ffi/*/ | tail -n +6 | xargs -r rm -rf
   fi
 ) 9>"$target/hrc-ffi/lock"
 mkdir -p "$(dirname "$out")"
