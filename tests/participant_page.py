@@ -36,6 +36,10 @@ VIEWPORT = {"width": 1280, "height": 800}
 # they need (rendered_frames). 5 took a fifth of the live tests' CPU and 11 % of their time
 # (1,333 -> 1,071 CPU-s, 742 -> 659 s); HRC_TEST_FPS=0 draws every frame.
 PAGE_FPS = int(os.environ.get("HRC_TEST_FPS", "5"))
+# The client's `scale` for a test that checks no picture of the scene (Page's `scale`): its 3D
+# view at a quarter of the window's resolution halves a page's CPU in software WebGL; the panel,
+# messages and screens are the page's own text, as sharp as ever.
+NO_PICTURE_SCALE = 0.25
 MAX_TICKS = 240 * 240  # no trial outlives 4 simulated (= wall, realtime) minutes
 DRIVER_KEY = "participant-key"
 # For the page to take the mouse's moves (it does so with its frames; software WebGL on a loaded
@@ -374,6 +378,12 @@ def yaw_deg(q: list[float]) -> float:
     return math.degrees(math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z)))
 
 
+def placed(state: dict[str, Any], pid: str) -> bool:
+    """The page knows the part placed: from its objects, or from the placement's event, which
+    comes before the frame whose objects say so."""
+    return bool(state["objects"][pid]["placed"]) or f"part_placed:{pid}" in state["events"]
+
+
 def place_part(page: Page, pid: str) -> None:
     """Turned to the target's yaw (Q/E, 15 degrees a press), over the target, down, open the
     grip: placed; the page then takes the hand back to rest (it parks after a release)."""
@@ -389,15 +399,7 @@ def place_part(page: Page, pid: str) -> None:
     page.keys(" ")
     # (the task's last placement ends the trial: a page that misses the last frame before the
     # bridge closes knows it from the event or the end, which needs every part placed)
-    page.wait(
-        f"{pid} placed",
-        lambda s: (
-            s["objects"][pid]["placed"]
-            or f"part_placed:{pid}" in s["events"]
-            or s["run"] == "finished"
-        ),
-        20,
-    )
+    page.wait(f"{pid} placed", lambda s: placed(s, pid) or s["run"] == "finished", 20)
     page.wait("the hand back at rest", lambda s: s["parked"], 10)
 
 

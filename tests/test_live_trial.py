@@ -25,6 +25,7 @@ from hrc.wire import pb
 from .conftest import wait_until
 from .goldens import MINIMAL, THESIS
 from .participant_page import (
+    NO_PICTURE_SCALE,
     VIEWPORT,
     Live,
     Page,
@@ -34,6 +35,7 @@ from .participant_page import (
     metrics,
     overlap,
     place_part,
+    placed,
 )
 from hrc_orchestrator.watchdog import PARTICIPANT_WAIT_NOTICE_S
 
@@ -47,10 +49,8 @@ PAUSE_S = NOTICE_S + WATCHDOG_S  # 20 s
 HINT = "a message of the test's own"  # what asks for the screen while a warning holds it
 HELD_NOT = ("alert", "over")  # kinds a warning's hold does not hold back (hud.js)
 # No picture of the scene is checked here (tests/test_headset_view.py and
-# tests/test_participant_client.py do): the desktop pages draw their 3D view at a quarter of the
-# window's resolution (the client's `scale`), which halves a page's CPU in software WebGL; what
-# they say (the panel, the messages) is the page's own text, as sharp as ever.
-SCALE = 0.25
+# tests/test_participant_client.py do): the desktop pages draw at NO_PICTURE_SCALE
+SCALE = NO_PICTURE_SCALE
 
 
 def enter_headset(page: Page) -> Page:
@@ -110,18 +110,14 @@ def next_part(page: Page, scene: dict[str, Any]) -> str | None:
     if state["run"] == "finished":
         return None
     s = state["objects"]
-
-    def placed(pid: str) -> bool:
-        # (a placement's event comes before the frame whose objects say so: place_part goes on
-        # at the event, and the next frame may still offer the part just placed)
-        return bool(s[pid]["placed"]) or f"part_placed:{pid}" in state["events"]
-
+    # (placed as place_part sees it: the next frame may still offer the part just placed)
     mine = [p for p in scene["parts"] if p["owner"] == "human"]
-    if all(placed(p["id"]) for p in mine):
+    if all(placed(state, p["id"]) for p in mine):
         return None
     for p in mine:
         o = s[p["id"]]
-        if not placed(p["id"]) and o.get("grabbable") and all(placed(d) for d in p["after"]):
+        ready = all(placed(state, d) for d in p["after"])
+        if not placed(state, p["id"]) and o.get("grabbable") and ready:
             return str(p["id"])
     return ""
 

@@ -24,6 +24,7 @@ import pytest
 from .conftest import HRC, ROOT, wait_until
 from .goldens import MINIMAL
 from .participant_page import (  # noqa: F401  (browser: a fixture)
+    NO_PICTURE_SCALE,
     OPEN_PAGES,
     Page,
     browser,
@@ -46,11 +47,9 @@ from .session_page import (
 
 pytestmark = [pytest.mark.slow, pytest.mark.e2e]
 
+# no picture of the scene is checked here: the desktop session's pages draw at NO_PICTURE_SCALE
+SCALE = NO_PICTURE_SCALE
 # two pages: a paragraph over three lines of the file, then enough to fill the first page
-# The desktop session's pages draw their 3D view at a quarter of the window's resolution (the
-# client's `scale`: half a page's CPU in software WebGL): no picture of the scene is checked
-# here, and the screens, panel and messages are the page's own text, as sharp as ever.
-SCALE = 0.25
 LONG_CONSENT = (
     "# Consent\n\nYou take part in a study of **working with robots**: the robots work\n"
     "beside you while you place parts\non a board.\n\n"
