@@ -53,6 +53,17 @@ HELD_NOT = ("alert", "over")  # kinds a warning's hold does not hold back (hud.j
 SCALE = NO_PICTURE_SCALE
 
 
+# The experimenter's headset pages draw this many frames a second (the tests read their panel's
+# text; pictures of the headset view: tests/test_headset_view.py): an emulated headset's page
+# takes 0.45 of a core at 5 and 0.3 at 2 in software WebGL.
+XR_FPS = 2
+
+
+def experimenter_headset(browser: Any, run: Live) -> Page:  # noqa: F811
+    """The experimenter, a spectator, in a headset (IWER)."""
+    return enter_headset(Page(browser, f"{run.spectator_url}?test=iwer&fps={XR_FPS}"))
+
+
 def enter_headset(page: Page) -> Page:
     """The page enters immersive VR (IWER), standing, looking 38 degrees down at the board."""
     page.page.click("#enter-vr")
@@ -204,7 +215,7 @@ def test_the_page_says_when_the_link_is_lost_and_how_the_trial_ended(
 ) -> None:
     run = live()
     page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
-    xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
+    xr = experimenter_headset(browser, run)
     console: list[str] = []
     page.page.on("console", lambda m: console.append(f"{m.type}: {m.text}"))
     page.wait_text("connected", lambda t: "connection: connected" in t["status"], 10)
@@ -287,7 +298,7 @@ def test_the_page_says_why_a_trial_failed(
 ) -> None:
     run = live()
     page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
-    xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
+    xr = experimenter_headset(browser, run)
     grab_part(page, "H1")
     bus = run.trial.bus()
     bus.publisher(bus.keys.run_control(bus.sender)).put(
@@ -321,7 +332,7 @@ def test_ctrl_c_ends_a_live_trial_with_its_records(
 ) -> None:
     run = live(extra=["--participant", "L07"])
     page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
-    xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))
+    xr = experimenter_headset(browser, run)
     assert page.scene()["participant"] == "L07"
     # a short pause first: the page says the trial waits for the participant
     page.wait_text("the wait", lambda t: "waiting for you: H1" in t["status"], 60)
@@ -406,7 +417,7 @@ def test_a_collision_is_explained_until_the_robot_goes_on(
     scenario.write_text(slow)
     run = live(scenario)
     page = Page(browser, run.url + "&mode=desktop", scale=SCALE)
-    xr = enter_headset(Page(browser, run.spectator_url + "?test=iwer"))  # the experimenter
+    xr = experimenter_headset(browser, run)
     # The warning's hold challenged: the moment the page shows the warning, a message of the
     # page's own asks for the screen (from a page timer, so a test that reads the page late
     # still asks within the hold); it must wait until the warning has had its time. Every ask
