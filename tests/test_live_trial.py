@@ -26,6 +26,7 @@ from .conftest import wait_until
 from .goldens import MINIMAL, THESIS
 from .participant_page import (
     NO_PICTURE_SCALE,
+    PAGE_FPS,
     VIEWPORT,
     Live,
     Page,
@@ -36,6 +37,7 @@ from .participant_page import (
     overlap,
     place_part,
     placed,
+    rendered_frames,
 )
 from hrc_orchestrator.watchdog import PARTICIPANT_WAIT_NOTICE_S
 
@@ -62,6 +64,13 @@ XR_FPS = 2
 def experimenter_headset(browser: Any, run: Live) -> Page:  # noqa: F811
     """The experimenter, a spectator, in a headset (IWER)."""
     return enter_headset(Page(browser, f"{run.spectator_url}?test=iwer&fps={XR_FPS}"))
+
+
+def xr_picture(xr: Page, name: str) -> None:
+    """A picture of the headset's view once it shows what the test has just read: its panel is
+    in the scene, drawn only at the page's next frames (XR_FPS a second)."""
+    rendered_frames(xr, 2)
+    xr.screenshot(name)
 
 
 def enter_headset(page: Page) -> Page:
@@ -177,7 +186,12 @@ def test_pauses_never_end_a_live_trial_and_a_withdrawing_hand_meets_no_robot(
     # the 3D view drawn at SCALE of the window's resolution, the page's text over it as it is
     view = page.page.evaluate("(c => [c.width, c.clientWidth])(document.getElementById('view'))")
     assert view == [round(VIEWPORT["width"] * SCALE), VIEWPORT["width"]], view
+    frames, t0 = page.page.evaluate("window.hrcApp.frames"), time.monotonic()
     pause(run, PAUSE_S)  # (a) no grab for PAUSE_S: the watchdog's WATCHDOG_S pass
+    # the page asked the bridge for no more frames than it draws (its `fps`), and got them
+    got, took_s = page.page.evaluate("window.hrcApp.frames") - frames, time.monotonic() - t0
+    if PAGE_FPS:
+        assert PAUSE_S <= got <= took_s * PAGE_FPS + 2, (got, took_s, PAGE_FPS)
     page.wait_text("the wait shown", lambda t: "waiting for you: H1" in t["status"], 10)
     assert page.state()["run"] == "waiting_first_grab"
     # (b) a pause mid-task: at least PAUSE_S of quiet
@@ -220,7 +234,7 @@ def test_the_page_says_when_the_link_is_lost_and_how_the_trial_ended(
     page.page.on("console", lambda m: console.append(f"{m.type}: {m.text}"))
     page.wait_text("connected", lambda t: "connection: connected" in t["status"], 10)
     page.screenshot("live-ready.png")
-    xr.screenshot("xr-ready.png")
+    xr_picture(xr, "xr-ready.png")
     for p in (page, xr):
         p.context.set_offline(True)
     off_ms = page.page.evaluate("performance.now()")
@@ -258,7 +272,7 @@ def test_the_page_says_when_the_link_is_lost_and_how_the_trial_ended(
     assert wait_until(
         lambda: "connection: lost" in xr.page.evaluate("window.hrcTest.panelText()"), 10
     ), xr.page.evaluate("window.hrcTest.panelText()")
-    xr.screenshot("xr-connection-lost.png")
+    xr_picture(xr, "xr-connection-lost.png")
     time.sleep(5)  # the network stays away for 5 s (the person's side; nothing races it)
     for p in (page, xr):
         p.context.set_offline(False)
@@ -281,7 +295,7 @@ def test_the_page_says_when_the_link_is_lost_and_how_the_trial_ended(
     assert wait_until(
         lambda: "The task is finished" in xr.page.evaluate("window.hrcTest.panelText()"), 10
     ), xr.page.evaluate("window.hrcTest.panelText()")
-    xr.screenshot("xr-finished.png")
+    xr_picture(xr, "xr-finished.png")
     mark = len(console)
     rc, out, err = run.trial.communicate(timeout=90)
     assert rc == 0, (out, err[-3000:])
@@ -320,7 +334,7 @@ def test_the_page_says_why_a_trial_failed(
         lambda: "ended because of a problem" in xr.page.evaluate("window.hrcTest.panelText()"),
         10,
     ), xr.page.evaluate("window.hrcTest.panelText()")
-    xr.screenshot("xr-failed.png")
+    xr_picture(xr, "xr-failed.png")
     rc, _out, err = run.trial.communicate(timeout=90)
     assert rc == 3 and "the robot controller faulted" in err, (rc, err[-2000:])
     assert not page.errors and not xr.errors, (page.errors, xr.errors)
@@ -341,7 +355,7 @@ def test_ctrl_c_ends_a_live_trial_with_its_records(
         lambda: "waiting for the participant: H1" in xr.page.evaluate("window.hrcTest.panelText()"),
         10,
     ), xr.page.evaluate("window.hrcTest.panelText()")
-    xr.screenshot("xr-waiting-for-you.png")
+    xr_picture(xr, "xr-waiting-for-you.png")
     grab_part(page, "H1")
     page.wait("task started", lambda s: s["run"] == "running", 10)
     time.sleep(2)  # some task time passes before the experimenter stops
@@ -353,7 +367,7 @@ def test_ctrl_c_ends_a_live_trial_with_its_records(
     assert wait_until(
         lambda: "has stopped the trial" in xr.page.evaluate("window.hrcTest.panelText()"), 10
     ), xr.page.evaluate("window.hrcTest.panelText()")
-    xr.screenshot("xr-stopped.png")
+    xr_picture(xr, "xr-stopped.png")
     rc, out, err = run.trial.communicate(timeout=60)
     assert rc == 130, (rc, out, err[-2000:])
     m = metrics(run.trial)
@@ -485,7 +499,7 @@ def test_a_collision_is_explained_until_the_robot_goes_on(
         xr.page.evaluate("window.hrcTest.panelText()"),
         xr.page.evaluate("window.hrcTest.messages()"),
     )
-    xr.screenshot("xr-collision.png")
+    xr_picture(xr, "xr-collision.png")
     # The hold (messageMinMs, 4 s, of the page's time after it came: a test reading a busy page
     # comes late, so the page's own record says when each message came): the hint asked for the
     # screen within it and came only after it, and nothing else came earlier either

@@ -44,10 +44,13 @@ function standParam() {
   return xy;
 }
 
-// Frames drawn per second at most outside a headset (0: every frame the browser offers). A page
-// beside the trial on one machine (the experimenter's spectator view, software WebGL) then
-// leaves the CPU to the trial. In a headset every frame is drawn: the headset shows what it gets.
+// Frames drawn per second at most outside a headset (0: every frame the browser offers), and
+// as many asked of the bridge (instead of FRAME_RATE_HZ). A page beside the trial on one machine
+// (the experimenter's spectator view, software WebGL) then leaves the CPU to the trial: its own,
+// and the bridge's, which encodes every frame for every page. In a headset every frame is drawn
+// and asked for: the headset shows what it gets.
 const MAX_FPS = numberParam('fps', 0, 1, 240);
+const FRAME_RATE_HZ = 90; // frames a second asked of the bridge (a headset's display rate)
 // The 3D view's resolution against the window's, outside a headset (0.1-1): on a machine without a
 // GPU a frame's cost goes with its pixels (software WebGL), and the panel and messages, drawn by the
 // page over the view, stay sharp.
@@ -156,6 +159,9 @@ class App {
     });
     this.desktop.placeCamera();
     this.xr = new XrInput({ renderer, root: this.root, onCalibrate: (c) => this.calibrate(c) });
+    for (const ev of ['sessionstart', 'sessionend']) {
+      renderer.xr.addEventListener(ev, () => this.bridge?.setFrameRate(this.frameRateHz()));
+    }
     document.getElementById('help').textContent = KEY_HELP.join('\n');
 
     const xrOk = await XrInput.supported();
@@ -180,12 +186,18 @@ class App {
     renderer.setAnimationLoop((t, frame) => this.onFrame(t, frame));
   }
 
+  /** Frames a second to ask of the bridge: as many as the page draws (`fps`), in a headset all. */
+  frameRateHz() {
+    return MAX_FPS && !this.renderer.xr.isPresenting ? MAX_FPS : FRAME_RATE_HZ;
+  }
+
   /** The link to a trial's bridge: the page's own server (`host` ''), or a session's trial. */
   connectBridge(host) {
     this.bridge = new Bridge({
       token: params.get('token'),
       driver: params.get('driver'),
       host,
+      frameRateHz: this.frameRateHz(),
       onMessage: (m) => this.onMessage(m),
       onStatus: (s, detail) => {
         this.hud.set('connection', detail ? `${s} (${detail})` : s);

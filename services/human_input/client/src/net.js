@@ -15,8 +15,9 @@ const DIAL_MS = 3000;
 const DIAL_BEATS = 6;
 
 export class Bridge {
-  constructor({ token, driver, onMessage, onStatus, host = '' }) {
+  constructor({ token, driver, onMessage, onStatus, host = '', frameRateHz = 90 }) {
     this.token = token;
+    this.frameRateHz = frameRateHz; // frames a second asked of the bridge (subscribe)
     this.host = host; // host:port of the trial's bridge ('': the page's own server)
     this.driver = driver;
     // this page's own id: after a redial the bridge knows it is the same page (its hands, and
@@ -50,6 +51,15 @@ export class Bridge {
     return `${proto}//${this.host || window.location.host}/ws${qs ? `?${qs}` : ''}`;
   }
 
+  /** Asks the bridge for `hz` frames a second from now on (and after every reconnect). */
+  setFrameRate(hz) {
+    if (hz === this.frameRateHz) return;
+    this.frameRateHz = hz;
+    if (this.ws?.readyState === WebSocket.OPEN) {
+      this.ws.send(JSON.stringify({ type: 'subscribe', rate_hz: hz }));
+    }
+  }
+
   setState(s, detail = '') {
     if (s === 'lost' && this.state !== 'lost') {
       this.lostAtMs = performance.now();
@@ -73,7 +83,7 @@ export class Bridge {
       this.lastHeardMs = performance.now();
       this.retries = 0;
       this.setState('connected');
-      ws.send(JSON.stringify({ type: 'subscribe', rate_hz: 90 }));
+      ws.send(JSON.stringify({ type: 'subscribe', rate_hz: this.frameRateHz }));
     };
     ws.onmessage = (ev) => {
       if (this.ws !== ws) return;

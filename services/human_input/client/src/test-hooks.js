@@ -215,7 +215,10 @@ function limitAnimationFrames(fps) {
 /** Installs window.hrcTest on the page of `app` (main.js's App, before its init); `maxFps` is
  * the page's `fps` as main.js read it (0: none), `emulatedXr` whether IWER is loaded. */
 export function install(app, { maxFps = 0, emulatedXr = false } = {}) {
-  if (emulatedXr && maxFps > 0) limitAnimationFrames(maxFps);
+  if (emulatedXr && maxFps > 0) {
+    limitAnimationFrames(maxFps);
+    app.frameRateHz = () => maxFps; // and asks the bridge for no more frames than it draws
+  }
   const hidden = new Map(); // what a test hides (hrcTest.hide): name -> reasons
   app.beforeRender = () => {
     if (hidden.size) applyHidden(app, hidden);
