@@ -15,9 +15,8 @@
   shortest first), one at a time, while the live trials run (at nice 15: it takes only the CPU
   they and the waiting tests leave idle), until the file `HRC_TEST_FILL_STOP` names exists: each
   test it starts is listed in the file `HRC_TEST_FILL_LIST` names (under a lock, so that a test
-  is started by one fill process or listed for the parallel phase, never two nor none), and the
-  parallel phase, given the same `HRC_TEST_FILL_LIST`, leaves those out. Several fill processes
-  may share the list: each starts the next test no other has listed.
+  is started here or listed for the parallel phase, never both nor neither), and the parallel
+  phase, given the same `HRC_TEST_FILL_LIST`, leaves those out.
 """
 
 from __future__ import annotations
@@ -87,7 +86,6 @@ PHASES = ("alone", "beside", "parallel", "fill")
 FILL_STOP = "HRC_TEST_FILL_STOP"  # a file: once it exists, the fill phase starts no more tests
 FILL_LIST = "HRC_TEST_FILL_LIST"  # a file: the tests the fill phase started, a node id a line
 _STOPPED = pytest.StashKey[bool]()  # the fill phase found the stop file: it starts nothing more
-_RAN = pytest.StashKey[int]()  # tests this fill process started
 
 
 def _module(item: pytest.Item) -> str:
@@ -138,16 +136,12 @@ def _filled() -> set[str]:
     return set(Path(path).read_text().splitlines())
 
 
-def _claim(nodeid: str) -> bool | None:
-    """Fill phase: lists the test as started here (True), unless another fill process listed
-    it first (None: the next one) or the stop file exists (False: no more)."""
-    with open(os.environ[FILL_LIST], "a+") as f:
+def _claim(nodeid: str) -> bool:
+    """Fill phase: lists the test as started here, unless the stop file exists (then False)."""
+    with open(os.environ[FILL_LIST], "a") as f:
         fcntl.flock(f, fcntl.LOCK_EX)  # scripts/test-all.sh creates the stop file under it
         if os.path.exists(os.environ[FILL_STOP]):
             return False
-        f.seek(0)
-        if nodeid in f.read().splitlines():
-            return None
         f.write(nodeid + "\n")
         f.flush()
         return True
@@ -155,29 +149,19 @@ def _claim(nodeid: str) -> bool | None:
 
 @pytest.hookimpl(tryfirst=True)
 def pytest_runtest_protocol(item: pytest.Item, nextitem: pytest.Item | None) -> bool | None:
-    """Fill phase: a test not claimed here is not run here (nor reported: another fill process
-    or the parallel phase runs it)."""
+    """Fill phase: a test not claimed is not run here (nor reported: the parallel phase runs
+    it)."""
     if os.environ.get("HRC_TEST_PHASE") != "fill":
         return None
-    if item.config.stash.get(_STOPPED, False):
-        return True
-    claimed = _claim(item.nodeid)
-    if claimed:
-        item.config.stash[_RAN] = item.config.stash.get(_RAN, 0) + 1
-        return None
-    if claimed is None:
-        # what the test before set up for this one (its module's fixtures, say), torn down as
-        # this test's run would have done: the next test here may be of another module
-        item.session._setupstate.teardown_exact(nextitem)
-    else:
+    if item.config.stash.get(_STOPPED, False) or not _claim(item.nodeid):
         item.config.stash[_STOPPED] = True
-    return True
+        return True
+    return None
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
     if os.environ.get("HRC_TEST_PHASE") == "fill":
-        here, n = terminalreporter.config.stash.get(_RAN, 0), len(_filled())
+        n = len(_filled())
         terminalreporter.write_line(
-            f"fill: {here} tests run here ({n} by every fill process) while the live trials "
-            "ran; the rest in the parallel phase"
+            f"fill: {n} tests run here while the live trials ran; the rest in the parallel phase"
         )

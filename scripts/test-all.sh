@@ -13,8 +13,8 @@
 # pytest runs in phases (conftest.py): first the live trials with a browser page, one at a
 # time (they must have the machine to themselves) and, at the same time at nice 10, lint and in
 # a pytest process of its own the tests that mostly wait for a timeout (they fill the CPU the
-# live ones leave idle), and at nice 15 in two more (HRC_TEST_FILLS) the shortest of the other
-# tests, each process starting the next one the other has not, until the live trials end; then every other test in HRC_TEST_WORKERS parallel workers
+# live ones leave idle), and at nice 15 in another the shortest of the other tests, one after
+# the other until the live trials end; then every other test in HRC_TEST_WORKERS parallel workers
 # (pytest-xdist; default 2, one per core of the CI machine), handed one test at a time, the
 # longest first.
 # HRC_TEST_WORKERS=0 runs all tests in one pytest process, in the same order. Each phase prints
@@ -118,34 +118,26 @@ sys.exit(pytest.main(sys.argv[1:]))' \
   HRC_TEST_PHASE=beside start_background 10 beside "$@"
   beside_pid=$bg_pid
   # ... and, at nice 15, the parallel phase's tests from its end (the shortest first) until the
-  # live trials end (conftest.py, HRC_TEST_PHASE=fill): the CPU the live trials leave idle. In
-  # HRC_TEST_FILLS processes (default 2; they share the list): one left a fifth of the CPU idle
-  # while the live trials ran, its tests waiting on processes, sockets and timeouts.
+  # live trials end (conftest.py, HRC_TEST_PHASE=fill): the CPU the live trials leave idle
   fill_name="the parallel phase's shortest tests, while the live trials ran"
   fill_list="$LOG_DIR/fill.list"
   fill_stop="$LOG_DIR/fill.stop"
   rm -f "$fill_stop"
   : >"$fill_list"
-  fill_pids=()
-  for i in $(seq "${HRC_TEST_FILLS:-2}"); do
-    echo "[test-all] pytest ($fill_name, $i): started, its output after the parallel phase's"
-    HRC_TEST_PHASE=fill HRC_TEST_FILL_STOP="$fill_stop" HRC_TEST_FILL_LIST="$fill_list" \
-      start_background 15 "fill-$i" "$@"
-    fill_pids+=("$bg_pid")
-  done
+  echo "[test-all] pytest ($fill_name): started, its output after the parallel phase's"
+  HRC_TEST_PHASE=fill HRC_TEST_FILL_STOP="$fill_stop" HRC_TEST_FILL_LIST="$fill_list" \
+    start_background 15 fill "$@"
+  fill_pid=$bg_pid
   # however this script ends (an error, Ctrl-C, SIGTERM), the background tests end with it,
   # through their teardown (SIGINT: pytest stops the trials its fixtures started), within 60 s
   stop_beside() {
-    local pids=("$beside_pid" "${fill_pids[@]}") p alive
     [ -z "$lint_pid" ] || kill -TERM -- "$lint_pid" 2>/dev/null || true
-    kill -INT "${pids[@]}" 2>/dev/null || true
+    kill -INT "$beside_pid" "$fill_pid" 2>/dev/null || true
     for _ in $(seq 120); do
-      alive=0
-      for p in "${pids[@]}"; do kill -0 "$p" 2>/dev/null && alive=1; done
-      [ "$alive" -eq 1 ] || return 0
+      kill -0 "$beside_pid" 2>/dev/null || kill -0 "$fill_pid" 2>/dev/null || return 0
       sleep 0.5
     done
-    kill -KILL "${pids[@]}" 2>/dev/null || true
+    kill -KILL "$beside_pid" "$fill_pid" 2>/dev/null || true
   }
   trap stop_beside EXIT
   trap 'exit 130' INT
@@ -162,9 +154,7 @@ sys.exit(pytest.main(sys.argv[1:]))' \
   background_ended "$beside_name" beside "$beside_pid"
   HRC_TEST_PHASE=parallel HRC_TEST_FILL_LIST="$fill_list" run_pytest "the rest, $WORKERS workers" \
     -n "$WORKERS" --dist load --maxschedchunk 1 --junitxml="$LOG_DIR/pytest-parallel.xml" "$@"
-  for i in "${!fill_pids[@]}"; do
-    background_ended "$fill_name, $((i + 1))" "fill-$((i + 1))" "${fill_pids[$i]}"
-  done
+  background_ended "$fill_name" fill "$fill_pid"
   trap - EXIT INT TERM
 else
   run_pytest "one process" --junitxml="$LOG_DIR/pytest.xml" "$@"
