@@ -144,7 +144,7 @@ def test_realtime_mode_is_paced_by_the_wall_clock(tmp_path, ik_bin) -> None:
     assert run["mode"] == "realtime" and run["ticks"] == 480
     # never ahead of the wall clock: an exchange starts no sooner than its first tick's time, so
     # the last one (a headset frame's ticks at most: 478-479) at 478/240 s or later (bounded by
-    # 479/240, this failed by 2 ms on a lightly loaded CI machine)
+    # 479/240, this failed by 2 ms on a lightly loaded machine)
     span = int(REALTIME_EXCHANGE_MAX_S * 240 + 1e-9)
     assert span == 2
     assert run["wall_s"] >= (480 - span) / 240

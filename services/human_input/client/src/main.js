@@ -5,7 +5,7 @@
 // session=1 (the page of `hrc session`: its screens between trials, each trial's bridge on the
 // port the session names), test=iwer (loads the WebXR emulation, for the browser tests only).
 import * as THREE from 'three';
-import { Bridge, HEARTBEAT_MS } from './net.js';
+import { Bridge, FRAME_RATE_HZ, HEARTBEAT_MS } from './net.js';
 import { World } from './scene.js';
 import { Robots } from './robots.js';
 import { DesktopInput, KEY_HELP } from './input-desktop.js';
@@ -50,7 +50,6 @@ function standParam() {
 // and the bridge's, which encodes every frame for every page. In a headset every frame is drawn
 // and asked for: the headset shows what it gets.
 const MAX_FPS = numberParam('fps', 0, 1, 240);
-const FRAME_RATE_HZ = 90; // frames a second asked of the bridge (a headset's display rate)
 // The 3D view's resolution against the window's, outside a headset (0.1-1): on a machine without a
 // GPU a frame's cost goes with its pixels (software WebGL), and the panel and messages, drawn by the
 // page over the view, stay sharp.

@@ -13,9 +13,10 @@ export const LOST_MS = 1200;
 export const SILENT_BEATS = 3; // beats in a row that heard nothing (with LOST_MS): the link is lost
 const DIAL_MS = 3000;
 const DIAL_BEATS = 6;
+export const FRAME_RATE_HZ = 90; // frames a second asked of the bridge (a headset's display rate)
 
 export class Bridge {
-  constructor({ token, driver, onMessage, onStatus, host = '', frameRateHz = 90 }) {
+  constructor({ token, driver, onMessage, onStatus, host = '', frameRateHz = FRAME_RATE_HZ }) {
     this.token = token;
     this.frameRateHz = frameRateHz; // frames a second asked of the bridge (subscribe)
     this.host = host; // host:port of the trial's bridge ('': the page's own server)
