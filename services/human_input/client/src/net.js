@@ -56,9 +56,12 @@ export class Bridge {
   setFrameRate(hz) {
     if (hz === this.frameRateHz) return;
     this.frameRateHz = hz;
-    if (this.ws?.readyState === WebSocket.OPEN) {
-      this.ws.send(JSON.stringify({ type: 'subscribe', rate_hz: hz }));
-    }
+    if (this.ws?.readyState === WebSocket.OPEN) this.subscribe(this.ws);
+  }
+
+  /** Tells the bridge over `ws` how many frames a second this page wants. */
+  subscribe(ws) {
+    ws.send(JSON.stringify({ type: 'subscribe', rate_hz: this.frameRateHz }));
   }
 
   setState(s, detail = '') {
@@ -84,7 +87,7 @@ export class Bridge {
       this.lastHeardMs = performance.now();
       this.retries = 0;
       this.setState('connected');
-      ws.send(JSON.stringify({ type: 'subscribe', rate_hz: this.frameRateHz }));
+      this.subscribe(ws);
     };
     ws.onmessage = (ev) => {
       if (this.ws !== ws) return;
