@@ -1,7 +1,7 @@
 """Faults injected into running trials (real processes): SIGSTOP and SIGKILL of each service, in
 lockstep and realtime. Each ends as designed (docs/ARCHITECTURE.md, "Faults"), names the service
 at fault in every record, leaves no process behind, and ``hrc run`` returns within RETURN_S
-(18 s) of the fault. The one fault a trial outlives: a logger stopped during a realtime run (the
+(25 s) of the fault. The one fault a trial outlives: a logger stopped during a realtime run (the
 router drops what it cannot take; the logger records the loss and the trial goes on).
 
 SIGKILL in lockstep is test_kill.py's."""
@@ -29,9 +29,10 @@ from .conftest import Trial, gone, wait_until
 
 FREEZE_S = 20.0  # how long a service stays stopped (the issue's figure)
 # hrc run returns within this of the fault: the barrier's 10 s timeout, then the teardown
-# (10.1-12.1 s on a quiet machine, 15.1 s once under the test command's load); below FREEZE_S,
-# so that a run that waited for the stopped victim to come back fails
-RETURN_S = 18.0
+# (10.1-12.1 s on a quiet machine, 15.1 s once under the test command's load, 18.1 s on
+# 2026-12-02 when the machine ran the whole command at less than half its usual speed). A run
+# that waits for the victim never returns: the victim is continued only after hrc run returned
+RETURN_S = 25.0
 # ... of a failure before the first tick (it took 8-13 s; 1.5 s on a quiet machine now)
 START_FAILURE_S = 5.0
 SERVICES = ["physics", *PARTICIPANTS, *OBSERVERS]
