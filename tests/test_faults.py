@@ -55,7 +55,7 @@ def _records(out: Path) -> dict[str, str]:
 
 def _fault(trial: Trial, victim: str, sig: signal.Signals) -> tuple[dict[str, int], float, str]:
     """Sends ``sig`` to the victim of a ticking trial; returns the pids, how long hrc run took to
-    return, and its stderr (the stopped victim is continued after FREEZE_S, if still there)."""
+    return, and its stderr (a stopped victim is continued once hrc run returned, or gave up)."""
     trial.wait_ticking()
     pids = trial.service_pids()
     assert set(pids) == set(SERVICES), pids
